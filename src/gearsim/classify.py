@@ -1,0 +1,227 @@
+"""Classification of a steady motion from per-period summaries of the integrator.
+
+Everything here works on what :func:`gearsim.integrate.integrate_periods` records once per mesh
+period ``T = 2 pi / w``: the Poincare section state, the number of entries into face / back
+contact (counted at *located* switches, never from samples), the time spent inside the backlash
+(integrated between located switches), force and displacement extremes and the log growth of the
+tangent vector.
+
+Definitions
+-----------
+period ``n``
+    Smallest ``n <= n_max`` such that the section points repeat after ``n`` samples over a
+    confirmation window of ``max(2 n, min_confirm)`` consecutive comparisons, with tolerance
+    ``period_rtol * scale`` where ``scale`` is the displacement range of the orbit (velocity
+    tolerance scaled by ``w``). Scale-aware: the same relative test for tiny and large orbits.
+``p``, ``q``
+    Face (x crosses +b upward) and back (x crosses -b downward) impacts per motion period.
+``I``
+    0 no disengagement; 1 face impacts only; -1 back impacts only; 2 both; -2 never in contact.
+``DC``
+    Fraction of time inside the backlash (``|x| < b``) over the analysed window.
+``Kmax``
+    Four readings (see :data:`KMAX_READINGS`): peak of the mesh force over the whole window or
+    the largest value at the Poincare section, each divided by the mean load ``Fm`` or by the
+    total static excitation ``Fm + Fe w^2``.
+Lyapunov exponent
+    Largest exponent per unit dimensionless time from the variational equations (exact across
+    the switches because the field is continuous), averaged over the analysed window.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+KMAX_READINGS = {
+    "kmax_peak_mean": "max over the steady motion of F / Fm",
+    "kmax_peak_static": "max over the steady motion of F / (Fm + Fe w^2)",
+    "kmax_section_mean": "max over the Poincare samples of F / Fm",
+    "kmax_section_static": "max over the Poincare samples of F / (Fm + Fe w^2)",
+}
+DEFAULT_KMAX = "kmax_peak_static"
+
+MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
+
+
+@dataclass
+class PeriodSummaries:
+    """Per-period records of a stretch of integration (arrays of equal length ``m``)."""
+
+    section: np.ndarray  # (m, 10) state at the start of each period
+    nface: np.ndarray  # (m,) entries into face contact
+    nback: np.ndarray  # (m,) entries into back contact
+    tdis: np.ndarray  # (m,) time inside the backlash
+    fmax: np.ndarray
+    fmin: np.ndarray
+    xmax: np.ndarray
+    xmin: np.ndarray
+    lyap: np.ndarray  # (m,) log growth of the tangent vector
+
+    def __len__(self) -> int:
+        return len(self.nface)
+
+    def tail(self, m: int) -> PeriodSummaries:
+        m = min(m, len(self))
+        return PeriodSummaries(*(getattr(self, f)[-m:] for f in self.__dataclass_fields__))
+
+    @staticmethod
+    def concat(parts: list[PeriodSummaries]) -> PeriodSummaries:
+        names = PeriodSummaries.__dataclass_fields__
+        return PeriodSummaries(*(np.concatenate([getattr(p, f) for p in parts]) for f in names))
+
+
+def estimate_period(
+    section_x: np.ndarray,
+    section_v: np.ndarray,
+    scale: float,
+    w: float,
+    n_max: int = 64,
+    period_rtol: float = 1e-5,
+    min_confirm: int = 16,
+) -> int:
+    """Smallest period ``n`` (in mesh periods) of the section sequence, or 0 if none ``<= n_max``.
+
+    Parameters
+    ----------
+    section_x, section_v
+        Poincare samples of ``x`` and ``x'`` (oldest first).
+    scale
+        Displacement scale of the orbit (its range ``xmax - xmin``); tolerances are relative to it.
+    w
+        Dimensionless mesh frequency; scales the velocity tolerance.
+    """
+    m = len(section_x)
+    scale = max(scale, 1e-9)
+    tol_x = period_rtol * scale
+    tol_v = period_rtol * scale * max(w, 1e-3)
+    for n in range(1, n_max + 1):
+        window = max(2 * n, min_confirm)
+        if window + n > m:
+            return 0
+        dx = np.abs(section_x[m - window :] - section_x[m - window - n : m - n])
+        dv = np.abs(section_v[m - window :] - section_v[m - window - n : m - n])
+        if dx.max() <= tol_x and dv.max() <= tol_v:
+            return n
+    return 0
+
+
+def impact_state(face: int, back: int, disengaged_time: float, total_time: float) -> int:
+    """Impact state I from impact counts and disengagement over a window."""
+    if face > 0 and back > 0:
+        return 2
+    if face > 0:
+        return 1
+    if back > 0:
+        return -1
+    if disengaged_time >= total_time * (1.0 - 1e-12) and total_time > 0:
+        return -2
+    return 0
+
+
+@dataclass
+class Classification:
+    """The steady motion of one cell."""
+
+    motion: str  # one of MOTIONS
+    status: str  # ok | not_converged | diverged
+    I: int
+    n: int  # 0 when no period <= n_max
+    p: int | None
+    q: int | None
+    label: str  # I/nT, or 'chaos' / 'quasi-periodic' / 'unsettled' / 'diverged'
+    label_npq: str  # n-p-q or ''
+    dc: float
+    kmax_peak_mean: float
+    kmax_peak_static: float
+    kmax_section_mean: float
+    kmax_section_static: float
+    kmin_peak_mean: float
+    lyapunov: float
+    x_min: float
+    x_max: float
+    converged: bool
+    window_periods: int
+
+    @property
+    def kmax(self) -> float:
+        return getattr(self, DEFAULT_KMAX)
+
+
+def classify_motion(
+    s: PeriodSummaries,
+    *,
+    w: float,
+    b: float,
+    eps: float,
+    xi: float,
+    Fm: float,
+    Fe: float,
+    n: int,
+    lyap_threshold: float = 0.005,
+    settled: bool = True,
+) -> Classification:
+    """Classify the motion recorded in ``s`` given its period ``n`` (0 if none was found)."""
+    T = 2.0 * math.pi / w
+    if n > 0:
+        reps = max(1, len(s) // n)
+        win = s.tail(reps * n)
+        last = s.tail(n)
+        p = int(last.nface.sum())
+        q = int(last.nback.sum())
+    else:
+        win = s
+        p = q = None
+    m = len(win)
+    total = m * T
+    dis = float(win.tdis.sum())
+    face_any = int(win.nface.sum())
+    back_any = int(win.nback.sum())
+    I = impact_state(face_any if n == 0 else p, back_any if n == 0 else q, dis, total)
+    dc = dis / total if total > 0 else 0.0
+    # mesh force at the section: cos(w k T) = 1 there
+    xs = win.section[:, 0]
+    vs = win.section[:, 1]
+    f_dead = np.where(xs > b, xs - b, np.where(xs < -b, xs + b, 0.0))
+    f_sec = (1.0 + eps) * f_dead + 2.0 * xi * vs
+    static = Fm + Fe * w * w
+    fm = Fm if Fm > 0 else float("nan")
+    lyap = float(win.lyap.sum() / total) if total > 0 else float("nan")
+    if n > 0:
+        motion = "periodic"
+        status = "ok" if settled else "not_converged"
+        label = f"{I}/{n}T"
+        label_npq = f"{n}-{p}-{q}"
+    else:
+        if lyap > lyap_threshold:
+            motion = "chaos"
+        elif lyap >= -lyap_threshold:
+            motion = "quasi-periodic"
+        else:
+            motion = "unsettled"
+        status = "ok" if motion != "unsettled" else "not_converged"
+        label = motion
+        label_npq = ""
+    return Classification(
+        motion=motion,
+        status=status,
+        I=I,
+        n=n,
+        p=p,
+        q=q,
+        label=label,
+        label_npq=label_npq,
+        dc=dc,
+        kmax_peak_mean=float(win.fmax.max() / fm),
+        kmax_peak_static=float(win.fmax.max() / static),
+        kmax_section_mean=float(f_sec.max() / fm),
+        kmax_section_static=float(f_sec.max() / static),
+        kmin_peak_mean=float(win.fmin.min() / fm),
+        lyapunov=lyap,
+        x_min=float(win.xmin.min()),
+        x_max=float(win.xmax.max()),
+        converged=(n > 0 and settled) or motion in ("chaos", "quasi-periodic"),
+        window_periods=m,
+    )

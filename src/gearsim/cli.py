@@ -1,0 +1,58 @@
+"""The ``gearsim`` command line: one subcommand per module in :mod:`gearsim.commands`.
+
+Each module there defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``;
+modules are discovered automatically, so a new subcommand is one new file.
+Bad input exits with status 2 and one line on stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from . import __version__, commands
+from .parameters import ParameterError
+
+
+class UsageError(Exception):
+    """Bad user input detected by a subcommand (exit status 2, one line)."""
+
+
+def _subcommand_modules():
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue
+        yield importlib.import_module(f"{commands.__name__}.{info.name}")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 2
+        sys.stderr.write(f"gearsim: error: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="gearsim", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"gearsim {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for mod in _subcommand_modules():
+        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except (ParameterError, UsageError) as exc:
+        sys.stderr.write(f"gearsim {args.command}: error: {exc}\n")
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,190 @@
+"""Model parameters: the dimensionless set the equations use, validated on construction.
+
+All quantities here are dimensionless (see docs/model.md for the scalings):
+
+* lengths are divided by the nominal length ``b_c`` (so ``b`` is half the backlash over ``b_c``),
+* time is ``tau = w_n t`` with ``w_n = sqrt(Km / Me)``,
+* forces are divided by ``Km b_c`` (so ``Fm`` is the mean load, ``Fe`` the transmission-error
+  amplitude ``Em / b_c``; the error forcing is ``Fe w**2 cos(w tau + phi_e)``).
+
+The dimensional gear description and its conversion live in :mod:`gearsim.geometry`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+from . import model as _m
+
+
+class ParameterError(ValueError):
+    """A parameter is outside its allowed range. The message names the parameter and the range."""
+
+
+# name -> (lower, upper, lower inclusive, upper inclusive, meaning)
+_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
+    "w": (0.0, 100.0, False, True, "dimensionless mesh frequency w_h / w_n"),
+    "Fm": (0.0, 1e3, True, True, "mean load Tp / (Rp Km b_c)"),
+    "Fe": (0.0, 1e3, True, True, "transmission-error amplitude Em / b_c"),
+    "eps": (0.0, 1.0, True, False, "mesh-stiffness fluctuation Ka / Km"),
+    "xi": (0.0, 10.0, True, True, "mesh damping ratio"),
+    "b": (0.0, 1e3, True, True, "half backlash B / b_c"),
+    "phi_e": (-2 * math.pi, 2 * math.pi, True, True, "phase of the error forcing, rad"),
+    "friction": (0.0, 1.0, True, False, "friction factor gamma = mu L_p / R_p"),
+    "alpha": (0.0, math.pi / 2, True, True, "pitch-curve pressure angle, rad"),
+    "var_ratio": (0.0, 10.0, True, True, "variable-ratio inertial forcing amplitude"),
+    "var_ratio_order": (0.0, 10.0, False, True, "variable-ratio frequency over mesh frequency n1/zp"),
+    "rho_p": (0.0, 1e3, True, True, "mass ratio Me / M_p"),
+    "rho_g": (0.0, 1e3, True, True, "mass ratio Me / M_g"),
+    "kappa_py": (0.0, 1e8, False, True, "pinion bearing stiffness (K_py / Km) rho_p"),
+    "kappa_pz": (0.0, 1e8, False, True, "pinion bearing stiffness (K_pz / Km) rho_p"),
+    "kappa_gy": (0.0, 1e8, False, True, "gear bearing stiffness (K_gy / Km) rho_g"),
+    "kappa_gz": (0.0, 1e8, False, True, "gear bearing stiffness (K_gz / Km) rho_g"),
+    "xi_py": (0.0, 10.0, True, True, "pinion bearing damping ratio (Y)"),
+    "xi_pz": (0.0, 10.0, True, True, "pinion bearing damping ratio (Z)"),
+    "xi_gy": (0.0, 10.0, True, True, "gear bearing damping ratio (Y)"),
+    "xi_gz": (0.0, 10.0, True, True, "gear bearing damping ratio (Z)"),
+    "b_py": (0.0, 1e3, True, True, "pinion bearing half clearance (Y) / b_c"),
+    "b_pz": (0.0, 1e3, True, True, "pinion bearing half clearance (Z) / b_c"),
+    "b_gy": (0.0, 1e3, True, True, "gear bearing half clearance (Y) / b_c"),
+    "b_gz": (0.0, 1e3, True, True, "gear bearing half clearance (Z) / b_c"),
+}
+
+MODELS = ("6dof", "1dof")
+
+
+def _range_text(name: str) -> str:
+    lo, hi, lo_in, hi_in, _ = _RANGES[name]
+    return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+
+
+def check_value(name: str, value: Any) -> float:
+    """Return ``value`` as a float if it is a finite number inside the range of ``name``.
+
+    Raises
+    ------
+    ParameterError
+        One line naming the parameter, the bad value and the allowed range.
+    """
+    if name not in _RANGES:
+        allowed = ", ".join(sorted(_RANGES))
+        raise ParameterError(f"unknown parameter '{name}'; allowed: {allowed}")
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(
+            f"parameter '{name}' must be a number in {_range_text(name)}, got {value!r}"
+        )
+    v = float(value)
+    lo, hi, lo_in, hi_in, meaning = _RANGES[name]
+    ok = math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
+    if not ok:
+        raise ParameterError(
+            f"parameter '{name}' ({meaning}) = {value!r} is outside the allowed range "
+            f"{_range_text(name)}"
+        )
+    return v
+
+
+@dataclass(frozen=True)
+class ModelParameters:
+    """Dimensionless parameters of the curve-face gear model (immutable, validated).
+
+    Defaults are MODEL.md's starting reconstruction (single-DOF fit at xi = 0.05:
+    Fe/Fm = 1.724, eps = 0.371, phi_e = -45 deg) with stiff bearings; the calibrated
+    standard set lives in ``config/standard_parameters.yaml``.
+    """
+
+    w: float = 1.0
+    Fm: float = 0.1
+    Fe: float = 0.1724
+    eps: float = 0.371
+    xi: float = 0.05
+    b: float = 1.0
+    phi_e: float = -math.pi / 4
+    friction: float = 0.0
+    alpha: float = math.radians(20.0)
+    var_ratio: float = 0.0
+    var_ratio_order: float = 2.0 / 18.0
+    rho_p: float = 0.2
+    rho_g: float = 0.2
+    kappa_py: float = 20.0
+    kappa_pz: float = 20.0
+    kappa_gy: float = 20.0
+    kappa_gz: float = 20.0
+    xi_py: float = 0.03
+    xi_pz: float = 0.03
+    xi_gy: float = 0.03
+    xi_gz: float = 0.03
+    b_py: float = 0.0
+    b_pz: float = 0.0
+    b_gy: float = 0.0
+    b_gz: float = 0.0
+    model: str = "6dof"
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name == "model":
+                continue
+            object.__setattr__(self, f.name, check_value(f.name, getattr(self, f.name)))
+        if self.model not in MODELS:
+            raise ParameterError(f"parameter 'model' = {self.model!r}; allowed: {', '.join(MODELS)}")
+
+    # ------------------------------------------------------------------ helpers
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all numeric parameters (what a plane axis or ``--set`` may name)."""
+        return tuple(_RANGES)
+
+    @classmethod
+    def from_mapping(cls, values: dict[str, Any]) -> ModelParameters:
+        """Build from a mapping, rejecting unknown keys with a clear error."""
+        known = {f.name for f in fields(cls)}
+        for key in values:
+            if key not in known:
+                raise ParameterError(
+                    f"unknown parameter '{key}'; allowed: {', '.join(sorted(known))}"
+                )
+        return cls(**values)
+
+    def with_(self, **changes: Any) -> ModelParameters:
+        """A copy with some parameters changed (validated again)."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @property
+    def static_load(self) -> float:
+        """Total static excitation amplitude ``Fm + Fe w**2`` (a Kmax normaliser)."""
+        return self.Fm + self.Fe * self.w**2
+
+    @property
+    def mesh_period(self) -> float:
+        """Dimensionless mesh period ``T = 2 pi / w``."""
+        return 2.0 * math.pi / self.w
+
+    def to_array(self) -> np.ndarray:
+        """Pack into the float64 vector the Numba kernels read (layout in :mod:`gearsim.model`)."""
+        p = np.zeros(_m.N_PARAMS)
+        p[_m.P_W] = self.w
+        p[_m.P_FM] = self.Fm
+        p[_m.P_FE] = self.Fe
+        p[_m.P_EPS] = self.eps
+        p[_m.P_XI] = self.xi
+        p[_m.P_B] = self.b
+        p[_m.P_PHI_E] = self.phi_e
+        p[_m.P_GAMMA] = self.friction
+        p[_m.P_ALPHA] = self.alpha
+        p[_m.P_VR_AMP] = self.var_ratio
+        p[_m.P_VR_ORDER] = self.var_ratio_order
+        p[_m.P_RHO_P] = self.rho_p
+        p[_m.P_RHO_G] = self.rho_g
+        p[_m.P_DOF6] = 1.0 if self.model == "6dof" else 0.0
+        for k, name in enumerate(("py", "pz", "gy", "gz")):
+            p[_m.P_KAPPA + k] = getattr(self, f"kappa_{name}")
+            p[_m.P_XI_BRG + k] = getattr(self, f"xi_{name}")
+            p[_m.P_B_BRG + k] = getattr(self, f"b_{name}")
+        return p
