@@ -258,8 +258,9 @@ def integrate_periods(
     active = np.zeros(N_SWITCH, dtype=np.bool_)
     for c in range(N_SWITCH):
         gaps[c] = p[SWITCH_GAP[c]]
-        mode[c] = region_of(y[SWITCH_COORD[c]], gaps[c])
         active[c] = c == 0 or (dof6 and gaps[c] > 0.0)
+        # a channel without gap is linear: region +1 gives f(u, 0) = u on both sides
+        mode[c] = region_of(y[SWITCH_COORD[c]], gaps[c]) if active[c] else 1
     n_rk = max(steps_per_period, int(math.ceil(T / hmax)))
     n_rk = substeps * int(math.ceil(n_rk / substeps))
     h_rk = T / n_rk
@@ -276,7 +277,7 @@ def integrate_periods(
         t_start = (k0 + k) * T
         for i in range(N_STATE):
             sec[k, i] = y[i]
-        if row < traj_rows:
+        if k == 0 and row < traj_rows:
             for i in range(N_STATE):
                 traj[row, i] = y[i]
             row += 1

@@ -1,0 +1,57 @@
+"""The compiled integrators against scipy's DOP853 with event location."""
+
+import numpy as np
+import pytest
+from reference import solve_ivp_reference
+
+from gearsim.integrate import METHOD_DP5
+from gearsim.model import static_state
+from gearsim.parameters import ModelParameters
+from gearsim.simulate import IntegrationSettings, run_periods
+
+# impacting cells: one-sided at b = 1 (1-1-0, 2-2-0), double-sided at b = 0.15 / 0.3
+CELLS = [
+    dict(w=0.8, b=1.0),
+    dict(w=1.05, b=1.0),
+    dict(w=0.8, b=0.15),
+    dict(w=1.2, b=0.3),
+]
+N_PERIODS = 12
+
+
+def _ours(p, y0, method, **kw):
+    st = IntegrationSettings(method=method, **kw)
+    r = run_periods(p, y0, N_PERIODS + 1, st, event_capacity=10_000)
+    T = 2 * np.pi / p.w
+    keep = ((r.events_code // 4) == 0) & (r.events_t < N_PERIODS * T)
+    return r.summaries.section, r.events_t[keep]
+
+
+@pytest.fixture(scope="module", params=range(len(CELLS)))
+def reference(request):
+    p = ModelParameters(**CELLS[request.param])
+    y0 = static_state(p.to_array())
+    y0[0] += 0.3  # start away from equilibrium so the transient impacts too
+    sections, switches = solve_ivp_reference(p, y0, N_PERIODS)
+    assert len(switches) >= 4, "cell must impact for the test to mean anything"
+    return p, y0, sections, switches
+
+
+def test_dp5_poincare_points_and_switch_times(reference):
+    p, y0, sections, switches = reference
+    sec, sw = _ours(p, y0, "dp5", rtol=1e-11, atol=1e-13)
+    np.testing.assert_allclose(sec[: N_PERIODS + 1], sections, rtol=0, atol=1e-6)
+    assert len(sw) == len(switches)
+    assert np.abs(sw - switches).max() < 1e-8
+
+
+def test_rk4_poincare_points_and_switch_times(reference):
+    p, y0, sections, switches = reference
+    sec, sw = _ours(p, y0, "rk4", steps_per_period=2048, hmax=0.05)
+    np.testing.assert_allclose(sec[: N_PERIODS + 1], sections, rtol=0, atol=1e-6)
+    assert len(sw) == len(switches)
+    assert np.abs(sw - switches).max() < 1e-8
+
+
+def test_method_constant_is_dp5_by_default():
+    assert IntegrationSettings().method == "dp5" and METHOD_DP5 == 0
