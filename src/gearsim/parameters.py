@@ -37,7 +37,7 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "friction": (0.0, 1.0, True, False, "friction factor gamma = mu L_p / R_p"),
     "alpha": (0.0, math.pi / 2, True, True, "pitch-curve pressure angle, rad"),
     "var_ratio": (0.0, 10.0, True, True, "variable-ratio inertial forcing amplitude"),
-    "var_ratio_order": (0.0, 10.0, False, True, "variable-ratio frequency over mesh frequency n1/zp"),
+    "var_ratio_order": (0.0, 10.0, False, True, "variable-ratio frequency / mesh frequency"),
     "rho_p": (0.0, 1e3, True, True, "mass ratio Me / M_p"),
     "rho_g": (0.0, 1e3, True, True, "mass ratio Me / M_g"),
     "kappa_py": (0.0, 1e8, False, True, "pinion bearing stiffness (K_py / Km) rho_p"),
@@ -130,7 +130,9 @@ class ModelParameters:
                 continue
             object.__setattr__(self, f.name, check_value(f.name, getattr(self, f.name)))
         if self.model not in MODELS:
-            raise ParameterError(f"parameter 'model' = {self.model!r}; allowed: {', '.join(MODELS)}")
+            raise ParameterError(
+                f"parameter 'model' = {self.model!r}; allowed: {', '.join(MODELS)}"
+            )
 
     # ------------------------------------------------------------------ helpers
     @classmethod

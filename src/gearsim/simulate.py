@@ -137,7 +137,7 @@ def run_periods(
     h_init: float = 0.0,
     parray: np.ndarray | None = None,
 ) -> Run:
-    """Integrate ``n_periods`` mesh periods from ``y0`` (not modified) at ``tau = start_period T``."""
+    """Integrate ``n_periods`` mesh periods from ``y0`` (unchanged) at ``tau = start_period T``."""
     p = params.to_array() if parray is None else parray
     y = np.zeros(20)
     y[: len(y0)] = y0

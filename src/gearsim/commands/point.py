@@ -16,7 +16,9 @@ HELP = "simulate one point and print its pattern, DC, Kmax, Lyapunov exponent an
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--omega", "-w", type=float, required=True, help="dimensionless mesh frequency w")
+    p.add_argument(
+        "--omega", "-w", type=float, required=True, help="dimensionless mesh frequency w"
+    )
     add_parameter_arguments(p)
     p.add_argument("--save", metavar="PARQUET", help="write time series, Poincare points, spectrum")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
@@ -75,7 +77,9 @@ def _save(path: str, params, res, settings) -> None:
     ts = pd.DataFrame({"tau": tr.tau, "x": tr.state[:, 0], "xdot": tr.state[:, 1],
                        "mesh_force": tr.mesh_force})
     table = pa.table({
-        "kind": ["time_series"] * len(ts) + ["poincare"] * len(tr.section) + ["spectrum"] * len(freq),
+        "kind": ["time_series"] * len(ts)
+        + ["poincare"] * len(tr.section)
+        + ["spectrum"] * len(freq),
         "tau": np.concatenate([ts.tau, np.arange(len(tr.section)) * params.mesh_period, freq * 0]),
         "x": np.concatenate([ts.x, tr.section[:, 0], np.zeros(len(freq))]),
         "xdot": np.concatenate([ts.xdot, tr.section[:, 1], np.zeros(len(freq))]),
