@@ -20,9 +20,9 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``)::
             + (u_py'' - u_gy'') d_y + (u_pz'' - u_gz'') d_z
 
 ``f(x, b)`` is the dead zone (x - b above b, 0 inside, x + b below -b);
-``lambda = sign(sin(w tau))`` is the friction direction (it flips at the pitch point, mid mesh cycle). With ``P_DOF6 = 0`` the
-bearings are rigid and the single-DOF form ``x'' + 2 xi x' + (1 + eps cos w tau) f(x, b) = ...``
-remains.
+``lambda = sign(sin(w tau))`` is the friction direction (it flips at the pitch point, mid
+mesh cycle). With ``P_DOF6 = 0`` the bearings are rigid and the single-DOF form
+``x'' + 2 xi x' + (1 + eps cos w tau) f(x, b) = ...`` remains.
 
 Piecewise-smooth handling: every dead zone is evaluated in a *frozen region* (``mode``) chosen at
 the start of a step; the integrator locates the switching surfaces and changes ``mode`` there.
