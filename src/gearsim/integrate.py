@@ -56,7 +56,6 @@ STATUS_DIVERGED = 1
 STATUS_STEP_COLLAPSE = 2
 STATUS_NAMES = {STATUS_OK: "ok", STATUS_DIVERGED: "diverged", STATUS_STEP_COLLAPSE: "diverged"}
 
-DIVERGENCE_BOUND = 1.0e6
 
 # Dormand-Prince 5(4) tableau
 _A21 = 1.0 / 5.0
@@ -226,6 +225,7 @@ def integrate_periods(
     traj,
     ev_t,
     ev_code,
+    bound=1.0e6,
 ):
     """Integrate ``n_periods`` mesh periods starting at ``tau = k0 T`` from state ``y0``.
 
@@ -236,7 +236,7 @@ def integrate_periods(
     ``lyap[k]`` (log growth of the tangent vector, renormalised each period). If ``traj`` has
     rows, it receives the state at every output point (``substeps`` per period, plus the start).
     Switch events go to ``ev_t``/``ev_code`` (code = 4 * channel + new region + 1) up to their
-    capacity.
+    capacity. A state component beyond ``bound`` (or NaN) stops the run with status 1.
 
     Returns ``(status, periods_done, n_events, h_last, n_steps)``.
     """
@@ -477,7 +477,7 @@ def integrate_periods(
                 xmn = min(xmn, y[0])
                 bad = False
                 for i in range(N_STATE):
-                    if not (abs(y[i]) < DIVERGENCE_BOUND):
+                    if not (abs(y[i]) < bound):
                         bad = True
                 if bad:
                     status = 1

@@ -46,6 +46,8 @@ class IntegrationSettings:
         Largest period looked for, relative tolerance of the period test.
     lyap_threshold
         Lyapunov exponents above it (per unit tau) mean chaos, within +/- it quasi-periodic.
+    divergence_bound
+        A state component beyond it (or NaN) ends the cell with status ``diverged``.
     """
 
     method: str = "dp5"
@@ -60,6 +62,7 @@ class IntegrationSettings:
     n_max: int = 64
     period_rtol: float = 1e-5
     lyap_threshold: float = 0.005
+    divergence_bound: float = 1.0e6
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -72,6 +75,7 @@ class IntegrationSettings:
             "hmax": (0, 100),
             "period_rtol": (0, 1),
             "lyap_threshold": (0, 10),
+            "divergence_bound": (0, 1e300),
         }
         for name, (lo, hi) in positive.items():
             v = getattr(self, name)
@@ -173,6 +177,7 @@ def run_periods(
         traj,
         ev_t,
         ev_c,
+        settings.divergence_bound,
     )
     s = PeriodSummaries(sec, ints[0], ints[1], *floats)
     if done < m:
