@@ -55,7 +55,12 @@ P_DOF6 = 13
 P_KAPPA = 14  # 4 entries: py, pz, gy, gz
 P_XI_BRG = 18  # 4 entries
 P_B_BRG = 22  # 4 entries
-N_PARAMS = 26
+# derived entries, precomputed once so the right-hand side needs only cos/sin of the mesh phase
+P_COS_ALPHA = 26
+P_SIN_ALPHA = 27
+P_COS_PHI_E = 28
+P_SIN_PHI_E = 29
+N_PARAMS = 30
 
 N_STATE = 10
 N_SWITCH = 5  # switching channels: mesh, then the four bearing coordinates
@@ -103,6 +108,7 @@ def rhs(t, y, p, mode, dy, tangent):
     w = p[P_W]
     ph = w * t
     c = math.cos(ph)
+    sn = math.sin(ph)
     stiff = 1.0 + p[P_EPS] * c
     xi = p[P_XI]
     x = y[0]
@@ -110,16 +116,17 @@ def rhs(t, y, p, mode, dy, tangent):
     F = stiff * dead_zone(x, p[P_B], mode[0]) + 2.0 * xi * v
     fric = 1.0
     if p[P_GAMMA] != 0.0:
-        fric = 1.0 + p[P_GAMMA] * (1.0 if math.sin(ph) >= 0.0 else -1.0)
-    drive = p[P_FM] + p[P_FE] * w * w * math.cos(ph + p[P_PHI_E])
+        fric = 1.0 + p[P_GAMMA] * (1.0 if sn >= 0.0 else -1.0)
+    # cos(ph + phi_e) by the addition theorem (phi_e's cos/sin are precomputed)
+    drive = p[P_FM] + p[P_FE] * w * w * (c * p[P_COS_PHI_E] - sn * p[P_SIN_PHI_E])
     if p[P_VR_AMP] != 0.0:
         drive += p[P_VR_AMP] * w * w * math.sin(p[P_VR_ORDER] * ph)
     acc = drive - F * fric
     dy[0] = v
     s_mesh = 1.0 if mode[0] != 0 else 0.0
     if p[P_DOF6] != 0.0:
-        ca = math.cos(p[P_ALPHA])
-        sa = math.sin(p[P_ALPHA])
+        ca = p[P_COS_ALPHA]
+        sa = p[P_SIN_ALPHA]
         rp = p[P_RHO_P]
         rg = p[P_RHO_G]
         a_py = (

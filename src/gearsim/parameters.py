@@ -185,6 +185,10 @@ class ModelParameters:
         p[_m.P_RHO_P] = self.rho_p
         p[_m.P_RHO_G] = self.rho_g
         p[_m.P_DOF6] = 1.0 if self.model == "6dof" else 0.0
+        p[_m.P_COS_ALPHA] = math.cos(self.alpha)
+        p[_m.P_SIN_ALPHA] = math.sin(self.alpha)
+        p[_m.P_COS_PHI_E] = math.cos(self.phi_e)
+        p[_m.P_SIN_PHI_E] = math.sin(self.phi_e)
         for k, name in enumerate(("py", "pz", "gy", "gz")):
             p[_m.P_KAPPA + k] = getattr(self, f"kappa_{name}")
             p[_m.P_XI_BRG + k] = getattr(self, f"xi_{name}")
