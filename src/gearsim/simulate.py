@@ -56,8 +56,8 @@ class IntegrationSettings:
     hmax: float = 0.2
     steps_per_period: int = 256
     transient: int = 150
-    transient_continuation: int = 40
-    chunk: int = 32
+    transient_continuation: int = 16
+    chunk: int = 24
     max_periods: int = 256
     n_max: int = 64
     period_rtol: float = 1e-5
