@@ -167,7 +167,7 @@ def standard_parameters(record: dict, *, bearing_ratio: float, bearing_xi: float
     for k, note in PAPER.items():
         prov[k] = ("paper", note)
     prov.update({
-        "face_width_mm": ("assumed", "Table 1 lost; 20 mm (5 m)"),
+        "face_width_mm": ("assumed", "Table 1 lost; 20 mm = 5 modules"),
         "c_m": ("ISO formula", "ISO 6336-1 C_M = 0.8"),
         "eps_stiffness": ("calibrated", "Ka / Km = eps"),
         "mass_p": ("assumed", "solid steel disk, pitch radius x face width"),
