@@ -1,0 +1,97 @@
+"""The dask client of a pipeline job.
+
+By default each tile job starts its own ``LocalCluster`` with one single-threaded worker process
+per Snakemake thread (``--workers {threads}``); when ``cluster.scheduler_address`` is set, the job
+connects to that running scheduler instead (many machines, see docs/pipeline.md).
+
+Workers run Numba kernels with ``NUMBA_NUM_THREADS=1`` (no nested parallelism) and read the
+on-disk Numba cache that ``gearsim compile`` warmed before the workers started.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any
+
+#: Environment every worker gets (inherited by LocalCluster processes).
+WORKER_ENV = {
+    "NUMBA_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+}
+
+
+def _prepare_environment() -> None:
+    for k, v in WORKER_ENV.items():
+        os.environ.setdefault(k, v)
+    if "NUMBA_CACHE_DIR" not in os.environ:
+        from .tiles import _project_root
+
+        os.environ["NUMBA_CACHE_DIR"] = str(_project_root() / ".numba_cache")
+
+
+@contextlib.contextmanager
+def open_client(workers: int = 1, scheduler_address: str | None = None) -> Iterator[Any]:
+    """A ``distributed.Client``: connected to ``scheduler_address``, or to a new LocalCluster.
+
+    Parameters
+    ----------
+    workers
+        Worker processes of the LocalCluster (one thread each); ignored with a scheduler address.
+    scheduler_address
+        ``tcp://host:port`` of a running ``dask scheduler``; ``None`` = LocalCluster.
+    """
+    _prepare_environment()
+    from distributed import Client, LocalCluster
+
+    if scheduler_address:
+        try:
+            client = Client(scheduler_address, timeout="30s")
+        except (OSError, TimeoutError) as exc:
+            from .cli import UsageError
+
+            raise UsageError(f"cannot reach dask scheduler {scheduler_address}: {exc}") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    if workers < 1:
+        from .cli import UsageError
+
+        raise UsageError(f"--workers must be >= 1, got {workers}")
+    with (
+        LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=40,  # logging.ERROR
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client
+
+
+def map_unordered(client, fn: Callable, items: Sequence[Any]) -> Iterator[Any]:
+    """Submit ``fn(item)`` for every item and yield results as they finish.
+
+    Tasks are submitted with ``pure=False`` so repeated runs are never served from a cache.
+    """
+    from distributed import as_completed
+
+    futures = client.map(fn, list(items), pure=False)
+    for fut in as_completed(futures):
+        yield fut.result()
+        fut.release()
+
+
+def describe(client) -> str:
+    """One line: scheduler address and worker count."""
+    info = client.scheduler_info()
+    workers = info.get("workers", {})
+    threads = sum(w.get("nthreads", 0) for w in workers.values())
+    return f"scheduler {info.get('address', '?')}: {len(workers)} workers, {threads} threads"

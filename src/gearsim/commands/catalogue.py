@@ -1,0 +1,207 @@
+"""``gearsim catalogue``: combine tiles, audit a plane, build the SQLite catalogue.
+
+Subcommands (each is one Snakemake rule):
+
+``gearsim catalogue cells --plane wb --tiles T0 T1 ... --out results/wb/cells.parquet``
+``gearsim catalogue audit --plane wb --cells results/wb/cells.parquet --out results/wb/audit.parquet``
+``gearsim catalogue build --cells C1 C2 --sweeps S1 S2 [--audits A1 A2] --out results/catalogue.sqlite``
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from ..cli import UsageError
+from .simulate_tile import add_config_arguments, config_from_args
+
+NAME = "catalogue"
+HELP = "combine a plane's tiles, audit it, or build results/catalogue.sqlite"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="action", required=True, parser_class=type(p))
+    c = sub.add_parser("cells", help="combine a plane's tile files into cells.parquet")
+    c.add_argument("--plane", required=True)
+    c.add_argument("--tiles", nargs="+", required=True)
+    c.add_argument("--out", required=True)
+    add_config_arguments(c)
+    a = sub.add_parser("audit", help="re-simulate a sample of cells at tightened tolerance")
+    a.add_argument("--plane", required=True)
+    a.add_argument("--cells", required=True, help="the plane's cells.parquet")
+    a.add_argument("--out", required=True)
+    add_config_arguments(a)
+    b = sub.add_parser("build", help="build the SQLite catalogue (one transaction, atomic)")
+    b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
+    b.add_argument("--sweeps", nargs="*", default=[], help="sweep Parquet files")
+    b.add_argument("--audits", nargs="*", default=[], help="audit Parquet files")
+    b.add_argument("--out", required=True)
+
+
+def plane_record(config: dict, plane: str) -> dict:
+    from .. import tiles
+
+    pl = config["planes"][plane]
+    return {
+        "name": plane,
+        "x": dict(pl["x"]),
+        "y": dict(pl["y"]),
+        "fixed": dict(pl.get("fixed", {})),
+        "parameters": tiles.plane_base(config, plane).to_dict(),
+        "config_hash": tiles.config_hash(tiles.plane_subtree(config, plane)),
+        "code_version": tiles.code_version(),
+    }
+
+
+def _cells(args) -> int:
+    from .. import catalogue
+
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(f"unknown plane '{args.plane}'")
+    out = catalogue.combine_tiles(args.tiles, args.out, plane_record(config, args.plane))
+    print(f"plane {args.plane}: {len(args.tiles)} tiles -> {out}", file=sys.stderr)
+    return 0
+
+
+def audit_frame(config: dict, plane: str, cells, progress=None):
+    """Re-simulate a deterministic sample of cells at ``IntegrationSettings.tightened()``.
+
+    Each audited cell starts exactly where the pipeline started it: from the final state of its
+    left neighbour in the row (continuation), or from rest for the first cell of a row.
+    """
+    import numpy as np
+    import pandas as pd
+
+    from .. import tiles
+    from ..simulate import simulate_cell
+
+    aud = config["audit"]
+    n = len(cells)
+    k = int(round(aud["fraction"] * n))
+    if aud["fraction"] > 0:
+        k = max(k, 1)
+    rng = np.random.default_rng(int(aud["seed"]))
+    pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
+    base = tiles.plane_base(config, plane)
+    pl = config["planes"][plane]
+    tight = tiles.integration_settings(config).tightened()
+    index = {
+        (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
+    }
+    rows = []
+    t0 = time.perf_counter()
+    for m, r in enumerate(pick):
+        c = cells.iloc[r]
+        i, j = int(c["i"]), int(c["j"])
+        params = base.with_(**{pl["x"]["name"]: float(c["x"]), pl["y"]["name"]: float(c["y"])})
+        u0, start = None, 0
+        left = index.get((i - 1, j))
+        if left is not None and cells.iloc[left]["status"] != "diverged":
+            u0 = np.asarray(cells.iloc[left]["final_state"], dtype=float)
+            start = int(cells.iloc[left]["final_period"])
+        res = simulate_cell(params, u0, settings=tight, start_period=start)
+        t = res.row()
+        rows.append(
+            {
+                "plane": plane,
+                "i": i,
+                "j": j,
+                "x": float(c["x"]),
+                "y": float(c["y"]),
+                "label": c["label"],
+                "label_npq": c["label_npq"],
+                "tight_label": t["label"],
+                "tight_label_npq": t["label_npq"],
+                "tight_I": t["I"],
+                "tight_dc": t["dc"],
+                "tight_kmax": t["kmax"],
+                "tight_lyapunov": t["lyapunov"],
+                "agree": bool(t["label"] == c["label"] and t["label_npq"] == c["label_npq"]),
+            }
+        )
+        if progress:
+            progress(m + 1, len(pick), time.perf_counter() - t0)
+    return pd.DataFrame(
+        rows,
+        columns=[
+            "plane",
+            "i",
+            "j",
+            "x",
+            "y",
+            "label",
+            "label_npq",
+            "tight_label",
+            "tight_label_npq",
+            "tight_I",
+            "tight_dc",
+            "tight_kmax",
+            "tight_lyapunov",
+            "agree",
+        ],
+    )
+
+
+def _audit(args) -> int:
+    import pandas as pd
+
+    from .. import catalogue, tiles
+    from .simulate_tile import Progress
+
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(f"unknown plane '{args.plane}'")
+    cells = pd.read_parquet(args.cells)
+    started = catalogue.now_iso()
+    t0 = time.perf_counter()
+    progress = Progress(
+        f"audit {args.plane}", max(1, int(config["audit"]["fraction"] * len(cells)))
+    )
+    df = audit_frame(config, args.plane, cells, progress)
+    progress.close()
+    agreement = float(df["agree"].mean()) if len(df) else float("nan")
+    threshold = float(config["audit"]["threshold"])
+    subtree = {**tiles.plane_subtree(config, args.plane), "audit": dict(config["audit"])}
+    prov = tiles.provenance(
+        subtree,
+        kind="audit",
+        name=args.plane,
+        config=config,
+        started=started,
+        finished=catalogue.now_iso(),
+        wall_s=time.perf_counter() - t0,
+        cells=len(df),
+        audit_seed=int(config["audit"]["seed"]),
+        agreement=agreement,
+        threshold=threshold,
+        settings=tiles.integration_settings(config).tightened().to_dict(),
+        workers="in-process",
+    )
+    catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})
+    verdict = "PASS" if len(df) == 0 or agreement >= threshold else "BELOW THRESHOLD"
+    print(
+        f"audit {args.plane}: {len(df)} cells, agreement {agreement:.3f} "
+        f"(threshold {threshold}) {verdict}",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def _build(args) -> int:
+    from .. import catalogue
+
+    for f in [*args.cells, *args.sweeps, *args.audits]:
+        if not Path(f).is_file():
+            raise UsageError(f"input file not found: {f}")
+    t0 = time.perf_counter()
+    counts = catalogue.build_catalogue(args.out, args.cells, args.sweeps, args.audits)
+    summary = ", ".join(f"{k}={v}" for k, v in counts.items())
+    print(f"catalogue {args.out}: {summary} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    return {"cells": _cells, "audit": _audit, "build": _build}[args.action](args)

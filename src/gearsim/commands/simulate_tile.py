@@ -1,0 +1,148 @@
+"""``gearsim simulate-tile``: simulate one tile of a plane and write its Parquet file."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..cli import UsageError
+
+NAME = "simulate-tile"
+HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and write its Parquet file"
+
+
+# ----------------------------------------------------------- shared by pipeline commands
+def add_config_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--configfile",
+        metavar="YAML",
+        nargs="+",
+        action="extend",
+        default=[],
+        help="pipeline config file(s) (YAML or JSON), merged in order like Snakemake's "
+        "(default: config/config.yaml)",
+    )
+    p.add_argument(
+        "--config-json",
+        metavar="JSON",
+        default=None,
+        help="overrides merged last (what `snakemake --config` set)",
+    )
+
+
+def config_from_args(args: argparse.Namespace) -> dict:
+    from ..tiles import DEFAULT_CONFIG, load_config
+
+    paths = args.configfile or [DEFAULT_CONFIG]
+    overrides = None
+    if args.config_json:
+        try:
+            overrides = json.loads(args.config_json)
+        except json.JSONDecodeError as exc:
+            raise UsageError(f"--config-json is not valid JSON ({exc})") from None
+    return load_config(paths, overrides)
+
+
+class Progress:
+    """Per-tile log lines (cells done/total, cells per second) and a tqdm bar on a terminal."""
+
+    def __init__(self, label: str, total: int, *, stream=None, every_s: float = 0.0) -> None:
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.bar = None
+        if sys.stdout.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=label, unit="cell", file=sys.stdout)
+        self.last = 0
+        self.every_s = every_s
+
+    def __call__(self, done: int, total: int, elapsed: float) -> None:
+        rate = done / elapsed if elapsed > 0 else float("nan")
+        if self.bar is not None:
+            self.bar.update(done - self.last)
+        self.last = done
+        print(
+            f"[{time.strftime('%H:%M:%S')}] {self.label}: {done}/{total} cells "
+            f"({100 * done / max(total, 1):.0f}%), {rate:.2f} cells/s, {elapsed:.1f} s",
+            file=self.stream,
+            flush=True,
+        )
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
+    p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
+    add_config_arguments(p)
+    p.add_argument("--workers", type=int, default=1, help="LocalCluster worker processes")
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="dask scheduler address (default: cluster.scheduler_address of the config)",
+    )
+    p.add_argument(
+        "--no-cluster",
+        action="store_true",
+        help="run the rows in this process (no dask; for debugging)",
+    )
+    p.add_argument(
+        "--out", default=None, help="output (default results/<plane>/tiles/<tile>.parquet)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from .. import catalogue, tiles
+    from ..cluster import describe, open_client
+
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(
+            f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
+        )
+    rows = tiles.tile_rows(config, args.plane, args.tile)
+    out = Path(args.out or f"results/{args.plane}/tiles/{args.tile}.parquet")
+    nx = int(config["planes"][args.plane]["x"]["n"])
+    label = f"{args.plane}/tile {args.tile}"
+    progress = Progress(label, nx * len(rows))
+    address = args.scheduler or config["cluster"].get("scheduler_address")
+    started = catalogue.now_iso()
+    t0 = time.perf_counter()
+    print(f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells", file=sys.stderr, flush=True)
+    if args.no_cluster:
+        workers = "in-process"
+        df = tiles.run_tile(config, args.plane, args.tile, client=None, progress=progress)
+    else:
+        with open_client(args.workers, address) as client:
+            workers = describe(client)
+            print(f"{label}: {workers}", file=sys.stderr, flush=True)
+            df = tiles.run_tile(config, args.plane, args.tile, client=client, progress=progress)
+    progress.close()
+    wall = time.perf_counter() - t0
+    prov = tiles.provenance(
+        tiles.plane_subtree(config, args.plane),
+        kind="tile",
+        name=args.plane,
+        config=config,
+        tile=args.tile,
+        rows=[rows.start, rows.stop],
+        workers=workers,
+        started=started,
+        finished=catalogue.now_iso(),
+        wall_s=wall,
+        cells=len(df),
+    )
+    catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})
+    print(
+        f"{label}: wrote {out} ({len(df)} cells in {wall:.1f} s, {len(df) / wall:.2f} cells/s)",
+        file=sys.stderr,
+        flush=True,
+    )
+    return 0

@@ -1,0 +1,213 @@
+"""``gearsim sweep``: a one-parameter sweep (bifurcation data) or a figure's named points."""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..cli import UsageError
+from .simulate_tile import Progress, add_config_arguments, config_from_args
+
+NAME = "sweep"
+HELP = "run a configured sweep (--name) or figure point set (--points) and write its Parquet file"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--name", help="sweep name (a key of `sweeps:`)")
+    what.add_argument("--points", metavar="FIG", help="point set name (a key of `points:`)")
+    add_config_arguments(p)
+    p.add_argument("--out", default=None, help="output Parquet file")
+    p.add_argument(
+        "--ramp-from",
+        type=float,
+        default=0.1,
+        help="points: start of the forward continuation ramp in w",
+    )
+    p.add_argument("--ramp-step", type=float, default=0.02, help="points: ramp step in w")
+    p.add_argument("--periods", type=int, default=64, help="points: recorded mesh periods")
+    p.add_argument(
+        "--samples-per-period",
+        type=int,
+        default=128,
+        help="points: recorded samples per mesh period",
+    )
+
+
+def sweep_frame(
+    base, name: str, values: np.ndarray, direction: str, settings, progress=None
+) -> pd.DataFrame:
+    """The rows of :func:`gearsim.sweep.orbit_diagram` plus final_state/final_period/elapsed_s."""
+    from ..sweep import continuation_chain
+
+    vals = np.sort(np.asarray(values, dtype=float))
+    if direction == "backward":
+        vals = vals[::-1]
+    plist = [base.with_(**{name: float(v)}) for v in vals]
+    stamps: list[float] = []
+    t0 = time.perf_counter()
+
+    def on_cell(i, _res):
+        stamps.append(time.perf_counter())
+        if progress and ((i + 1) % 25 == 0 or i + 1 == len(plist)):
+            progress(i + 1, len(plist), stamps[-1] - t0)
+
+    results = continuation_chain(plist, settings=settings, on_cell=on_cell)
+    rows: list[dict[str, Any]] = []
+    prev = t0
+    for v, r, t in zip(vals, results, stamps, strict=True):
+        row = {"parameter": name, "value": float(v), "direction": direction}
+        row.update(r.row())
+        row["poincare_x"] = r.poincare[:, 0].tolist()
+        row["poincare_v"] = r.poincare[:, 1].tolist()
+        row["final_state"] = r.final_state.tolist()
+        row["final_period"] = int(r.final_period)
+        row["elapsed_s"] = t - prev
+        prev = t
+        rows.append(row)
+    from ..tiles import records_to_frame
+
+    return records_to_frame(rows)
+
+
+def _point_list(spec) -> list[dict[str, float]]:
+    if isinstance(spec, list):
+        return [{"w": float(w)} for w in spec]
+    keys = list(spec)
+    lists = [v if isinstance(v, list) else [v] for v in spec.values()]
+    return [dict(zip(keys, map(float, combo), strict=True)) for combo in itertools.product(*lists)]
+
+
+def points_frame(config, fig: str, args, progress=None) -> pd.DataFrame:
+    """Each point twice: reached by a forward ramp in w (as in the sweeps) and from rest."""
+    from ..parameters import ModelParameters
+    from ..simulate import simulate_cell, trajectory
+    from ..sweep import continuation_chain
+    from ..tiles import base_parameters, integration_settings, records_to_frame
+
+    values, _ = base_parameters(config)
+    settings = integration_settings(config)
+    points = _point_list(config["points"][fig])
+    for pt in points:
+        if "w" not in pt:
+            raise UsageError(f"points.{fig}: every point needs a value of w")
+    rows: list[dict[str, Any]] = []
+    groups: dict[tuple, list[int]] = {}
+    for k, pt in enumerate(points):
+        groups.setdefault(tuple(sorted((n, v) for n, v in pt.items() if n != "w")), []).append(k)
+    done = 0
+    t0 = time.perf_counter()
+    for other, idx in groups.items():
+        base = ModelParameters.from_mapping({**values, **dict(other)})
+        targets = sorted({points[k]["w"] for k in idx})
+        ramp = np.arange(args.ramp_from, max(targets), args.ramp_step)
+        ws = sorted(set(np.round(ramp, 12).tolist()) | set(targets))
+        chain = continuation_chain([base.with_(w=float(w)) for w in ws], settings=settings)
+        at = {w: r for w, r in zip(ws, chain, strict=True)}
+        for k in idx:
+            pt = points[k]
+            params = base.with_(w=pt["w"])
+            for start, res in (
+                ("continuation", at[pt["w"]]),
+                ("rest", simulate_cell(params, settings=settings)),
+            ):
+                tr = trajectory(
+                    params,
+                    res.final_state,
+                    periods=args.periods,
+                    samples_per_period=args.samples_per_period,
+                    settings=settings,
+                    start_period=res.final_period,
+                )
+                row = {"figure": fig, "point": k, "start": start, **pt}
+                row.update(res.row())
+                row["poincare_x"] = res.poincare[:, 0].tolist()
+                row["poincare_v"] = res.poincare[:, 1].tolist()
+                row["tau"] = tr.tau.tolist()
+                row["x"] = tr.state[:, 0].tolist()
+                row["xdot"] = tr.state[:, 1].tolist()
+                row["mesh_force"] = tr.mesh_force.tolist()
+                row["section_x"] = tr.section[:, 0].tolist()
+                row["section_v"] = tr.section[:, 1].tolist()
+                row["final_state"] = res.final_state.tolist()
+                rows.append(row)
+            done += 1
+            if progress:
+                progress(done, len(points), time.perf_counter() - t0)
+    return records_to_frame(rows)
+
+
+def run(args: argparse.Namespace) -> int:
+    from .. import catalogue, tiles
+    from ..parameters import ModelParameters
+
+    config = config_from_args(args)
+    started = catalogue.now_iso()
+    t0 = time.perf_counter()
+    if args.name:
+        if args.name not in config["sweeps"]:
+            raise UsageError(
+                f"unknown sweep '{args.name}'; configured: {', '.join(config['sweeps']) or 'none'}"
+            )
+        spec = config["sweeps"][args.name]
+        values, _ = tiles.base_parameters(config)
+        base = ModelParameters.from_mapping({**values, **spec.get("fixed", {})})
+        vals = tiles.sweep_values(spec)
+        progress = Progress(f"sweep {args.name}", len(vals))
+        df = sweep_frame(
+            base,
+            spec["name"],
+            vals,
+            spec.get("direction", "forward"),
+            tiles.integration_settings(config),
+            progress,
+        )
+        subtree = tiles.sweep_subtree(config, args.name)
+        kind, name = "sweep", args.name
+        out = Path(args.out or f"results/sweeps/{args.name}.parquet")
+    else:
+        if args.points not in config["points"]:
+            raise UsageError(
+                f"unknown point set '{args.points}'; configured: "
+                f"{', '.join(config['points']) or 'none'}"
+            )
+        progress = Progress(
+            f"points {args.points}", len(_point_list(config["points"][args.points]))
+        )
+        df = points_frame(config, args.points, args, progress)
+        subtree = {
+            "points": config["points"][args.points],
+            "parameters": tiles.resolved_parameters(config),
+            "integration": tiles.integration_settings(config).to_dict(),
+            "recording": {
+                "ramp_from": args.ramp_from,
+                "ramp_step": args.ramp_step,
+                "periods": args.periods,
+                "samples_per_period": args.samples_per_period,
+            },
+        }
+        kind, name = "points", args.points
+        out = Path(args.out or f"results/points/{args.points}.parquet")
+    progress.close()
+    wall = time.perf_counter() - t0
+    prov = tiles.provenance(
+        subtree,
+        kind=kind,
+        name=name,
+        config=config,
+        started=started,
+        finished=catalogue.now_iso(),
+        wall_s=wall,
+        cells=len(df),
+        workers="in-process",
+    )
+    catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})
+    print(f"{kind} {name}: wrote {out} ({len(df)} rows in {wall:.1f} s)", file=sys.stderr)
+    return 0

@@ -1,0 +1,165 @@
+"""Config validation, grids, tiles and row simulation (gearsim.tiles)."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from gearsim import tiles as gt
+from gearsim.parameters import ModelParameters
+from gearsim.simulate import IntegrationSettings, simulate_cell
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT = ROOT / "config/config.yaml"
+TINY = ROOT / "config/tiny.yaml"
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    return gt.load_config([DEFAULT, TINY])
+
+
+def _raw():
+    return yaml.safe_load(DEFAULT.read_text())
+
+
+def _error(config) -> str:
+    with pytest.raises(gt.ConfigError) as exc:
+        gt.validate_schema(config)
+        gt.check_config(config)
+    return str(exc.value)
+
+
+def test_configs_load():
+    for extra in ([], ["quick.yaml"], ["tiny.yaml"]):
+        cfg = gt.load_config([DEFAULT, *(ROOT / "config" / e for e in extra)])
+        assert set(cfg["planes"]) == {"wb", "wxi"}
+        assert set(cfg["sweeps"]) == {
+            "standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"
+        }
+    full = gt.load_config(DEFAULT)
+    assert full["planes"]["wb"]["x"]["n"] * full["planes"]["wb"]["y"]["n"] == 160_000
+    assert full["points"]["fig5"][0] == 0.48 and len(full["points"]["fig5"]) == 12
+
+
+def test_schema_integration_matches_settings():
+    """The schema's integration keys and defaults are IntegrationSettings' fields."""
+    props = gt.load_schema()["properties"]["integration"]["properties"]
+    fields = {f.name: f.default for f in dataclasses.fields(IntegrationSettings)}
+    assert set(props) == set(fields)
+    for name, default in fields.items():
+        assert props[name]["default"] == default, name
+
+
+def test_defaults_filled():
+    cfg = {"planes": {"p": {"x": {"name": "w", "min": 0.5, "max": 1, "n": 4},
+                            "y": {"name": "b", "min": 0, "max": 1, "n": 4}}}}
+    gt.validate_schema(cfg)
+    assert cfg["tile_rows"] == 8 and cfg["integration"]["method"] == "dp5"
+    assert cfg["planes"]["p"]["fixed"] == {} and cfg["cluster"]["scheduler_address"] is None
+
+
+@pytest.mark.parametrize(
+    ("edit", "key", "words"),
+    [
+        (lambda c: c.update(tile_rowz=3), "tile_rowz", "unknown key"),
+        (lambda c: c["planes"]["wb"]["x"].update(step=1), "planes.wb.x.step", "unknown key"),
+        (lambda c: c.update(tile_rows="eight"), "tile_rows", "not of type integer"),
+        (lambda c: c["planes"]["wb"]["y"].update(n=0), "planes.wb.y.n", "minimum"),
+        (lambda c: c["planes"]["wb"]["y"].update(n=-5), "planes.wb.y.n", "minimum"),
+        (lambda c: c["planes"]["wb"]["x"].update(min=2.5, max=0.1), "planes.wb.x", "reversed"),
+        (lambda c: c["planes"]["wxi"]["y"].update(max=0.04), "planes.wxi.y", "empty or reversed"),
+        (lambda c: c["planes"]["wb"]["y"].update(name="gap"), "planes.wb.y.name", "unknown"),
+        (lambda c: c.update(tile_rows=401), "tile_rows", "larger than the grid"),
+        (lambda c: c["planes"]["wb"]["fixed"].update(foo=1), "planes.wb.fixed.foo", "unknown"),
+        (lambda c: c["parameters"].update(xi=-1), "parameters.xi", "outside"),
+        (lambda c: c["sweeps"]["b015"].update(min=3, max=1), "sweeps.b015", "reversed"),
+        (lambda c: c["integration"].update(rtol=2), "integration.rtol", "maximum"),
+        (lambda c: c["planes"]["wb"]["y"].update(min=-1), "planes.wb.y", "outside"),
+    ],
+)
+def test_bad_config_names_the_key(edit, key, words):
+    cfg = _raw()
+    edit(cfg)
+    msg = _error(cfg)
+    assert f"'{key}'" in msg, msg
+    assert words in msg, msg
+    assert "\n" not in msg
+
+
+def test_new_plane_from_config_only():
+    cfg = _raw()
+    cfg["planes"]["eps_xi"] = {"x": {"name": "eps", "min": 0.0, "max": 0.5, "n": 5},
+                               "y": {"name": "xi", "min": 0.02, "max": 0.1, "n": 3},
+                               "fixed": {"w": 1.2}}
+    cfg["tile_rows"] = 2
+    cfg = gt.check_config(gt.validate_schema(cfg))
+    assert gt.n_tiles({**cfg, "tile_rows": 2}, "eps_xi") == 2
+    specs = gt.row_specs({**cfg, "tile_rows": 2}, "eps_xi", 1)
+    assert [s["j"] for s in specs] == [2]
+    assert specs[0]["params"]["w"] == 1.2 and specs[0]["x_name"] == "eps"
+
+
+def test_grid_and_tiles(tiny):
+    xs = gt.axis_values(tiny["planes"]["wb"]["x"])
+    assert np.allclose(xs, 0.1 + (np.arange(8) + 0.5) * 0.3)
+    assert gt.tile_ids(tiny, "wb") == [0, 1]
+    assert list(gt.tile_rows(tiny, "wb", 1)) == [4, 5, 6, 7]
+    cfg = copy.deepcopy(tiny)
+    cfg["tile_rows"] = 3
+    assert gt.n_tiles(cfg, "wb") == 3 and list(gt.tile_rows(cfg, "wb", 2)) == [6, 7]
+    with pytest.raises(gt.ConfigError):
+        gt.tile_rows(tiny, "wb", 2)
+    s = gt.sweep_values({"min": 0.1, "max": 2.5, "n": 1201})
+    assert s[0] == 0.1 and s[-1] == 2.5 and np.isclose(s[1] - s[0], 0.002)
+
+
+def test_parameters_fall_back_to_builtin_defaults(tiny, tmp_path):
+    cfg = copy.deepcopy(tiny)
+    cfg["standard_parameters"] = str(tmp_path / "absent.yaml")
+    values, source = gt.base_parameters(cfg)
+    assert source == "builtin-defaults" and values == {}
+    assert gt.resolved_parameters(cfg) == ModelParameters().to_dict()
+    f = tmp_path / "sp.yaml"
+    f.write_text("dimensionless:\n  xi: {value: 0.07, provenance: calibrated}\n")
+    cfg["standard_parameters"] = str(f)
+    cfg["parameters"] = {"eps": 0.3}
+    values, source = gt.base_parameters(cfg)
+    assert source == str(f) and values == {"xi": 0.07, "eps": 0.3}
+    prov = gt.provenance(gt.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg)
+    assert prov["parameters_source"] == str(f)
+
+
+def test_hashes_track_the_plane_subtree(tiny):
+    a = gt.config_hash(gt.plane_subtree(tiny, "wb"))
+    cfg = copy.deepcopy(tiny)
+    cfg["planes"]["wxi"]["fixed"] = {"b": 0.5}
+    assert gt.config_hash(gt.plane_subtree(cfg, "wb")) == a
+    assert gt.config_hash(gt.plane_subtree(cfg, "wxi")) != gt.config_hash(
+        gt.plane_subtree(tiny, "wxi")
+    )
+    assert gt.code_version() == gt.code_version() and len(gt.code_version()) == 16
+
+
+def test_row_is_a_continuation_chain(tiny):
+    """A tile row equals simulate_cell run cell by cell with continuation."""
+    cfg = copy.deepcopy(tiny)
+    cfg["planes"]["wb"]["x"]["n"] = 4
+    df = gt.run_tile(cfg, "wb", 0, client=None)
+    assert len(df) == 4 * 4 and list(df.columns[:8]) == ["plane", "tile", "i", "j", "x", "y",
+                                                         "w", "b"]
+    settings = gt.integration_settings(cfg)
+    base = gt.plane_base(cfg, "wb")
+    row = df[df.j == 2].sort_values("i")
+    u0, start = None, 0
+    for _, c in row.iterrows():
+        r = simulate_cell(base.with_(w=c.w, b=c.b), u0, settings=settings, start_period=start)
+        assert r.row()["label"] == c["label"] and r.row()["label_npq"] == c["label_npq"]
+        assert np.isclose(r.row()["dc"], c["dc"], equal_nan=True)
+        u0, start = r.final_state, r.final_period
+    assert str(df["p"].dtype) == "Int64" and df["converged"].dtype == bool

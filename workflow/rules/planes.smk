@@ -1,0 +1,94 @@
+# Planes: tiles (one job each, rows mapped over dask) -> cells.parquet per plane -> audit ->
+# the SQLite catalogue (the only writer of results/catalogue.sqlite).
+
+
+rule compile:
+    output:
+        "results/.compiled",
+    log:
+        "logs/compile.log",
+    conda:
+        GEARSIM_ENV
+    params:
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim compile --stamp {output} > {log} 2>&1"
+
+
+rule simulate_tile:
+    input:
+        compiled=COMPILED,
+        config=CONFIG,
+    output:
+        "results/{plane}/tiles/{tile}.parquet",
+    log:
+        "logs/{plane}/tile_{tile}.log",
+    benchmark:
+        "logs/benchmarks/{plane}/tile_{tile}.tsv"
+    conda:
+        GEARSIM_ENV
+    threads: 2
+    params:
+        config=plane_params,
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim simulate-tile --plane {wildcards.plane} --tile {wildcards.tile} "
+        "--configfile {input.config} --workers {threads} --out {output} > {log} 2>&1"
+
+
+rule plane_cells:
+    input:
+        tiles=tiles_of_plane,
+        config=CONFIG,
+    output:
+        "results/{plane}/cells.parquet",
+    log:
+        "logs/{plane}/cells.log",
+    conda:
+        GEARSIM_ENV
+    params:
+        config=plane_params,
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim catalogue cells --plane {wildcards.plane} --tiles {input.tiles} "
+        "--configfile {input.config} --out {output} > {log} 2>&1"
+
+
+rule audit:
+    input:
+        cells="results/{plane}/cells.parquet",
+        config=CONFIG,
+    output:
+        "results/{plane}/audit.parquet",
+    log:
+        "logs/{plane}/audit.log",
+    benchmark:
+        "logs/benchmarks/{plane}/audit.tsv"
+    conda:
+        GEARSIM_ENV
+    params:
+        config=audit_params,
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim catalogue audit --plane {wildcards.plane} --cells {input.cells} "
+        "--configfile {input.config} --out {output} > {log} 2>&1"
+
+
+rule catalogue:
+    input:
+        cells=expand("results/{plane}/cells.parquet", plane=PLANES),
+        sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
+        audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
+    output:
+        "results/catalogue.sqlite",
+    log:
+        "logs/catalogue.log",
+    conda:
+        GEARSIM_ENV
+    shell:
+        "gearsim catalogue build --cells {input.cells} --sweeps {input.sweeps} "
+        "--audits {input.audits} --out {output} > {log} 2>&1"
+
+
+ALL_TARGETS += expand("results/{plane}/cells.parquet", plane=PLANES)
+ALL_TARGETS += ["results/catalogue.sqlite"]

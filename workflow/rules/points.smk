@@ -1,0 +1,25 @@
+# Named points of the figures (phase portraits, spectra): each point reached by a forward ramp in
+# w and from rest, with a recorded trajectory. One job per point set.
+
+
+rule points:
+    input:
+        compiled=COMPILED,
+        config=CONFIG,
+    output:
+        "results/points/{fig}.parquet",
+    log:
+        "logs/points/{fig}.log",
+    benchmark:
+        "logs/benchmarks/points/{fig}.tsv"
+    conda:
+        GEARSIM_ENV
+    threads: 1
+    params:
+        config=point_params,
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim sweep --points {wildcards.fig} --configfile {input.config} --out {output} > {log} 2>&1"
+
+
+ALL_TARGETS += expand("results/points/{fig}.parquet", fig=POINT_SETS)

@@ -1,0 +1,24 @@
+# One-parameter sweeps (bifurcation diagrams): one job per sweep, a single continuation chain.
+
+
+rule sweep:
+    input:
+        compiled=COMPILED,
+        config=CONFIG,
+    output:
+        "results/sweeps/{sweep}.parquet",
+    log:
+        "logs/sweeps/{sweep}.log",
+    benchmark:
+        "logs/benchmarks/sweeps/{sweep}.tsv"
+    conda:
+        GEARSIM_ENV
+    threads: 1
+    params:
+        config=sweep_params,
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim sweep --name {wildcards.sweep} --configfile {input.config} --out {output} > {log} 2>&1"
+
+
+ALL_TARGETS += expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS)
