@@ -172,9 +172,9 @@ def figure_sweeps(sweeps: Mapping[str, pd.DataFrame], *, title: str | None = Non
     """Figs 8 and 15: one bifurcation panel per sweep, e.g. ``{"b = 0.15": df, ...}``."""
     n = len(sweeps)
     fig, axes = plt.subplots(n, 1, figsize=(7.5, 2.9 * n + 0.4), squeeze=False)
-    for ax, (tag, (label, df)) in zip(axes[:, 0], zip("abcdefgh", sweeps.items()), strict=False):
+    for ax, (tag, (label, df)) in zip(axes[:, 0], enumerate(sweeps.items()), strict=True):
         draw_bifurcation(ax, df)
-        ax.text(0.005, 0.99, f"({tag}) {label}", transform=ax.transAxes, fontsize=9,
+        ax.text(0.005, 0.99, f"({chr(97 + tag)}) {label}", transform=ax.transAxes, fontsize=9,
                 fontweight="bold", va="top", ha="left")
         if notes and notes.get(label):
             style.note_box(ax, notes[label], loc="lower right", fontsize=6)

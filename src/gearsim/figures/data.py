@@ -134,19 +134,44 @@ def seed_from_sweep(sweep: pd.DataFrame | None, params: ModelParameters,
                     name: str = "w") -> tuple[np.ndarray | None, str]:
     """Initial state from the swept row nearest to ``params.<name>`` (continuation seed).
 
-    The sweep keeps only ``(x, x')`` of its section points, so the bearing coordinates start
-    from the static state; the transient of :func:`simulate_cell` settles them (the bearing
-    modes are stiff and damped).
+    Uses the row's full ``final_state`` when the table has it (``gearsim sweep`` writes it);
+    otherwise only ``(x, x')`` of its last section point are known and the bearing coordinates
+    start from the static state.
     """
     if sweep is None or len(sweep) == 0:
         return None, "static state"
     target = getattr(params, name)
     k = int(np.argmin(np.abs(sweep["value"].to_numpy(dtype=float) - target)))
     row = sweep.iloc[k]
+    if "final_state" in sweep.columns and row["final_state"] is not None:
+        fs = np.asarray(row["final_state"], dtype=float)
+        if fs.shape == (len(static_state(params.to_array())),) and np.all(np.isfinite(fs)):
+            return fs.copy(), f"sweep state at {name} = {row['value']:.4g}"
     px, pv = np.asarray(row["poincare_x"]), np.asarray(row["poincare_v"])
     if len(px) == 0:
         return None, "static state"
-    return seed_state(params, px[-1], pv[-1]), f"sweep point {name} = {row['value']:.4g}"
+    return seed_state(params, px[-1], pv[-1]), f"sweep section point {name} = {row['value']:.4g}"
+
+
+def reach(params: ModelParameters, targets: Sequence[float], *, sweep: pd.DataFrame | None,
+          settings: IntegrationSettings | None = None) -> tuple[dict[float, CellResult], str]:
+    """Steady motions at ``targets`` (values of ``w``) on the branch the forward sweep followed.
+
+    With the sweep's full final states: one continuation step from the nearest swept value at
+    or below each target. Otherwise a forward continuation chain (:func:`continuation_to`).
+    """
+    if sweep is not None and len(sweep) and "final_state" in sweep.columns:
+        out = {}
+        vals = sweep["value"].to_numpy(dtype=float)
+        for t in targets:
+            below = np.where(vals <= float(t) + 1e-12)[0]
+            k = int(below[np.argmax(vals[below])]) if len(below) else int(np.argmin(vals))
+            fs = np.asarray(sweep["final_state"].iloc[k], dtype=float)
+            out[float(t)] = simulate_cell(params.with_(w=float(t)), fs, settings=settings)
+        return out, "continuation from the sweep state"
+    values = sweep["value"].to_numpy(dtype=float) if sweep is not None and len(sweep) else None
+    return (continuation_to(params, targets, settings=settings, values=values),
+            "forward continuation in w")
 
 
 def continuation_to(
@@ -236,3 +261,31 @@ def spectrum(pm: PointMotion, periods: int | None = None) -> tuple[np.ndarray, n
     freq = 2.0 * np.pi * np.fft.rfftfreq(len(x), d=dtau)
     return freq, amp
 
+
+
+def points_from_table(df: pd.DataFrame, params: ModelParameters, *,
+                      start: str = "continuation") -> list[PointMotion]:
+    """Motions recorded by the pipeline (``results/points/<set>.parquet``, ``gearsim sweep
+    --points``): rows with ``tau, x, xdot, mesh_force, section_x, section_v`` lists and the
+    classification columns; ``start`` picks the rows reached by continuation or from rest."""
+    from ..classify import Classification
+
+    rows = df[df["start"] == start] if "start" in df.columns else df
+    fields = Classification.__dataclass_fields__
+    out = []
+    for _, r in rows.sort_values("point" if "point" in rows.columns else "w").iterrows():
+        fixed = {k: float(r[k]) for k in ModelParameters.names() if k in r.index and
+                 not isinstance(r[k], (list, np.ndarray)) and pd.notna(r[k])}
+        p = params.with_(**fixed)
+        cls = Classification(**{f: (None if (f in ("p", "q") and pd.isna(r[f])) else r[f])
+                                for f in fields})
+        tau = np.asarray(r["tau"], dtype=float)
+        state = np.c_[np.asarray(r["x"], dtype=float), np.asarray(r["xdot"], dtype=float)]
+        sec = np.c_[np.asarray(r["section_x"], dtype=float),
+                    np.asarray(r["section_v"], dtype=float)]
+        tr = Trajectory(tau, state, np.asarray(r["mesh_force"], dtype=float), np.zeros(0),
+                        np.zeros(0, dtype=int), sec)
+        spp = int(round(p.mesh_period / (tau[1] - tau[0]))) if len(tau) > 1 else 1
+        res = CellResult(cls, np.zeros(0), 0, sec, 0, 0, p)
+        out.append(PointMotion(p, res, tr, spp, f"pipeline points ({start})"))
+    return out

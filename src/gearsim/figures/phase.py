@@ -22,6 +22,7 @@ from . import style
 from .data import (
     PointMotion,
     continuation_to,
+    reach,
     seed_from_sweep,
     seed_state,
     simulate_point,
@@ -45,7 +46,8 @@ def _paper_label(w: float, table: dict[float, str]) -> str:
 def draw_phase(ax, pm: PointMotion, *, periods: int | None = None, colour: str = "#1f77b4",
                show_b: bool = True, label: str | None = None, lw: float = 0.6,
                poincare: bool = True) -> None:
-    """Phase trajectory ``(x, x')`` over the last ``periods`` mesh periods, section points on top."""
+    """Phase trajectory ``(x, x')`` over the last ``periods`` mesh periods, with the section
+    points on top."""
     spp = pm.samples_per_period
     st = pm.traj.state
     if periods is not None:
@@ -82,6 +84,22 @@ class Fig2Data:
     notes: list[str] = field(default_factory=list)
 
 
+def _middle_of_longest_run(sweep: pd.DataFrame, I: int, n: int) -> float:
+    """Value in the middle of the longest run of consecutive swept cells that are periodic with
+    impact state ``I`` and period ``n`` (far from the run's bifurcations)."""
+    d = sweep.sort_values("value").reset_index(drop=True)
+    ok = ((d["I"] == I) & (d["motion"] == "periodic") & (d["n"] == n)).to_numpy()
+    best, start = (0, 0), None
+    for k, flag in enumerate(list(ok) + [False]):
+        if flag and start is None:
+            start = k
+        elif not flag and start is not None:
+            if k - start > best[1] - best[0]:
+                best = (start, k)
+            start = None
+    return float(d["value"].iloc[(best[0] + best[1] - 1) // 2])
+
+
 def compute_fig2(params: ModelParameters, *, settings: IntegrationSettings | None = None,
                  sweep: pd.DataFrame | None = None, b: float = 0.15,
                  candidates: Sequence[float] | None = None) -> Fig2Data:
@@ -89,19 +107,16 @@ def compute_fig2(params: ModelParameters, *, settings: IntegrationSettings | Non
 
     The mesh frequency of each is taken from ``sweep`` (a sweep at this ``b``: the periodic
     cell of that impact state with the smallest period, middle of its run), or else from a
-    forward continuation over ``candidates``; the motion is then reached by forward continuation
-    over the swept values (:func:`continuation_to`).
+    forward continuation over ``candidates``; the motion is then reached on the sweep's branch
+    (:func:`gearsim.figures.data.reach`).
     """
     base = params.with_(b=b)
     chosen: dict[int, float] = {}
-    values = None
     if sweep is not None and len(sweep):
-        values = sweep["value"].to_numpy(dtype=float)
         for I in (0, 1, 2):
             sub = sweep[(sweep["I"] == I) & (sweep["motion"] == "periodic")]
             if len(sub):
-                sub = sub[sub["n"] == sub["n"].min()].sort_values("value")
-                chosen[I] = float(sub["value"].iloc[len(sub) // 2])
+                chosen[I] = _middle_of_longest_run(sweep, I, int(sub["n"].min()))
     notes = []
     missing = [I for I in (0, 1, 2) if I not in chosen]
     if missing:
@@ -111,11 +126,10 @@ def compute_fig2(params: ModelParameters, *, settings: IntegrationSettings | Non
             if I in missing and r.classification.motion == "periodic":
                 chosen[I] = float(w)
                 missing.remove(I)
-    reached = continuation_to(base, list(chosen.values()), settings=settings, values=values)
+    reached, how = reach(base, list(chosen.values()), sweep=sweep, settings=settings)
     motions = {}
     for I, w in sorted(chosen.items()):
-        pm = simulate_point(base.with_(w=w), settings=settings, result=reached[w],
-                            seed="forward continuation in w")
+        pm = simulate_point(base.with_(w=w), settings=settings, result=reached[w], seed=how)
         motions[I] = pm
         if pm.result.classification.I != I:
             notes.append(f"I = {I} expected at w = {w:.3f}, got {pm.result.classification.I}")
@@ -177,10 +191,9 @@ def compute_points(params: ModelParameters, ws: Sequence[float], *,
                    samples_per_period: int = 128) -> list[PointMotion]:
     """Motions at each ``w`` reached by forward continuation (over the sweep's values if given,
     so the panels follow the branch of the bifurcation diagram)."""
-    values = sweep["value"].to_numpy(dtype=float) if sweep is not None and len(sweep) else None
-    reached = continuation_to(params, ws, settings=settings, values=values)
+    reached, how = reach(params, ws, sweep=sweep, settings=settings)
     return [simulate_point(params.with_(w=float(w)), settings=settings, result=reached[float(w)],
-                           seed="forward continuation in w", min_periods=min_periods,
+                           seed=how, min_periods=min_periods,
                            samples_per_period=samples_per_period) for w in ws]
 
 
@@ -244,24 +257,33 @@ def initial_conditions(params: ModelParameters, scale: tuple[float, float, float
 def search_attractors(params: ModelParameters, *, settings: IntegrationSettings | None = None,
                       sweep: pd.DataFrame | None = None, grid: tuple[int, int] = (6, 5),
                       targets: Sequence[str] = ("1-1-1", "2-2-1", "4-4-2"),
-                      min_periods: int = 16) -> AttractorSearch:
+                      min_periods: int = 16, backward_from: float = 0.5,
+                      backward_step: float = 0.01) -> AttractorSearch:
     """Steady motions reached from several initial conditions at one parameter point.
 
     Initial conditions: the static state, the state reached by forward continuation in ``w``
-    (over the sweep's values when given), the nearest stored point of ``sweep`` and a ``grid``
+    (over the sweep's values when given), the state reached by backward continuation from
+    ``w + backward_from``, the nearest stored point of ``sweep`` and a ``grid``
     of ``(x, x')`` over twice the range of the first motion found. Targets not reached here are
     looked for along ``sweep`` (same fixed parameters, other ``w``) and, when present there,
     reached by continuation at the nearest such ``w`` so the figure can show them (clearly
     labelled with that ``w``).
     """
     st = settings or IntegrationSettings()
-    values = sweep["value"].to_numpy(dtype=float) if sweep is not None and len(sweep) else None
-    cont = continuation_to(params, [params.w], settings=st, values=values)[params.w]
+    cont = reach(params, [params.w], sweep=sweep, settings=st)[0][params.w]
     seeds: list[tuple[np.ndarray | None, str]] = [(None, "static state"),
                                                   (cont.final_state, "forward continuation")]
     u, how = seed_from_sweep(sweep, params)
     if u is not None:
         seeds.append((u, how))
+    # backward continuation from above (coexisting branches often show up only that way)
+    back = [params.with_(w=float(w)) for w in np.arange(params.w + backward_from, params.w,
+                                                         -backward_step)]
+    if back:
+        from ..sweep import continuation_chain
+
+        res = continuation_chain(back, settings=st)
+        seeds.append((res[-1].final_state, "backward continuation"))
     first = simulate_cell(params, settings=st)
     c = first.classification
     amp = max(c.x_max - c.x_min, 2 * params.b, 1e-3) if np.isfinite(c.x_max) else 1.0
@@ -291,9 +313,8 @@ def search_attractors(params: ModelParameters, *, settings: IntegrationSettings 
                 continue
             w = float(rows["value"].iloc[int(np.argmin(np.abs(rows["value"] - params.w)))])
             p = params.with_(w=w)
-            r = continuation_to(params, [w], settings=st, values=values)[w]
-            pm = simulate_point(p, settings=st, result=r, seed="forward continuation in w",
-                                min_periods=min_periods)
+            r, how = reach(params, [w], sweep=sweep, settings=st)
+            pm = simulate_point(p, settings=st, result=r[w], seed=how, min_periods=min_periods)
             if pm.npq == t:
                 search.elsewhere[t] = pm
     return search

@@ -9,7 +9,7 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from matplotlib.colors import BoundaryNorm, ListedColormap, to_rgb
+from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.patches import Patch, Rectangle
 
 from ..classify import DEFAULT_KMAX
@@ -39,6 +39,7 @@ def draw_pattern_map(ax, df: pd.DataFrame, *, legend: bool = True, legend_kw=Non
     masked = np.ma.masked_less(grid, 0)
     ax.pcolormesh(cell_edges(xs), cell_edges(ys), masked, cmap=cmap, norm=norm,
                   shading="flat", rasterized=True)
+    _boundaries(ax, xs, ys, grid)
     ax.set_xlabel(style.param_label(xname))
     ax.set_ylabel(style.param_label(yname))
     if legend:
@@ -137,20 +138,46 @@ def dc_category(I: int, dc: float) -> str:
     return "no data" if band == "n/a" else f"{int(I)}:{band}"
 
 
+# ten shades per impact state, one per DC band of 0.1 (light = small DC, dark = large DC);
+# steps are wide enough that neighbouring bands stay apart
+_DC_SHADES = {
+    1: ["#fff7bc", "#fee391", "#fec44f", "#fe9929", "#ec7014", "#cc4c02", "#993404",
+        "#662506", "#3d1503", "#1a0900"],
+    2: ["#deebf7", "#c6dbef", "#9ecae1", "#6baed6", "#4292c6", "#2171b5", "#08519c",
+        "#08306b", "#041a3d", "#020d1f"],
+    -1: ["#e5f5e0", "#c7e9c0", "#a1d99b", "#74c476", "#41ab5d", "#238b45", "#006d2c",
+         "#00441b", "#002910", "#001408"],
+    -2: ["#f2f0f7", "#dadaeb", "#bcbddc", "#9e9ac8", "#807dba", "#6a51a3", "#54278f",
+         "#3f007d", "#2a0054", "#15002a"],
+}
+
+
 def _dc_colour(I: int, band: str) -> str:
-    """Shade within the hue family of the impact state; darker for larger DC."""
-    if band == "0.0":
-        k = 0
-    elif band == "n/a":
+    """Colour of an ``I:band`` category: red for ``0:0.0``, a shade of the I family else."""
+    if band == "n/a":
         return "#ffffff"
-    else:
-        k = int(round(float(band.split("\u2013")[1]) * 10))  # 1..10
-    t = 0.15 + 0.85 * k / 10
-    cmaps = {0: "Reds", 1: "YlOrBr", 2: "Blues", -1: "Greens", -2: "Purples"}
-    cm = plt.get_cmap(cmaps.get(int(I), "Greys"))
     if int(I) == 0:
         return "#e41a1c"
-    return "#%02x%02x%02x" % tuple(int(255 * c) for c in to_rgb(cm(t)))
+    k = 0 if band == "0.0" else int(round(float(band.split("\u2013")[1]) * 10)) - 1
+    return _DC_SHADES.get(int(I), ["#bbbbbb"] * 10)[min(max(k, 0), 9)]
+
+
+def _boundaries(ax, xs, ys, grid) -> None:
+    """Thin lines between cells of different categories (keeps similar colours apart)."""
+    xe, ye = cell_edges(xs), cell_edges(ys)
+    segs = []
+    for j in range(grid.shape[0]):
+        for i in range(grid.shape[1] - 1):
+            if grid[j, i] != grid[j, i + 1]:
+                segs.append([(xe[i + 1], ye[j]), (xe[i + 1], ye[j + 1])])
+    for j in range(grid.shape[0] - 1):
+        for i in range(grid.shape[1]):
+            if grid[j, i] != grid[j + 1, i]:
+                segs.append([(xe[i], ye[j + 1]), (xe[i + 1], ye[j + 1])])
+    if segs:
+        from matplotlib.collections import LineCollection
+
+        ax.add_collection(LineCollection(segs, colors="k", linewidths=0.25, alpha=0.7))
 
 
 def draw_dc_map(ax, df: pd.DataFrame, *, legend: bool = True):
@@ -174,6 +201,7 @@ def draw_dc_map(ax, df: pd.DataFrame, *, legend: bool = True):
     norm = BoundaryNorm(np.arange(-0.5, len(present) + 0.5), cmap.N)
     ax.pcolormesh(cell_edges(xs), cell_edges(ys), np.ma.masked_less(grid, 0), cmap=cmap,
                   norm=norm, shading="flat", rasterized=True)
+    _boundaries(ax, xs, ys, grid)
     ax.set_xlabel(style.param_label(xname))
     ax.set_ylabel(style.param_label(yname))
     if legend:

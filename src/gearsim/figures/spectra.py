@@ -13,7 +13,6 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
-from . import style
 from .data import PointMotion, spectrum
 
 PAPER_FIG6 = {0.48: "1-0-0", 1.02: "2-2-0", 1.37: "4-3-0", 1.53: "chaotic"}
