@@ -24,6 +24,10 @@ WORKER_ENV = {
 }
 
 
+#: How long to wait for a configured scheduler before giving up.
+CONNECT_TIMEOUT = "10s"
+
+
 def _prepare_environment() -> None:
     for k, v in WORKER_ENV.items():
         os.environ.setdefault(k, v)
@@ -49,7 +53,7 @@ def open_client(workers: int = 1, scheduler_address: str | None = None) -> Itera
 
     if scheduler_address:
         try:
-            client = Client(scheduler_address, timeout="30s")
+            client = Client(scheduler_address, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError) as exc:
             from .cli import UsageError
 

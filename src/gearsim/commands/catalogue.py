@@ -2,9 +2,11 @@
 
 Subcommands (each is one Snakemake rule):
 
-``gearsim catalogue cells --plane wb --tiles T0 T1 ... --out results/wb/cells.parquet``
-``gearsim catalogue audit --plane wb --cells results/wb/cells.parquet --out results/wb/audit.parquet``
-``gearsim catalogue build --cells C1 C2 --sweeps S1 S2 [--audits A1 A2] --out results/catalogue.sqlite``
+* ``gearsim catalogue cells --plane wb --tiles T0 T1 ... --out results/wb/cells.parquet``
+* ``gearsim catalogue audit --plane wb --cells results/wb/cells.parquet
+  --out results/wb/audit.parquet``
+* ``gearsim catalogue build --cells C1 C2 --sweeps S1 S2 [--audits A1 A2]
+  --out results/catalogue.sqlite``
 """
 
 from __future__ import annotations

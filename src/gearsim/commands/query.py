@@ -18,6 +18,26 @@ from ..cli import UsageError
 NAME = "query"
 HELP = "run a read-only SELECT on results/catalogue.sqlite and print the result"
 
+#: README-ready examples (docs/pipeline.md shows the same text; they run in plain sqlite3).
+EXAMPLES = {
+    "patterns": """\
+SELECT p.name AS plane, c.label, COUNT(*) AS cells
+FROM cells c JOIN planes p ON p.id = c.plane_id
+GROUP BY p.name, c.label
+ORDER BY p.name, cells DESC, c.label;""",
+    "b-threshold": """\
+SELECT MAX(c.y) AS last_b_with_I2,
+       MAX(c.y) + (MAX(p.y_max) - MAX(p.y_min)) / (2.0 * MAX(p.y_n)) AS b_threshold
+FROM cells c JOIN planes p ON p.id = c.plane_id
+WHERE p.name = 'wb' AND p.y_name = 'b' AND c.impact = 2;""",
+    "chaos": """\
+SELECT p.name AS plane, c.i, c.j, c.x, c.y, c.label, c.lyapunov
+FROM cells c JOIN planes p ON p.id = c.plane_id
+WHERE c.lyapunov > 0
+ORDER BY c.lyapunov DESC
+LIMIT 20;""",
+}
+
 _ALLOWED = {
     sqlite3.SQLITE_SELECT,
     sqlite3.SQLITE_READ,
@@ -27,7 +47,8 @@ _ALLOWED = {
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("sql", help="one SELECT (or WITH ... SELECT) statement")
+    p.add_argument("sql", nargs="?", help="one SELECT (or WITH ... SELECT) statement")
+    p.add_argument("--example", choices=sorted(EXAMPLES), help="run a documented example")
     p.add_argument("--db", default="results/catalogue.sqlite", help="catalogue file")
     p.add_argument("--format", choices=("table", "csv", "json"), default="table")
     p.add_argument("--max-rows", type=int, default=1000, help="print at most this many rows")
@@ -51,8 +72,8 @@ def check_select(sql: str) -> str:
     first = text.split(None, 1)[0].upper() if text else ""
     if first not in ("SELECT", "WITH"):
         raise UsageError("only SELECT statements are allowed (read-only catalogue)")
-    if not sqlite3.complete_statement(text + ";") or ";" in text:
-        raise UsageError("exactly one SELECT statement is allowed")
+    if not sqlite3.complete_statement(text + ";"):
+        raise UsageError("incomplete SQL statement")
     return text
 
 
@@ -68,6 +89,8 @@ def execute(db: str | Path, sql: str) -> tuple[list[str], list[tuple]]:
         msg = str(exc)
         if "not authorized" in msg:
             msg = "only reading is allowed (read-only catalogue)"
+        elif "one statement at a time" in msg:
+            msg = "exactly one SELECT statement is allowed"
         raise UsageError(f"SQL error: {msg}") from None
     finally:
         con.close()
@@ -104,7 +127,12 @@ def _numeric(s: str) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    cols, rows = execute(args.db, args.sql)
+    if (args.sql is None) == (args.example is None):
+        raise UsageError("give one SQL statement or --example NAME")
+    sql = EXAMPLES[args.example] if args.example else args.sql
+    if args.example:
+        print(sql + "\n")
+    cols, rows = execute(args.db, sql)
     shown = rows[: args.max_rows]
     if args.format == "csv":
         w = csv.writer(sys.stdout)
