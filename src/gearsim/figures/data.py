@@ -115,7 +115,7 @@ class PointMotion:
     @property
     def label(self) -> str:
         c = self.result.classification
-        return f"{c.label} ({c.label_npq})" if c.label_npq else c.label
+        return f"{c.label_npq} ({c.label})" if c.label_npq else c.label
 
     @property
     def npq(self) -> str:

@@ -202,6 +202,7 @@ def figure5(points: Sequence[PointMotion], *, paper: dict[float, str] | None = N
     """Fig 5: phase diagrams with Poincare points, one panel per ``w``."""
     paper = PAPER_FIG5 if paper is None else paper
     n = len(points)
+    ncols = max(1, min(ncols, n))
     nrows = int(np.ceil(n / ncols))
     fig, axes = plt.subplots(nrows, ncols, figsize=(3.3 * ncols, 2.9 * nrows + 0.3),
                              squeeze=False)
@@ -209,10 +210,9 @@ def figure5(points: Sequence[PointMotion], *, paper: dict[float, str] | None = N
         c = pm.result.classification
         periods = max(c.n, 1) * 2 if c.n > 0 else 96
         draw_phase(ax, pm, periods=periods)
-        ours = c.label_npq or c.label
         ref = _paper_label(pm.params.w, paper)
-        ax.set_title(f"({chr(97 + k)}) $\\omega$ = {pm.params.w:g}\npaper {ref}; ours {ours}"
-                     f" ({c.label})", fontsize=8)
+        ax.set_title(f"({chr(97 + k)}) $\\omega$ = {pm.params.w:g}\npaper {ref}; ours "
+                     f"{pm.label}", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.xaxis.label.set_size(7)
         ax.yaxis.label.set_size(7)
@@ -241,7 +241,7 @@ class AttractorSearch:
     elsewhere: dict[str, PointMotion] = field(default_factory=dict)  # npq -> other-w motion
 
     def summary(self) -> str:
-        parts = [f"{a.npq} ({a.label}) x{a.hits}" for a in
+        parts = [f"{a.motion.label} x{a.hits}" for a in
                  sorted(self.found.values(), key=lambda a: -a.hits)]
         return ", ".join(parts) if parts else "nothing"
 
@@ -341,7 +341,7 @@ def choose_motion(search: AttractorSearch, target: str,
     n_t = int(target.split("-")[0])
     best = min(others, key=lambda a: (a.motion.result.classification.I != 2,
                                       abs(a.motion.result.classification.n - n_t), -a.hits))
-    return best.motion, f"{lead} Shown instead: {best.npq} ({best.label}) at {where}."
+    return best.motion, f"{lead} Shown instead: {best.motion.label} at {where}."
 
 
 TAU_SHIFTED = r"dimensionless time $\tau - \tau_0$ ($\tau_0$: a Poincaré section time)"
@@ -396,8 +396,8 @@ def figure_double_sided(pm: PointMotion | None, *, target: str, note: str,
     axes[2].legend(fontsize=6.5, loc="upper right", framealpha=0.8, ncol=2)
     for ax, tag in zip(axes, "abc", strict=True):
         ax.set_title(f"({tag})", fontsize=9, loc="left")
-    fig.suptitle(f"paper: {target} double-sided impact motion; ours: {c.label_npq or c.label} "
-                 f"({c.label}) at b = {pm.params.b:g}, \u03c9 = {pm.params.w:.4g}", fontsize=10)
+    fig.suptitle(f"paper: {target} double-sided impact motion; ours: {pm.label} "
+                 f"at b = {pm.params.b:g}, \u03c9 = {pm.params.w:.4g}", fontsize=10)
     fig.tight_layout(rect=(0, 0.06, 1, 1))
     fig.text(0.01, 0.01, note, fontsize=7.5, ha="left", va="bottom", wrap=True,
              bbox={"boxstyle": "round,pad=0.3", "fc": "#fff8dc", "ec": "#b8860b"})

@@ -38,15 +38,14 @@ def figure6(points: Sequence[PointMotion], *, paper: dict[float, str] | None = N
     """Fig 6: FFT spectra, one panel per point, ``w`` and sub-harmonics marked."""
     paper = PAPER_FIG6 if paper is None else paper
     n = len(points)
-    ncols = 2
+    ncols = max(1, min(2, n))
     nrows = int(np.ceil(n / ncols))
     fig, axes = plt.subplots(nrows, ncols, figsize=(10.0, 3.2 * nrows + 0.4), squeeze=False)
     for k, (ax, pm) in enumerate(zip(axes.ravel(), points, strict=False)):
         draw_spectrum(ax, pm)
-        c = pm.result.classification
         ref = next((v for kk, v in paper.items() if abs(kk - pm.params.w) < 1e-9), "?")
         ax.set_title(f"({chr(97 + k)}) $\\omega$ = {pm.params.w:g}: paper {ref}; ours "
-                     f"{c.label_npq or c.label} ({c.label})", fontsize=8.5, loc="left")
+                     f"{pm.label}", fontsize=8.5, loc="left")
     for ax in axes.ravel()[n:]:
         ax.axis("off")
     handles = [Line2D([], [], color="#1f4fd6", lw=0.8, label="|FFT of x|")] + [
