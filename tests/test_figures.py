@@ -212,7 +212,7 @@ def test_sweep_panels(number):
     ctx = Context(sweeps={n: synthetic_sweep() for n in names})
     (b,) = build([number], ctx)
     check_figure(b.figure, legend=True, min_axes=3)
-    assert len(b.differences) == 3
+    assert len(b.differences) == 4
 
 
 @pytest.mark.parametrize("yname", ["b", "xi"])

@@ -132,6 +132,13 @@ def _need(table: dict[str, pd.DataFrame], name: str, kind: str) -> pd.DataFrame:
     return table[name]
 
 
+def _sweep_note(df: pd.DataFrame) -> str:
+    v = df["value"].to_numpy(dtype=float)
+    step = (v.max() - v.min()) / max(len(v) - 1, 1) if len(v) else float("nan")
+    return (f"{len(v)} swept values of ω (step {step:.4f}; the study's config uses 1201, the "
+            "paper does not state its step); landmarks are located to within one step")
+
+
 def _grid_note(df: pd.DataFrame) -> str:
     nx, ny = int(df["i"].max()) + 1, int(df["j"].max()) + 1
     return f"grid {nx} x {ny} cells (paper 400 x 400)"
@@ -195,7 +202,7 @@ def _fig4(ctx: Context) -> list[Built]:
     from .bifurcation import figure4, sequence_text
 
     df = _need(ctx.sweeps, "standard", "sweep")
-    diffs = [f"Our sequence: {sequence_text(df)}."]
+    diffs = [_sweep_note(df), f"Our sequence: {sequence_text(df)}."]
     jump = df[df["dc"] == df["dc"].max()]
     diffs += _landmark_diffs(df)
     if len(jump):
@@ -302,6 +309,8 @@ def _fig_sweeps(number: int, names: tuple[str, ...]):
         diffs = []
         for n in names:
             df = _need(ctx.sweeps, n, "sweep")
+            if not diffs:
+                diffs.append(_sweep_note(df))
             title = sweep_title(n, ctx.sweep_fixed.get(n))
             dfs[title] = df
             diffs.append(f"{title}: paper {PAPER_SEQUENCES.get(n, '?')}; ours "
