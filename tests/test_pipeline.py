@@ -80,10 +80,10 @@ def planned_outputs(output: str) -> set[str]:
 
 
 def dry(workdir: Path, *configs: str, extra: tuple[str, ...] = ()):
-    args = ["-n", *extra]
-    for c in configs:
-        args += ["--configfile", c]
-    r = smk(workdir, *args, *targets(workdir, *configs))
+    args = [*targets(workdir, *configs), "-n", *extra]  # targets first: options take lists
+    if configs:
+        args += ["--configfile", *configs]
+    r = smk(workdir, *args)
     return r.stdout + r.stderr
 
 
@@ -128,9 +128,9 @@ def test_lint_clean_for_pipeline_rules():
 
 
 def test_slurm_profile_parses(fresh):
-    r = smk(fresh, "-n", "--quiet", "rules", "--profile", str(ROOT / "profiles/slurm"),
-            "--executor", "dryrun", "--configfile", "config/tiny.yaml",
-            *targets(fresh, "config/tiny.yaml"))
+    r = smk(fresh, *targets(fresh, "config/tiny.yaml"), "-n", "--profile",
+            str(ROOT / "profiles/slurm"), "--executor", "dryrun", "--configfile",
+            "config/tiny.yaml", "--quiet", "rules")
     assert job_counts(r.stdout + r.stderr)["simulate_tile"] == 4
 
 
@@ -153,7 +153,8 @@ def test_bad_config_stops_before_any_job(tmp_path, edit, needle):
     (wd / "config/bad.yaml").write_text(yaml.safe_dump(edit))
     r = smk(wd, "-n", "--configfile", "config/tiny.yaml", "config/bad.yaml", check=False)
     assert r.returncode != 0
-    assert needle in r.stderr, r.stderr[-2000:]
+    out = r.stdout + r.stderr
+    assert needle in out, out[-2000:]
     assert not (wd / "results").exists()
 
 
@@ -174,7 +175,7 @@ def test_cli_rejects_bad_config_in_one_line(tmp_path):
 def tiny_run(tmp_path_factory):
     wd = make_workdir(tmp_path_factory.mktemp("tiny"))
     tg = targets(wd, "config/tiny.yaml")
-    r = smk(wd, "--cores", "2", "--configfile", "config/tiny.yaml", *tg)
+    r = smk(wd, *tg, "--cores", "2", "--configfile", "config/tiny.yaml")
     return wd, tg, r
 
 
@@ -225,7 +226,7 @@ def test_end_to_end_tiny(tiny_run):
 @pytest.mark.slow
 def test_repeated_run_plans_nothing(tiny_run):
     wd, tg, _ = tiny_run
-    r = smk(wd, "-n", "--configfile", "config/tiny.yaml", *tg)
+    r = smk(wd, *tg, "-n", "--configfile", "config/tiny.yaml")
     assert "Nothing to be done" in r.stdout + r.stderr, r.stdout
 
 
