@@ -1,0 +1,259 @@
+"""The batched RK4 path (gearsim.batch) against the scalar core.
+
+* the lane vector field equals :func:`gearsim.model.rhs` (state and tangent, every region);
+* per-period summaries equal ``integrate_periods`` (METHOD_RK4, same steps per period) to a
+  stated tolerance, including double-sided impacts, bearing clearances and chaos;
+* 30 fixed cells (1T, 2T, 3T, 4T, 8T, chaos, double-sided impacts) are classified exactly as
+  :func:`gearsim.simulate.simulate_cell` with the reference DP5 settings;
+* ``simulate_rows`` equals ``continuation_chain`` with RK4 on continuation chains.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gearsim import batch
+from gearsim.model import N_SWITCH, rhs, static_state
+from gearsim.parameters import ModelParameters
+from gearsim.simulate import IntegrationSettings, run_periods, simulate_cell
+from gearsim.sweep import continuation_chain
+
+RK4 = IntegrationSettings(method="rk4")
+
+#: Tolerance of the summaries against integrate_periods (absolute; orbits are O(1)); the
+#: tangent log-growth is more sensitive to the switch times (measured: <= 2.5e-9).
+SUMMARY_ATOL = 1e-9
+LYAP_ATOL = 1e-8
+
+#: (b, w): chosen inside their pattern regions (neighbours at w +/- 0.002..0.004 agree).
+CELLS = [
+    (0.15, 0.49),  # 1/1T 1-1-0
+    (0.15, 0.76),  # 2/1T 1-1-1 double-sided
+    (0.15, 0.86),  # 2/1T 1-1-1
+    (0.15, 1.07),  # 2/2T 2-2-1
+    (0.15, 1.13),  # 2/3T 3-2-2
+    (0.15, 1.22),  # 2/2T 2-2-1
+    (0.15, 1.40),  # 2/2T 2-1-1
+    (0.15, 1.53),  # 2/4T 4-3-2
+    (0.15, 1.70),  # 1/2T 2-2-0
+    (0.15, 2.00),  # 1/1T 1-1-0
+    (0.3, 0.69),  # 2/1T 1-1-1
+    (0.3, 0.85),  # 1/1T 1-1-0
+    (0.3, 1.05),  # 1/2T 2-2-0
+    (0.3, 1.15),  # 1/2T 2-1-0
+    (0.3, 1.22),  # 2/2T 2-1-1
+    (0.3, 1.31),  # 1/4T 4-2-0
+    (0.3, 1.359),  # 1/8T 8-5-0
+    (0.3, 1.45),  # chaos
+    (0.3, 1.55),  # chaos
+    (0.3, 1.72),  # 1/2T 2-2-0
+    (0.3, 2.20),  # 1/1T 1-1-0
+    (1.0, 0.35),  # 0/1T 1-0-0
+    (1.0, 0.80),  # 1/1T 1-1-0
+    (1.0, 1.02),  # 1/2T 2-2-0
+    (1.0, 1.20),  # 1/2T 2-1-0
+    (1.0, 1.30),  # 1/4T 4-2-0
+    (1.0, 1.359),  # 1/8T 8-5-0
+    (1.0, 1.42),  # chaos
+    (1.0, 1.60),  # chaos
+    (1.0, 1.636),  # 1/4T 4-3-0
+]
+
+
+def _key(c):
+    return (c.motion, c.label, c.label_npq, c.I, c.n, c.p, c.q)
+
+
+# ------------------------------------------------------------------------------ vector field
+def _lane_field(p: ModelParameters, t, y, mode, friction_sign):
+    """Evaluate batch._field for one lane the way the kernels call it."""
+    w = p.w
+    c, s = math.cos(w * t), math.sin(w * t)
+    P = (
+        p.eps, 2 * p.xi, p.b, p.Fm, p.Fe * w * w, math.cos(p.phi_e), math.sin(p.phi_e),
+        p.friction, math.cos(p.alpha), math.sin(p.alpha), p.rho_p, p.rho_g,
+        p.kappa_py, p.kappa_pz, p.kappa_gy, p.kappa_gz,
+        2 * p.xi_py, 2 * p.xi_pz, 2 * p.xi_gy, 2 * p.xi_gz,
+        p.b_py, p.b_pz, p.b_gy, p.b_gz,
+    )  # fmt: skip
+    regions = [float(mode[k]) for k in range(5)]
+    M = (regions[0], abs(regions[0]), *regions[1:], *(abs(r) for r in regions[1:]))
+    vr = p.var_ratio * w * w * math.sin(p.var_ratio_order * w * t)
+    dy, dz = batch._field(c, s, friction_sign, vr, tuple(y[:10]), tuple(y[10:]), P, M)
+    return np.array(dy + dz)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_lane_field_equals_model_rhs(seed):
+    rng = np.random.default_rng(seed)
+    p = ModelParameters(
+        w=float(rng.uniform(0.2, 2.5)), b=float(rng.uniform(0, 1)), friction=0.1 * (seed % 2),
+        var_ratio=0.05 * (seed % 3 == 0), b_py=0.01 * (seed % 2), b_gz=0.02, kappa_pz=7.0,
+        xi_gy=0.07, phi_e=float(rng.uniform(-3, 3)), alpha=0.4,
+    )  # fmt: skip
+    arr = p.to_array()
+    for _ in range(20):
+        t = float(rng.uniform(0, 50))
+        y = rng.standard_normal(20)
+        mode = rng.integers(-1, 2, N_SWITCH)
+        ref = np.zeros(20)
+        rhs(t, y, arr, mode, ref, True)
+        lam = 1.0 if math.sin(p.w * t) >= 0 else -1.0
+        got = _lane_field(p, t, y, mode, lam)
+        np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-13)
+
+
+# ------------------------------------------------------------------------------ summaries
+def _post_transient(cells, periods=60):
+    ys = []
+    for p in cells:
+        r = run_periods(p, static_state(p.to_array()), periods, RK4)
+        ys.append(np.concatenate([r.state, batch.initial_tangent()]))
+    return np.array(ys)
+
+
+SUMMARY_CELLS = [
+    ModelParameters(w=0.76, b=0.15),  # double-sided impacts
+    ModelParameters(w=1.13, b=0.15),  # 3T, face and back
+    ModelParameters(w=0.49, b=1.0),  # grazing region
+    ModelParameters(w=1.36, b=0.3),  # 8T
+    ModelParameters(w=1.45, b=1.0),  # chaos
+    ModelParameters(w=0.9, b=0.3, b_py=0.002, b_gz=0.003),  # bearing clearances switch too
+    ModelParameters(w=1.25, b=0.3, var_ratio=0.02),  # slow variable-ratio forcing
+    ModelParameters(w=0.6, b=1.0, alpha=0.5, kappa_gy=35.0, rho_g=0.3),
+]
+
+
+def test_summaries_equal_integrate_periods_rk4():
+    y0 = _post_transient(SUMMARY_CELLS)
+    m = 24
+    start = [60] * len(SUMMARY_CELLS)
+    out, finals, status, steps = batch.run_periods_batched(
+        SUMMARY_CELLS, y0, m, RK4, start_periods=start
+    )
+    assert np.all(status == 0)
+    for i, p in enumerate(SUMMARY_CELLS):
+        ref = run_periods(p, y0[i], m, RK4, tangent=True, start_period=60)
+        a, b = ref.summaries, out[i]
+        assert len(b) == m
+        np.testing.assert_array_equal(b.nface, a.nface, err_msg=f"cell {i}")
+        np.testing.assert_array_equal(b.nback, a.nback, err_msg=f"cell {i}")
+        for name in ("section", "tdis", "fmax", "fmin", "xmax", "xmin", "lyap"):
+            tol = LYAP_ATOL if name == "lyap" else SUMMARY_ATOL
+            np.testing.assert_allclose(
+                getattr(b, name), getattr(a, name), rtol=0, atol=tol,
+                err_msg=f"cell {i} ({p.w}, {p.b}): {name}",
+            )  # fmt: skip
+        np.testing.assert_allclose(finals[i], ref.state, rtol=0, atol=SUMMARY_ATOL)
+        # the same RK4 steps, Newton trials and graze checks (to a rounding-level tie or two)
+        assert abs(int(steps[i]) - ref.n_steps) <= 2
+    # the comparison is not vacuous: the chaotic cell's section wanders, impacts happen
+    assert np.ptp(out[4].section[:, 0]) > 1e-2
+    assert sum(int(o.nface.sum() + o.nback.sum()) for o in out) > 100
+
+
+def test_bearing_channels_switch_in_the_clearance_cell():
+    p = SUMMARY_CELLS[5]
+    y0 = _post_transient([p])
+    out, *_ = batch.run_periods_batched([p], y0, 8, RK4)
+    ref = run_periods(p, y0[0], 8, RK4, tangent=True, event_capacity=10_000)
+    assert np.any(ref.events_code >= 4), "the clearance cell must have bearing switches"
+    np.testing.assert_allclose(out[0].section, ref.summaries.section, atol=SUMMARY_ATOL)
+
+
+def test_divergent_lane_stops_alone():
+    good = ModelParameters(w=1.0, b=0.3)
+    y = np.array([static_state(good.to_array())] * 2)
+    y[1, 0] = 1e7  # beyond the divergence bound after the first step
+    y = np.hstack([y, np.tile(batch.initial_tangent(), (2, 1))])
+    out, _, status, _ = batch.run_periods_batched([good, good], y, 5, RK4)
+    assert list(status) == [0, 1]
+    assert len(out[0]) == 5 and len(out[1]) == 0
+
+
+# ------------------------------------------------------------------------------ classification
+@pytest.fixture(scope="module")
+def batched_cells():
+    cells = [ModelParameters(w=w, b=b) for b, w in CELLS]
+    return cells, batch.simulate_cells(cells, settings=IntegrationSettings())
+
+
+def test_cell_set_covers_the_patterns(batched_cells):
+    _, res = batched_cells
+    labels = {r.classification.label for r in res}
+    ns = {r.classification.n for r in res}
+    assert {1, 2, 3, 4, 8} <= ns
+    assert "chaos" in labels
+    assert any(r.classification.I == 2 for r in res), "double-sided impacts"
+    assert any(r.classification.I == 0 for r in res)
+
+
+def test_batched_classifies_like_reference_dp5(batched_cells):
+    cells, res = batched_cells
+    st = IntegrationSettings()  # the reference DP5 settings
+    assert st.method == "dp5"
+    mism = []
+    for p, r in zip(cells, res, strict=True):
+        ref = simulate_cell(p, settings=st).classification
+        got = r.classification
+        if _key(got) != _key(ref):
+            mism.append((p.w, p.b, _key(got), _key(ref)))
+        elif got.n > 0:
+            # periodic: the measured quantities agree to the accuracy of RK4 at 256 steps
+            # (the force peak is sampled at the step points: O(h^2) ~ 1e-4 relative)
+            assert got.dc == pytest.approx(ref.dc, abs=1e-4)
+            assert got.kmax == pytest.approx(ref.kmax, rel=1e-3)
+            assert got.x_max == pytest.approx(ref.x_max, abs=1e-4)
+    assert not mism, mism
+
+
+# ------------------------------------------------------------------------------ driver
+def test_simulate_rows_equals_continuation_chain():
+    ws = [0.45, 0.7, 0.95, 1.1, 1.25, 1.32]
+    rows = [[ModelParameters(w=w, b=b) for w in ws] for b in (0.15, 1.0)]
+    got = batch.simulate_rows(rows, settings=RK4)
+    for row, res in zip(rows, got, strict=True):
+        ref = continuation_chain(row, settings=RK4)
+        for a, b in zip(res, ref, strict=True):
+            ra, rb = a.row(), b.row()
+            assert _key(a.classification) == _key(b.classification)
+            for k, v in rb.items():
+                if isinstance(v, float) and k != "lyapunov":
+                    assert ra[k] == pytest.approx(v, rel=1e-7, abs=1e-9, nan_ok=True), k
+            assert a.classification.lyapunov == pytest.approx(
+                b.classification.lyapunov, abs=1e-8
+            )
+            assert a.final_period == b.final_period
+            assert a.periods == b.periods
+            np.testing.assert_allclose(a.poincare, b.poincare, atol=1e-8)
+            np.testing.assert_allclose(a.final_state, b.final_state, atol=1e-8)
+
+
+def test_simulate_rows_callback_and_single_dof_fallback():
+    seen = []
+    rows = [
+        [ModelParameters(w=0.8, b=0.3), ModelParameters(w=0.9, b=0.3)],
+        [ModelParameters(w=0.8, b=0.3, model="1dof")],
+        [],
+    ]
+    res = batch.simulate_rows(rows, settings=RK4, on_cell=lambda r, i, c: seen.append((r, i)))
+    assert [len(r) for r in res] == [2, 1, 0]
+    assert sorted(seen) == [(0, 0), (0, 1), (1, 0)]
+    one = simulate_cell(rows[1][0], settings=RK4)
+    assert _key(res[1][0].classification) == _key(one.classification)
+
+
+def test_lanes_with_different_steps_per_period_wait_for_each_other():
+    # w < 2 pi / (hmax * 256) needs more than 256 steps per period (the hmax cap)
+    low = [ModelParameters(w=w, b=0.3) for w in (0.103, 0.115)]
+    high = [ModelParameters(w=w, b=0.3) for w in (0.5, 0.6)]
+    assert batch.steps_per_period(low[0], RK4) > batch.steps_per_period(low[1], RK4) > 256
+    got = batch.simulate_rows([low, high], settings=RK4)
+    for row, res in zip([low, high], got, strict=True):
+        ref = continuation_chain(row, settings=RK4)
+        for a, b in zip(res, ref, strict=True):
+            assert a.steps == pytest.approx(b.steps, abs=4)
+            np.testing.assert_allclose(a.final_state, b.final_state, atol=1e-8)
