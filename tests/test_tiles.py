@@ -81,6 +81,7 @@ def test_defaults_filled():
         (lambda c: c["sweeps"]["b015"].update(min=3, max=1), "sweeps.b015", "reversed"),
         (lambda c: c["integration"].update(rtol=2), "integration.rtol", "maximum"),
         (lambda c: c["planes"]["wb"]["y"].update(min=-1), "planes.wb.y", "outside"),
+        (lambda c: c["planes"].update(sweeps=c["planes"]["wb"]), "planes.sweeps", "reserved"),
     ],
 )
 def test_bad_config_names_the_key(edit, key, words):

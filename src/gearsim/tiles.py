@@ -48,6 +48,8 @@ CODE_MODULES = (
 PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "distributed")
 
 DEFAULT_CONFIG = "config/config.yaml"
+#: Names a plane may not take (they are directories of results/ used by other outputs).
+RESERVED_PLANE_NAMES = ("sweeps", "points", "figures", "benchmarks", "logs", "report")
 SCHEMA_RELATIVE = Path("workflow/schemas/config.schema.yaml")
 
 
@@ -191,6 +193,8 @@ def check_config(config: dict, root: str | Path = ".") -> dict:
     rows = int(config["tile_rows"])
     for pname, plane in config.get("planes", {}).items():
         where = f"planes.{pname}"
+        if pname in RESERVED_PLANE_NAMES:
+            raise ConfigError(f"config key '{where}': reserved name (used by other results)")
         _check_axis(plane["x"], f"{where}.x", centres=True)
         _check_axis(plane["y"], f"{where}.y", centres=True)
         if plane["x"]["name"] == plane["y"]["name"]:

@@ -48,13 +48,6 @@ POINT_SETS = list(config["points"])
 TILES = {plane: gt.tile_ids(config, plane) for plane in PLANES}
 AUDIT = float(config["audit"]["fraction"]) > 0
 
-RESERVED = {"sweeps", "points", "figures", "benchmarks", "logs", "report"}
-for _p in PLANES:
-    if _p in RESERVED:
-        raise WorkflowError(
-            f"invalid configuration: config key 'planes.{_p}': reserved name"
-        )
-
 
 def _alternatives(names):
     return "|".join(names) if names else "^$"
