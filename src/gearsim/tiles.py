@@ -31,8 +31,9 @@ import pandas as pd
 
 from .parameters import ModelParameters, ParameterError, check_value
 
-#: Modules whose source determines simulation results: their hash is ``code_version``.
-#: (Figures, CLI and catalogue code are left out so editing them does not re-run the tiles.)
+#: Modules whose source determines simulation results: with the functions of this module
+#: that build cells (:data:`CODE_FUNCTIONS`) their hash is ``code_version``. Figures, CLI,
+#: catalogue and config-checking code are left out, so editing them does not re-run the tiles.
 CODE_MODULES = (
     "parameters",
     "model",
@@ -41,8 +42,8 @@ CODE_MODULES = (
     "simulate",
     "sweep",
     "batch",
-    "tiles",
 )
+CODE_FUNCTIONS = ("axis_values", "sweep_values", "simulate_row", "row_specs", "records_to_frame")
 
 #: Packages whose versions go into the provenance.
 PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "distributed")
@@ -360,7 +361,9 @@ def config_hash(obj: Any) -> str:
 
 
 def code_version() -> str:
-    """Hash of the sources that determine results (:data:`CODE_MODULES`)."""
+    """Hash of the sources that determine results (:data:`CODE_MODULES`, :data:`CODE_FUNCTIONS`)."""
+    import inspect
+
     h = hashlib.sha256()
     pkg = Path(__file__).resolve().parent
     for name in CODE_MODULES:
@@ -368,6 +371,8 @@ def code_version() -> str:
         if f.is_file():
             h.update(name.encode())
             h.update(f.read_bytes())
+    for name in CODE_FUNCTIONS:
+        h.update(inspect.getsource(globals()[name]).encode())
     return h.hexdigest()[:16]
 
 

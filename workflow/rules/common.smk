@@ -40,7 +40,7 @@ if workflow.config_settings.config:
 CONFIG = ancient(CONFIG_FILES)
 
 # 3. What the jobs depend on. code_version hashes the sources that determine results
-#    (gearsim.tiles.CODE_MODULES): Snakemake does not see edits to an installed package.
+#    (gearsim.tiles.CODE_MODULES, CODE_FUNCTIONS): Snakemake does not see edits to a package.
 CODE_VERSION = gt.code_version()
 PLANES = list(config["planes"])
 SWEEPS = list(config["sweeps"])
