@@ -139,3 +139,8 @@ def test_query_prints_a_table(db, capsys):
 def test_missing_catalogue(tmp_path, capsys):
     assert main(["query", "--db", str(tmp_path / "none.sqlite"), "SELECT 1"]) == 2
     assert "catalogue not found" in capsys.readouterr().err
+
+
+def test_with_select_is_allowed(db):
+    cols, rows = execute(db, "WITH t AS (SELECT label FROM plane_cells) SELECT COUNT(*) AS n FROM t")
+    assert cols == ["n"] and rows == [(NX * NY * 2,)]
