@@ -142,5 +142,6 @@ def test_missing_catalogue(tmp_path, capsys):
 
 
 def test_with_select_is_allowed(db):
-    cols, rows = execute(db, "WITH t AS (SELECT label FROM plane_cells) SELECT COUNT(*) AS n FROM t")
+    sql = "WITH t AS (SELECT label FROM plane_cells) SELECT COUNT(*) AS n FROM t"
+    cols, rows = execute(db, sql)
     assert cols == ["n"] and rows == [(NX * NY * 2,)]
