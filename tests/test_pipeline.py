@@ -96,7 +96,7 @@ def fresh(tmp_path_factory):
     ("configs", "tiles", "sweeps", "points"),
     [
         ((), 2 * 50, 7, 3),
-        (("config/quick.yaml",), 2 * 5, 7, 3),
+        (("config/quick.yaml",), 2 * 2, 7, 3),
         (("config/tiny.yaml",), 2 * 2, 7, 3),
     ],
 )
