@@ -74,7 +74,9 @@ def _lane_field(p: ModelParameters, t, y, mode, friction_sign):
     c, s = math.cos(w * t), math.sin(w * t)
     P = (
         p.eps, 2 * p.xi, p.b, p.Fm, p.Fe * w * w, math.cos(p.phi_e), math.sin(p.phi_e),
-        p.friction, math.cos(p.alpha), math.sin(p.alpha), p.rho_p, p.rho_g,
+        p.friction, math.cos(p.alpha), math.sin(p.alpha),
+        p.rho_p * math.cos(p.alpha), p.rho_p * math.sin(p.alpha),
+        p.rho_g * math.cos(p.alpha), p.rho_g * math.sin(p.alpha),
         p.kappa_py, p.kappa_pz, p.kappa_gy, p.kappa_gz,
         2 * p.xi_py, 2 * p.xi_pz, 2 * p.xi_gy, 2 * p.xi_gz,
         p.b_py, p.b_pz, p.b_gy, p.b_gz,

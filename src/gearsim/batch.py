@@ -75,26 +75,28 @@ _SPHI = 28  # sin(phi_e)
 _GAM = 29  # friction factor gamma
 _CA = 30  # cos(alpha)
 _SA = 31  # sin(alpha)
-_RP = 32
-_RG = 33
-_KAP = 34  # 4 rows: kappa py, pz, gy, gz
-_ZB = 38  # 4 rows: 2 xi_brg
-_GAP = 42  # 4 rows: bearing half clearances
-_VRA = 46  # variable-ratio amplitude A w^2
-_VRS = 47  # A w^2 sin(2 pi nu K) for the current period K
-_VRC = 48  # A w^2 cos(2 pi nu K)
-_R0 = 49  # mesh region (-1, 0, 1) as a double
-_S0 = 50  # |mesh region|
-_RB = 51  # 4 rows: bearing regions
-_SB = 55  # 4 rows: |bearing region|
-_ACT = 59  # 4 rows: bearing channel active (1.0) or linear (0.0)
-_TD = 63  # per-period accumulators: disengaged time, force and x extremes
-_FMX = 64
-_FMN = 65
-_XMX = 66
-_XMN = 67
-_FLAG = 68  # 1.0 when the lane needs the scalar fix-up for the current step
-NROW = 69
+_RPCA = 32  # rho_p cos(alpha)
+_RPSA = 33  # rho_p sin(alpha)
+_RGCA = 34  # rho_g cos(alpha)
+_RGSA = 35  # rho_g sin(alpha)
+_KAP = 36  # 4 rows: kappa py, pz, gy, gz
+_ZB = 40  # 4 rows: 2 xi_brg
+_GAP = 44  # 4 rows: bearing half clearances
+_VRA = 48  # variable-ratio amplitude A w^2
+_VRS = 49  # A w^2 sin(2 pi nu K) for the current period K
+_VRC = 50  # A w^2 cos(2 pi nu K)
+_R0 = 51  # mesh region (-1, 0, 1) as a double
+_S0 = 52  # |mesh region|
+_RB = 53  # 4 rows: bearing regions
+_SB = 57  # 4 rows: |bearing region|
+_ACT = 61  # 4 rows: bearing channel active (1.0) or linear (0.0)
+_TD = 65  # per-period accumulators: disengaged time, force and x extremes
+_FMX = 66
+_FMN = 67
+_XMX = 68
+_XMN = 69
+_FLAG = 70  # 1.0 when the lane needs the scalar fix-up for the current step
+NROW = 71
 BLOCK = NROW * LANES
 
 # ---- integer rows (2-D array [NI, n_lanes]; touched by scalar code only) ---------------------
@@ -115,34 +117,45 @@ _FASTMATH = {"contract"}  # FMA contraction only: no reassociation, NaN/inf sema
 
 # ============================================================================ the vector field
 @njit(cache=True, nogil=True, inline="always")
-def _field(c, s, lam, vr, y, z, P, M):
-    """Right-hand side for one lane with frozen regions; ``(dy, dz)`` for state and tangent.
+def _dstate(c, s, lam, vr, y, P, M):
+    """Right-hand side of the state for one lane with frozen regions (a 10-tuple).
 
     ``c, s`` = cos, sin of the mesh phase ``w tau``; ``lam`` the friction direction; ``vr`` the
     variable-ratio forcing. ``P`` lane parameters, ``M`` frozen regions (see ``_lane_params``).
     Same equations as :func:`gearsim.model.rhs` (checked by tests/test_batch.py).
     """
-    (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rp, rg,
+    (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
      k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
-    stiff = 1.0 + eps * c
-    F = stiff * (s0 * y[0] - r0 * b) + xi2 * y[1]
-    fric = 1.0 + gam * lam
+    F = (1.0 + eps * c) * (s0 * y[0] - r0 * b) + xi2 * y[1]
     drive = fm + few2 * (c * cphi - s * sphi) + vr
-    a_py = -z0 * y[3] - k0 * (sb0 * y[2] - rb0 * g0) - rp * F * ca
-    a_pz = -z1 * y[5] - k1 * (sb1 * y[4] - rb1 * g1) - rp * F * sa
-    a_gy = -z2 * y[7] - k2 * (sb2 * y[6] - rb2 * g2) + rg * F * ca
-    a_gz = -z3 * y[9] - k3 * (sb3 * y[8] - rb3 * g3) + rg * F * sa
-    acc = drive - F * fric + (a_py - a_gy) * ca + (a_pz - a_gz) * sa
-    dF = stiff * s0 * z[0] + xi2 * z[1]
-    d_py = -z0 * z[3] - k0 * sb0 * z[2] - rp * dF * ca
-    d_pz = -z1 * z[5] - k1 * sb1 * z[4] - rp * dF * sa
-    d_gy = -z2 * z[7] - k2 * sb2 * z[6] + rg * dF * ca
-    d_gz = -z3 * z[9] - k3 * sb3 * z[8] + rg * dF * sa
-    dacc = -dF * fric + (d_py - d_gy) * ca + (d_pz - d_gz) * sa
-    dy = (y[1], acc, y[3], a_py, y[5], a_pz, y[7], a_gy, y[9], a_gz)
-    dz = (z[1], dacc, z[3], d_py, z[5], d_pz, z[7], d_gy, z[9], d_gz)
-    return dy, dz
+    a_py = -z0 * y[3] - k0 * (sb0 * y[2] - rb0 * g0) - rpca * F
+    a_pz = -z1 * y[5] - k1 * (sb1 * y[4] - rb1 * g1) - rpsa * F
+    a_gy = -z2 * y[7] - k2 * (sb2 * y[6] - rb2 * g2) + rgca * F
+    a_gz = -z3 * y[9] - k3 * (sb3 * y[8] - rb3 * g3) + rgsa * F
+    acc = drive - F * (1.0 + gam * lam) + (a_py - a_gy) * ca + (a_pz - a_gz) * sa
+    return (y[1], acc, y[3], a_py, y[5], a_pz, y[7], a_gy, y[9], a_gz)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dtangent(c, lam, z, P, M):
+    """Jacobian-vector product of the same frozen (piecewise-linear) field: a 10-tuple."""
+    (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3) = P  # fmt: skip
+    (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
+    dF = (1.0 + eps * c) * s0 * z[0] + xi2 * z[1]
+    d_py = -z0 * z[3] - k0 * sb0 * z[2] - rpca * dF
+    d_pz = -z1 * z[5] - k1 * sb1 * z[4] - rpsa * dF
+    d_gy = -z2 * z[7] - k2 * sb2 * z[6] + rgca * dF
+    d_gz = -z3 * z[9] - k3 * sb3 * z[8] + rgsa * dF
+    dacc = -dF * (1.0 + gam * lam) + (d_py - d_gy) * ca + (d_pz - d_gz) * sa
+    return (z[1], dacc, z[3], d_py, z[5], d_pz, z[7], d_gy, z[9], d_gz)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _field(c, s, lam, vr, y, z, P, M):
+    """State and tangent right-hand sides ``(dy, dz)`` (for tests and the scalar path)."""
+    return _dstate(c, s, lam, vr, y, P, M), _dtangent(c, lam, z, P, M)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -155,32 +168,55 @@ def _axpy(y, a, k):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _comb(y, h6, a, b, c, d):
-    """RK4 update ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)`` for 10-tuples."""
+def _add2(s, k):
+    """``s + 2 k`` for 10-tuples (the RK4 weight sum, accumulated in the order of integrate)."""
     return (
-        y[0] + h6 * (a[0] + 2.0 * b[0] + 2.0 * c[0] + d[0]),
-        y[1] + h6 * (a[1] + 2.0 * b[1] + 2.0 * c[1] + d[1]),
-        y[2] + h6 * (a[2] + 2.0 * b[2] + 2.0 * c[2] + d[2]),
-        y[3] + h6 * (a[3] + 2.0 * b[3] + 2.0 * c[3] + d[3]),
-        y[4] + h6 * (a[4] + 2.0 * b[4] + 2.0 * c[4] + d[4]),
-        y[5] + h6 * (a[5] + 2.0 * b[5] + 2.0 * c[5] + d[5]),
-        y[6] + h6 * (a[6] + 2.0 * b[6] + 2.0 * c[6] + d[6]),
-        y[7] + h6 * (a[7] + 2.0 * b[7] + 2.0 * c[7] + d[7]),
-        y[8] + h6 * (a[8] + 2.0 * b[8] + 2.0 * c[8] + d[8]),
-        y[9] + h6 * (a[9] + 2.0 * b[9] + 2.0 * c[9] + d[9]),
-    )
+        s[0] + 2.0 * k[0], s[1] + 2.0 * k[1], s[2] + 2.0 * k[2], s[3] + 2.0 * k[3],
+        s[4] + 2.0 * k[4], s[5] + 2.0 * k[5], s[6] + 2.0 * k[6], s[7] + 2.0 * k[7],
+        s[8] + 2.0 * k[8], s[9] + 2.0 * k[9],
+    )  # fmt: skip
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _rk4(y, z, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, P, M):
-    """One classical RK4 step of state and tangent (phases at start, middle and end given)."""
+def _add(s, k):
+    return (
+        s[0] + k[0], s[1] + k[1], s[2] + k[2], s[3] + k[3], s[4] + k[4],
+        s[5] + k[5], s[6] + k[6], s[7] + k[7], s[8] + k[8], s[9] + k[9],
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, P, M):
+    """One classical RK4 step of the state, ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.
+
+    The weight sum is accumulated stage by stage (few live values: no register spills), in the
+    same order of additions as ``integrate._rk4_step``.
+    """
     a = 0.5 * h
-    k1y, k1z = _field(cA, sA, lam, vA, y, z, P, M)
-    k2y, k2z = _field(cM, sM, lam, vM, _axpy(y, a, k1y), _axpy(z, a, k1z), P, M)
-    k3y, k3z = _field(cM, sM, lam, vM, _axpy(y, a, k2y), _axpy(z, a, k2z), P, M)
-    k4y, k4z = _field(cB, sB, lam, vB, _axpy(y, h, k3y), _axpy(z, h, k3z), P, M)
-    h6 = h / 6.0
-    return _comb(y, h6, k1y, k2y, k3y, k4y), _comb(z, h6, k1z, k2z, k3z, k4z)
+    k = _dstate(cA, sA, lam, vA, y, P, M)
+    acc = k
+    k = _dstate(cM, sM, lam, vM, _axpy(y, a, k), P, M)
+    acc = _add2(acc, k)
+    k = _dstate(cM, sM, lam, vM, _axpy(y, a, k), P, M)
+    acc = _add2(acc, k)
+    k = _dstate(cB, sB, lam, vB, _axpy(y, h, k), P, M)
+    acc = _add(acc, k)
+    return _axpy(y, h / 6.0, acc)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rk4_tangent(z, h, cA, cM, cB, lam, P, M):
+    """The same RK4 step for the tangent vector (linear; independent of the state)."""
+    a = 0.5 * h
+    k = _dtangent(cA, lam, z, P, M)
+    acc = k
+    k = _dtangent(cM, lam, _axpy(z, a, k), P, M)
+    acc = _add2(acc, k)
+    k = _dtangent(cM, lam, _axpy(z, a, k), P, M)
+    acc = _add2(acc, k)
+    k = _dtangent(cB, lam, _axpy(z, h, k), P, M)
+    acc = _add(acc, k)
+    return _axpy(z, h / 6.0, acc)
 
 
 # ============================================================================ block accessors
@@ -201,7 +237,8 @@ def _lane_params(blk, o, q):
     return (
         blk[r + _EPS * L], blk[r + _XI2 * L], blk[r + _B * L], blk[r + _FM * L],
         blk[r + _FEW2 * L], blk[r + _CPHI * L], blk[r + _SPHI * L], blk[r + _GAM * L],
-        blk[r + _CA * L], blk[r + _SA * L], blk[r + _RP * L], blk[r + _RG * L],
+        blk[r + _CA * L], blk[r + _SA * L], blk[r + _RPCA * L], blk[r + _RPSA * L],
+        blk[r + _RGCA * L], blk[r + _RGSA * L],
         blk[r + _KAP * L], blk[r + (_KAP + 1) * L], blk[r + (_KAP + 2) * L],
         blk[r + (_KAP + 3) * L],
         blk[r + _ZB * L], blk[r + (_ZB + 1) * L], blk[r + (_ZB + 2) * L], blk[r + (_ZB + 3) * L],
@@ -267,61 +304,83 @@ def _watch(v0, u1, v1, gap, r, act):
 
 
 # ============================================================================ the vector step
-@njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _block_step(blk, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound):
-    """One RK4 step of the LANES lanes of the block ``blk`` (a view of BLOCK doubles).
-
-    Returns True if any lane is flagged.
-
-    Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes are left
-    untouched for :func:`_fixup`. Straight-line code over the lanes (selects, no branches), so
-    that the loop over ``q`` vectorises.
-    """
+@njit(cache=True, nogil=True, inline="always")
+def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
+               tangent):
+    """RK4 step of lane ``q`` of a block (straight-line code: selects, no branches)."""
     L = LANES
-    o = 0
-    for q in range(L):
-        r = q
-        y = _load10(blk, o, _Y, q)
+    r = o + q
+    y = _load10(blk, o, _Y, q)
+    P = _lane_params(blk, o, q)
+    M = _lane_modes(blk, o, q)
+    h = blk[r + _H * L]
+    vrs = blk[r + _VRS * L]
+    vrc = blk[r + _VRC * L]
+    vA = vrs * cvA + vrc * svA
+    vM = vrs * cvM + vrc * svM
+    vB = vrs * cvB + vrc * svB
+    yn = _rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, P, M)
+    b = P[2]
+    r0 = M[0]
+    s0 = M[1]
+    flag = (_region(yn[0], b) != r0) | (y[1] * yn[1] < 0.0)
+    flag = flag | _watch(y[3], yn[2], yn[3], P[22], M[2], blk[r + _ACT * L])
+    flag = flag | _watch(y[5], yn[4], yn[5], P[23], M[3], blk[r + (_ACT + 1) * L])
+    flag = flag | _watch(y[7], yn[6], yn[7], P[24], M[4], blk[r + (_ACT + 2) * L])
+    flag = flag | _watch(y[9], yn[8], yn[9], P[25], M[5], blk[r + (_ACT + 3) * L])
+    ok = (abs(yn[0]) < bound) & (abs(yn[1]) < bound) & (abs(yn[2]) < bound)
+    ok = ok & (abs(yn[3]) < bound) & (abs(yn[4]) < bound) & (abs(yn[5]) < bound)
+    ok = ok & (abs(yn[6]) < bound) & (abs(yn[7]) < bound) & (abs(yn[8]) < bound)
+    ok = ok & (abs(yn[9]) < bound)
+    flag = flag | (not ok)
+    _store10(blk, r + _Y * L, flag, y, yn)
+    if tangent:
         z = _load10(blk, o, _Y + 10, q)
-        P = _lane_params(blk, o, q)
-        M = _lane_modes(blk, o, q)
-        h = blk[r + _H * L]
-        vrs = blk[r + _VRS * L]
-        vrc = blk[r + _VRC * L]
-        vA = vrs * cvA + vrc * svA
-        vM = vrs * cvM + vrc * svM
-        vB = vrs * cvB + vrc * svB
-        yn, zn = _rk4(y, z, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, P, M)
-        b = P[2]
-        r0 = M[0]
-        s0 = M[1]
-        flag = (_region(yn[0], b) != r0) | (y[1] * yn[1] < 0.0)
-        flag = flag | _watch(y[3], yn[2], yn[3], P[20], M[2], blk[r + _ACT * L])
-        flag = flag | _watch(y[5], yn[4], yn[5], P[21], M[3], blk[r + (_ACT + 1) * L])
-        flag = flag | _watch(y[7], yn[6], yn[7], P[22], M[4], blk[r + (_ACT + 2) * L])
-        flag = flag | _watch(y[9], yn[8], yn[9], P[23], M[5], blk[r + (_ACT + 3) * L])
-        ok = (abs(yn[0]) < bound) & (abs(yn[1]) < bound) & (abs(yn[2]) < bound)
-        ok = ok & (abs(yn[3]) < bound) & (abs(yn[4]) < bound) & (abs(yn[5]) < bound)
-        ok = ok & (abs(yn[6]) < bound) & (abs(yn[7]) < bound) & (abs(yn[8]) < bound)
-        ok = ok & (abs(yn[9]) < bound)
-        flag = flag | (not ok)
-        _store10(blk, r + _Y * L, flag, y, yn)
+        zn = _rk4_tangent(z, h, cA, cM, cB, lam, P, M)
         _store10(blk, r + (_Y + 10) * L, flag, z, zn)
-        td = blk[r + _TD * L]
-        blk[r + _TD * L] = _sel(flag | (r0 != 0.0), td, td + h)
-        fl = (1.0 + P[0] * cB) * (s0 * yn[0] - r0 * b) + P[1] * yn[1]
-        fmx = blk[r + _FMX * L]
-        fmn = blk[r + _FMN * L]
-        xmx = blk[r + _XMX * L]
-        xmn = blk[r + _XMN * L]
-        blk[r + _FMX * L] = _sel(flag, fmx, _fmax(fmx, fl))
-        blk[r + _FMN * L] = _sel(flag, fmn, _fmin(fmn, fl))
-        blk[r + _XMX * L] = _sel(flag, xmx, _fmax(xmx, yn[0]))
-        blk[r + _XMN * L] = _sel(flag, xmn, _fmin(xmn, yn[0]))
-        blk[r + _FLAG * L] = _sel(flag, 1.0, 0.0)
+    td = blk[r + _TD * L]
+    blk[r + _TD * L] = _sel(flag | (r0 != 0.0), td, td + h)
+    fl = (1.0 + P[0] * cB) * (s0 * yn[0] - r0 * b) + P[1] * yn[1]
+    fmx = blk[r + _FMX * L]
+    fmn = blk[r + _FMN * L]
+    xmx = blk[r + _XMX * L]
+    xmn = blk[r + _XMN * L]
+    blk[r + _FMX * L] = _sel(flag, fmx, _fmax(fmx, fl))
+    blk[r + _FMN * L] = _sel(flag, fmn, _fmin(fmn, fl))
+    blk[r + _XMX * L] = _sel(flag, xmx, _fmax(xmx, yn[0]))
+    blk[r + _XMN * L] = _sel(flag, xmn, _fmin(xmn, yn[0]))
+    blk[r + _FLAG * L] = _sel(flag, 1.0, 0.0)
+
+
+@njit(cache=True, nogil=True, fastmath=_FASTMATH)
+def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound):
+    """One RK4 step (state and tangent) of the LANES lanes of ``blk`` (a view of BLOCK doubles).
+
+    The loop over the lanes is straight-line code and vectorises (check: ``inspect_asm()``).
+    Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes are left
+    untouched for :func:`_fixup`. Returns True if any lane is flagged.
+    """
+    o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
+    for q in range(LANES):
+        _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
+                   True)
     anyf = False
-    for q in range(L):
-        anyf = anyf | (blk[_FLAG * L + q] != 0.0)
+    for q in range(LANES):
+        anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
+    return anyf
+
+
+@njit(cache=True, nogil=True, fastmath=_FASTMATH)
+def _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam,
+                      bound):
+    """:func:`_block_step` without the tangent vector (transients)."""
+    o = (bi & 0xFFFFFF) * BLOCK
+    for q in range(LANES):
+        _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
+                   False)
+    anyf = False
+    for q in range(LANES):
+        anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
     return anyf
 
 
@@ -402,11 +461,11 @@ def _rk4_at(tr, hh, yin, yout, P, M, lam, w, nu, vrs, vrc):
     vA = vrs * math.cos(nu * ph) + vrc * math.sin(nu * ph)
     vM = vrs * math.cos(nu * pm) + vrc * math.sin(nu * pm)
     vB = vrs * math.cos(nu * pe) + vrc * math.sin(nu * pe)
-    yn, zn = _rk4(
-        y, z, hh,
-        math.cos(ph), math.sin(ph), vA, math.cos(pm), math.sin(pm), vM,
-        math.cos(pe), math.sin(pe), vB, lam, P, M,
-    )  # fmt: skip
+    cA, cM, cB = math.cos(ph), math.cos(pm), math.cos(pe)
+    yn = _rk4_state(
+        y, hh, cA, math.sin(ph), vA, cM, math.sin(pm), vM, cB, math.sin(pe), vB, lam, P, M
+    )
+    zn = _rk4_tangent(z, hh, cA, cM, cB, lam, P, M)
     for i in range(10):
         yout[i] = yn[i]
         yout[10 + i] = zn[i]
@@ -436,7 +495,7 @@ def _fixup(blk, o, q, l, ist, j, N, lam, nu, bound, wy, wn, wt, mode, gaps, acti
     active[0] = True
     for c in range(1, 5):
         mode[c] = int(blk[r + (_RB + c - 1) * L])
-        gaps[c] = P[19 + c]
+        gaps[c] = P[21 + c]
         active[c] = blk[r + (_ACT + c - 1) * L] != 0.0
     td = blk[r + _TD * L]
     fmx = blk[r + _FMX * L]
@@ -616,7 +675,8 @@ def _fixup(blk, o, q, l, ist, j, N, lam, nu, bound, wy, wn, wt, mode, gaps, acti
 
 # ============================================================================ the kernel
 @njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fout):
+def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fout,
+            tangent=True):
     """Advance every lane with ``ist[_ST] == 0`` by ``m`` mesh periods of ``N`` RK4 steps.
 
     Parameters
@@ -696,10 +756,13 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fou
             lam = LAM[j]
             for bi in range(nblk):
                 o = bi * BLOCK
-                if _block_step(
-                    blk[o : o + BLOCK], cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
-                    lam, bound,
-                ):
+                if tangent:
+                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
+                                       cvB, svB, lam, bound)
+                else:
+                    anyf = _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB,
+                                             sB, cvB, svB, lam, bound)
+                if anyf:
                     for q in range(L):
                         if blk[o + _FLAG * L + q] != 0.0:
                             ll = bi * L + q
@@ -831,8 +894,10 @@ class Lanes:
         v[_GAM] = params.friction
         v[_CA] = math.cos(params.alpha)
         v[_SA] = math.sin(params.alpha)
-        v[_RP] = params.rho_p
-        v[_RG] = params.rho_g
+        v[_RPCA] = params.rho_p * v[_CA]
+        v[_RPSA] = params.rho_p * v[_SA]
+        v[_RGCA] = params.rho_g * v[_CA]
+        v[_RGSA] = params.rho_g * v[_SA]
         for k, name in enumerate(("py", "pz", "gy", "gz")):
             v[_KAP + k] = getattr(params, f"kappa_{name}")
             v[_ZB + k] = 2.0 * getattr(params, f"xi_{name}")
@@ -870,11 +935,11 @@ class Lanes:
     def state(self, lane: int, n: int = 20) -> np.ndarray:
         return self.get_rows(lane, _Y, n)
 
-    def run(self, N: int, m: int, nu: float, bound: float) -> None:
+    def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True) -> None:
         """Advance the lanes with status 0 by ``m`` periods (the kernel :func:`advance`)."""
         C, S, LAM, CV, SV = phase_tables(N, nu)
         advance(self.blk, self.ist, int(N), int(m), C, S, LAM, CV, SV, float(nu), float(bound),
-                self.sec, self.nface, self.nback, self.fout)
+                self.sec, self.nface, self.nback, self.fout, bool(tangent))
 
     def summaries(self, lane: int, n: int) -> PeriodSummaries:
         """The first ``n`` recorded periods of ``lane`` (copies)."""
@@ -1112,7 +1177,9 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             ist[_POS, l] = c.measured if c.phase == _MEASURE else -1
             ist[_K, l] = c.k
         lanes.set_column(_H, hcol)
-        lanes.run(N, m, 0.0 if nu is None else nu, bound)
+        # the tangent vector is only needed while some lane measures (else: the transient)
+        tangent = any(c.phase == _MEASURE for c in part)
+        lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         for c in part:
             l = c.lane
             done = int(ist[_DONE, l])
