@@ -104,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
         for b in registry.build(numbers, ctx):
             files = [str(f) for f in save_figure(b.figure, outdir / f"fig{b.number:02d}")]
             plt.close(b.figure)
-            rec = registry.record(b, files)
+            rec = registry.record(b, files, ctx)
             (outdir / f"fig{b.number:02d}.json").write_text(
                 json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
             print(f"figure {b.number}: wrote {', '.join(files)}", file=sys.stderr)

@@ -31,11 +31,30 @@ MARKED = {
 }
 
 
-def landmarks_of(df: pd.DataFrame) -> pd.DataFrame:
-    """Landmarks of a sweep table (empty table when there are too few rows)."""
+def landmarks_of(df: pd.DataFrame, *, min_run: int = 3) -> pd.DataFrame:
+    """Landmarks of a sweep table worth marking (empty table when there are too few rows).
+
+    Excursions ``A -> B -> A`` where ``B`` lasts fewer than ``min_run`` swept values (a cell or
+    two classified differently next to a bifurcation, or a brief switch of branch) are not
+    marked; jumps are always kept. The table's ``attrs["flickers"]`` counts the pairs dropped.
+    """
     if len(df) < 2:
-        return pd.DataFrame(columns=["kind", "value", "annotation"])
-    return find_landmarks(df)
+        out = pd.DataFrame(columns=["kind", "value", "annotation"])
+        out.attrs["flickers"] = 0
+        return out
+    lm = find_landmarks(df).reset_index(drop=True)
+    changes = lm[lm["kind"] != "jump"].index.tolist()
+    drop: set[int] = set()
+    for a, b in zip(changes[:-1], changes[1:], strict=True):
+        if a in drop:
+            continue
+        ra, rb = lm.loc[a], lm.loc[b]
+        run = int(rb["i_lo"]) - int(ra["i_hi"]) + 1
+        if run < min_run and ra["from_npq"] == rb["to_npq"]:
+            drop.update((a, b))
+    out = lm.drop(index=sorted(drop)).reset_index(drop=True)
+    out.attrs["flickers"] = len(drop) // 2
+    return out
 
 
 def impact_legend(ax, Is, loc="upper left", **kw):

@@ -20,6 +20,21 @@ def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
         "ours, and where ours differs and why. Images: PNG (200 dpi) and PDF.",
         "",
     ]
+    recs = [json.loads(p.read_text()) for p in sorted(outdir.glob("fig[0-9][0-9].json"))]
+    settings = [r["integration"] for r in recs if r.get("integration")]
+    params = [r["parameters"] for r in recs if r.get("parameters")]
+    if settings:
+        same = all(s == settings[0] for s in settings) and all(p == params[0] for p in params)
+        lines.append("Drawn with the pipeline config's integration settings "
+                     + ("(the same for every figure)" if same else
+                        "(they differ between figures: see each figNN.json)") + ":")
+        lines.append("")
+        lines.append("`" + ", ".join(f"{k}={v}" for k, v in settings[0].items()) + "`")
+        lines.append("")
+        lines.append("and the parameters `" + ", ".join(
+            f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
+            for k, v in params[0].items()) + "` (the sweeps and planes fix w, b or xi).")
+        lines.append("")
     for n in ALL:
         rec_path = outdir / f"fig{n:02d}.json"
         lines.append(f"## Fig {n}")

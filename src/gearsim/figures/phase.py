@@ -239,6 +239,8 @@ class AttractorSearch:
     tried: int
     found: dict[str, Attractor]  # npq (or motion name) -> attractor
     elsewhere: dict[str, PointMotion] = field(default_factory=dict)  # npq -> other-w motion
+    # targets the sweep lists at other w that did not persist when re-simulated there
+    unconfirmed: dict[str, list[str]] = field(default_factory=dict)
 
     def summary(self) -> str:
         parts = [f"{a.motion.label} x{a.hits}" for a in
@@ -258,7 +260,7 @@ def search_attractors(params: ModelParameters, *, settings: IntegrationSettings 
                       sweep: pd.DataFrame | None = None, grid: tuple[int, int] = (6, 5),
                       targets: Sequence[str] = ("1-1-1", "2-2-1", "4-4-2"),
                       min_periods: int = 16, backward_from: float = 0.5,
-                      backward_step: float = 0.01) -> AttractorSearch:
+                      backward_step: float = 0.01, max_retries: int = 4) -> AttractorSearch:
     """Steady motions reached from several initial conditions at one parameter point.
 
     Initial conditions: the static state, the state reached by forward continuation in ``w``
@@ -311,12 +313,20 @@ def search_attractors(params: ModelParameters, *, settings: IntegrationSettings 
             rows = sweep[sweep["label_npq"] == t]
             if not len(rows):
                 continue
-            w = float(rows["value"].iloc[int(np.argmin(np.abs(rows["value"] - params.w)))])
-            p = params.with_(w=w)
-            r, how = reach(params, [w], sweep=sweep, settings=st)
-            pm = simulate_point(p, settings=st, result=r[w], seed=how, min_periods=min_periods)
-            if pm.npq == t:
-                search.elsewhere[t] = pm
+            # nearest swept values first; the sweep's label must persist when re-simulated
+            order = np.argsort(np.abs(rows["value"].to_numpy(dtype=float) - params.w))
+            tried = []
+            for k in order[:max_retries]:
+                w = float(rows["value"].iloc[int(k)])
+                r, how = reach(params, [w], sweep=sweep, settings=st)
+                pm = simulate_point(params.with_(w=w), settings=st, result=r[w], seed=how,
+                                    min_periods=min_periods)
+                tried.append(f"{w:.4g} -> {pm.npq}")
+                if pm.npq == t:
+                    search.elsewhere[t] = pm
+                    break
+            else:
+                search.unconfirmed[t] = tried
     return search
 
 
@@ -334,6 +344,10 @@ def choose_motion(search: AttractorSearch, target: str,
     if target in search.elsewhere:
         pm = search.elsewhere[target]
         return pm, f"{lead} Shown: {target} at \u03c9 = {pm.params.w:.4g} from the b sweep."
+    if target in search.unconfirmed:
+        lead += (f" The b sweep lists {target} elsewhere, but it did not persist when "
+                 f"re-simulated from the sweep state (\u03c9 -> found: "
+                 f"{'; '.join(search.unconfirmed[target])}).")
     others = [a for a in search.found.values() if a.npq not in used]
     others = others or list(search.found.values())
     if not others:

@@ -199,10 +199,14 @@ def _landmark_diffs(df: pd.DataFrame) -> list[str]:
 
 
 def _fig4(ctx: Context) -> list[Built]:
-    from .bifurcation import figure4, sequence_text
+    from .bifurcation import figure4, landmarks_of, sequence_text
 
     df = _need(ctx.sweeps, "standard", "sweep")
     diffs = [_sweep_note(df), f"Our sequence: {sequence_text(df)}."]
+    flick = landmarks_of(df).attrs.get("flickers", 0)
+    if flick:
+        diffs.append(f"{flick} brief excursions (A → B → A with B shorter than 3 swept values) "
+                     "are not marked as landmarks on the diagram.")
     jump = df[df["dc"] == df["dc"].max()]
     diffs += _landmark_diffs(df)
     if len(jump):
@@ -414,9 +418,11 @@ def build(numbers, ctx: Context) -> list[Built]:
     return out
 
 
-def record(b: Built, files: list[str]) -> dict[str, Any]:
-    """The sidecar record of a built figure (written as ``figNN.json``)."""
-    return {
+def record(b: Built, files: list[str], ctx: Context | None = None) -> dict[str, Any]:
+    """The sidecar record of a built figure (written as ``figNN.json``), with the parameters and
+    integration settings of the config it was drawn with (those of the simulated figures and,
+    in the pipeline, of the input tables)."""
+    rec = {
         "figure": b.number,
         "files": files,
         "paper_caption": PAPER_CAPTIONS[b.number],
@@ -424,3 +430,7 @@ def record(b: Built, files: list[str]) -> dict[str, Any]:
         "differences": b.differences,
         "inputs": b.inputs,
     }
+    if ctx is not None:
+        rec["parameters"] = ctx.params.to_dict()
+        rec["integration"] = ctx.settings.to_dict()
+    return rec
