@@ -114,6 +114,9 @@ def mark_landmarks(ax, lm: pd.DataFrame, *, text: bool = True):
             groups.append([m])
     for g in groups:
         names = list(dict.fromkeys(m[1] for m in g))
+        if len(names) > 1:  # several kinds close together: short names
+            short = {"G Bif": "G", "PD Bif": "PD", "Jump": "Jump", "Chaos": "Chaos"}
+            names = ["/".join(short[n] for n in names)]
         ws = [m[0] for m in g]
         where = f"{ws[0]:.3f}" if len(ws) == 1 else f"{min(ws):.3f}–{max(ws):.3f}"
         ax.annotate(f"{'/'.join(names)} {where}", xy=(float(np.mean(ws)), 1.0),
@@ -190,7 +193,7 @@ def figure_sweeps(sweeps: Mapping[str, pd.DataFrame], *, title: str | None = Non
                   notes: Mapping[str, str] | None = None):
     """Figs 8 and 15: one bifurcation panel per sweep, e.g. ``{"b = 0.15": df, ...}``."""
     n = len(sweeps)
-    fig, axes = plt.subplots(n, 1, figsize=(7.5, 2.9 * n + 0.4), squeeze=False)
+    fig, axes = plt.subplots(n, 1, figsize=(7.5, 3.6 * n + 0.4), squeeze=False)
     for ax, (tag, (label, df)) in zip(axes[:, 0], enumerate(sweeps.items()), strict=True):
         draw_bifurcation(ax, df)
         ax.text(0.005, 0.99, f"({chr(97 + tag)}) {label}", transform=ax.transAxes, fontsize=9,
