@@ -100,10 +100,11 @@ def test_tile_on_scheduler_equals_local_cluster(tmp_path):
 
 
 def test_unreachable_scheduler_is_one_line(tmp_path):
+    env = {**_env(), "GEARSIM_SCHEDULER_TIMEOUT": "2s"}
     r = subprocess.run(
         [str(GEARSIM), "simulate-tile", "--plane", "wb", "--tile", "0", "--configfile",
          str(ROOT / "config/config.yaml"), str(ROOT / "config/tiny.yaml"),
          "--scheduler", "tcp://127.0.0.1:9"],
-        cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=120)
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "cannot reach dask scheduler" in r.stderr
     assert r.stderr.strip().count("\n") == 1, r.stderr  # the tile banner + one error line

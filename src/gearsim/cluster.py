@@ -24,8 +24,8 @@ WORKER_ENV = {
 }
 
 
-#: How long to wait for a configured scheduler before giving up.
-CONNECT_TIMEOUT = "10s"
+#: How long to wait for a configured scheduler before giving up (env GEARSIM_SCHEDULER_TIMEOUT).
+CONNECT_TIMEOUT = os.environ.get("GEARSIM_SCHEDULER_TIMEOUT", "10s")
 
 
 def _prepare_environment() -> None:
