@@ -164,3 +164,26 @@ def test_row_is_a_continuation_chain(tiny):
         assert np.isclose(r.row()["dc"], c["dc"], equal_nan=True)
         u0, start = r.final_state, r.final_period
     assert str(df["p"].dtype) == "Int64" and df["converged"].dtype == bool
+
+
+def test_rk4_tiles_use_the_batched_kernel(tiny):
+    """With method rk4 a tile runs gearsim.batch; rows equal the scalar RK4 continuation chain."""
+    from gearsim.sweep import continuation_chain
+
+    cfg = copy.deepcopy(tiny)
+    cfg["integration"]["method"] = "rk4"
+    cfg["planes"]["wb"]["x"]["n"] = 5
+    df = gt.run_tile(cfg, "wb", 1, client=None)
+    assert len(df) == 5 * 4 and list(df["j"].unique()) == [4, 5, 6, 7]
+    settings = gt.integration_settings(cfg)
+    base = gt.plane_base(cfg, "wb")
+    for j in (4, 7):
+        row = df[df.j == j].sort_values("i")
+        ref = continuation_chain([base.with_(w=c.w, b=c.b) for c in row.itertuples()],
+                                 settings=settings)
+        assert [r.row()["label_npq"] for r in ref] == list(row["label_npq"])
+        assert [r.row()["label"] for r in ref] == list(row["label"])
+        np.testing.assert_allclose([r.row()["dc"] for r in ref], row["dc"], rtol=1e-6,
+                                   atol=1e-9)
+    assert gt.row_groups(list(range(16)), 2) == [list(range(8)), list(range(8, 16))]
+    assert gt.row_groups(list(range(8)), 2) == [list(range(8))]

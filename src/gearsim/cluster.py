@@ -95,7 +95,6 @@ def map_unordered(client, fn: Callable, items: Sequence[Any]) -> Iterator[Any]:
 
 def describe(client) -> str:
     """One line: scheduler address and worker count."""
-    info = client.scheduler_info()
-    workers = info.get("workers", {})
-    threads = sum(w.get("nthreads", 0) for w in workers.values())
-    return f"scheduler {info.get('address', '?')}: {len(workers)} workers, {threads} threads"
+    nthreads = client.nthreads()  # every worker (scheduler_info() lists only a few)
+    address = client.scheduler.address if client.scheduler else "?"
+    return f"scheduler {address}: {len(nthreads)} workers, {sum(nthreads.values())} threads"

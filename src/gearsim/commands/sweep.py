@@ -59,7 +59,14 @@ def sweep_frame(
         if progress and ((i + 1) % 25 == 0 or i + 1 == len(plist)):
             progress(i + 1, len(plist), stamps[-1] - t0)
 
-    results = continuation_chain(plist, settings=settings, on_cell=on_cell)
+    if settings.method == "rk4":
+        from ..batch import simulate_rows
+
+        results = simulate_rows(
+            [plist], settings=settings, on_cell=lambda _r, i, res: on_cell(i, res)
+        )[0]
+    else:
+        results = continuation_chain(plist, settings=settings, on_cell=on_cell)
     rows: list[dict[str, Any]] = []
     prev = t0
     for v, r, t in zip(vals, results, stamps, strict=True):
