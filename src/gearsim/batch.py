@@ -1264,3 +1264,19 @@ def _finish(ch: _Chain, res: CellResult, y, lanes: Lanes, st, tangent0, continua
         lanes.set(ch.lane, _H, 0.0)
         return
     _begin_cell(ch, lanes, st, tangent0)
+
+
+def warm_up() -> float:
+    """Compile the batched kernels (or load them from ``NUMBA_CACHE_DIR``); returns seconds.
+
+    Call once before many workers start (``gearsim compile``), so that they do not race to
+    compile and write the cache (a cold compile of :func:`advance` takes ~20 s).
+    """
+    import time
+
+    t0 = time.perf_counter()
+    st = IntegrationSettings(
+        method="rk4", transient=2, transient_continuation=1, chunk=4, max_periods=8, n_max=2
+    )
+    simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
+    return time.perf_counter() - t0
