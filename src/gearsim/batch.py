@@ -941,20 +941,16 @@ class Lanes:
         advance(self.blk, self.ist, int(N), int(m), C, S, LAM, CV, SV, float(nu), float(bound),
                 self.sec, self.nface, self.nback, self.fout, bool(tangent))
 
-    def summaries(self, lane: int, n: int) -> PeriodSummaries:
-        """The first ``n`` recorded periods of ``lane`` (copies)."""
+    def summaries(self, lane: int, n: int, copy: bool = True) -> PeriodSummaries:
+        """The first ``n`` recorded periods of ``lane`` (copies, or views into the buffers)."""
         f = self.fout[lane, :n]
-        return PeriodSummaries(
-            self.sec[lane, :n].copy(),
-            self.nface[lane, :n].copy(),
-            self.nback[lane, :n].copy(),
-            f[:, O_TDIS].copy(),
-            f[:, O_FMAX].copy(),
-            f[:, O_FMIN].copy(),
-            f[:, O_XMAX].copy(),
-            f[:, O_XMIN].copy(),
-            f[:, O_LYAP].copy(),
-        )
+        parts = (
+            self.sec[lane, :n], self.nface[lane, :n], self.nback[lane, :n], f[:, O_TDIS],
+            f[:, O_FMAX], f[:, O_FMIN], f[:, O_XMAX], f[:, O_XMIN], f[:, O_LYAP],
+        )  # fmt: skip
+        if copy:
+            parts = tuple(a.copy() for a in parts)
+        return PeriodSummaries(*parts)
 
 
 def run_periods_batched(
@@ -1204,8 +1200,10 @@ def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings, tangent0: np.
     params = ch.cells[ch.i]
     if params.model != "6dof":
         raise ParameterError("the batched kernel is the 6-DOF model")
-    p = params.to_array()
-    y = static_state(p) if ch.start is None else np.asarray(ch.start, dtype=float)[:N_STATE]
+    if ch.start is None:
+        y = static_state(params.to_array())
+    else:
+        y = np.asarray(ch.start, dtype=float)[:N_STATE]
     if y.shape != (N_STATE,) or not np.all(np.isfinite(y)):
         raise ParameterError("initial state 'u0' must be 10 finite numbers")
     transient = st.transient if ch.start is None else st.transient_continuation
@@ -1236,7 +1234,7 @@ def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, tangent0, continu
             on_cell) -> None:
     """After a measuring chunk: the period test of simulate_cell, then finish or go on."""
     params = ch.cells[ch.i]
-    s = lanes.summaries(ch.lane, ch.measured)
+    s = lanes.summaries(ch.lane, ch.measured, copy=False)  # read before the lane moves on
     scale = float(s.xmax.max() - s.xmin.min())
     n = estimate_period(s.section[:, 0], s.section[:, 1], scale, params.w, st.n_max,
                         st.period_rtol)
