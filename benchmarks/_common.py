@@ -30,8 +30,14 @@ def machine() -> dict:
         lscpu = subprocess.run(["lscpu"], capture_output=True, text=True, check=True).stdout
         for line in lscpu.splitlines():
             k, _, v = line.partition(":")
-            if k.strip() in ("Model name", "CPU(s)", "Thread(s) per core", "L2 cache", "L3 cache",
-                             "Hypervisor vendor"):
+            if k.strip() in (
+                "Model name",
+                "CPU(s)",
+                "Thread(s) per core",
+                "L2 cache",
+                "L3 cache",
+                "Hypervisor vendor",
+            ):
                 info[k.strip()] = v.strip()
         flags = next((ln for ln in lscpu.splitlines() if ln.startswith("Flags")), "")
         info["avx2"] = " avx2 " in flags + " "
@@ -74,8 +80,12 @@ def measure(fn: Callable[[], object], repeats: int = 5) -> dict:
 
 def save(name: str, payload: dict) -> Path:
     RESULTS.mkdir(parents=True, exist_ok=True)
-    payload = {"benchmark": name, "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-               "machine": machine(), **payload}
+    payload = {
+        "benchmark": name,
+        "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "machine": machine(),
+        **payload,
+    }
     path = RESULTS / f"{name}.json"
     path.write_text(json.dumps(payload, indent=1, default=float) + "\n")
     return path

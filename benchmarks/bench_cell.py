@@ -77,16 +77,31 @@ def timed_cell(params, u0, st, start_period):
         measured += r.periods_done
         a = c()
         s = PeriodSummaries.concat(parts)
-        n = estimate_period(s.section[:, 0], s.section[:, 1], float(s.xmax.max() - s.xmin.min()),
-                            params.w, st.n_max, st.period_rtol)
+        n = estimate_period(
+            s.section[:, 0],
+            s.section[:, 1],
+            float(s.xmax.max() - s.xmin.min()),
+            params.w,
+            st.n_max,
+            st.period_rtol,
+        )
         t_cls += c() - a
         if n > 0:
             break
     t2 = c()
     s = PeriodSummaries.concat(parts)
     window = s.tail(n * max(1, min(len(s), 4 * max(n, 8)) // n)) if n > 0 else s
-    cls = classify_motion(window, w=params.w, b=params.b, eps=params.eps, xi=params.xi,
-                          Fm=params.Fm, Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold)
+    cls = classify_motion(
+        window,
+        w=params.w,
+        b=params.b,
+        eps=params.eps,
+        xi=params.xi,
+        Fm=params.Fm,
+        Fe=params.Fe,
+        n=n,
+        lyap_threshold=st.lyap_threshold,
+    )
     t3 = c()
     return t1 - t0, (t2 - t1) - t_cls, t_cls + (t3 - t2), cls, yt[:10], k
 
@@ -99,8 +114,16 @@ def scalar_chain(cells, st):
         if i < 3:  # the instrumented logic is simulate_cell's
             ref = simulate_cell(p, u0, settings=st, start_period=k)
             assert ref.classification.label == cls.label, (p.w, ref.classification.label, cls.label)
-        rows.append({"w": p.w, "fresh": u0 is None, "transient_ms": tt * 1e3, "measure_ms": tm * 1e3,
-                     "classify_ms": tc * 1e3, "label": cls.label})
+        rows.append(
+            {
+                "w": p.w,
+                "fresh": u0 is None,
+                "transient_ms": tt * 1e3,
+                "measure_ms": tm * 1e3,
+                "classify_ms": tc * 1e3,
+                "label": cls.label,
+            }
+        )
         u0, k = y, k1
     return rows
 
@@ -109,8 +132,16 @@ def scalar_fresh(cells, st):
     rows = []
     for p in cells:
         tt, tm, tc, cls, _, _ = timed_cell(p, None, st, 0)
-        rows.append({"w": p.w, "fresh": True, "transient_ms": tt * 1e3, "measure_ms": tm * 1e3,
-                     "classify_ms": tc * 1e3, "label": cls.label})
+        rows.append(
+            {
+                "w": p.w,
+                "fresh": True,
+                "transient_ms": tt * 1e3,
+                "measure_ms": tm * 1e3,
+                "classify_ms": tc * 1e3,
+                "label": cls.label,
+            }
+        )
     return rows
 
 
@@ -121,8 +152,10 @@ def summarize_scalar(rows):
         if not sel:
             continue
         key = "fresh" if fresh else "continuation"
-        out[key] = {f: statistics.mean(r[f] for r in sel)
-                    for f in ("transient_ms", "measure_ms", "classify_ms")}
+        out[key] = {
+            f: statistics.mean(r[f] for r in sel)
+            for f in ("transient_ms", "measure_ms", "classify_ms")
+        }
         out[key]["total_ms"] = sum(out[key].values())
         out[key]["cells"] = len(sel)
     return out
@@ -131,8 +164,9 @@ def summarize_scalar(rows):
 def kernel_period_cost(st, lanes=8):
     """CPU seconds per period of one 8-lane kernel call, with and without the tangent vector."""
     cells = [ModelParameters(w=float(w), b=0.3) for w in np.linspace(0.6, 2.4, lanes)]
-    y0 = np.array([np.concatenate([static_state(p.to_array()), batch.initial_tangent()])
-                   for p in cells])
+    y0 = np.array(
+        [np.concatenate([static_state(p.to_array()), batch.initial_tangent()]) for p in cells]
+    )
     out = {}
     for tangent in (False, True):
         L = batch.Lanes(lanes, 64)
@@ -191,8 +225,10 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args(argv)
     stride = 16 if args.quick else 8
-    out = {"workload": f"(w, b) plane row, every {stride}th w centre, forward continuation",
-           "settings": {}}
+    out = {
+        "workload": f"(w, b) plane row, every {stride}th w centre, forward continuation",
+        "settings": {},
+    }
     sets = [("defaults", IntegrationSettings())]
     if config_settings() != IntegrationSettings():
         sets.append(("config_yaml", config_settings()))
@@ -209,8 +245,18 @@ def main(argv=None):
             rows = [r for r in chain if not r["fresh"]] + scalar_fresh(fresh_cells, s)
             res[f"scalar_{method}"] = summarize_scalar(rows)
             res[f"scalar_{method}"]["labels"] = [r["label"] for r in chain]
-            print(sname, method, {k: round(v["total_ms"], 2) for k, v in res[f"scalar_{method}"].items()
-                                  if isinstance(v, dict)}, "load", loadavg(), flush=True)
+            print(
+                sname,
+                method,
+                {
+                    k: round(v["total_ms"], 2)
+                    for k, v in res[f"scalar_{method}"].items()
+                    if isinstance(v, dict)
+                },
+                "load",
+                loadavg(),
+                flush=True,
+            )
         kc = kernel_period_cost(st)
         res["kernel_8_lanes_ms_per_period"] = {k: v * 1e3 for k, v in kc.items()}
         bs = [0.15, 0.25, 0.3, 0.35, 0.45, 0.6, 0.8, 1.0]
@@ -230,14 +276,32 @@ def main(argv=None):
         batch.simulate_cells(fresh_cells, settings=st)
         per["fresh_ms_per_cell"] = (time.process_time() - t) / len(fresh_cells) * 1e3
         res["batched_8_rows"] = per
-        same = sum(a.classification.label == b for a, b in zip(rb[2], res["scalar_rk4"]["labels"]))
-        same_dp5 = sum(a.classification.label == b
-                       for a, b in zip(rb[2], res["scalar_dp5"]["labels"]))
-        res["batched_vs_scalar_labels_b0.3"] = {"equal_rk4": same, "equal_dp5": same_dp5,
-                                                "cells": len(cells)}
-        print(sname, "batched", {k: (round(v, 3) if isinstance(v, float) else v)
-                                 for k, v in per.items()}, "labels equal rk4/dp5",
-              same, same_dp5, "/", len(cells), "load", loadavg(), flush=True)
+        same = sum(
+            a.classification.label == b
+            for a, b in zip(rb[2], res["scalar_rk4"]["labels"], strict=True)
+        )
+        same_dp5 = sum(
+            a.classification.label == b
+            for a, b in zip(rb[2], res["scalar_dp5"]["labels"], strict=True)
+        )
+        res["batched_vs_scalar_labels_b0.3"] = {
+            "equal_rk4": same,
+            "equal_dp5": same_dp5,
+            "cells": len(cells),
+        }
+        print(
+            sname,
+            "batched",
+            {k: (round(v, 3) if isinstance(v, float) else v) for k, v in per.items()},
+            "labels equal rk4/dp5",
+            same,
+            same_dp5,
+            "/",
+            len(cells),
+            "load",
+            loadavg(),
+            flush=True,
+        )
         out["settings"][sname] = res
     print(save("cell", out))
 

@@ -81,7 +81,9 @@ def batched(cs, y0, periods):
     extra = [0]
 
     def run():
-        _, _, status, steps = batch.run_periods_batched(cs, y0, periods, st, start_periods=[100] * n)
+        _, _, status, steps = batch.run_periods_batched(
+            cs, y0, periods, st, start_periods=[100] * n
+        )
         extra[0] = int(steps.sum()) - grid_steps
 
     run()
@@ -99,8 +101,13 @@ def main(argv=None):
     ap.add_argument("--name", default="kernel")
     args = ap.parse_args(argv)
     periods = 10 if args.quick else 40
-    out = {"lanes_per_block": batch.LANES, "steps_per_period": 256, "periods": periods,
-           "scalar": {}, "batched": {}}
+    out = {
+        "lanes_per_block": batch.LANES,
+        "steps_per_period": 256,
+        "periods": periods,
+        "scalar": {},
+        "batched": {},
+    }
     cs = cells(24)
     y0 = start_states(cs)
     for method in ("rk4", "dp5"):
@@ -108,15 +115,21 @@ def main(argv=None):
             key = f"{method}_{'tangent' if tangent else 'state'}"
             r = scalar(cs[:12], y0[:12], method, tangent, periods)
             out["scalar"][key] = r
-            print(f"scalar {key:14s} {r['cell_steps_per_s_cpu'] / 1e6:6.2f} M cell-steps/s (cpu)"
-                  f"  load {r['load_after']}", flush=True)
+            print(
+                f"scalar {key:14s} {r['cell_steps_per_s_cpu'] / 1e6:6.2f} M cell-steps/s (cpu)"
+                f"  load {r['load_after']}",
+                flush=True,
+            )
     for n in (8, 16, 32, 64):
         cs = cells(n)
         y0 = start_states(cs)
         r = batched(cs, y0, periods)
         out["batched"][str(n)] = r
-        print(f"batched lanes={n:3d}     {r['cell_steps_per_s_cpu'] / 1e6:6.2f} M cell-steps/s (cpu)"
-              f"  wall {r['cell_steps_per_s_wall'] / 1e6:6.2f}  load {r['load_after']}", flush=True)
+        print(
+            f"batched lanes={n:3d}     {r['cell_steps_per_s_cpu'] / 1e6:6.2f} M cell-steps/s (cpu)"
+            f"  wall {r['cell_steps_per_s_wall'] / 1e6:6.2f}  load {r['load_after']}",
+            flush=True,
+        )
     print(save(args.name, out))
 
 

@@ -94,8 +94,16 @@ def ivp_periods(p, y, k0, m, tangent):
     for k in range(m):
         t0, t1 = (k0 + k) * T, (k0 + k + 1) * T
         sec[k] = y[:10]
-        sol = solve_ivp(rhs, (t0, t1), y, method="RK45", rtol=RTOL, atol=ATOL,
-                        events=(up, lo), dense_output=True)
+        sol = solve_ivp(
+            rhs,
+            (t0, t1),
+            y,
+            method="RK45",
+            rtol=RTOL,
+            atol=ATOL,
+            events=(up, lo),
+            dense_output=True,
+        )
         nfev += sol.nfev
         te_up, te_lo = sol.t_events
         ye_up, ye_lo = sol.y_events
@@ -123,7 +131,7 @@ def ivp_periods(p, y, k0, m, tangent):
 
 
 def ivp_cell(p, st):
-    """simulate_cell's logic (fresh start) on solve_ivp summaries; returns (classification, nfev)."""
+    """simulate_cell's logic (fresh start) on solve_ivp summaries: (classification, nfev)."""
     y = static_state(p.to_array())
     _, y, nfev = ivp_periods(p, y, 0, st.transient, False)
     k = st.transient
@@ -137,14 +145,29 @@ def ivp_cell(p, st):
         k += m
         measured += m
         s = PeriodSummaries.concat(parts)
-        n = estimate_period(s.section[:, 0], s.section[:, 1], float(s.xmax.max() - s.xmin.min()),
-                            p.w, st.n_max, st.period_rtol)
+        n = estimate_period(
+            s.section[:, 0],
+            s.section[:, 1],
+            float(s.xmax.max() - s.xmin.min()),
+            p.w,
+            st.n_max,
+            st.period_rtol,
+        )
         if n > 0:
             break
     s = PeriodSummaries.concat(parts)
     window = s.tail(n * max(1, min(len(s), 4 * max(n, 8)) // n)) if n > 0 else s
-    cls = classify_motion(window, w=p.w, b=p.b, eps=p.eps, xi=p.xi, Fm=p.Fm, Fe=p.Fe, n=n,
-                          lyap_threshold=st.lyap_threshold)
+    cls = classify_motion(
+        window,
+        w=p.w,
+        b=p.b,
+        eps=p.eps,
+        xi=p.xi,
+        Fm=p.Fm,
+        Fe=p.Fe,
+        n=n,
+        lyap_threshold=st.lyap_threshold,
+    )
     return cls, nfev, k
 
 
@@ -182,20 +205,28 @@ def main(argv=None):
         cls, nfev, periods = ivp_cell(p, st)
         t_ivp = time.process_time() - t
         row = {
-            "w": p.w, "b": p.b,
+            "w": p.w,
+            "b": p.b,
             "label_ivp": f"{cls.label} {cls.label_npq}",
             "label_batched": f"{r.classification.label} {r.classification.label_npq}",
             "label_dp5": f"{ref.label} {ref.label_npq}",
             "equal": cls.label == r.classification.label == ref.label
             and cls.label_npq == r.classification.label_npq,
-            "ivp_s": t_ivp, "ivp_nfev": nfev, "ivp_periods": periods,
-            "dp5_simulate_cell_s": t_dp5, "batched_single_lane_s": t1,
+            "ivp_s": t_ivp,
+            "ivp_nfev": nfev,
+            "ivp_periods": periods,
+            "dp5_simulate_cell_s": t_dp5,
+            "batched_single_lane_s": t1,
             "ratio_ivp_over_batched": t_ivp / t_batch,
             "ratio_ivp_over_batched_single_lane": t_ivp / t1,
         }
         rows.append(row)
-        print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()},
-              "load", loadavg(), flush=True)
+        print(
+            {k: (round(v, 4) if isinstance(v, float) else v) for k, v in row.items()},
+            "load",
+            loadavg(),
+            flush=True,
+        )
     eq = [r for r in rows if r["equal"]]
     out = {
         "solve_ivp": {"method": "RK45", "rtol": RTOL, "atol": ATOL},
@@ -204,12 +235,20 @@ def main(argv=None):
         "cells": rows,
         "equal_classification": f"{len(eq)}/{len(rows)}",
         "ratio_median_equal_cells": float(np.median([r["ratio_ivp_over_batched"] for r in eq]))
-        if eq else None,
+        if eq
+        else None,
         "ratio_single_lane_median_equal_cells": float(
-            np.median([r["ratio_ivp_over_batched_single_lane"] for r in eq])) if eq else None,
+            np.median([r["ratio_ivp_over_batched_single_lane"] for r in eq])
+        )
+        if eq
+        else None,
     }
-    print("ratio (median, equal cells):", out["ratio_median_equal_cells"],
-          "single lane:", out["ratio_single_lane_median_equal_cells"])
+    print(
+        "ratio (median, equal cells):",
+        out["ratio_median_equal_cells"],
+        "single lane:",
+        out["ratio_single_lane_median_equal_cells"],
+    )
     print(save("solve_ivp", out))
 
 
