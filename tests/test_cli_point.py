@@ -31,7 +31,7 @@ def test_point_save_writes_series_poincare_and_spectrum(tmp_path, capsys):
 def test_bad_input_is_one_line_exit_2():
     for args in (["point", "-w", "1", "--set", "xi=-1"], ["point", "-w", "nan"],
                  ["point", "-w", "1", "--set", "bogus=1"], ["point", "-w", "1", "--set", "xi"]):
-        r = subprocess.run([sys.executable, "-m", "gearsim.cli", *args], capture_output=True,
+        r = subprocess.run([sys.executable, "-m", "gearsim", *args], capture_output=True,
                            text=True)
         assert r.returncode == 2, args
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr

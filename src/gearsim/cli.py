@@ -13,12 +13,9 @@ import pkgutil
 import sys
 
 from . import __version__, commands
-from .parameters import ParameterError
+from .errors import USER_ERRORS, UsageError
 
-
-class UsageError(Exception):
-    """Bad user input detected by a subcommand (exit status 2, one line)."""
-
+__all__ = ["UsageError", "build_parser", "main"]
 
 def _subcommand_modules():
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
@@ -49,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args._run(args) or 0)
-    except (ParameterError, UsageError) as exc:
+    except USER_ERRORS as exc:
         sys.stderr.write(f"gearsim {args.command}: error: {exc}\n")
         return 2
 
