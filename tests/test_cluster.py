@@ -107,4 +107,4 @@ def test_unreachable_scheduler_is_one_line(tmp_path):
          "--scheduler", "tcp://127.0.0.1:9"],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "cannot reach dask scheduler" in r.stderr
-    assert r.stderr.strip().count("\n") == 1, r.stderr  # the tile banner + one error line
+    assert r.stderr.strip().count("\n") == 0, r.stderr  # one line

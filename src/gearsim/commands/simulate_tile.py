@@ -115,14 +115,16 @@ def run(args: argparse.Namespace) -> int:
     address = args.scheduler or config["cluster"].get("scheduler_address")
     started = catalogue.now_iso()
     t0 = time.perf_counter()
-    print(f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells", file=sys.stderr, flush=True)
+    banner = f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells"
     if args.no_cluster:
         workers = "in-process"
+        print(f"{banner}, {workers}", file=sys.stderr, flush=True)
         df = tiles.run_tile(config, args.plane, args.tile, client=None, progress=progress)
     else:
+        # connect first: a bad scheduler address is then the only line on stderr
         with open_client(args.workers, address) as client:
             workers = describe(client)
-            print(f"{label}: {workers}", file=sys.stderr, flush=True)
+            print(f"{banner} on {workers}", file=sys.stderr, flush=True)
             df = tiles.run_tile(config, args.plane, args.tile, client=client, progress=progress)
     progress.close()
     wall = time.perf_counter() - t0
