@@ -31,11 +31,11 @@ def run(args: argparse.Namespace) -> int:
         simulate_cell(p, settings=st)
         trajectory(p, periods=1, samples_per_period=4, settings=st)
     try:  # the batched RK4 kernel (tiles and sweeps with method rk4)
-        from ..batch import simulate_rows
-    except ImportError:  # pragma: no cover - older checkouts without gearsim.batch
-        simulate_rows = None
-    if simulate_rows is not None:
-        simulate_rows([[p, p.with_(w=1.1)]], settings=st.with_(method="rk4"))
+        from ..batch import warm_up
+    except ImportError:  # pragma: no cover - checkouts without gearsim.batch
+        warm_up = None
+    if warm_up is not None:
+        warm_up()
     dt = time.perf_counter() - t0
     cache = os.environ.get("NUMBA_CACHE_DIR", "(numba default)")
     msg = f"kernels ready in {dt:.1f} s; NUMBA_CACHE_DIR={cache}; code_version={code_version()}"
