@@ -212,6 +212,24 @@ def test_batched_classifies_like_reference_dp5(batched_cells):
     assert not mism, mism
 
 
+def test_estimate_period_fast_equals_classify(batched_cells):
+    from gearsim.classify import estimate_period
+
+    _, res = batched_cells
+    rng = np.random.default_rng(3)
+    seqs = []
+    for r in res:  # real section sequences (periodic and chaotic), with and without noise
+        sec = np.tile(r.poincare, (max(1, 80 // max(1, len(r.poincare))), 1))[:80]
+        seqs.append(sec)
+        seqs.append(sec + rng.normal(0, 1e-7, sec.shape))
+    seqs.append(np.full((40, 10), np.nan))
+    for sec in seqs:
+        scale = float(np.ptp(sec[:, 0])) if np.all(np.isfinite(sec)) else 1.0
+        for m in (17, 24, 40, len(sec)):
+            args = (sec[:m, 0], sec[:m, 1], scale, 1.3, 64, 1e-5)
+            assert batch.estimate_period_fast(*args) == estimate_period(*args)
+
+
 # ------------------------------------------------------------------------------ driver
 def test_simulate_rows_equals_continuation_chain():
     ws = [0.45, 0.7, 0.95, 1.1, 1.25, 1.32]
