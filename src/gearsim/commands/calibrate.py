@@ -43,16 +43,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--verify-dw", type=float, default=0.004, help="w step of the verification")
     p.add_argument("--verify-model", choices=("6dof", "1dof"), default="6dof")
     p.add_argument("--params", help="standard-parameter YAML to verify (stage verify)")
+    p.add_argument("--box", choices=("wide", "narrow"), default="narrow",
+                   help="search bounds (gearsim.calibrate.BOXES)")
     p.add_argument("--no-start", action="store_true", help="do not seed DE with MODEL.md's set")
 
 
 def _search(args) -> dict:
-    from ..calibrate import DEFAULT_FREE, START, ObjectiveSettings, calibrate
+    from ..calibrate import BOXES, START, ObjectiveSettings, calibrate
 
     st = ObjectiveSettings(dw=args.dw)
-    x0 = None if args.no_start else [START[fp.name] for fp in DEFAULT_FREE]
-    return calibrate(st=st, x0=x0, seed=args.seed, popsize=args.popsize, maxiter=args.maxiter,
-                     workers=args.workers, log_dir=args.log_dir, time_budget=args.time_budget)
+    free = BOXES[args.box]
+    x0 = None if args.no_start else [START[fp.name] for fp in free]
+    return calibrate(free=free, st=st, x0=x0, seed=args.seed, popsize=args.popsize,
+                     maxiter=args.maxiter, workers=args.workers, log_dir=args.log_dir,
+                     time_budget=args.time_budget)
 
 
 def verify(params, *, dw: float, model: str, log=print) -> dict:
@@ -65,14 +69,13 @@ def verify(params, *, dw: float, model: str, log=print) -> dict:
         evaluate,
     )
     from ..landmarks import match_paper, refine_landmarks
-    from ..simulate import IntegrationSettings
 
     params = params.with_(model=model)
     st = ObjectiveSettings(dw=dw, model=model, rtol=1e-9, max_periods=256, xi_check=False,
                            w_min=0.1)
     ev = evaluate(params, st)
     log(f"verify: coarse J={ev.J:.4f} rms={ev.rms:.4f} ({ev.seconds:.0f} s)")
-    settings = IntegrationSettings()
+    settings = st.integration()
     refined = refine_landmarks(ev.landmarks, params, settings=settings, tol=5e-4)
     matched = match_paper(refined)
     errs = np.where(matched["found"], matched["error"].fillna(0.0), np.nan)
@@ -81,10 +84,11 @@ def verify(params, *, dw: float, model: str, log=print) -> dict:
     # thresholds: scale Fm so that the backlash threshold is the paper's
     grid_b = np.linspace(0.1, 2.5, 121)
     b1 = backlash_threshold(params.with_(Fm=1.0, Fe=params.Fe / params.Fm),
-                            grid=grid_b, tol=0.001)
+                            grid=grid_b, settings=settings, tol=0.001)
     Fm = PAPER_B_THRESHOLD / b1 if math.isfinite(b1) and b1 > 0 else float("nan")
     log(f"verify: b*(Fm=1) = {b1:.4f} -> Fm = {Fm:.5f}")
-    xi_thr = damping_threshold(params, grid=np.linspace(0.1, 2.5, 241), tol=0.001)
+    xi_thr = damping_threshold(params, grid=np.linspace(0.1, 2.5, 241), settings=settings,
+                               tol=0.001)
     log(f"verify: xi threshold = {xi_thr:.4f}")
     jump = refined[refined["kind"] == "jump"]
     return {
