@@ -103,9 +103,14 @@ def test_cells_from_sqlite_catalogue(tmp_path):
     from gearsim.report import load_plane
 
     db = tmp_path / "c.sqlite"
-    df = plane_wb().assign(plane="wb").drop(columns=["p", "q"])
+    # the pipeline's layout: cells(plane_id, x, y, impact, ...) joined to planes(id, name)
+    df = (plane_wb().assign(plane_id=1).rename(columns={"I": "impact", "w": "x", "b": "y"})
+          .drop(columns=["p", "q"]))
     with sqlite3.connect(db) as con:
         df.to_sql("cells", con, index=False)
+        pd.DataFrame({"id": [1, 2], "name": ["wb", "wxi"]}).to_sql("planes", con, index=False)
     got = load_plane("wb", catalogue=db, results=tmp_path)
-    assert len(got) == len(df)
+    assert len(got) == len(df) and "I" in got.columns
     assert load_plane("wxi", catalogue=db, results=tmp_path) is None
+    rep = analyse({}, {"wb": got})
+    assert rep.b_threshold.last_with < 0.41 < rep.b_threshold.first_without

@@ -81,32 +81,33 @@ def load_sweeps(directory: str | Path) -> dict[str, pd.DataFrame]:
 
 
 def _cells_from_catalogue(path: Path, plane: str) -> pd.DataFrame | None:
+    """Cells of ``plane`` from the pipeline's catalogue (``cells`` joined to ``planes`` by
+    ``plane_id``; the impact state is stored as ``impact``, the axes as ``x`` / ``y``)."""
     if not path.is_file():
         return None
     con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
     try:
         tables = [r[0] for r in con.execute("select name from sqlite_master where type='table'")]
-        for t in tables:
-            cols = [r[1] for r in con.execute(f'pragma table_info("{t}")')]
-            if {"I", "n"} <= set(cols) and "plane" in cols:
-                df = pd.read_sql_query(f'select * from "{t}" where plane = ?', con,
-                                       params=(plane,))
-                if len(df):
-                    return df
-            if {"I", "n"} <= set(cols) and "plane_id" in cols and "planes" in tables:
-                pcols = [r[1] for r in con.execute('pragma table_info("planes")')]
-                key = "name" if "name" in pcols else None
-                if key:
-                    df = pd.read_sql_query(
-                        f'select c.* from "{t}" c join planes p on c.plane_id = p.id '
-                        f"where p.{key} = ?", con, params=(plane,))
-                    if len(df):
-                        return df
-    except sqlite3.Error:
+        if "cells" not in tables:
+            return None
+        cols = [r[1] for r in con.execute('pragma table_info("cells")')]
+        if "plane_id" in cols and "planes" in tables:
+            df = pd.read_sql_query(
+                "select c.* from cells c join planes p on c.plane_id = p.id where p.name = ?",
+                con, params=(plane,))
+        elif "plane" in cols:
+            df = pd.read_sql_query("select * from cells where plane = ?", con, params=(plane,))
+        else:
+            return None
+    except (sqlite3.Error, pd.errors.DatabaseError):
         return None
     finally:
         con.close()
-    return None
+    if not len(df):
+        return None
+    if "I" not in df.columns and "impact" in df.columns:
+        df = df.rename(columns={"impact": "I"})
+    return df
 
 
 def load_plane(plane: str, *, catalogue: str | Path | None = None,
