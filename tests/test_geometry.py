@@ -42,7 +42,8 @@ def test_geometry_derived_values():
 
 def test_conversion_formulas():
     g = GearGeometry(torque_p=20.0, te_amplitude_m=2e-6, backlash_half_m=5e-6,
-                     nominal_length_m=1e-5, bearing_k=2e9, bearing_c=500.0,
+                     nominal_length_m=1e-5, bearing_k=2e9, bearing_c_p=500.0,
+                     bearing_c_g=900.0,
                      mesh_damping_ratio=0.06, eps_stiffness=0.2, friction_mu=0.05)
     p = g.to_model_parameters()
     assert isinstance(p, ModelParameters)
@@ -54,16 +55,18 @@ def test_conversion_formulas():
     assert p.kappa_py == pytest.approx(2e9 / km * me / g.mass_p)
     assert p.kappa_gz == pytest.approx(2e9 / km * me / g.mass_g)
     assert p.xi_py == pytest.approx(500.0 / (2 * g.mass_p * g.natural_frequency))
+    assert p.xi_gz == pytest.approx(900.0 / (2 * g.mass_g * g.natural_frequency))
     assert p.friction == pytest.approx(0.05 * g.friction_arm / 0.036)
     assert p.var_ratio_order == pytest.approx(2 / 18)
 
 
 def test_round_trip_from_dimensionless():
     target = ModelParameters(Fm=0.3, Fe=0.5, eps=0.25, xi=0.06, b=0.8, friction=0.02,
-                             phi_e=-0.5, rho_p=0.4, rho_g=0.1, kappa_py=40.0, xi_py=0.03)
+                             phi_e=-0.5, rho_p=0.4, rho_g=0.1, kappa_py=40.0, xi_py=0.03,
+                             xi_gy=0.05)
     g = GearGeometry.from_dimensionless(target)
     p = g.to_model_parameters()
-    for name in ("Fm", "Fe", "eps", "xi", "b", "friction", "phi_e", "kappa_py", "xi_py"):
+    for name in ("Fm", "Fe", "eps", "xi", "b", "friction", "phi_e", "kappa_py", "xi_py", "xi_gy"):
         assert getattr(p, name) == pytest.approx(getattr(target, name), rel=1e-9), name
 
 

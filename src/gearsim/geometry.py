@@ -80,7 +80,8 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "inertia_p": (0.0, 1e3, False, True, "moment of inertia I_p, kg m^2"),
     "inertia_g": (0.0, 1e3, False, True, "moment of inertia I_g, kg m^2"),
     "bearing_k": (0.0, 1e14, False, True, "bearing stiffness K_ij (all four), N/m"),
-    "bearing_c": (0.0, 1e8, True, True, "bearing damping C_ij (all four), N s/m"),
+    "bearing_c_p": (0.0, 1e8, True, True, "pinion bearing damping C_pj (Y and Z), N s/m"),
+    "bearing_c_g": (0.0, 1e8, True, True, "gear bearing damping C_gj (Y and Z), N s/m"),
     "bearing_clearance_m": (0.0, 1e-2, True, True, "bearing half radial clearance B_ij, m"),
     "mesh_damping_ratio": (0.0, 10.0, True, True, "mesh damping ratio xi"),
     "torque_p": (0.0, 1e6, True, True, "driving torque T_p, N m"),
@@ -137,7 +138,8 @@ class GearGeometry:
     inertia_p: float = 0.0
     inertia_g: float = 0.0
     bearing_k: float = 1.0e10
-    bearing_c: float = 0.0
+    bearing_c_p: float = 0.0
+    bearing_c_g: float = 0.0
     bearing_clearance_m: float = 0.0
     mesh_damping_ratio: float = 0.05
     torque_p: float = 10.0
@@ -265,8 +267,8 @@ class GearGeometry:
         for j in ("y", "z"):
             kw[f"kappa_p{j}"] = self.bearing_k / km * rho_p
             kw[f"kappa_g{j}"] = self.bearing_k / km * rho_g
-            kw[f"xi_p{j}"] = self.bearing_c / (2.0 * self.mass_p * wn)
-            kw[f"xi_g{j}"] = self.bearing_c / (2.0 * self.mass_g * wn)
+            kw[f"xi_p{j}"] = self.bearing_c_p / (2.0 * self.mass_p * wn)
+            kw[f"xi_g{j}"] = self.bearing_c_g / (2.0 * self.mass_g * wn)
             kw[f"b_p{j}"] = self.bearing_clearance_m / bc
             kw[f"b_g{j}"] = self.bearing_clearance_m / bc
         kw.update(overrides)
@@ -279,8 +281,8 @@ class GearGeometry:
 
         Keeps ``base``'s gear geometry, masses and ``b_c``; back-computes torque, error amplitude
         and phase, stiffness fluctuation, damping ratio, half backlash, friction coefficient, and
-        bearing stiffness / damping / clearance (from the pinion's Y values; the conversion uses
-        one value for all four bearing directions).
+        bearing stiffness and clearance (from the pinion's Y values; the conversion uses one
+        value for all four bearing directions) and the bearing damping of each gear (Y values).
         """
         g = base or cls()
         km, bc = g.mesh_stiffness, g.nominal_length_m
@@ -295,7 +297,8 @@ class GearGeometry:
             backlash_half_m=params.b * bc,
             friction_mu=params.friction * g.pitch_radius_p / g.friction_arm,
             bearing_k=params.kappa_py / rho_p * km,
-            bearing_c=params.xi_py * 2.0 * g.mass_p * g.natural_frequency,
+            bearing_c_p=params.xi_py * 2.0 * g.mass_p * g.natural_frequency,
+            bearing_c_g=params.xi_gy * 2.0 * g.mass_g * g.natural_frequency,
             bearing_clearance_m=params.b_py * bc,
         )
 

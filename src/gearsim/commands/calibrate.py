@@ -137,7 +137,7 @@ def standard_parameters(record: dict, *, bearing_ratio: float, bearing_xi: float
     params = params_from_vector(x, DEFAULT_FREE, Fm=Fm, b=1.0, model="6dof")
     kw = {"rho_p": rho_p, "rho_g": rho_g}
     ratio = bearing_ratio
-    xi_g = bearing_xi * geo.mass_p / geo.mass_g
+    xi_g = bearing_xi
     for j in ("y", "z"):
         kw[f"kappa_p{j}"] = ratio * rho_p
         kw[f"kappa_g{j}"] = ratio * rho_g
@@ -165,8 +165,9 @@ def standard_parameters(record: dict, *, bearing_ratio: float, bearing_xi: float
         for g in ("p", "g"):
             prov[f"kappa_{g}{j}"] = ("derived", f"(K_ij / Km) rho_{g} with K_ij = "
                                      f"{ratio:g} Km (assumed stiff bearings)")
-            prov[f"xi_{g}{j}"] = ("derived", "C_ij / (2 M_i w_n), one bearing damping C_ij "
-                                  f"(assumed; pinion ratio {bearing_xi:g})")
+            prov[f"xi_{g}{j}"] = ("assumed", f"bearing damping ratio {bearing_xi:g} on both gears: "
+                                  "with one C_ij for both the gear's lighter-damped bearing mode "
+                                  "(0.0075) rings and breaks the sequence (docs/calibration.md)")
             prov[f"b_{g}{j}"] = ("assumed", "no bearing clearance")
     for k, note in PAPER.items():
         prov[k] = ("paper", note)
@@ -181,6 +182,8 @@ def standard_parameters(record: dict, *, bearing_ratio: float, bearing_xi: float
         "bearing_k": ("assumed", f"stiff bearings, {ratio:g} Km (MODEL.md: soft bearings put "
                       "bearing modes inside the w range)"),
         "bearing_clearance_m": ("assumed", "no clearance"),
+        "bearing_c_p": ("derived", "C = 2 xi_pj M_p w_n"),
+        "bearing_c_g": ("derived", "C = 2 xi_gj M_g w_n"),
         "mesh_damping_ratio": cal,
         "te_phase_deg": cal,
         "nominal_length_m": ("assumed", "b_c = 10 um"),
