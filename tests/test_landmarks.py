@@ -155,3 +155,13 @@ def test_refine_landmarks_bisects_with_simulations():
     r = ref.iloc[0]
     assert r["refined"] and r["hi"] - r["lo"] <= 0.01 + 1e-12
     assert 0.45 <= r["lo"] < r["hi"] <= 0.50
+
+
+def test_chaos_onset_through_quasi_periodic_run():
+    seq = ["8-5-0", "quasi-periodic", "quasi-periodic", "quasi-periodic", "chaos", "chaos",
+           "chaos", "8-6-0"]
+    rows = [row(1.3 + 0.01 * i, s) if s[0].isdigit() else row(1.3 + 0.01 * i, None, motion=s)
+            for i, s in enumerate(seq)]
+    lm = find_landmarks(pd.DataFrame(rows))
+    assert list(lm["kind"]) == ["chaos_onset", "inverse_period_doubling"]
+    assert lm.iloc[0]["lo"] == pytest.approx(1.30) and lm.iloc[0]["to_npq"] == "quasi-periodic"

@@ -20,7 +20,9 @@ Landmark kinds (:data:`KINDS`), each located *between* two neighbouring grid val
 ``inverse_period_doubling``
     ``2 n -> n`` between periodic cells, and ``chaos -> n`` at the final exit from chaos.
 ``chaos_onset``
-    The first periodic -> chaos transition (chaos must persist ``min_chaos_run`` cells).
+    The first periodic -> chaos transition (chaos must persist ``min_chaos_run`` cells); a run of
+    quasi-periodic / unsettled cells between the last periodic cell and the chaos belongs to the
+    route into chaos (the onset is placed at its start).
 ``period_one``
     The last entry into period 1: from there on the motion stays ``n = 1`` (return to period 1).
 ``other``
@@ -242,6 +244,7 @@ def find_landmarks(
 
     rows: list[dict[str, Any]] = []
     onset_done = False
+    in_onset = False
 
     def add(kind, a, b, direction=0):
         rows.append(
@@ -303,18 +306,28 @@ def find_landmarks(
                 if is_jump:
                     add("jump", a, b, np.sign(ddc))
             continue
-        if ma == "periodic" and mb == "chaos":
+        if ma == "periodic" and (mb == "chaos" or mb in _NONPERIODIC_BRIDGEABLE):
+            # chaos onset: periodic -> chaos, possibly through quasi-periodic / unsettled cells
             run = 0
+            entered = False
             for k in keep[keep.index(b) :]:
+                if motions[k] in _NONPERIODIC_BRIDGEABLE and not entered:
+                    continue
                 if motions[k] != "chaos":
                     break
+                entered = True
                 run += 1
             if not onset_done and run >= min_chaos_run:
                 add("chaos_onset", a, b)
                 onset_done = True
+                in_onset = True
             else:
                 add("other", a, b)
             continue
+        if in_onset and ma in _NONPERIODIC_BRIDGEABLE and mb in ("chaos",) + \
+                _NONPERIODIC_BRIDGEABLE:
+            continue  # inside the route to chaos already marked by chaos_onset
+        in_onset = False
         if ma == "chaos" and mb == "periodic":
             if a == last_chaos:
                 add("period_one" if (ns[b] == 1 and b == last_n1_entry) else
