@@ -322,3 +322,15 @@ def test_cli_errors(tmp_path, monkeypatch, capsys):
     assert main(["figures", "--fig", "99", "--outdir", str(tmp_path)]) == 2
     assert main(["figures", "--outdir", str(tmp_path)]) == 2
     assert main(["figures", "--fig", "4", "--sweep", "nofile"]) == 2
+
+
+def test_kmax_colour_scale_ignores_a_runaway_cell():
+    Z = np.ones((10, 10))
+    Z[3, 3] = 50.0
+    assert planes.robust_max(Z) < 3.0
+    assert planes.robust_max(np.linspace(0, 2, 100).reshape(10, 10)) == pytest.approx(2.0)
+    df = synthetic_plane("b")
+    df.loc[df.index[5], "kmax"] = 100.0
+    fig = planes.figure_kmax(df)
+    assert any("above" in t.get_text() for ax in fig.axes for t in ax.texts)
+    plt.close(fig)

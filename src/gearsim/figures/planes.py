@@ -111,10 +111,21 @@ def figure_pattern(df: pd.DataFrame, *, title: str | None = None):
 # ------------------------------------------------------------------------------ DC and Kmax
 
 
+def robust_max(Z: np.ndarray) -> float:
+    """Upper end of a colour scale: the maximum, capped at twice the 99th percentile so that a
+    single runaway cell (e.g. next to a diverged one) does not flatten the whole map."""
+    finite = Z[np.isfinite(Z)]
+    if not len(finite):
+        return 1.0
+    return float(min(finite.max(), 2.0 * np.percentile(finite, 99)))
+
+
 def _surface(ax, df: pd.DataFrame, column: str, zlabel: str, cmap: str = "turbo",
-             max_side: int = 120):
+             max_side: int = 120, cap: float | None = None):
     xname, xs, yname, ys = plane_centres(df)
     Z = plane_grid(df, column)
+    if cap is not None:
+        Z = np.minimum(Z, cap)
     sx = max(1, int(np.ceil(len(xs) / max_side)))
     sy = max(1, int(np.ceil(len(ys) / max_side)))
     Xg, Yg = np.meshgrid(xs[::sx], ys[::sy])
@@ -235,12 +246,16 @@ def figure_kmax(df: pd.DataFrame, *, column: str | None = None, title: str | Non
     label = style.kmax_label(None if column == "kmax" else column)
     fig = plt.figure(figsize=(13.0, 5.4))
     ax1 = fig.add_subplot(1, 2, 1, projection="3d")
-    surf = _surface(ax1, df, column, r"$K_{\max}$")
-    fig.colorbar(surf, ax=ax1, shrink=0.6, pad=0.12, label=label)
+    Zall = plane_grid(df, column)
+    cap = robust_max(Zall)
+    n_over = int(np.sum(Zall[np.isfinite(Zall)] > cap))
+    surf = _surface(ax1, df, column, r"$K_{\max}$", cap=cap)
+    fig.colorbar(surf, ax=ax1, shrink=0.6, pad=0.12, label=label,
+                 extend="max" if n_over else "neither")
     ax1.set_title(r"(a) $K_{\max}$ cloud diagram", fontsize=9, loc="left")
     ax2 = fig.add_subplot(1, 2, 2)
     xname, xs, yname, ys = plane_centres(df)
-    Z = plane_grid(df, column)
+    Z = np.minimum(Zall, cap)
     finite = np.isfinite(Z)
     vmin = float(np.nanmin(Z)) if finite.any() else 0.0
     vmax = float(np.nanmax(Z)) if finite.any() else 1.0
@@ -252,7 +267,10 @@ def figure_kmax(df: pd.DataFrame, *, column: str | None = None, title: str | Non
         ax2.contour(xs, ys, Z, levels=levels[::2], colors="k", linewidths=0.3)
     else:
         cs = ax2.pcolormesh(cell_edges(xs), cell_edges(ys), Z, cmap="turbo")
-    fig.colorbar(cs, ax=ax2, label=label)
+    fig.colorbar(cs, ax=ax2, label=label, extend="max" if n_over else "neither")
+    if n_over:
+        style.note_box(ax2, f"{n_over} cell(s) above {cap:.2f} (max {np.nanmax(Zall):.2f}) "
+                       "drawn at the top colour", loc="upper right", fontsize=6.5)
     ax2.set_xlabel(style.param_label(xname))
     ax2.set_ylabel(style.param_label(yname))
     ax2.set_title(r"(b) $K_{\max}$ plane distribution", fontsize=9, loc="left")
