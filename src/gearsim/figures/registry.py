@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from ..parameters import ModelParameters
@@ -345,15 +346,23 @@ def _fig_dc(number: int, plane: str):
 def _fig_kmax(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from ..classify import DEFAULT_KMAX, KMAX_READINGS
-        from .planes import figure_kmax
+        from .data import plane_grid
+        from .planes import figure_kmax, robust_max
 
         df = _need(ctx.planes, plane, "plane")
         axis = "(ω, b)" if plane == "wb" else "(ω, ξ)"
+        diffs = [_grid_note(df), f"Kmax reading: {DEFAULT_KMAX} ({KMAX_READINGS[DEFAULT_KMAX]}); "
+                 "the paper's normalisation is not stated (docs/model.md)."]
+        col = "kmax" if "kmax" in df.columns else DEFAULT_KMAX
+        Z = plane_grid(df, col)
+        cap = robust_max(Z)
+        over = int(np.sum(Z[np.isfinite(Z)] > cap))
+        if over:
+            diffs.append(f"Colour scale capped at {cap:.2f} (twice the 99th percentile): {over} "
+                         f"cell(s) reach up to {np.nanmax(Z):.2f}, drawn at the top colour.")
         return [Built(number, figure_kmax(df), f"Maximum dynamic load coefficient in the "
-                      f"{axis} plane: (a) surface; (b) filled contours.",
-                      [_grid_note(df), f"Kmax reading: {DEFAULT_KMAX} "
-                       f"({KMAX_READINGS[DEFAULT_KMAX]}); the paper's normalisation is not "
-                       "stated (docs/model.md)."], [f"{plane}/cells"])]
+                      f"{axis} plane: (a) surface; (b) filled contours.", diffs,
+                      [f"{plane}/cells"])]
     return build
 
 
