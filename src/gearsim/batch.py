@@ -306,7 +306,7 @@ def _watch(v0, u1, v1, gap, r, act):
 # ============================================================================ the vector step
 @njit(cache=True, nogil=True, inline="always")
 def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-               tangent):
+               tangent, bearings):
     """RK4 step of lane ``q`` of a block (straight-line code: selects, no branches)."""
     L = LANES
     r = o + q
@@ -324,10 +324,11 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     r0 = M[0]
     s0 = M[1]
     flag = (_region(yn[0], b) != r0) | (y[1] * yn[1] < 0.0)
-    flag = flag | _watch(y[3], yn[2], yn[3], P[22], M[2], blk[r + _ACT * L])
-    flag = flag | _watch(y[5], yn[4], yn[5], P[23], M[3], blk[r + (_ACT + 1) * L])
-    flag = flag | _watch(y[7], yn[6], yn[7], P[24], M[4], blk[r + (_ACT + 2) * L])
-    flag = flag | _watch(y[9], yn[8], yn[9], P[25], M[5], blk[r + (_ACT + 3) * L])
+    if bearings:  # loop-invariant: LLVM unswitches the lane loop (no cost without clearances)
+        flag = flag | _watch(y[3], yn[2], yn[3], P[22], M[2], blk[r + _ACT * L])
+        flag = flag | _watch(y[5], yn[4], yn[5], P[23], M[3], blk[r + (_ACT + 1) * L])
+        flag = flag | _watch(y[7], yn[6], yn[7], P[24], M[4], blk[r + (_ACT + 2) * L])
+        flag = flag | _watch(y[9], yn[8], yn[9], P[25], M[5], blk[r + (_ACT + 3) * L])
     ok = (abs(yn[0]) < bound) & (abs(yn[1]) < bound) & (abs(yn[2]) < bound)
     ok = ok & (abs(yn[3]) < bound) & (abs(yn[4]) < bound) & (abs(yn[5]) < bound)
     ok = ok & (abs(yn[6]) < bound) & (abs(yn[7]) < bound) & (abs(yn[8]) < bound)
@@ -353,7 +354,8 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
 
 
 @njit(cache=True, nogil=True, fastmath=_FASTMATH)
-def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound):
+def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
+                bearings):
     """One RK4 step (state and tangent) of the LANES lanes of ``blk`` (a view of BLOCK doubles).
 
     The loop over the lanes is straight-line code and vectorises (check: ``inspect_asm()``).
@@ -363,7 +365,7 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
     o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
     for q in range(LANES):
         _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-                   True)
+                   True, bearings)
     anyf = False
     for q in range(LANES):
         anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
@@ -372,12 +374,12 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
 
 @njit(cache=True, nogil=True, fastmath=_FASTMATH)
 def _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam,
-                      bound):
+                      bound, bearings):
     """:func:`_block_step` without the tangent vector (transients)."""
     o = (bi & 0xFFFFFF) * BLOCK
     for q in range(LANES):
         _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-                   False)
+                   False, bearings)
     anyf = False
     for q in range(LANES):
         anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
@@ -707,6 +709,12 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fou
     gaps = np.zeros(5)
     active = np.zeros(5, dtype=np.bool_)
     two_pi = 2.0 * math.pi
+    bearings = False  # any lane with a bearing clearance (its switching channels watched)
+    for l in range(n_lanes):
+        r = (l // L) * BLOCK + (l % L)
+        for c in range(4):
+            if blk[r + (_ACT + c) * L] != 0.0:
+                bearings = True
     for k in range(m):
         # ---- period start: section, accumulators, variable-ratio phase of the lane
         for l in range(n_lanes):
@@ -758,10 +766,10 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fou
                 o = bi * BLOCK
                 if tangent:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, bound)
+                                       cvB, svB, lam, bound, bearings)
                 else:
                     anyf = _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB,
-                                             sB, cvB, svB, lam, bound)
+                                             sB, cvB, svB, lam, bound, bearings)
                 if anyf:
                     for q in range(L):
                         if blk[o + _FLAG * L + q] != 0.0:
