@@ -8,6 +8,15 @@ export NUMBA_NUM_THREADS := 1
 
 .PHONY: venv reproduce quick test lint clean-results
 
+# A run killed hard (SIGKILL, power loss) leaves Snakemake's directory lock behind. Clear it when
+# no snakemake process works in this directory, then resume: finished tiles are kept, a tile that
+# was cut off is recomputed (tiles are written to a temporary name and renamed when complete).
+define unlock_stale
+	@for pid in $$(pgrep -f '[s]nakemake' || true); do \
+	  if [ "$$(readlink /proc/$$pid/cwd 2>/dev/null)" = "$(CURDIR)" ]; then exit 0; fi; \
+	done; . $(BIN)/activate && snakemake --unlock --cores 1 >/dev/null 2>&1 || true
+endef
+
 $(BIN)/gearsim: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
@@ -17,10 +26,12 @@ $(BIN)/gearsim: pyproject.toml
 venv: $(BIN)/gearsim
 
 reproduce: venv  ## full reproduction of the study (config/config.yaml)
-	. $(BIN)/activate && snakemake --cores $(CORES)
+	$(unlock_stale)
+	. $(BIN)/activate && snakemake --cores $(CORES) --rerun-incomplete
 
 quick: venv  ## small grids for a fast look (config/quick.yaml)
-	. $(BIN)/activate && snakemake --cores $(CORES) --configfile config/quick.yaml
+	$(unlock_stale)
+	. $(BIN)/activate && snakemake --cores $(CORES) --rerun-incomplete --configfile config/quick.yaml
 
 test: venv  ## the test suite (what CI runs)
 	. $(BIN)/activate && pytest -q

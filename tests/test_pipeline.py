@@ -3,9 +3,7 @@ re-runs after an edit, and nothing to do on a repeated run."""
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
 import sqlite3
 import subprocess
 import sys
@@ -15,49 +13,14 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk, targets
 
 from gearsim import tiles as gt
 from gearsim.simulate import simulate_cell
 
-ROOT = Path(__file__).resolve().parents[1]
-SNAKEMAKE = Path(sys.executable).parent / "snakemake"
 PIPELINE_RULES = {"compile", "simulate_tile", "plane_cells", "audit", "sweep", "points",
                   "catalogue"}
 PIPELINE_FILES = ("Snakefile", "common.smk", "planes.smk", "sweeps.smk", "points.smk")
-
-
-def _env():
-    env = dict(os.environ)
-    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
-    env["NUMBA_NUM_THREADS"] = "1"
-    return env
-
-
-def make_workdir(path: Path) -> Path:
-    """A fresh working directory with a copy of config/ (results land there, not in the repo)."""
-    (path / "config").mkdir(parents=True, exist_ok=True)
-    for f in (ROOT / "config").glob("*.yaml"):
-        shutil.copy(f, path / "config" / f.name)
-    return path
-
-
-def smk(workdir: Path, *args: str, check: bool = True, timeout: float = 900):
-    cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(workdir), *args]
-    r = subprocess.run(cmd, cwd=workdir, env=_env(), capture_output=True, text=True,
-                       timeout=timeout)
-    if check and r.returncode != 0:
-        raise AssertionError(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
-    return r
-
-
-def targets(workdir: Path, *configs: str) -> list[str]:
-    """This stage's final outputs (other stages' rules are tested by their owners)."""
-    cfg = gt.load_config([workdir / "config/config.yaml", *(workdir / c for c in configs)],
-                         root=workdir)
-    out = [f"results/{p}/cells.parquet" for p in cfg["planes"]]
-    out += [f"results/sweeps/{s}.parquet" for s in cfg["sweeps"]]
-    out += [f"results/points/{f}.parquet" for f in cfg["points"]]
-    return [*out, "results/catalogue.sqlite"]
 
 
 def job_counts(output: str) -> dict[str, int]:
@@ -95,7 +58,7 @@ def fresh(tmp_path_factory):
 @pytest.mark.parametrize(
     ("configs", "tiles", "sweeps", "points"),
     [
-        ((), 2 * 50, 7, 3),
+        ((), 2 * 10, 7, 3),
         (("config/quick.yaml",), 2 * 2, 7, 3),
         (("config/tiny.yaml",), 2 * 2, 7, 3),
     ],
@@ -171,12 +134,8 @@ def test_cli_rejects_bad_config_in_one_line(tmp_path):
 
 
 # ------------------------------------------------------------------------------ end to end
-@pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
-    wd = make_workdir(tmp_path_factory.mktemp("tiny"))
-    tg = targets(wd, "config/tiny.yaml")
-    r = smk(wd, *tg, "--cores", "2", "--configfile", "config/tiny.yaml")
-    return wd, tg, r
+# tiny_run (a session fixture in conftest.py) is the end-to-end run on config/tiny.yaml,
+# shared with tests/test_trust_runs.py.
 
 
 @pytest.mark.slow

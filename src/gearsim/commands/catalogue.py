@@ -69,7 +69,7 @@ def _cells(args) -> int:
 
 
 def audit_frame(config: dict, plane: str, cells, progress=None):
-    """Re-simulate a deterministic sample of cells at ``IntegrationSettings.tightened()``.
+    """Re-simulate a deterministic sample of cells with DP5 at ``IntegrationSettings.tightened()``.
 
     Each audited cell starts exactly where the pipeline started it: from the final state of its
     left neighbour in the row (continuation), or from rest for the first cell of a row.
@@ -89,7 +89,9 @@ def audit_frame(config: dict, plane: str, cells, progress=None):
     pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
     base = tiles.plane_base(config, plane)
     pl = config["planes"][plane]
-    tight = tiles.integration_settings(config).tightened()
+    # the reference is the adaptive DP5 integrator at 100x tighter tolerance, whatever method
+    # produced the cells: an independent integrator, not just a finer step of the same one
+    tight = tiles.integration_settings(config).with_(method="dp5").tightened()
     index = {
         (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
     }
@@ -179,7 +181,7 @@ def _audit(args) -> int:
         audit_seed=int(config["audit"]["seed"]),
         agreement=agreement,
         threshold=threshold,
-        settings=tiles.integration_settings(config).tightened().to_dict(),
+        settings=tiles.integration_settings(config).with_(method="dp5").tightened().to_dict(),
         workers="in-process",
     )
     catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})

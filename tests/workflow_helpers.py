@@ -1,0 +1,48 @@
+"""Helpers to run the Snakemake workflow from tests in throw-away working directories."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from gearsim import tiles as gt
+
+ROOT = Path(__file__).resolve().parents[1]
+SNAKEMAKE = Path(sys.executable).parent / "snakemake"
+
+
+def _env():
+    env = dict(os.environ)
+    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
+    env["NUMBA_NUM_THREADS"] = "1"
+    return env
+
+
+def make_workdir(path: Path) -> Path:
+    """A fresh working directory with a copy of config/ (results land there, not in the repo)."""
+    (path / "config").mkdir(parents=True, exist_ok=True)
+    for f in (ROOT / "config").glob("*.yaml"):
+        shutil.copy(f, path / "config" / f.name)
+    return path
+
+
+def smk(workdir: Path, *args: str, check: bool = True, timeout: float = 900):
+    cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(workdir), *args]
+    r = subprocess.run(cmd, cwd=workdir, env=_env(), capture_output=True, text=True,
+                       timeout=timeout)
+    if check and r.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
+    return r
+
+
+def targets(workdir: Path, *configs: str) -> list[str]:
+    """This stage's final outputs (other stages' rules are tested by their owners)."""
+    cfg = gt.load_config([workdir / "config/config.yaml", *(workdir / c for c in configs)],
+                         root=workdir)
+    out = [f"results/{p}/cells.parquet" for p in cfg["planes"]]
+    out += [f"results/sweeps/{s}.parquet" for s in cfg["sweeps"]]
+    out += [f"results/points/{f}.parquet" for f in cfg["points"]]
+    return [*out, "results/catalogue.sqlite"]
