@@ -490,7 +490,9 @@ def match_paper(
                        found=False, exact_pattern=False, ours_from="", ours_to="")
         else:
             lm = lms.loc[hit]
-            exact = (pl.from_npq in (None, lm["from_npq"])) and (pl.to_npq in (None, lm["to_npq"]))
+            to_ok = pl.to_npq in (None, lm["to_npq"]) or (
+                pl.to_npq == "chaos" and lm["to_npq"] in ("quasi-periodic", "unsettled"))
+            exact = (pl.from_npq in (None, lm["from_npq"])) and to_ok
             row.update(ours=float(lm["value"]), lo=float(lm["lo"]), hi=float(lm["hi"]),
                        error=pl.error(float(lm["value"])), found=True, exact_pattern=bool(exact),
                        ours_from=lm["from_npq"], ours_to=lm["to_npq"])

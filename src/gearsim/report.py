@@ -279,8 +279,13 @@ def analyse(
             if expected is not None:
                 entry["in_order"] = is_subsequence(expected, seq)
                 entry["exact"] = list(seq) == list(expected)
-                if not entry["in_order"]:
-                    rep.misses.append(f"sequence {key} ({pname} = {pval}): ours "
+                if not entry["exact"]:
+                    extra = [x for x in dict.fromkeys(seq) if x not in expected]
+                    what = ("paper's patterns not in its order" if not entry["in_order"]
+                            else "paper's patterns in order, with extra patterns "
+                            + ", ".join(extra) if extra else "paper's patterns in order, "
+                            "repeated")
+                    rep.misses.append(f"sequence {key} ({pname} = {pval}): {what}; ours "
                                       f"{' -> '.join(seq)}; paper {' -> '.join(expected)}")
             else:
                 entry.update(in_order=None, exact=None)
