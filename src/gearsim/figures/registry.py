@@ -125,6 +125,25 @@ def sweep_title(name: str, fixed: dict[str, float] | None = None) -> str:
     return name
 
 
+POINT_TRANSIENT = 300  # at least this many transient periods for the figures' own simulations
+POINT_TRANSIENT_CONTINUATION = 200
+
+
+_POINT_NOTE = (f"The figure's own simulations use at least {POINT_TRANSIENT} transient periods "
+               f"({POINT_TRANSIENT_CONTINUATION} when continued), more than the plane cells, so "
+               "slowly decaying transients are not drawn as long-period motions.")
+
+
+def point_settings(ctx: Context) -> IntegrationSettings:
+    """Settings of the figures' own point simulations (Figs 2, 5, 6 without recorded points,
+    9-11): the config's, with a transient of at least 300 periods (200 when continued), so a
+    slowly decaying transient is not drawn as a long-period motion. A few points only: cheap."""
+    st = ctx.settings
+    return st.with_(transient=max(st.transient, POINT_TRANSIENT),
+                    transient_continuation=max(st.transient_continuation,
+                                               POINT_TRANSIENT_CONTINUATION))
+
+
 def _need(table: dict[str, pd.DataFrame], name: str, kind: str) -> pd.DataFrame:
     if name not in table:
         from ..cli import UsageError
@@ -163,12 +182,13 @@ def _fig2(ctx: Context) -> list[Built]:
 
     sweep = ctx.sweeps.get("b015")
     b = ctx.sweep_fixed.get("b015", {}).get("b", 0.15)
-    data = compute_fig2(ctx.params, settings=ctx.settings, sweep=sweep, b=b)
+    data = compute_fig2(ctx.params, settings=point_settings(ctx), sweep=sweep, b=b)
     ws = ", ".join(f"I = {I}: ω = {pm.params.w:.3f} ({pm.npq})" for I, pm in
                    data.motions.items())
     diffs = ["The paper's sketch is schematic; ours shows simulated steady trajectories of "
              f"I = 0, 1 and 2 at b = {b:g} ({ws})."]
     diffs += data.notes
+    diffs.append(_POINT_NOTE)
     return [Built(2, figure2(data), f"Phase plane split by x = +b and x = -b (b = {b:g}) into "
                   "tooth-face contact, separation and tooth-back contact, with simulated steady "
                   "trajectories of impact states I = 0, 1 and 2.", diffs,
@@ -230,7 +250,7 @@ def _point_motions(ctx: Context, name: str, ws_default):
         return pts, [f"points/{name}"], "recorded by the pipeline (forward ramp in ω)"
     ws = ctx.point_specs.get(name, ws_default)
     sweep = ctx.sweeps.get("standard")
-    pts = compute_points(ctx.params, ws, settings=ctx.settings, sweep=sweep,
+    pts = compute_points(ctx.params, ws, settings=point_settings(ctx), sweep=sweep,
                          min_periods=32 if name == "fig5" else 128,
                          samples_per_period=128 if name == "fig5" else 64)
     return pts, (["sweeps/standard"] if sweep is not None else []), pts[0].seed if pts else ""
@@ -254,6 +274,8 @@ def _fig5(ctx: Context) -> list[Built]:
 
     pts, inputs, how = _point_motions(ctx, "fig5", list(PAPER_FIG5))
     diffs = _label_diffs(pts, PAPER_FIG5) or ["every panel has the paper's pattern"]
+    if "points/fig5" not in inputs:
+        diffs.append(_POINT_NOTE)
     diffs.append("Paper panels (b) and (e) are the grazing points themselves; ours shows "
                  "whatever our model does at that ω (grazing of ours lies elsewhere, Fig 4).")
     return [Built(5, figure5(pts), "Phase trajectories (x, x') with the Poincaré points at "
@@ -266,6 +288,8 @@ def _fig6(ctx: Context) -> list[Built]:
 
     pts, inputs, how = _point_motions(ctx, "fig6", list(PAPER_FIG6))
     diffs = _label_diffs(pts, PAPER_FIG6) or ["every panel has the paper's pattern"]
+    if "points/fig6" not in inputs:
+        diffs.append(_POINT_NOTE)
     return [Built(6, figure6(pts), "One-sided FFT amplitude spectra of x(τ) on exactly "
                   "uniform samples over a whole number of motion periods (Hann window), with "
                   f"ω and ω/2, ω/4, ω/8 marked; motions {how}.", diffs, inputs)]
@@ -373,7 +397,7 @@ def _fig9_11(ctx: Context) -> list[Built]:
     fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
     p = ctx.params.with_(**fixed)
     sweep = ctx.sweeps.get("b015")
-    search = search_attractors(p, settings=ctx.settings, sweep=sweep)
+    search = search_attractors(p, settings=point_settings(ctx), sweep=sweep)
     out = []
     used: list[str] = []
     for number, target in PAPER_FIG9_11.items():
@@ -384,7 +408,7 @@ def _fig9_11(ctx: Context) -> list[Built]:
         fig = figure_double_sided(pm, target=target, note=note)
         out.append(Built(number, fig, f"Target {target}: (a) phase trajectory with Poincaré "
                          "points, (b) time history of x with the section samples, (c) dynamic "
-                         f"load coefficient F_n/F_m; shown: {shown}.", [note],
+                         f"load coefficient F_n/F_m; shown: {shown}.", [note, _POINT_NOTE],
                          ["sweeps/b015"] if sweep is not None else []))
     return out
 
