@@ -15,7 +15,7 @@ rule figure:
     output:
         png=report(
             "results/figures/fig{n}.png",
-            caption="../report/fig{n}.rst",
+            caption="../report/figure.rst",
             category="Figures",
         ),
         pdf="results/figures/fig{n}.pdf",
