@@ -206,9 +206,23 @@ def figure_sweeps(sweeps: Mapping[str, pd.DataFrame], *, title: str | None = Non
     return fig
 
 
-def sequence_text(df: pd.DataFrame) -> str:
-    """Our pattern sequence along a sweep, ``0/1T -> 1/1T -> ...`` (for captions and notes)."""
-    from ..landmarks import pattern_sequence
+def sequence_text(df: pd.DataFrame, min_run: int = 3) -> str:
+    """Our pattern sequence along a sweep, ``0/1T -> 1/1T -> ...`` (for captions and notes).
 
-    seq = pattern_sequence(df)
+    Runs shorter than ``min_run`` swept values (brief excursions next to bifurcations) are left
+    out and equal neighbours merged, as on the diagrams' landmark marks.
+    """
+    labels = [str(lab) if m == "periodic" else str(m)
+              for lab, m in zip(df["label"], df["motion"], strict=True)]
+    runs: list[list] = []
+    for lab in labels:
+        if runs and runs[-1][0] == lab:
+            runs[-1][1] += 1
+        else:
+            runs.append([lab, 1])
+    kept = [r for k, r in enumerate(runs) if r[1] >= min_run or k in (0, len(runs) - 1)]
+    seq: list[str] = []
+    for lab, _ in kept:
+        if not seq or seq[-1] != lab:
+            seq.append(lab)
     return " \u2192 ".join(seq)

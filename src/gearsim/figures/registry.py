@@ -156,7 +156,8 @@ def _sweep_note(df: pd.DataFrame) -> str:
     v = df["value"].to_numpy(dtype=float)
     step = (v.max() - v.min()) / max(len(v) - 1, 1) if len(v) else float("nan")
     return (f"{len(v)} swept values of ω (step {step:.4f}; the study's config uses 1201, the "
-            "paper does not state its step); landmarks are located to within one step")
+            "paper does not state its step); landmarks are located to within one step; "
+            "pattern sequences leave out runs shorter than 3 swept values")
 
 
 def _grid_note(df: pd.DataFrame) -> str:
@@ -207,11 +208,13 @@ def _fig3(ctx: Context) -> list[Built]:
 
 
 def _landmark_diffs(df: pd.DataFrame) -> list[str]:
-    from ..landmarks import find_landmarks, match_paper
+    """Paper landmarks beside ours, matched among the landmarks drawn (brief excursions out)."""
+    from ..landmarks import match_paper
+    from .bifurcation import landmarks_of
 
     if len(df) < 2:
         return []
-    m = match_paper(find_landmarks(df))
+    m = match_paper(landmarks_of(df))
     out = []
     for _, r in m.iterrows():
         ours = f"{r['ours']:.3f}" if r["found"] else "not found"
