@@ -82,7 +82,7 @@ def verify(params, *, dw: float, model: str, log=print) -> dict:
     found = np.isfinite(errs)
     rms = float(np.sqrt(np.nanmean(errs[found] ** 2))) if found.any() else float("nan")
     # thresholds: scale Fm so that the backlash threshold is the paper's
-    grid_b = np.linspace(0.1, 2.5, 121)
+    grid_b = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400  # the paper's plane grid (cell centres)
     b1 = backlash_threshold(params.with_(Fm=1.0, Fe=params.Fe / params.Fm),
                             grid=grid_b, settings=settings, tol=0.001)
     Fm = PAPER_B_THRESHOLD / b1 if math.isfinite(b1) and b1 > 0 else float("nan")
@@ -106,6 +106,7 @@ def verify(params, *, dw: float, model: str, log=print) -> dict:
     }
 
 
+PAPER_B = 0.4125
 PAPER = {
     "module_mm": "paper: m = 4 mm", "zp": "paper", "zg": "paper", "n1": "paper", "n2": "paper",
     "pressure_angle_deg": "paper: 20 deg", "mesh_factor": "paper Eq 8: 1.5 x single-tooth",
@@ -130,7 +131,12 @@ def standard_parameters(record: dict, *, bearing_ratio: float, bearing_xi: float
         src = "MODEL.md feasibility-study single-DOF fit (starting set, not yet recalibrated)"
     Fm = 0.1
     fm_prov = ("assumed", "scale of the starting set; will follow from the b = 0.4125 threshold")
-    if verify_ and math.isfinite(verify_.get("Fm_from_b_threshold", float("nan"))):
+    fine = record.get("b_threshold_fine")
+    if fine and math.isfinite(fine.get("b_threshold_at_Fm1", float("nan"))):
+        Fm = PAPER_B / float(fine["b_threshold_at_Fm1"])
+        fm_prov = ("derived", f"Fm = 0.4125 / b*(Fm=1), b*(Fm=1) = "
+                   f"{fine['b_threshold_at_Fm1']:.4f} on the paper's 400-cell w grid (6-DOF)")
+    elif verify_ and math.isfinite(verify_.get("Fm_from_b_threshold", float("nan"))):
         Fm = float(verify_["Fm_from_b_threshold"])
         fm_prov = ("derived", f"Fm = 0.4125 / b*(Fm=1), b*(Fm=1) = "
                    f"{verify_['b_threshold_at_Fm1']:.4f} (gearsim calibrate --stage verify)")
