@@ -101,9 +101,9 @@ def test_lane_field_equals_model_rhs(seed):
         t = float(rng.uniform(0, 50))
         y = rng.standard_normal(20)
         mode = rng.integers(-1, 2, N_SWITCH)
-        ref = np.zeros(20)
-        rhs(t, y, arr, mode, ref, True)
         lam = 1.0 if math.sin(p.w * t) >= 0 else -1.0
+        ref = np.zeros(20)
+        rhs(t, y, arr, np.append(mode, int(lam)), ref, True)  # mode[5]: friction direction
         got = _lane_field(p, t, y, mode, lam)
         np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-13)
 
@@ -264,6 +264,20 @@ def test_simulate_rows_callback_and_single_dof_fallback():
     assert sorted(seen) == [(0, 0), (0, 1), (1, 0)]
     one = simulate_cell(rows[1][0], settings=RK4)
     assert _key(res[1][0].classification) == _key(one.classification)
+
+
+def test_simulate_cells_with_start_states_and_periods():
+    """simulate_cells(params, u0=[...], start_periods=[...]) = simulate_cell per cell (RK4)."""
+    cells = [ModelParameters(w=w, b=0.3, var_ratio=0.01 * (i % 2)) for i, w in
+             enumerate((0.7, 0.9, 1.1))]  # fmt: skip
+    starts = [None, static_state(cells[1].to_array()) + 0.01, static_state(cells[2].to_array())]
+    ks = [0, 7, 40]
+    got = batch.simulate_cells(cells, settings=RK4, u0=starts, start_periods=ks)
+    for p, u, k, a in zip(cells, starts, ks, got, strict=True):
+        b = simulate_cell(p, u, settings=RK4, start_period=k)
+        assert _key(a.classification) == _key(b.classification)
+        assert a.final_period == b.final_period and a.periods == b.periods
+        np.testing.assert_allclose(a.final_state, b.final_state, atol=1e-8)
 
 
 def test_lanes_with_different_steps_per_period_wait_for_each_other():

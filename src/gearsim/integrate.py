@@ -32,6 +32,8 @@ import numpy as np
 from numba import njit
 
 from .model import (
+    MODE_FRICTION,
+    N_MODE,
     N_STATE,
     N_SWITCH,
     P_B,
@@ -253,7 +255,8 @@ def integrate_periods(
     ytmp = np.zeros(20)
     ynew = np.zeros(20)
     ytry = np.zeros(20)
-    mode = np.zeros(N_SWITCH, dtype=np.int64)
+    mode = np.zeros(N_MODE, dtype=np.int64)
+    mode[MODE_FRICTION] = 1
     gaps = np.zeros(N_SWITCH)
     active = np.zeros(N_SWITCH, dtype=np.bool_)
     for c in range(N_SWITCH):
@@ -301,6 +304,9 @@ def integrate_periods(
                     th = t_start + 0.5 * T
                     if t < th - 1e-14 * T and th < stop:
                         stop = th
+                if half_break:
+                    # the friction direction of this step (steps never straddle T/2)
+                    mode[MODE_FRICTION] = 1 if t - t_start < 0.5 * T * (1.0 - 1e-12) else -1
                 if method == METHOD_RK4:
                     # next grid point of the fixed-step mesh
                     j = int(math.floor((t - t_start) / h_rk + 1e-9)) + 1

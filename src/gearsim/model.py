@@ -64,6 +64,8 @@ N_PARAMS = 30
 
 N_STATE = 10
 N_SWITCH = 5  # switching channels: mesh, then the four bearing coordinates
+MODE_FRICTION = 5  # mode[5]: the friction direction lambda (+1 / -1), frozen per step
+N_MODE = 6
 
 # the coordinate each switching channel watches, and the parameter holding its half gap
 SWITCH_COORD = np.array([0, 2, 4, 6, 8], dtype=np.int64)
@@ -102,6 +104,9 @@ def mesh_force(t, x, v, p, region):
 def rhs(t, y, p, mode, dy, tangent):
     """Right-hand side ``dy = g(t, y)`` with every dead zone frozen in ``mode``.
 
+    ``mode[0:5]`` are the regions (-1, 0, +1) of the mesh and bearing dead zones, ``mode[5]`` the
+    friction direction ``lambda = sign(sin(w tau))`` on the current step.
+
     If ``tangent`` is true, ``y[10:20]`` is a tangent vector and ``dy[10:20]`` receives the
     Jacobian-vector product of the same frozen (piecewise-linear) field.
     """
@@ -116,7 +121,10 @@ def rhs(t, y, p, mode, dy, tangent):
     F = stiff * dead_zone(x, p[P_B], mode[0]) + 2.0 * xi * v
     fric = 1.0
     if p[P_GAMMA] != 0.0:
-        fric = 1.0 + p[P_GAMMA] * (1.0 if sn >= 0.0 else -1.0)
+        # lambda = sign(sin(w tau)) is frozen per step like the dead zones: the integrator lands
+        # on the half-period times where it flips, so a step never straddles the jump and a
+        # stage exactly on it cannot pick the wrong side through rounding of w tau
+        fric = 1.0 + p[P_GAMMA] * mode[MODE_FRICTION]
     # cos(ph + phi_e) by the addition theorem (phi_e's cos/sin are precomputed)
     drive = p[P_FM] + p[P_FE] * w * w * (c * p[P_COS_PHI_E] - sn * p[P_SIN_PHI_E])
     if p[P_VR_AMP] != 0.0:
