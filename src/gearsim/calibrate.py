@@ -426,7 +426,8 @@ DIMENSIONAL_UNITS = {
     "module_mm": "mm", "zp": "-", "zg": "-", "n1": "-", "n2": "-", "pressure_angle_deg": "deg",
     "face_width_mm": "mm", "c_m": "-", "mesh_factor": "-", "eps_stiffness": "-", "mass_p": "kg",
     "mass_g": "kg", "inertia_p": "kg m^2", "inertia_g": "kg m^2", "bearing_k": "N/m",
-    "bearing_c_p": "N s/m", "bearing_c_g": "N s/m", "bearing_clearance_m": "m", "mesh_damping_ratio": "-",
+    "bearing_c_p": "N s/m", "bearing_c_g": "N s/m", "bearing_clearance_m": "m",
+    "mesh_damping_ratio": "-",
     "torque_p": "N m", "te_amplitude_m": "m", "te_phase_deg": "deg", "friction_mu": "-",
     "backlash_half_m": "m", "nominal_length_m": "m",
 }
