@@ -1041,6 +1041,7 @@ class _Chain:
     index: int
     cells: list[ModelParameters]
     u0: np.ndarray | None
+    period0: int = 0  # start period of the first cell
     lane: int = -1
     i: int = 0  # current cell
     start: np.ndarray | None = None  # start state of the current cell (None: static)
@@ -1105,6 +1106,7 @@ def simulate_rows(
     continuation: bool = True,
     u0: np.ndarray | Sequence[np.ndarray | None] | None = None,
     on_cell: Callable[[int, int, CellResult], None] | None = None,
+    start_periods: Sequence[int] | None = None,
 ) -> list[list[CellResult]]:
     """Simulate many continuation chains at once with the batched RK4 kernel.
 
@@ -1127,6 +1129,9 @@ def simulate_rows(
         Start state of the first cell of every chain (one array for all, or one per chain).
     on_cell
         Called as ``on_cell(row, i, result)`` as soon as cell ``i`` of chain ``row`` is done.
+    start_periods
+        Absolute period index of each chain's ``u0`` (``start_period`` of simulate_cell; only
+        the slow variable-ratio forcing depends on it). Default 0.
 
     Returns
     -------
@@ -1141,21 +1146,31 @@ def simulate_rows(
         u0s = list(u0)
         if len(u0s) != len(rows):
             raise ParameterError("u0: one start state per row expected")
+    periods0 = [0] * len(rows) if start_periods is None else [int(k) for k in start_periods]
+    if len(periods0) != len(rows):
+        raise ParameterError("start_periods: one start period per row expected")
     out: list[list[CellResult] | None] = [None] * len(rows)
     # single-DOF chains: the scalar path (the batched kernel is the 6-DOF model)
     chains: list[_Chain] = []
     for r, cells in enumerate(rows):
         if any(p.model != "6dof" for p in cells):
+            from .simulate import simulate_cell
             from .sweep import continuation_chain
 
             rk4 = st.with_(method="rk4")
-            cb = None if on_cell is None else (lambda i, res, r=r: on_cell(r, i, res))
-            out[r] = continuation_chain(
-                cells, settings=rk4, continuation=continuation, u0=u0s[r], on_cell=cb
-            )
+            if periods0[r] and not continuation:
+                out[r] = [simulate_cell(p, u0s[r], settings=rk4, start_period=periods0[r])
+                          for p in cells[:1]]
+                out[r] += continuation_chain(cells[1:], settings=rk4, continuation=False,
+                                             u0=u0s[r])
+            else:
+                cb = None if on_cell is None else (lambda i, res, r=r: on_cell(r, i, res))
+                out[r] = continuation_chain(
+                    cells, settings=rk4, continuation=continuation, u0=u0s[r], on_cell=cb
+                )
         elif cells:
             start = None if u0s[r] is None else np.asarray(u0s[r], dtype=float)
-            chains.append(_Chain(index=r, cells=cells, u0=start))
+            chains.append(_Chain(index=r, cells=cells, u0=start, period0=periods0[r]))
         else:
             out[r] = []
     if chains:
@@ -1169,10 +1184,16 @@ def simulate_cells(
     params_list: Sequence[ModelParameters],
     *,
     settings: IntegrationSettings | None = None,
-    u0: np.ndarray | None = None,
+    u0: np.ndarray | Sequence[np.ndarray | None] | None = None,
+    start_periods: Sequence[int] | None = None,
 ) -> list[CellResult]:
-    """Independent cells (each from ``u0`` or the static state) through the batched path."""
-    res = simulate_rows([[p] for p in params_list], settings=settings, continuation=False, u0=u0)
+    """Independent cells through the batched path: ``[simulate_cell(p, u0_i, start_period=k_i)]``.
+
+    ``u0``: one start state for all cells, one per cell (None = static state), or None.
+    E.g. an audit that restarts sampled plane cells from their left neighbours' final states.
+    """
+    res = simulate_rows([[p] for p in params_list], settings=settings, continuation=False, u0=u0,
+                        start_periods=start_periods)
     return [r[0] for r in res]
 
 
@@ -1183,7 +1204,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
     for l, ch in enumerate(chains):
         ch.lane = l
         ch.start = ch.u0
-        ch.period = 0
+        ch.period = ch.period0
         _begin_cell(ch, lanes, st, tangent0)
     active = [ch for ch in chains if not ch.finished]
     while active:
