@@ -165,3 +165,16 @@ def test_chaos_onset_through_quasi_periodic_run():
     lm = find_landmarks(pd.DataFrame(rows))
     assert list(lm["kind"]) == ["chaos_onset", "inverse_period_doubling"]
     assert lm.iloc[0]["lo"] == pytest.approx(1.30) and lm.iloc[0]["to_npq"] == "quasi-periodic"
+
+
+def test_chaos_exit_through_quasi_periodic_cells():
+    seq = ["chaos", "chaos", "chaos", "quasi-periodic", "quasi-periodic", "quasi-periodic",
+           "16-12-0", "8-6-0"]
+    rows = [row(1.5 + 0.01 * i, s) if s[0].isdigit() else row(1.5 + 0.01 * i, None, motion=s)
+            for i, s in enumerate(seq)]
+    lm = find_landmarks(pd.DataFrame([row(1.49, "8-5-0")] + rows))
+    assert list(lm["kind"]) == ["chaos_onset", "inverse_period_doubling",
+                                "inverse_period_doubling"]
+    ex = lm.iloc[1]
+    assert ex["from_npq"] == "chaos" and ex["to_npq"] == "16-12-0"
+    assert ex["lo"] == pytest.approx(1.52) and ex["hi"] == pytest.approx(1.56)

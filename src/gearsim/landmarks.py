@@ -18,7 +18,8 @@ Landmark kinds (:data:`KINDS`), each located *between* two neighbouring grid val
 ``period_doubling``
     ``n -> 2 n`` between periodic cells.
 ``inverse_period_doubling``
-    ``2 n -> n`` between periodic cells, and ``chaos -> n`` at the final exit from chaos.
+    ``2 n -> n`` between periodic cells, and ``chaos -> n`` at the final exit from chaos (from the
+    last chaos cell to the first periodic cell after it, across any quasi-periodic cells).
 ``chaos_onset``
     The first periodic -> chaos transition (chaos must persist ``min_chaos_run`` cells); a run of
     quasi-periodic / unsettled cells between the last periodic cell and the chaos belongs to the
@@ -233,6 +234,11 @@ def find_landmarks(
 
     chaos_idx = [i for i in keep if motions[i] == "chaos"]
     last_chaos = chaos_idx[-1] if chaos_idx else None
+    # the final exit from the chaotic band: the first periodic cell after the last chaos cell
+    # (quasi-periodic / unsettled cells between them belong to the route out of chaos)
+    exit_to = None
+    if last_chaos is not None:
+        exit_to = next((i for i in keep if i > last_chaos and motions[i] == "periodic"), None)
     # last entry into period 1 that is never left again (among kept cells)
     last_n1_entry = None
     if keep and motions[keep[-1]] == "periodic" and ns[keep[-1]] == 1:
@@ -328,6 +334,12 @@ def find_landmarks(
                 _NONPERIODIC_BRIDGEABLE:
             continue  # inside the route to chaos already marked by chaos_onset
         in_onset = False
+        if last_chaos is not None and last_chaos <= a and exit_to is not None and b < exit_to:
+            continue  # chaos -> quasi-periodic on the way out: part of the exit below
+        if ma != "periodic" and mb == "periodic" and b == exit_to:
+            add("period_one" if (ns[b] == 1 and b == last_n1_entry) else
+                "inverse_period_doubling", last_chaos, b)
+            continue
         if ma == "chaos" and mb == "periodic":
             if a == last_chaos:
                 add("period_one" if (ns[b] == 1 and b == last_n1_entry) else
