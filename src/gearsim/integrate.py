@@ -40,6 +40,7 @@ from .model import (
     P_DOF6,
     P_EPS,
     P_GAMMA,
+    P_T0,
     P_W,
     P_XI,
     SWITCH_COORD,
@@ -243,6 +244,7 @@ def integrate_periods(
     Returns ``(status, periods_done, n_events, h_last, n_steps)``.
     """
     n = 20 if tangent else 10
+    pl = p.copy()  # local copy: pl[P_T0] carries the absolute start time of the current period
     dof6 = p[P_DOF6] != 0.0
     nerr = 10 if dof6 else 2
     w = p[P_W]
@@ -277,7 +279,13 @@ def integrate_periods(
     row = 0
     periods_done = 0
     for k in range(n_periods):
-        t_start = (k0 + k) * T
+        # Time runs relative to the period start: the mesh phase w t is then exact (cos(w k T + s)
+        # = cos(s)) and step sizes keep full resolution late in a long chain, where absolute
+        # times ~1e5 would leave switch landings below the float spacing and stall. Terms that
+        # are not T-periodic (variable ratio) read the offset from pl[P_T0].
+        t_abs0 = (k0 + k) * T
+        pl[P_T0] = t_abs0
+        t_start = 0.0
         for i in range(N_STATE):
             sec[k, i] = y[i]
         if k == 0 and row < traj_rows:
@@ -295,7 +303,7 @@ def integrate_periods(
         t = t_start
         for s in range(substeps):
             if s == substeps - 1:
-                t_target = (k0 + k + 1) * T
+                t_target = T
             else:
                 t_target = t_start + (s + 1) * T / substeps
             while t < t_target:
@@ -305,8 +313,12 @@ def integrate_periods(
                     if t < th - 1e-14 * T and th < stop:
                         stop = th
                 if half_break:
-                    # the friction direction of this step (steps never straddle T/2)
-                    mode[MODE_FRICTION] = 1 if t - t_start < 0.5 * T * (1.0 - 1e-12) else -1
+                    # the friction direction of this step (steps never straddle T/2); a flip
+                    # invalidates the FSAL stage, which was evaluated with the old direction
+                    lam = 1 if t - t_start < 0.5 * T * (1.0 - 1e-12) else -1
+                    if lam != mode[MODE_FRICTION]:
+                        mode[MODE_FRICTION] = lam
+                        k1_valid = False
                 if method == METHOD_RK4:
                     # next grid point of the fixed-step mesh
                     j = int(math.floor((t - t_start) / h_rk + 1e-9)) + 1
@@ -322,7 +334,7 @@ def integrate_periods(
                     if stop - t - hh < 1e-9 * hh:
                         hh = stop - t
                 err = _step(
-                    method, t, y, hh, p, mode, n, nerr, tangent, ks, ytmp, ynew, rtol, atol,
+                    method, t, y, hh, pl, mode, n, nerr, tangent, ks, ytmp, ynew, rtol, atol,
                     k1_valid,
                 )
                 n_steps += 1
@@ -390,7 +402,7 @@ def integrate_periods(
                     if graze:
                         # verify the excursion with a real step to the predicted extremum
                         te = first_s * hh
-                        _step(method, t, y, te, p, mode, n, nerr, tangent, ks, ytmp, ytry,
+                        _step(method, t, y, te, pl, mode, n, nerr, tangent, ks, ytmp, ytry,
                               rtol, atol, False)
                         n_steps += 1
                         r_e = region_of(ytry[ci], gap)
@@ -412,7 +424,7 @@ def integrate_periods(
                     pre_pos = r_far < mode[c]  # sign of x - bnd on the side we leave
                     th = first_s * hh
                     for _ in range(60):
-                        _step(method, t, y, th, p, mode, n, nerr, tangent, ks, ytmp, ytry,
+                        _step(method, t, y, th, pl, mode, n, nerr, tangent, ks, ytmp, ytry,
                               rtol, atol, False)
                         n_steps += 1
                         g = ytry[ci] - bnd
@@ -442,7 +454,7 @@ def integrate_periods(
                         elif new_region == -1:
                             nb += 1
                     if n_ev < ev_t.shape[0]:
-                        ev_t[n_ev] = t
+                        ev_t[n_ev] = t_abs0 + t
                         ev_code[n_ev] = 4 * c + new_region + 1
                     n_ev += 1
                     mode[c] = new_region

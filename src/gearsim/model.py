@@ -60,7 +60,9 @@ P_COS_ALPHA = 26
 P_SIN_ALPHA = 27
 P_COS_PHI_E = 28
 P_SIN_PHI_E = 29
-N_PARAMS = 30
+# absolute time of t = 0 for terms that are not T-periodic (set by the integrator per period)
+P_T0 = 30
+N_PARAMS = 31
 
 N_STATE = 10
 N_SWITCH = 5  # switching channels: mesh, then the four bearing coordinates
@@ -104,6 +106,9 @@ def mesh_force(t, x, v, p, region):
 def rhs(t, y, p, mode, dy, tangent):
     """Right-hand side ``dy = g(t, y)`` with every dead zone frozen in ``mode``.
 
+    ``t`` is measured from ``p[P_T0]`` (the integrator passes time within the mesh period and the
+    period's absolute start in ``p[P_T0]``; with ``p[P_T0] = 0`` it is absolute time).
+
     ``mode[0:5]`` are the regions (-1, 0, +1) of the mesh and bearing dead zones, ``mode[5]`` the
     friction direction ``lambda = sign(sin(w tau))`` on the current step.
 
@@ -128,7 +133,7 @@ def rhs(t, y, p, mode, dy, tangent):
     # cos(ph + phi_e) by the addition theorem (phi_e's cos/sin are precomputed)
     drive = p[P_FM] + p[P_FE] * w * w * (c * p[P_COS_PHI_E] - sn * p[P_SIN_PHI_E])
     if p[P_VR_AMP] != 0.0:
-        drive += p[P_VR_AMP] * w * w * math.sin(p[P_VR_ORDER] * ph)
+        drive += p[P_VR_AMP] * w * w * math.sin(p[P_VR_ORDER] * w * (t + p[P_T0]))
     acc = drive - F * fric
     dy[0] = v
     s_mesh = 1.0 if mode[0] != 0 else 0.0
