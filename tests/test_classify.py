@@ -117,3 +117,15 @@ def test_counts_come_from_the_last_motion_period():
     s = _summaries(x, nface, np.zeros(m), np.full(m, 1.0))
     c = classify_motion(s, w=1.0, b=0.05, eps=0.2, xi=0.05, Fm=0.1, Fe=0.2, n=4)
     assert c.label_npq == "4-3-0" and c.label == "1/4T"
+
+
+def test_decaying_alternation_is_not_period_two():
+    """Next to a period doubling: x_k = x* + A mu^k with mu = -0.995 repeats after 2 samples to
+    within the tolerance but its spread decays -- not a period-2 motion (yet)."""
+    k = np.arange(60)
+    x = 1.0 + 2e-3 * (-0.995) ** k
+    v = np.zeros(60)
+    assert estimate_period(x, v, scale=1.0, w=1.0, period_rtol=1e-4) == 0
+    # a true period-2 orbit with the same spread is accepted
+    x2 = 1.0 + 2e-3 * (-1.0) ** k
+    assert estimate_period(x2, v, scale=1.0, w=1.0, period_rtol=1e-4) == 2

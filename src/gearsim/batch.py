@@ -1026,6 +1026,18 @@ def estimate_period_fast(section_x, section_v, scale, w, n_max=64, period_rtol=1
                 ok = False
                 break
         if ok:
+            if n > 1:
+                # classify._spread_decays: a decaying transient mimics period n
+                early = 0.0
+                late = 0.0
+                for i in range(m - window, m - window + n):
+                    early += abs(section_x[i] - section_x[i - 1])
+                for i in range(m - n, m):
+                    late += abs(section_x[i] - section_x[i - 1])
+                early /= n
+                late /= n
+                if early - late > max(2.0 * tol_x, 1e-3 * early):
+                    return 0
             return n
     return 0
 

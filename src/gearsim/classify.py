@@ -104,8 +104,29 @@ def estimate_period(
         dx = np.abs(section_x[m - window :] - section_x[m - window - n : m - n])
         dv = np.abs(section_v[m - window :] - section_v[m - window - n : m - n])
         if dx.max() <= tol_x and dv.max() <= tol_v:
+            if n > 1 and _spread_decays(section_x, m, window, n, tol_x):
+                return 0  # a decaying transient mimics period n: integrate on
             return n
     return 0
+
+
+def _spread_decays(section_x, m, window, n, tol_x):
+    """True if the spread of the n section points shrinks over the window.
+
+    Next to a period doubling a period-1 orbit has a Floquet multiplier near -1 (near a
+    rotation angle 2 pi / n in general): its transient alternates and decays slowly, repeats after
+    n samples to within the tolerance and would pass for period n. A true period-n orbit keeps
+    its spread (mean |P_k - P_{k-1}| over a motion period); a transient's spread decays.
+    """
+    early = 0.0
+    late = 0.0
+    for i in range(m - window, m - window + n):
+        early += abs(section_x[i] - section_x[i - 1])
+    for i in range(m - n, m):
+        late += abs(section_x[i] - section_x[i - 1])
+    early /= n
+    late /= n
+    return early - late > max(2.0 * tol_x, 1e-3 * early)
 
 
 def impact_state(face: int, back: int, disengaged_time: float, total_time: float) -> int:
