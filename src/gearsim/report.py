@@ -194,6 +194,44 @@ class Report:
     misses: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     calibration: dict[str, Any] | None = None
+    audit: list[dict[str, Any]] = field(default_factory=list)
+
+
+def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
+    """The numerical audit of each plane (``results/<plane>/audit.parquet`` provenance)."""
+    from .catalogue import read_metadata
+
+    out = []
+    for plane in planes:
+        f = Path(results) / plane / "audit.parquet"
+        if f.is_file():
+            meta = read_metadata(f) or {}
+            out.append({"plane": plane, "cells": meta.get("cells"),
+                        "agreement": meta.get("agreement"), "threshold": meta.get("threshold")})
+    return out
+
+
+def _audit_lines(audits: list[dict[str, Any]]) -> list[str]:
+    if not audits:
+        return []
+    out = ["## Numerical audit", "",
+           "A seeded sample of every plane re-simulated with the adaptive DP5 integrator at 100x "
+           "tighter tolerance from the same start states; agreement = same label and n-p-q.", "",
+           "| plane | audited cells | agreement | threshold |", "|---|---|---|---|"]
+    low = []
+    for a in audits:
+        out.append(f"| {a['plane']} | {a['cells']} | {_f(a['agreement'], '.3f')} | "
+                   f"{_f(a['threshold'], '.2f')} |")
+        if a["agreement"] is not None and a["threshold"] is not None and (
+            a["agreement"] < a["threshold"]
+        ):
+            low.append(a["plane"])
+    out.append("")
+    if low:
+        out = [f"> **WARNING: the numerical audit is below its threshold on {', '.join(low)}: "
+               "the plane's classification depends on the integration settings. Tighten "
+               "`integration` before trusting these maps.**", ""] + out
+    return out
 
 
 def analyse(
@@ -315,6 +353,7 @@ def to_markdown(rep: Report) -> str:
                     f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
                     f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
                     "docs/calibration.md.", ""]
+    out += _audit_lines(rep.audit)
     out += ["## 1. Landmarks of the standard sweep", ""]
     if rep.matched is not None:
         out += ["| landmark | paper w | ours w | grid interval | difference | pattern (ours) |",
@@ -412,4 +451,5 @@ def build_report(
     if calibration is not None and Path(calibration).is_file():
         cal = json.loads(Path(calibration).read_text())
     rep = analyse(sweeps, cells, calibration=cal)
+    rep.audit = load_audits(results, planes)
     return rep, to_markdown(rep)
