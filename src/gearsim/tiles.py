@@ -48,6 +48,7 @@ CODE_FUNCTIONS = (
     "sweep_values",
     "simulate_row",
     "simulate_rows_batched",
+    "cell_records",
     "row_groups",
     "row_specs",
     "records_to_frame",
@@ -459,9 +460,17 @@ def simulate_row(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
     results = continuation_chain(
         plist, settings=settings, on_cell=lambda i, r: stamps.append(time.perf_counter())
     )
+    return cell_records(spec, xs, results, stamps, t0)
+
+
+def cell_records(spec: Mapping[str, Any], xs, results, stamps, t0: float) -> list[dict[str, Any]]:
+    """The tile records of one plane row: grid indices, both parameter values, the cell's
+    classification row, Poincare samples, the continuation seed and the wall time per cell."""
+    yname, yval = spec["y_name"], float(spec["y_value"])
     rows = []
     prev = t0
     for i, (x, res, t) in enumerate(zip(xs, results, stamps, strict=True)):
+        x = float(x)
         row = {
             "plane": spec["plane"],
             "tile": int(spec["tile"]),
@@ -507,28 +516,7 @@ def simulate_rows_batched(specs: Sequence[Mapping[str, Any]]) -> list[dict[str, 
     )
     rows = []
     for spec, res_row, st_row in zip(specs, results, stamps, strict=True):
-        yname, yval = spec["y_name"], float(spec["y_value"])
-        prev = t0
-        for i, (x, res, t) in enumerate(zip(spec["x_values"], res_row, st_row, strict=True)):
-            x = float(x)
-            row = {
-                "plane": spec["plane"],
-                "tile": int(spec["tile"]),
-                "i": i,
-                "j": int(spec["j"]),
-                "x": x,
-                "y": yval,
-                spec["x_name"]: x,
-                yname: yval,
-            }
-            row.update(res.row())
-            row["poincare_x"] = res.poincare[:, 0].tolist()
-            row["poincare_v"] = res.poincare[:, 1].tolist()
-            row["final_state"] = res.final_state.tolist()
-            row["final_period"] = int(res.final_period)
-            row["elapsed_s"] = t - prev
-            prev = t
-            rows.append(row)
+        rows += cell_records(spec, spec["x_values"], res_row, st_row, t0)
     return rows
 
 
