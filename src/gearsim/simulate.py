@@ -9,15 +9,16 @@ decided by the Lyapunov exponent).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
 
 from .classify import Classification, PeriodSummaries, classify_motion, estimate_period
 from .integrate import METHODS, STATUS_OK, integrate_periods
-from .model import N_STATE, static_state
+from .model import N_STATE, pack_parameters, project_tangent, static_state
 from .parameters import ModelParameters, ParameterError
+from .steps import phase_tables, rk4_steps_per_period
 
 TANGENT_SEED = 20251022  # fixed seed of the initial tangent vector (recorded in provenance)
 
@@ -152,32 +153,12 @@ def run_periods(
     traj = np.zeros((m * substeps + 1 if record else 0, N_STATE))
     ev_t = np.zeros(event_capacity)
     ev_c = np.zeros(event_capacity, dtype=np.int64)
+    n_rk = rk4_steps_per_period(params, settings, substeps)
+    nu = params.var_ratio_order if params.var_ratio != 0.0 else 0.0
     status, done, n_ev, h_last, n_steps = integrate_periods(
-        y,
-        start_period,
-        p,
-        METHODS[settings.method],
-        settings.rtol,
-        settings.atol,
-        settings.hmax,
-        settings.steps_per_period,
-        m,
-        substeps,
-        tangent,
-        h_init,
-        sec,
-        ints[0],
-        ints[1],
-        floats[0],
-        floats[1],
-        floats[2],
-        floats[3],
-        floats[4],
-        floats[5],
-        traj,
-        ev_t,
-        ev_c,
-        settings.divergence_bound,
+        y, start_period, p, METHODS[settings.method], settings.rtol, settings.atol,
+        settings.hmax, n_rk, m, substeps, tangent, h_init, sec, ints[0], ints[1], *floats, traj,
+        ev_t, ev_c, settings.divergence_bound, *phase_tables(n_rk, nu),
     )
     s = PeriodSummaries(sec, ints[0], ints[1], *floats)
     if done < m:
@@ -217,9 +198,56 @@ class CellResult:
         return c
 
 
-def _initial_tangent() -> np.ndarray:
+def initial_tangent(params: ModelParameters) -> np.ndarray:
+    """The fixed (seeded) initial tangent vector, on the states the model evolves.
+
+    In the single-DOF model the bearing states are frozen: their tangent components are zero, so
+    the Lyapunov exponent measures the mesh mode (a frozen component would never decay and pull
+    the estimate to zero).
+    """
     v = np.random.default_rng(TANGENT_SEED).standard_normal(N_STATE)
-    return v / np.linalg.norm(v)
+    return project_tangent(v / np.linalg.norm(v), pack_parameters(params))
+
+
+def diverged_result(params: ModelParameters, k: int, steps: int) -> CellResult:
+    """The record of a cell whose integration diverged (or collapsed its step)."""
+    nan = float("nan")
+    values = {f.name: nan for f in fields(Classification)}
+    values.update(motion="diverged", status="diverged", I=0, n=0, p=None, q=None,
+                  label="diverged", label_npq="", converged=False, window_periods=0)
+    final = static_state(pack_parameters(params))
+    return CellResult(Classification(**values), final, 0, np.zeros((0, N_STATE)), k, steps,
+                      params)
+
+
+def finish_cell(
+    params: ModelParameters,
+    summaries: PeriodSummaries,
+    n: int,
+    st: IntegrationSettings,
+    final_state: np.ndarray,
+    k: int,
+    start_period: int,
+    steps: int,
+) -> CellResult:
+    """Classify the measured periods of a cell (period ``n``, 0 if none) into its result.
+
+    Whole motion periods only are analysed; the early part of a long measurement is dropped.
+    The one tail of :func:`simulate_cell` and of the batched driver.
+    """
+    if n > 0:
+        keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
+        window = summaries.tail(keep)
+    else:
+        window = summaries
+    cls = classify_motion(
+        window, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
+        Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold,
+    )  # fmt: skip
+    n_keep = n if n > 0 else min(len(window), 2 * st.n_max)
+    poincare = window.section[-n_keep:].copy()
+    return CellResult(cls, np.asarray(final_state, dtype=float)[:N_STATE].copy(), k, poincare,
+                      k - start_period, steps, params)
 
 
 def simulate_cell(
@@ -262,7 +290,7 @@ def simulate_cell(
         r = run_periods(params, y, transient, st, start_period=k, parray=p)
         y, k, steps, h, status = r.state, k + r.periods_done, r.n_steps, r.h_last, r.status
     parts: list[PeriodSummaries] = []
-    yt = np.concatenate([y, _initial_tangent()])
+    yt = np.concatenate([y, initial_tangent(params)])
     n = 0
     measured = 0
     while status == STATUS_OK and measured < max_periods:
@@ -283,36 +311,8 @@ def simulate_cell(
             break
     summaries = PeriodSummaries.concat(parts) if parts else None
     if status != STATUS_OK or summaries is None or len(summaries) == 0:
-        cls = Classification(
-            motion="diverged", status="diverged", I=0, n=0, p=None, q=None, label="diverged",
-            label_npq="", dc=float("nan"), kmax_peak_mean=float("nan"),
-            kmax_peak_static=float("nan"), kmax_section_mean=float("nan"),
-            kmax_section_static=float("nan"), kmin_peak_mean=float("nan"),
-            lyapunov=float("nan"), x_min=float("nan"), x_max=float("nan"), converged=False,
-            window_periods=0,
-        )
-        final = static_state(p)
-        return CellResult(cls, final, 0, np.zeros((0, N_STATE)), k, steps, params)
-    if n > 0:
-        # analyse whole motion periods only; drop the early part of the measurement when long
-        keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
-        window = summaries.tail(keep)
-    else:
-        window = summaries
-    cls = classify_motion(
-        window,
-        w=params.w,
-        b=params.b,
-        eps=params.eps,
-        xi=params.xi,
-        Fm=params.Fm,
-        Fe=params.Fe,
-        n=n,
-        lyap_threshold=st.lyap_threshold,
-    )
-    n_keep = n if n > 0 else min(len(window), 2 * st.n_max)
-    poincare = window.section[-n_keep:].copy()
-    return CellResult(cls, yt[:N_STATE].copy(), k, poincare, k - start_period, steps, params)
+        return diverged_result(params, k, steps)
+    return finish_cell(params, summaries, n, st, yt, k, start_period, steps)
 
 
 @dataclass
