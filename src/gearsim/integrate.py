@@ -23,10 +23,13 @@ counts, disengaged time, force and displacement extremes and the log growth of t
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, dataclass, replace
+from typing import Any
 
 import numpy as np
 from numba import njit
 
+from .classify import PeriodSummaries
 from .events import (
     ACC_FMAX,
     ACC_FMIN,
@@ -62,13 +65,16 @@ from .model import (
     set_period,
     variable_ratio,
 )
+from .parameters import ModelParameters, ParameterError
 from .steps import (
     FASTMATH,
     METHOD_DP5,
     METHOD_RK4,
     METHODS,
     grid_step_flag,
+    phase_tables,
     rk4_state,
+    rk4_steps_per_period,
     rk4_tangent,
 )
 
@@ -81,6 +87,9 @@ __all__ = [
     "STATUS_STEP_COLLAPSE",
     "STATUS_NAMES",
     "integrate_periods",
+    "IntegrationSettings",
+    "Run",
+    "run_periods",
     "start_period_accumulators",
     "end_period_tangent",
 ]
@@ -312,3 +321,157 @@ def integrate_periods(
     for i in range(n):
         y0[i] = y[i]
     return status, periods_done, cnt[CNT_EV], acc[ACC_H], cnt[CNT_STEPS]
+
+
+@dataclass(frozen=True)
+class IntegrationSettings:
+    """Numerical settings of a cell simulation (all times in mesh periods unless stated).
+
+    method
+        ``"dp5"`` adaptive Dormand-Prince 5(4) or ``"rk4"`` fixed step.
+    rtol, atol
+        DP5 tolerances (RMS norm over the physical states).
+    hmax
+        Absolute step cap in dimensionless time (stiff bearing modes at low ``w``).
+    steps_per_period
+        RK4 steps per mesh period (raised to ``ceil(T / hmax)`` when needed).
+    transient
+        Periods integrated before measuring, starting from the static state / ``u0``.
+    transient_continuation
+        Periods of transient when a continuation start ``u0`` is given.
+    chunk
+        Periods per measuring chunk; the period is tested after each chunk.
+    max_periods
+        Budget of measured periods.
+    n_max, period_rtol
+        Largest period looked for, relative tolerance of the period test.
+    lyap_threshold
+        Lyapunov exponents above it (per unit tau) mean chaos, within +/- it quasi-periodic.
+    divergence_bound
+        A state component beyond it (or NaN) ends the cell with status ``diverged``.
+    """
+
+    method: str = "dp5"
+    rtol: float = 1e-9
+    atol: float = 1e-12
+    hmax: float = 0.2
+    steps_per_period: int = 256
+    transient: int = 150
+    transient_continuation: int = 16
+    chunk: int = 24
+    max_periods: int = 256
+    n_max: int = 64
+    period_rtol: float = 1e-5
+    lyap_threshold: float = 0.005
+    divergence_bound: float = 1.0e6
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ParameterError(
+                f"setting 'method' = {self.method!r}; allowed: {', '.join(METHODS)}"
+            )
+        positive = {
+            "rtol": (0, 1),
+            "atol": (0, 1),
+            "hmax": (0, 100),
+            "period_rtol": (0, 1),
+            "lyap_threshold": (0, 10),
+            "divergence_bound": (0, 1e300),
+        }
+        for name, (lo, hi) in positive.items():
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo < v < hi):
+                raise ParameterError(f"setting '{name}' = {v!r} must be in ({lo}, {hi})")
+        integers = {
+            "steps_per_period": 4,
+            "transient": 0,
+            "transient_continuation": 0,
+            "chunk": 4,
+            "max_periods": 8,
+            "n_max": 1,
+        }
+        for name, lo in integers.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= {lo}")
+
+    def with_(self, **changes: Any) -> IntegrationSettings:
+        return replace(self, **changes)
+
+    def tightened(self) -> IntegrationSettings:
+        """Settings for convergence checks: 100x tighter DP5 tolerance, half the RK4 step."""
+        return replace(
+            self,
+            rtol=self.rtol / 100,
+            atol=self.atol / 100,
+            steps_per_period=self.steps_per_period * 2,
+            hmax=self.hmax / 2,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class Run:
+    """Raw output of :func:`run_periods`."""
+
+    summaries: PeriodSummaries
+    state: np.ndarray  # final state (10, or 20 with tangent)
+    status: int
+    periods_done: int
+    events_t: np.ndarray
+    events_code: np.ndarray
+    n_events: int
+    h_last: float
+    n_steps: int
+    trajectory: np.ndarray | None
+
+
+def run_periods(
+    params: ModelParameters,
+    y0: np.ndarray,
+    n_periods: int,
+    settings: IntegrationSettings,
+    *,
+    start_period: int = 0,
+    tangent: bool = False,
+    substeps: int = 1,
+    record: bool = False,
+    event_capacity: int = 0,
+    h_init: float = 0.0,
+    parray: np.ndarray | None = None,
+) -> Run:
+    """Integrate ``n_periods`` mesh periods from ``y0`` (unchanged) at ``tau = start_period T``."""
+    p = params.to_array() if parray is None else parray
+    y = np.zeros(20)
+    y[: len(y0)] = y0
+    m = n_periods
+    sec = np.zeros((m, N_STATE))
+    ints = [np.zeros(m, dtype=np.int64) for _ in range(2)]
+    floats = [np.zeros(m) for _ in range(6)]
+    traj = np.zeros((m * substeps + 1 if record else 0, N_STATE))
+    ev_t = np.zeros(event_capacity)
+    ev_c = np.zeros(event_capacity, dtype=np.int64)
+    n_rk = rk4_steps_per_period(params, settings, substeps)
+    nu = params.var_ratio_order if params.var_ratio != 0.0 else 0.0
+    status, done, n_ev, h_last, n_steps = integrate_periods(
+        y, start_period, p, METHODS[settings.method], settings.rtol, settings.atol,
+        settings.hmax, n_rk, m, substeps, tangent, h_init, sec, ints[0], ints[1], *floats, traj,
+        ev_t, ev_c, settings.divergence_bound, *phase_tables(n_rk, nu),
+    )
+    s = PeriodSummaries(sec, ints[0], ints[1], *floats)
+    if done < m:
+        s = PeriodSummaries(*(getattr(s, f)[:done] for f in PeriodSummaries.__dataclass_fields__))
+    return Run(
+        summaries=s,
+        state=y[: 20 if tangent else 10].copy(),
+        status=int(status),
+        periods_done=int(done),
+        events_t=ev_t[: min(n_ev, event_capacity)],
+        events_code=ev_c[: min(n_ev, event_capacity)],
+        n_events=int(n_ev),
+        h_last=float(h_last),
+        n_steps=int(n_steps),
+        trajectory=traj if record else None,
+    )
