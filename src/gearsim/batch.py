@@ -549,6 +549,7 @@ def run_periods_batched(
 
 # ============================================================================ the driver
 _TRANSIENT = 0
+_LEAD = 2  # end of the transient with the tangent vector on (simulate_cell's tangent_lead)
 _MEASURE = 1
 
 
@@ -573,6 +574,7 @@ class _Chain:
     steps: int = 0
     measured: int = 0
     tangent0: np.ndarray | None = None  # initial tangent vector of the current cell
+    lead: int = 0  # periods of tangent lead of the current cell
     results: list[CellResult] = field(default_factory=list)
 
     @property
@@ -694,7 +696,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             ist[_K, l] = c.k
         lanes.set_column(_H, hcol)
         # the tangent vector is only needed while some lane measures (else: the transient)
-        tangent = any(c.phase == _MEASURE for c in part)
+        tangent = any(c.phase != _TRANSIENT for c in part)
         lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         for c in part:
             l = c.lane
@@ -710,6 +712,8 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                         continuation, on_cell)
             elif c.left == 0:
                 if c.phase == _TRANSIENT:
+                    _begin_lead(c, lanes, st)
+                elif c.phase == _LEAD:
                     _begin_measure(c, lanes, st)
                 else:
                     _decide(c, lanes, st, continuation, on_cell)
@@ -734,9 +738,21 @@ def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     lanes.load_params(ch.lane, params, ch.N)
     ch.tangent0 = initial_tangent(params)
     lanes.load_state(ch.lane, np.concatenate([y, ch.tangent0]))
-    if transient > 0:
+    ch.lead = min(st.tangent_lead, transient)
+    if transient - ch.lead > 0:
         ch.phase = _TRANSIENT
-        ch.left = transient
+        ch.left = transient - ch.lead
+    else:
+        _begin_lead(ch, lanes, st)
+
+
+def _begin_lead(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
+    """The tangent vector starts; it aligns over ``ch.lead`` periods before measuring."""
+    lanes.set_rows(ch.lane, _Y + 10, ch.tangent0)
+    lanes.reset_modes(ch.lane)
+    if ch.lead > 0:
+        ch.phase = _LEAD
+        ch.left = ch.lead
     else:
         _begin_measure(ch, lanes, st)
 
@@ -744,8 +760,8 @@ def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
 def _begin_measure(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     ch.phase = _MEASURE
     ch.measured = 0
-    lanes.set_rows(ch.lane, _Y + 10, ch.tangent0)
-    lanes.reset_modes(ch.lane)
+    if ch.lead > 0:
+        lanes.reset_modes(ch.lane)  # a new run_periods call in simulate_cell
     ch.left = min(st.chunk, st.max_periods)
 
 

@@ -92,11 +92,13 @@ def channels(p, mode, y, gaps, active, reset):
     """Fill the gaps and active flags of the switching channels from ``p``.
 
     With ``reset`` the regions ``mode[0:5]`` are set from the state ``y`` (start of a call).
-    A channel without gap is linear: region +1 gives ``f(u, 0) = u`` on both sides.
+    A channel without gap is linear: region +1 gives ``f(u, 0) = u`` on both sides. This holds
+    for the mesh too: at zero backlash the teeth never separate, so a crossing of ``x = 0`` is
+    no impact (no switch, no face or back entry, no time inside the backlash).
     """
     for c in range(N_SWITCH):
         gaps[c] = p[SWITCH_GAP[c]]
-        active[c] = c == 0 or p[P_ACT + c - 1] != 0.0
+        active[c] = gaps[c] > 0.0 if c == 0 else p[P_ACT + c - 1] != 0.0
         if reset:
             mode[c] = region_of(y[SWITCH_COORD[c]], gaps[c]) if active[c] else 1
 

@@ -349,6 +349,10 @@ class IntegrationSettings:
         Lyapunov exponents above it (per unit tau) mean chaos, within +/- it quasi-periodic.
     divergence_bound
         A state component beyond it (or NaN) ends the cell with status ``diverged``.
+    tangent_lead
+        Periods at the end of the transient during which the tangent vector already runs, so
+        that it is aligned with the most unstable direction when measuring starts (a fresh
+        random vector overestimates the largest exponent by ~log(transient growth) / window).
     """
 
     method: str = "dp5"
@@ -364,6 +368,7 @@ class IntegrationSettings:
     period_rtol: float = 1e-5
     lyap_threshold: float = 0.005
     divergence_bound: float = 1.0e6
+    tangent_lead: int = 24
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -389,6 +394,7 @@ class IntegrationSettings:
             "chunk": 4,
             "max_periods": 8,
             "n_max": 1,
+            "tangent_lead": 0,
         }
         for name, lo in integers.items():
             v = getattr(self, name)

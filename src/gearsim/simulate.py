@@ -151,11 +151,17 @@ def simulate_cell(
     steps = 0
     h = 0.0
     status = STATUS_OK
-    if transient > 0:
-        r = run_periods(params, y, transient, st, start_period=k, parray=p)
+    lead = min(st.tangent_lead, transient)
+    if transient - lead > 0:
+        r = run_periods(params, y, transient - lead, st, start_period=k, parray=p)
         y, k, steps, h, status = r.state, k + r.periods_done, r.n_steps, r.h_last, r.status
     parts: list[PeriodSummaries] = []
     yt = np.concatenate([y, initial_tangent(params)])
+    if lead > 0 and status == STATUS_OK:
+        # the tangent vector aligns during the end of the transient (not recorded)
+        r = run_periods(params, yt, lead, st, start_period=k, tangent=True, h_init=h, parray=p)
+        yt, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
+        steps += r.n_steps
     n = 0
     measured = 0
     while status == STATUS_OK and measured < max_periods:

@@ -241,7 +241,7 @@ def grid_step_flag(y, yn, P, M, A, bound, bearings):
     the divergence bound. ``A`` are the four bearing channels' active flags; ``bearings`` is
     false when no channel has a clearance (a loop invariant in the vector kernel).
     """
-    flag = (region_f(yn[0], P[2]) != M[0]) | (y[1] * yn[1] < 0.0)
+    flag = ((P[2] > 0.0) & (region_f(yn[0], P[2]) != M[0])) | (y[1] * yn[1] < 0.0)
     if bearings:
         flag = flag | _watch(y[3], yn[2], yn[3], P[22], M[2], A[0])
         flag = flag | _watch(y[5], yn[4], yn[5], P[23], M[3], A[1])

@@ -117,7 +117,7 @@ def lyapunov_spectrum(
     start_period: int = 0,
     seed: int = 20251022,
 ) -> Spectrum:
-    """All Lyapunov exponents by repeated QR of a tangent basis (Benettin et al., Shimada-Nagashima).
+    """All Lyapunov exponents by repeated QR of a tangent basis (Benettin; Shimada and Nagashima).
 
     Starting at ``y0`` (on the attractor), every mesh period the orthonormal basis ``Q`` is mapped
     by the period's tangent map and re-orthonormalised (``QR``); the exponents are the averaged
