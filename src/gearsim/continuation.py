@@ -473,3 +473,21 @@ def _ns_confirmed(mu: np.ndarray) -> bool:
         if abs(m.imag) > 1e-6 and abs(abs(m) - 1.0) < 1e-5:
             return True
     return False
+
+
+def write_branches(df: pd.DataFrame, path) -> None:
+    """Write a branch table as Parquet (``df.attrs`` as JSON schema metadata)."""
+    import json
+    from pathlib import Path
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    meta = {b"gearsim.continuation": json.dumps(df.attrs, default=float).encode()}
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    pq.write_table(table, tmp)
+    tmp.replace(path)

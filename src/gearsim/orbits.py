@@ -463,3 +463,44 @@ def grazing_margin(
 
 
 _CHANNEL_GAP = ("b", "b_py", "b_pz", "b_gy", "b_gz")
+
+
+# ------------------------------------------------------------------ command-line helpers
+def default_parameters_file():
+    """The repository's ``config/standard_parameters.yaml`` (None if absent)."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "config" / "standard_parameters.yaml"
+    return path if path.is_file() else None
+
+
+def orbit_parameters(
+    path: str | None, assignments: list[str], **extra: float
+) -> tuple[ModelParameters, str]:
+    """Parameters for the orbit commands: the standard set (or ``path``) plus ``--set`` values.
+
+    Returns the parameters and a one-line description of their source.
+    """
+    from .commands._common import parse_assignment
+    from .config_io import load_standard_parameters
+
+    base: dict[str, Any] = {}
+    src = "built-in defaults (no standard parameter file found)"
+    file = path if path else default_parameters_file()
+    if file is not None:
+        base = load_standard_parameters(file)
+        src = f"standard parameters {file}"
+    sets = []
+    for item in assignments:
+        name, value = parse_assignment(item)
+        base[name] = value
+        sets.append(f"{name}={value}")
+    base.update(extra)
+    if sets:
+        src += " with " + ", ".join(sets)
+    return ModelParameters.from_mapping(base), src
+
+
+def shooting_settings(rtol: float | None = None) -> IntegrationSettings:
+    """:data:`SHOOTING`, optionally with another DP5 relative tolerance."""
+    return SHOOTING if rtol is None else SHOOTING.with_(rtol=rtol, atol=rtol * 1e-2)
