@@ -32,7 +32,7 @@ def add_orbit_parameter_arguments(p: argparse.ArgumentParser) -> None:
         help="override a model parameter (repeatable), e.g. --set model=1dof",
     )
     p.add_argument("--rtol", type=float, default=None,
-                   help="DP5 relative tolerance of the shooting integrator (default 1e-11)")
+                   help="DP5 relative tolerance of the shooting integrator (default 1e-12)")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
