@@ -316,6 +316,23 @@ def describe(gear: GearGeometry, params: ModelParameters | None = None) -> str:
         gear = GearGeometry.from_dimensionless(params, gear)
     else:
         target = gear.to_model_parameters()
+    d = target.to_dict()
+    phys = physical_columns({k: d[k] for k in ("w", "Fm", "Fe", "b", "xi", "eps")}, gear)
+    notes = {
+        "w": f"= {phys['speed_rpm']:.6g} rpm, mesh frequency {phys['mesh_frequency_Hz']:.6g} Hz",
+        "Fm": f"= torque {phys['torque_Nm']:.6g} N m, mean mesh force "
+              f"{phys['mean_mesh_force_N']:.6g} N",
+        "Fe": f"= error amplitude {phys['te_amplitude_um']:.6g} um",
+        "b": f"= half backlash {phys['half_backlash_um']:.6g} um",
+        "xi": f"= mesh damping {phys['mesh_damping_Ns_per_m']:.6g} N s/m",
+        "eps": f"= stiffness fluctuation {phys['stiffness_fluctuation_N_per_m']:.6g} N/m",
+    }
+    lines.append("dimensionless set (docs/model.md):")
+    for name, value in d.items():
+        if name == "model":
+            lines.append(f"  {'model':28s} {value:>18s}")
+            continue
+        lines.append(f"  {name:28s} {value:18.10g}   {notes.get(name, '')}".rstrip())
     lines.append("gear (given or back-computed; units in the names):")
     for name, value in gear.to_dict().items():
         shown = "(from density)" if value is None else f"{value:.10g}"
@@ -324,12 +341,6 @@ def describe(gear: GearGeometry, params: ModelParameters | None = None) -> str:
     for name, value in gear.derived().items():
         lines.append(f"  {name:28s} {value:18.10g}   {DERIVED_UNITS.get(name, '')}")
     mine = gear.to_model_parameters(model=target.model, var_ratio=target.var_ratio)
-    lines.append("dimensionless set (docs/model.md):")
-    for name, value in target.to_dict().items():
-        if name == "model":
-            lines.append(f"  {'model':28s} {value:>18s}")
-            continue
-        lines.append(f"  {name:28s} {value:18.10g}")
     bad = gear.not_reproduced(target)
     if bad:
         got = ", ".join(f"{n} = {getattr(mine, n):.6g}" for n in bad)
