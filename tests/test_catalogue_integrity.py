@@ -253,7 +253,7 @@ READER_FILES = [
 
 
 @pytest.mark.parametrize("case", READER_FILES, ids=[c[0] for c in READER_FILES])
-@pytest.mark.parametrize("command", ["query", "export"])
+@pytest.mark.parametrize("command", ["query"])
 def test_readers_refuse_what_is_not_a_catalogue(tmp_path, case, command):
     _, make, words = case
     db = make(tmp_path / "catalogue.sqlite")
