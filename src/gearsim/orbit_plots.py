@@ -129,6 +129,9 @@ def figure_curves(curves: pd.DataFrame, cells: pd.DataFrame | None = None, *,
     name = str(curves["name"].iloc[0]) if len(curves) else "w"
     name2 = str(curves["name2"].iloc[0]) if len(curves) else "b"
     draw_curves(ax, curves)
+    if cells is not None and len(cells):
+        ax.set_xlim(float(cells["x"].min()), float(cells["x"].max()))
+        ax.set_ylim(float(cells["y"].min()), float(cells["y"].max()))
     handles = [h for h in ax.get_lines() if h.get_label() and not h.get_label().startswith("_")]
     if handles:
         fig.legend(handles=handles, loc="lower right", fontsize=7, title="curves (Newton)",
