@@ -46,9 +46,11 @@ rule plane_maps:
         config=CONFIG,
     output:
         [
-            report(p, caption="../report/plane_map.rst", category="Plane maps")
-            if p.endswith(".png")
-            else p
+            (
+                report(p, caption="../report/plane_map.rst", category="Plane maps")
+                if p.endswith(".png")
+                else p
+            )
             for p in gfr.map_outputs("{plane}")
         ],
     log:
@@ -82,3 +84,26 @@ ALL_TARGETS += expand(
 )
 ALL_TARGETS += [f for plane in PLANES for f in gfr.map_outputs(plane)]
 ALL_TARGETS += ["results/figures/README.md"]
+
+
+# The explorer: one static page with every plane's maps and every sweep's diagram.
+rule explorer:
+    input:
+        cells=expand("results/{plane}/cells.parquet", plane=PLANES),
+        sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
+        catalogue="results/catalogue.sqlite",
+        config=CONFIG,
+    output:
+        "results/explorer/index.html",
+    log:
+        "logs/figures/explorer.log",
+    conda:
+        GEARSIM_ENV
+    params:
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim explorer --results results --catalogue {input.catalogue} "
+        "--configfile {input.config} --out {output} > {log} 2>&1"
+
+
+ALL_TARGETS += ["results/explorer/index.html"]

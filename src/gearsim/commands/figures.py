@@ -90,20 +90,19 @@ def _context(args, config):
     return ctx
 
 
-def _bind_single_plane(numbers, ctx, table) -> list[str]:
+def _bind_single_plane(numbers, ctx, table) -> dict[str, str]:
     """A figure of one plane (e.g. Fig 7 of ``wb``) given exactly one plane of another name
-    draws that one: returns the notes saying so."""
-    notes = []
+    draws that one: returns ``{paper's plane: given plane}``."""
+    bound: dict[str, str] = {}
     if len(ctx.planes) != 1:
-        return notes
+        return bound
     (given, df), = ctx.planes.items()
     for n in numbers:
         wanted = table[n].inputs.planes if n in table else ()
         if len(wanted) == 1 and wanted[0] not in ctx.planes:
             ctx.planes[wanted[0]] = df
-            notes.append(f"figure {n}: drawn for plane '{given}' (the paper's is "
-                         f"'{wanted[0]}')")
-    return notes
+            bound[wanted[0]] = given
+    return bound
 
 
 def _write_record(path: Path, rec: dict) -> None:
@@ -153,10 +152,15 @@ def run(args: argparse.Namespace) -> int:
             numbers = [n for n in numbers if not table[n].tables_required or all(
                 name in getattr(ctx, kind) for kind, names in table[n].inputs.tables().items()
                 for name in names)]
-        elif not args.maps:
-            for note in _bind_single_plane(numbers, ctx, table):
-                print(note, file=sys.stderr)
+        bound = {} if args.all else _bind_single_plane(numbers, ctx, table)
         for b in registry.build(numbers, ctx):
+            for paper, given in bound.items():
+                if f"{paper}/cells" in b.inputs:
+                    b.inputs = [f"{given}/cells" if i == f"{paper}/cells" else i
+                                for i in b.inputs]
+                    b.differences.insert(0, f"Drawn for the plane '{given}' (the paper's "
+                                         f"figure shows the plane '{paper}').")
+                    print(f"figure {b.number}: drawn for plane '{given}'", file=sys.stderr)
             files = [str(f) for f in save_figure(b.figure, outdir / f"fig{b.number:02d}")]
             plt.close(b.figure)
             _write_record(outdir / f"fig{b.number:02d}.json", registry.record(b, files, ctx))
