@@ -86,7 +86,7 @@ def test_report_rule_declares_what_it_reads(tmp_path):
     block = r.stdout[r.stdout.index("rule report:"):]
     block = block[:block.index("\n\n")]
     inputs = block.split("input:", 1)[1].split("\n", 1)[0]
-    for f in ("results/catalogue.sqlite", "results/sweeps/b015.parquet",
+    for f in ("results/catalogue.d/build.sqlite", "results/sweeps/b015.parquet",
               "results/wb/audit.parquet", "results/wxi/audit.parquet",
               "results/wb/cells.parquet", "docs/calibration.json", "config/tiny.yaml"):
         assert f in inputs, (f, inputs)

@@ -91,7 +91,7 @@ rule explorer:
     input:
         cells=expand("results/{plane}/cells.parquet", plane=PLANES),
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
-        catalogue="results/catalogue.sqlite",
+        catalogue=CATALOGUE,
         config=CONFIG,
     output:
         "results/explorer/index.html",

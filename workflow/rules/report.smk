@@ -21,7 +21,7 @@ rule table1:
 rule report:
     input:
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
-        catalogue="results/catalogue.sqlite",
+        catalogue=CATALOGUE,
         cells=expand("results/{plane}/cells.parquet", plane=PLANES),
         audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
         calibration=[str(CALIBRATION)] if CALIBRATION.is_file() else [],
