@@ -5,6 +5,8 @@ points. A screenshot is kept under the test's tmp dir (path printed)."""
 
 from __future__ import annotations
 
+import base64
+import json
 import os
 import shutil
 import time
@@ -15,7 +17,13 @@ import pytest
 from tiny_study import CONFIGS, tiny_study
 
 from gearsim.cli import main
-from gearsim.explorer import MAX_POINTS, plane_from_cells, plane_payload, plotly_js
+from gearsim.explorer import (
+    MAX_POINTS,
+    dequantise,
+    plane_from_cells,
+    plane_payload,
+    plotly_js,
+)
 
 CHROMIUM = shutil.which("chromium")
 DRIVER = shutil.which("chromedriver")
@@ -54,7 +62,7 @@ def _expected_points(cell: pd.Series) -> tuple[np.ndarray, np.ndarray]:
     keep = MAX_POINTS
     if cell["motion"] == "periodic" and cell["n"] > 0:
         keep = min(MAX_POINTS, int(cell["n"]))
-    return px[-keep:].astype(np.float32), pv[-keep:].astype(np.float32)
+    return px[-keep:], pv[-keep:]
 
 
 def test_page_is_static_and_compact(page):
@@ -64,12 +72,16 @@ def test_page_is_static_and_compact(page):
     assert plotly_js()[:200] in html  # the library is inline
     cells = pd.read_parquet(wd / "results/wb/cells.parquet")
     payload = plane_payload(plane_from_cells("wb", cells, ("w", "b")))
-    points = int(np.frombuffer(__import__("base64").b64decode(payload["offsets"]["b64"]),
-                               "<u4")[-1])
-    size = len(__import__("json").dumps(payload))
-    # typed arrays: about 35 bytes per cell (base64 of 26) plus 11 per section point
+    points = int(np.frombuffer(base64.b64decode(payload["offsets"]["b64"]), "<u4")[-1])
+    size = len(json.dumps(payload))
+    # typed arrays: about 36 bytes per cell (base64 of 27) plus 5.3 per section point
     print(f"wb payload {size} bytes for {len(cells)} cells and {points} points")
-    assert size < 200 + 60 * len(cells) + 12 * points
+    assert size < 1500 + 40 * len(cells) + 6 * points
+    # the int16 section coding round-trips within half a step
+    allx = np.concatenate([np.asarray(v, float) for v in cells["poincare_x"]])
+    got = dequantise(payload["px"])
+    assert len(got) == points and payload["px"]["step"] < 1e-4 * (np.ptp(allx) + 1e-300) * 2
+    assert got.min() >= allx.min() - 1e-12 and got.max() <= allx.max() + 1e-12
 
 
 def test_page_in_chromium(page, tmp_path):
@@ -131,8 +143,10 @@ def test_page_in_chromium(page, tmp_path):
                                       "return [Array.from(d.x), Array.from(d.y)];")
         ex, ev = _expected_points(cell)
         assert len(drawn[0]) == len(ex) > 0
-        np.testing.assert_array_equal(np.float32(drawn[0]), ex)
-        np.testing.assert_array_equal(np.float32(drawn[1]), ev)
+        # int16 over the plane's range: within half a step of the stored float64 values
+        payload = plane_payload(plane_from_cells("wb", cells, ("w", "b")))
+        np.testing.assert_allclose(drawn[0], ex, rtol=0, atol=0.51 * payload["px"]["step"])
+        np.testing.assert_allclose(drawn[1], ev, rtol=0, atol=0.51 * payload["pv"]["step"])
         # every plane's three maps and the sweep are drawn
         for div in ("map-wb-pattern", "map-wb-dc", "map-wb-kmax", "map-weps-pattern",
                     "map-weps-dc", "map-weps-kmax", "sweep-standard"):

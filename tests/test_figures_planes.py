@@ -5,14 +5,16 @@ and the report says "not applicable" where the paper has nothing to compare."""
 from __future__ import annotations
 
 import json
+import sqlite3
 
 import pandas as pd
 import pytest
 from tiny_study import CONFIGS, tiny_study
 from workflow_helpers import make_workdir, smk
 
+from gearsim.catalogue import CatalogueError
 from gearsim.cli import main
-from gearsim.report import analyse, to_markdown
+from gearsim.report import analyse, load_plane, to_markdown
 
 
 @pytest.fixture(scope="module")
@@ -91,3 +93,22 @@ def test_report_rule_declares_what_it_reads(tmp_path):
               "results/wb/cells.parquet", "docs/calibration.json", "config/tiny.yaml"):
         assert f in inputs, (f, inputs)
     assert "--configfile" in r.stdout
+
+
+def test_report_reads_planes_from_the_real_catalogue(study, tmp_path):
+    """The catalogue's cells (axes stored as x / y, impact as ``impact``) give the report the
+    same plane as cells.parquet; a file that is not a catalogue is a one-line error."""
+    cat = study / "results/catalogue.sqlite"
+    got = load_plane("wb", catalogue=cat, results=tmp_path)
+    want = pd.read_parquet(study / "results/wb/cells.parquet")
+    assert len(got) == len(want) and "I" in got.columns
+    assert sorted(got["label"]) == sorted(want["label"])
+    assert load_plane("wxi", catalogue=cat, results=tmp_path) is None  # not in this catalogue
+    a = analyse({}, {"wb": got}, plane_axes={"wb": ("w", "b")}, configured_sweeps=[])
+    b = analyse({}, {"wb": want}, plane_axes={"wb": ("w", "b")}, configured_sweeps=[])
+    assert (a.b_threshold.last_with, a.b_threshold.first_without) == (
+        b.b_threshold.last_with, b.b_threshold.first_without)
+    bogus = tmp_path / "bogus.sqlite"
+    sqlite3.connect(bogus).execute("create table cells (x int)").connection.commit()
+    with pytest.raises(CatalogueError):
+        load_plane("wb", catalogue=bogus, results=tmp_path)

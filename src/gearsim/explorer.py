@@ -7,9 +7,10 @@ cell draws its Poincare points (x, x') in the side panel. Every sweep gets its b
 diagram (Poincare x versus the swept parameter, coloured by impact state), zoomable.
 
 The page needs no server and no network: Plotly.js is bundled inline and the data are embedded
-as compact typed arrays (base64 of little-endian float32 / int16 / uint32), so a 400 x 400
-plane costs a few bytes per cell plus its Poincare points (at most :data:`MAX_POINTS` per
-cell, the last ``n`` only for a periodic cell of period ``n``: they are its distinct points).
+as compact typed arrays (base64 of little-endian float32 / int16 / uint32; section points as
+int16 over the plane's range), so a 400 x 400 plane costs about 36 bytes per cell plus about
+5.3 bytes per Poincare point (at most :data:`MAX_POINTS` per cell, the last ``n`` only for a
+periodic cell of period ``n``: they are its distinct points).
 
 Every quantity is dimensionless as in the catalogue (docs/model.md): x = X_n / b_c,
 x' = dx/dtau with tau = omega_n t; DC is a fraction of the mesh period; Kmax = F_n / F_m; the
@@ -20,7 +21,6 @@ from __future__ import annotations
 
 import base64
 import json
-import sqlite3
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +46,23 @@ def _b64(a: np.ndarray, dtype: str) -> dict[str, str]:
 
 def _f32(values) -> dict[str, str]:
     return _b64(np.asarray(values, dtype=float), "<f4")
+
+
+def _quantised(v: np.ndarray) -> dict[str, Any]:
+    """Section coordinates as int16 over the plane's range (resolution range / 65535, far below
+    a marker's size): ``value = lo + (q + 32768) * step``."""
+    v = np.asarray(v, dtype=float)
+    lo = float(v.min()) if len(v) else 0.0
+    hi = float(v.max()) if len(v) else 1.0
+    step = (hi - lo) / 65535.0 if hi > lo else 1.0
+    q = np.round((v - lo) / step) - 32768.0
+    return {**_b64(np.clip(q, -32768, 32767), "<i2"), "lo": lo, "step": step}
+
+
+def dequantise(enc: Mapping[str, Any]) -> np.ndarray:
+    """The inverse of the page's int16 coding of section points (what the page draws)."""
+    q = np.frombuffer(base64.b64decode(enc["b64"]), "<i2").astype(float)
+    return enc["lo"] + (q + 32768.0) * enc["step"]
 
 
 def _int_or(values: pd.Series, missing: int = -1) -> np.ndarray:
@@ -82,10 +99,12 @@ def read_attractors(catalogue: str | Path, plane: str, nx: int) -> dict[int, lis
     ``plane_id`` with ``i`` and ``j``; each attractor is shown as its remaining columns
     (``name=value``). ``None`` when the catalogue has no such table.
     """
+    from .catalogue import open_catalogue
+
     path = Path(catalogue)
     if not path.is_file():
         return None
-    con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    con = open_catalogue(path)
     try:
         tables = {r[0] for r in con.execute("select name from sqlite_master where type='table'")}
         if "attractors" not in tables:
@@ -202,8 +221,8 @@ def plane_payload(plane: PlaneData) -> dict[str, Any]:
         "cat_labels": [style.PATTERN_LABELS[k] for k in keys],
         "cat_colours": [style.PATTERN_COLOURS[k] for k in keys],
         "labels": labels,
-        "label": _b64(np.where(present, label, -1), "<i4"),
-        "npq": _b64(np.where(present, npq, -1), "<i4"),
+        "label": _b64(np.where(present, label, -1), "<i2"),
+        "npq": _b64(np.where(present, npq, -1), "<i2"),
         "I": _b64(np.where(present, _int_or(df["I"], -9)[rows], -9), "<i2"),
         "n": _b64(np.where(present, n[rows], -1), "<i2"),
         "dc": _f32(grid("dc")),
@@ -213,7 +232,7 @@ def plane_payload(plane: PlaneData) -> dict[str, Any]:
         "lyapunov": _f32(grid("lyapunov") if "lyapunov" in df.columns
                          else np.full(nx * ny, np.nan)),
         "offsets": _b64(offsets, "<u4"),
-        "px": _f32(px), "pv": _f32(pv),
+        "px": _quantised(px), "pv": _quantised(pv),
         "attractors": None,
     }
     if plane.attractors is not None:

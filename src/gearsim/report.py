@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import math
-import sqlite3
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -93,25 +92,18 @@ def load_sweeps(directory: str | Path, names: Sequence[str] | None = None
 
 def _cells_from_catalogue(path: Path, plane: str) -> pd.DataFrame | None:
     """Cells of ``plane`` from the pipeline's catalogue (``cells`` joined to ``planes`` by
-    ``plane_id``; the impact state is stored as ``impact``, the axes as ``x`` / ``y``)."""
+    ``plane_id``; the impact state is stored as ``impact``, the axes as ``x`` / ``y``), opened
+    through :func:`gearsim.catalogue.open_catalogue` (a file that is not a catalogue of our
+    schema is an error). ``None`` when there is no catalogue or the plane is not in it."""
     if not path.is_file():
         return None
-    con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    from .catalogue import open_catalogue
+
+    con = open_catalogue(path)
     try:
-        tables = [r[0] for r in con.execute("select name from sqlite_master where type='table'")]
-        if "cells" not in tables:
-            return None
-        cols = [r[1] for r in con.execute('pragma table_info("cells")')]
-        if "plane_id" in cols and "planes" in tables:
-            df = pd.read_sql_query(
-                "select c.* from cells c join planes p on c.plane_id = p.id where p.name = ?",
-                con, params=(plane,))
-        elif "plane" in cols:
-            df = pd.read_sql_query("select * from cells where plane = ?", con, params=(plane,))
-        else:
-            return None
-    except (sqlite3.Error, pd.errors.DatabaseError):
-        return None
+        df = pd.read_sql_query(
+            "select c.* from cells c join planes p on c.plane_id = p.id where p.name = ?",
+            con, params=(plane,))
     finally:
         con.close()
     if not len(df):
