@@ -24,6 +24,11 @@ if Path(workflow.basedir, "workflow/rules/figures.smk").exists():
     include: "workflow/rules/figures.smk"
 
 
+if Path(workflow.basedir, "workflow/rules/orbits.smk").exists():
+
+    include: "workflow/rules/orbits.smk"
+
+
 if Path(workflow.basedir, "workflow/rules/report.smk").exists():
 
     include: "workflow/rules/report.smk"

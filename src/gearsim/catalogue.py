@@ -379,6 +379,67 @@ class Audit(Base):
     agree: Mapped[bool] = mapped_column(Boolean)  # same label and n-p-q as the catalogue cell
 
 
+class BifurcationPoint(Base):
+    """A bifurcation located by continuation (gearsim.continuation; docs/orbits.md)."""
+
+    __tablename__ = "bifurcation_points"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    period: Mapped[int] = mapped_column(Integer)
+    boundary: Mapped[str] = mapped_column(String(32))
+    name: Mapped[str] = mapped_column(String(32))
+    value: Mapped[float] = mapped_column(Float)
+    name2: Mapped[str] = mapped_column(String(32))
+    value2: Mapped[float] = mapped_column(Float)
+    x: Mapped[float] = mapped_column(Float)
+    v: Mapped[float] = mapped_column(Float)
+    mu_max: Mapped[float] = mapped_column(Float)
+    multipliers: Mapped[list] = mapped_column(JSON)
+    stable: Mapped[bool] = mapped_column(Boolean)
+
+
+class BifurcationCurve(Base):
+    """A point of a two-parameter bifurcation curve (gearsim.bifcurves; docs/orbits.md)."""
+
+    __tablename__ = "bifurcation_curves"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+    curve: Mapped[int] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    period: Mapped[int] = mapped_column(Integer)
+    boundary: Mapped[str] = mapped_column(String(32))
+    name: Mapped[str] = mapped_column(String(32))
+    value: Mapped[float] = mapped_column(Float)
+    name2: Mapped[str] = mapped_column(String(32))
+    value2: Mapped[float] = mapped_column(Float)
+    x: Mapped[float] = mapped_column(Float)
+    v: Mapped[float] = mapped_column(Float)
+    mu_max: Mapped[float] = mapped_column(Float)
+    multipliers: Mapped[list] = mapped_column(JSON)
+    stable: Mapped[bool] = mapped_column(Boolean)
+
+
+class CellOrbit(Base):
+    """Newton refinement of a periodic cell (gearsim refine-orbits; docs/orbits.md)."""
+
+    __tablename__ = "cell_orbits"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    cell_id: Mapped[int] = mapped_column(ForeignKey("cells.id"), index=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    converged: Mapped[bool] = mapped_column(Boolean)
+    residual: Mapped[float | None] = mapped_column(Float)
+    mu_max: Mapped[float | None] = mapped_column(Float)
+    kind: Mapped[str] = mapped_column(String(32))
+    grazing_margin: Mapped[float | None] = mapped_column(Float)
+    shift: Mapped[float | None] = mapped_column(Float)
+    minimal_period: Mapped[int] = mapped_column(Integer)
+    flag: Mapped[str] = mapped_column(String(32))
+    ms: Mapped[float | None] = mapped_column(Float)
+
+
 class CatalogueInfo(Base):
     """Facts about the build: schema version, git commit, code versions, integration settings."""
 
@@ -706,6 +767,64 @@ def _insert_audit(session: Session, f: Path, counts: dict) -> None:
     counts["audits"] += len(rows)
 
 
+def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
+    """Insert a bifurcation points / curves file or a refine-orbits file (by its columns)."""
+    from sqlalchemy import select
+
+    from .integrity import read_footer
+
+    _, kv = read_footer(f, "orbit file")
+    prov = {**json.loads(kv.get(PROVENANCE_KEY, b"{}")), "file": str(f)}
+    run = Run(**_run_row(prov))
+    session.add(run)
+    session.flush()
+    counts["runs"] += 1
+    df = pd.read_parquet(f)
+    if "orbit_flag" in df.columns:
+        cell_ids = {}
+        for name in set(df["plane"]):
+            q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
+            cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+        rows = []
+        for r in df.to_dict("records"):
+            key = (r["plane"], int(r["i"]), int(r["j"]))
+            if key not in cell_ids:
+                raise CatalogueError(f"orbit file {f}: cell {key} is not in the catalogue")
+            rows.append({
+                "cell_id": cell_ids[key], "run_id": run.id,
+                "converged": bool(r["orbit_converged"]),
+                "residual": _nan_to_none(r["orbit_residual"]),
+                "mu_max": _nan_to_none(r["orbit_mu_max"]), "kind": r["orbit_kind"],
+                "grazing_margin": _nan_to_none(r["orbit_grazing_margin"]),
+                "shift": _nan_to_none(r["orbit_shift"]),
+                "minimal_period": int(r["orbit_minimal_period"]), "flag": r["orbit_flag"],
+                "ms": _nan_to_none(r["orbit_ms"]),
+            })
+        table, key = CellOrbit, "cell_orbits"
+    else:
+        is_curve = "curve" in df.columns
+        rows = []
+        for r in df.to_dict("records"):
+            row = {
+                "run_id": run.id, "plane": r.get("plane", ""), "kind": r["kind"],
+                "period": int(r["period"]), "boundary": r["boundary"] or "", "name": r["name"],
+                "value": float(r["value"]), "name2": r.get("name2", ""),
+                "value2": float(r.get("value2", float("nan"))), "x": float(r["x"]),
+                "v": float(r["v"]), "mu_max": float(r["mu_max"]),
+                "multipliers": [[float(a), float(b)]
+                                for a, b in zip(r["mu_re"], r["mu_im"], strict=True)],
+                "stable": bool(r["stable"]),
+            }
+            if is_curve:
+                row["curve"] = int(r["curve"])
+            rows.append(row)
+        table, key = ((BifurcationCurve, "bifurcation_curves") if is_curve
+                      else (BifurcationPoint, "bifurcation_points"))
+    if rows:
+        session.execute(insert(table), rows)
+    counts[key] = counts.get(key, 0) + len(rows)
+
+
 def git_commit(root: str | Path | None = None) -> tuple[str | None, bool | None]:
     """``(commit, dirty)`` of the source checkout, or ``(None, None)`` outside a git checkout."""
     import subprocess
@@ -786,6 +905,7 @@ def build_catalogue(
     sweep_files: Iterable[str | Path] = (),
     audit_files: Iterable[str | Path] = (),
     *,
+    orbit_files: Iterable[str | Path] = (),
     chunk: int = 20_000,
     publish_to: str | Path | None = None,
 ) -> dict[str, int]:
@@ -816,6 +936,8 @@ def build_catalogue(
                 _insert_sweep(session, Path(f), counts)
             for f in audit_files:
                 _insert_audit(session, Path(f), counts)
+            for f in orbit_files:  # docs/orbits.md: bifurcation points, curves, cell orbits
+                _insert_orbit_file(session, Path(f), counts)
             session.execute(insert(ColumnDoc), _column_rows())
             session.execute(insert(CatalogueInfo), _info_rows(session, counts))
         with engine.begin() as con:
