@@ -15,6 +15,7 @@ configfile: "config/config.yaml"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/points.smk"
+include: "workflow/rules/multistability.smk"
 include: "workflow/rules/planes.smk"
 
 

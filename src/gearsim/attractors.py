@@ -36,11 +36,13 @@ Algorithm per cell (all cells and starts of a call advance together as SIMD lane
    classification exactly as their full-length run would (same state, remaining transient 0),
    and their steady motions are merged into the list.
 
-Merging: two steady motions are the same attractor when both have the same period ``n > 0`` and
-each section point of one lies within ``merge_rtol * scale`` of a point of the other (so any
-cyclic shift matches), or when both are non-periodic and at least ``cloud_overlap`` of each
-cloud's points fall in the dilated grid occupancy (``grid`` x ``grid`` over the joint bounding
-box) of the other.
+Merging: starts that did not settle within the budget (status ``unsettled``) form one entry
+per cell (label ``unsettled``, never labelled early). Two steady motions are the same attractor
+when both have the same period ``n > 0`` and each section point of one lies within
+``merge_rtol * scale`` of a point of the other (so any cyclic shift matches), or when both are
+non-periodic and at least ``cloud_overlap`` of each cloud's points fall in the dilated grid
+occupancy of the other (``g x g`` cells over the joint bounding box, ``g = grid`` or fewer for
+sparse clouds: ``g <= 2 sqrt(points)``, at least 4; so a cell holds ~2 points on average).
 
 Basin fraction of an attractor: its share of the ``K`` random starts (continuation states are
 not samples and are not counted; an attractor found only by continuation has fraction 0).
@@ -73,7 +75,7 @@ class Steady:
     the matching tolerances (system units); ``info`` the classification record.
     """
 
-    status: str  # "ok" or "diverged" (any other status is an attractor of its own label)
+    status: str  # "ok", "unsettled" (no steady motion within the budget) or "diverged"
     period: int
     points: np.ndarray
     scale_x: float
@@ -221,6 +223,9 @@ def same_attractor(
     """Whether two steady motions are one attractor (see the module docstring)."""
     if a.status == "diverged" or b.status == "diverged":
         return False
+    if a.status == "unsettled" or b.status == "unsettled":
+        # not settled within the budget: one bucket per cell, never a real attractor
+        return a.status == b.status
     if a.period > 0 or b.period > 0:
         if a.period != b.period:
             return False
@@ -229,6 +234,8 @@ def same_attractor(
         return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
     both = np.vstack([a.points[:, :2], b.points[:, :2]])
     lo, hi = _cloud_box(both, pad=0.0)
+    # a sparse cloud fills few cells of a fine grid: ~2 points per cell on average at least
+    grid = int(max(4, min(grid, 2 * math.isqrt(max(min(len(a.points), len(b.points)), 1)))))
     occ_a = _occupancy(a.points, lo, hi, grid)
     occ_b = _occupancy(b.points, lo, hi, grid)
     fa = float(np.mean(_in_occupancy(a.points, occ_b, lo, hi)))
@@ -255,8 +262,8 @@ class _Known:
             ):
                 return k
         self.steadies.append(s)
-        if s.period > 0:
-            self._clouds.append(None)
+        if s.period > 0 or s.status == "unsettled":
+            self._clouds.append(None)  # no cloud: unsettled starts are never labelled early
         else:
             lo, hi = _cloud_box(s.points)
             self._clouds.append((_occupancy(s.points, lo, hi, o.grid), lo, hi))
@@ -647,7 +654,9 @@ def gear_steady(res) -> Steady:
     info.pop("label", None)
     scale = float(c.x_max - c.x_min) if math.isfinite(c.x_max - c.x_min) else 0.0
     return Steady(
-        status="diverged" if c.status == "diverged" else "ok",
+        status="diverged" if c.status == "diverged" else (
+            "unsettled" if c.motion == "unsettled" else "ok"
+        ),
         period=int(c.n),
         points=np.asarray(res.poincare, dtype=float),
         scale_x=scale,
@@ -720,6 +729,11 @@ def find_attractors(
     )[0]  # fmt: skip
 
 
+def n_real(ca: CellAttractors) -> int:
+    """Number of attractors of a cell (the ``unsettled`` bucket does not count)."""
+    return sum(1 for a in ca.attractors if a.steady.status != "unsettled")
+
+
 def summary_lines(ca: CellAttractors) -> list[str]:
     """Human-readable lines: one per attractor, then the divergent share."""
     lines = []
@@ -737,3 +751,51 @@ def summary_lines(ca: CellAttractors) -> list[str]:
     nd = int(np.sum(ca.start_labels < 0))
     lines.append(f"diverged: {nd}/{ca.n_starts} starts ({ca.diverged_fraction:.3f})")
     return lines
+
+
+# ============================================================================ plane tiles
+#: Columns of a plane's attractor tile (results/<plane>/attractors/<tile>.parquet).
+TILE_COLUMNS = ("plane", "tile", "i", "j", "x", "y", "attractor", "n_attractors", "motion",
+                "status", "label", "label_npq", "I", "n", "p", "q", "dc", "kmax", "lyapunov",
+                "basin_fraction", "n_starts", "n_early", "found_by", "starts",
+                "diverged_fraction", "periods_run", "poincare_x", "poincare_v")  # fmt: skip
+
+
+def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Attractor records of a group of plane cells (one dask task of ``gearsim attractor-tile``).
+
+    ``spec`` (plain data): ``plane``, ``tile``, ``params`` (dict), ``settings`` (dict),
+    ``x_name``, ``y_name``, ``cells`` (list of ``(i, j, x, y, forward_state or None)``),
+    ``starts``, ``seed``. One record per attractor of each cell; a cell whose starts all
+    diverged gets one record with ``attractor = -1`` and label ``diverged``.
+    """
+    from .simulate import IntegrationSettings
+
+    base = ModelParameters.from_mapping(dict(spec["params"]))
+    settings = IntegrationSettings(**spec["settings"])
+    xn, yn = spec["x_name"], spec["y_name"]
+    cells = spec["cells"]
+    plist = [base.with_(**{xn: float(c[2]), yn: float(c[3])}) for c in cells]
+    fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
+    found = find_attractors_many(plist, starts=int(spec["starts"]), seed=int(spec["seed"]),
+                                 settings=settings, forward=fwd)  # fmt: skip
+    out: list[dict[str, Any]] = []
+    for (i, j, x, y, _), ca in zip(cells, found, strict=True):
+        common = {
+            "plane": spec["plane"], "tile": int(spec["tile"]), "i": int(i), "j": int(j),
+            "x": float(x), "y": float(y), "n_attractors": n_real(ca),
+            "starts": int(ca.n_starts), "diverged_fraction": ca.diverged_fraction,
+            "periods_run": int(ca.start_periods_run.sum()),
+        }  # fmt: skip
+        if not ca.attractors:
+            out.append({**common, "attractor": -1, "motion": "diverged", "status": "diverged",
+                        "label": "diverged", "label_npq": "", "I": 0, "n": 0, "p": None,
+                        "q": None, "dc": float("nan"), "kmax": float("nan"),
+                        "lyapunov": float("nan"), "basin_fraction": 0.0, "n_starts": 0,
+                        "n_early": 0, "found_by": "", "poincare_x": [],
+                        "poincare_v": []})  # fmt: skip
+            continue
+        for a in ca.attractors:
+            r = a.record()
+            out.append({**common, **{k: r.get(k) for k in TILE_COLUMNS if k in r}})
+    return out

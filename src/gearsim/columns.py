@@ -153,6 +153,29 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("audits", "kmax"): RESULT["kmax"],
     ("audits", "lyapunov"): RESULT["lyapunov"],
     ("audits", "agree"): ("", "same label and n-p-q as the catalogue cell"),
+    ("cells", "n_attractors"): (
+        "1", "coexisting attractors found from the plane's multistability starts (NULL: off)"
+    ),
+    ("attractors", "id"): _ID,
+    ("attractors", "cell_id"): ("", "cells.id of the cell"),
+    ("attractors", "run_id"): ("", "runs.id of the attractor-tile job"),
+    ("attractors", "attractor"): ("", "index of the attractor in its cell (most starts first)"),
+    ("attractors", "motion"): RESULT["motion"],
+    ("attractors", "label"): RESULT["label"],
+    ("attractors", "label_npq"): RESULT["label_npq"],
+    ("attractors", "impact"): RESULT["impact"],
+    ("attractors", "n"): RESULT["n"],
+    ("attractors", "p"): RESULT["p"],
+    ("attractors", "q"): RESULT["q"],
+    ("attractors", "dc"): RESULT["dc"],
+    ("attractors", "kmax"): RESULT["kmax"],
+    ("attractors", "lyapunov"): RESULT["lyapunov"],
+    ("attractors", "basin_fraction"): ("1", "share of the cell's seeded starts that reach it"),
+    ("attractors", "n_starts"): ("1", "seeded starts that reach it"),
+    ("attractors", "n_early"): ("1", "of those, labelled early by recurrence"),
+    ("attractors", "found_by"): (
+        "", "who reached it: subset of forward (continuation state), backward, start"
+    ),
 }
 for _table in ("cells", "sweep_points"):
     for _col, _doc in RESULT.items():

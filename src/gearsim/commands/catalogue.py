@@ -41,6 +41,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
     b.add_argument("--sweeps", nargs="*", default=[], help="sweep Parquet files")
     b.add_argument("--audits", nargs="*", default=[], help="audit Parquet files")
+    b.add_argument("--attractors", nargs="*", default=[],
+                   help="attractor tile files (gearsim attractor-tile)")
     b.add_argument("--orbits", nargs="*", default=[],
                    help="bifurcation points / curves and refine-orbits Parquet files "
                    "(docs/orbits.md)")
@@ -220,6 +222,7 @@ def _build(args) -> int:
     t0 = time.perf_counter()
     counts = catalogue.build_catalogue(
         args.out, args.cells, args.sweeps, args.audits, publish_to=args.publish,
+        attractor_files=args.attractors,
         orbit_files=args.orbits,
     )
     summary = ", ".join(f"{k}={v}" for k, v in counts.items())
