@@ -67,6 +67,12 @@ def run(args: argparse.Namespace) -> int:
                f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}.parquet")
     df.attrs["parameters_source"] = source
     write_branches(df, out)
+    from .. import catalogue
+    from ..bifcurves import bifurcation_points
+
+    points_path = out.with_name(out.stem + "_points.parquet")
+    catalogue.write_parquet(bifurcation_points(df).assign(name2="", value2=float("nan")),
+                            points_path, {b"gearsim.continuation": dict(df.attrs)})
     fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     from ..figures.style import save_figure
     from ..orbit_plots import figure_branches
@@ -78,8 +84,6 @@ def run(args: argparse.Namespace) -> int:
     if args.sweep:
         import pandas as pd
 
-        from .. import catalogue
-        from ..bifcurves import bifurcation_points
         from ..exact_landmarks import exact_landmarks, report_lines
 
         if not Path(args.sweep).is_file():
@@ -111,5 +115,6 @@ def run(args: argparse.Namespace) -> int:
               f"x = {r.x:.6f}")
     for reason in df.attrs["reasons"]:
         print(f"  {reason}")
-    print(f"wrote {out} and {fig_path}")
+    print(f"wrote {out}, {points_path} and {fig_path}"
+          + (f" and {landmarks_path}" if landmarks_path else ""))
     return 0
