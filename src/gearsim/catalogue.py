@@ -83,7 +83,8 @@ def _tmp_name(path: Path) -> Path:
 def _remove_stale_tmp(path: Path) -> None:
     """Delete temporary files of ``path`` left by writers that were killed (their pid is gone)."""
     for f in path.parent.glob(f".{path.name}.tmp-*"):
-        pid = f.name.rsplit("-", 1)[-1]
+        # .NAME.tmp-PID, and SQLite's .NAME.tmp-PID-journal / -wal / -shm beside it
+        pid = f.name[len(path.name) + 6 :].split("-", 1)[0]
         if not pid.isdigit() or int(pid) == os.getpid():
             continue
         try:
