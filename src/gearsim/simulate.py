@@ -1,13 +1,14 @@
 """Drivers: integrate a cell to its steady motion and classify it; record trajectories.
 
-``simulate_cell`` runs a transient without the tangent vector, then measures in chunks of mesh
-periods (tangent vector on) and stops as soon as a period ``n <= n_max`` is established and
-confirmed, or when the budget ``max_periods`` is spent (then chaos / quasi-periodic / unsettled is
+``simulate_cell`` runs a transient (its last ``tangent_lead`` periods with the tangent vector),
+then measures in chunks of mesh periods and stops as soon as a period ``n <= n_max`` is
+established and confirmed, or when the budget ``max_periods`` is spent (then chaos / quasi-periodic / unsettled is
 decided by the Lyapunov exponent).
 """
 
 from __future__ import annotations
 
+import typing
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -25,6 +26,7 @@ __all__ = [
     "Run",
     "run_periods",
     "CellResult",
+    "result_columns",
     "simulate_cell",
     "finish_cell",
     "diverged_result",
@@ -50,12 +52,29 @@ class CellResult:
     spectrum: Spectrum | None = field(default=None, repr=False)  # with simulate_cell(spectrum=)
 
     def row(self) -> dict[str, Any]:
-        """Flat record for tables (the catalogue's cell columns)."""
+        """Flat record for tables (the catalogue's cell columns: :func:`result_columns`)."""
         c = asdict(self.classification)
         c["kmax"] = self.classification.kmax
         c["periods"] = self.periods
         c["steps"] = self.steps
         return c
+
+
+def result_columns() -> dict[str, type]:
+    """Name -> Python type of every column of :meth:`CellResult.row`, in order.
+
+    Derived from the fields of :class:`~gearsim.classify.Classification` (a new field there is a
+    new column everywhere that builds tables from this), plus ``kmax``, ``periods``, ``steps``.
+    Optional fields (``p``, ``q``) have their base type.
+    """
+    hints = typing.get_type_hints(Classification)
+    cols: dict[str, type] = {}
+    for f in fields(Classification):
+        t = hints[f.name]
+        args = [a for a in typing.get_args(t) if a is not type(None)]
+        cols[f.name] = args[0] if args else t
+    cols.update(kmax=float, periods=int, steps=int)
+    return cols
 
 
 def initial_tangent(params: ModelParameters) -> np.ndarray:
