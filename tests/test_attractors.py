@@ -205,3 +205,32 @@ def test_bad_settings_rejected():
         sobol_unit(0, 1)
     with pytest.raises(ParameterError, match="chunk"):
         map_attractors(Duffing([1.0]), 1, [np.zeros((1, 2))], chunk=0)
+
+
+def test_forward_backward_sweeps_differ_only_inside_fold_band():
+    """The standard set's softening fold: the increasing-w sweep jumps up, the decreasing-w
+    sweep jumps down at a lower w, and the two sweeps differ exactly between the jumps."""
+    from pathlib import Path
+
+    from gearsim.attractors import hysteresis
+    from gearsim.commands.sweep import sweep_frame
+    from gearsim.config_io import load_standard_parameters
+
+    root = Path(__file__).resolve().parents[1]
+    base = ModelParameters.from_mapping(
+        load_standard_parameters(root / "config/standard_parameters.yaml")
+    )
+    vals = np.round(np.arange(0.40, 0.9001, 0.01), 10)
+    st = IntegrationSettings(method="rk4", transient=150, transient_continuation=40)
+    df = sweep_frame(base, "w", vals, "both", st)
+    assert list(df["direction"].unique()) == ["forward", "backward"]
+    h = hysteresis(df)
+    lo, hi = h.band
+    assert 0.45 < lo < hi < 0.85 and hi - lo >= 0.03
+    assert h.jump_forward == hi and h.jump_backward == lo  # softening: jump up at the upper end
+    assert h.dc_forward[1] > h.dc_forward[0] + 0.15  # DC jumps up going forward
+    assert h.dc_backward[1] < h.dc_backward[0] - 0.15  # and down going backward
+    inside = [float(v) for v in vals if lo < v < hi]
+    assert len(inside) >= 3
+    assert h.differ == pytest.approx(inside)
+    assert any("hysteresis band" in line for line in h.lines())

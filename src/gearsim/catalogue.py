@@ -369,6 +369,8 @@ class SweepPoint(_CellColumns, Base):
     value: Mapped[float] = mapped_column(Float)
     poincare_x: Mapped[list] = mapped_column(JSON)
     poincare_v: Mapped[list] = mapped_column(JSON)
+    # forward | backward (a `direction: both` sweep holds both, forward first)
+    direction: Mapped[str | None] = mapped_column(String(16))
     __table_args__ = (
         UniqueConstraint("sweep_id", "k"),
         Index(None, "sweep_id", "value"),
@@ -770,6 +772,7 @@ def _insert_sweep(session: Session, f: Path, counts: dict) -> None:
             value=float(rec_["value"]),
             poincare_x=[float(v) for v in rec_["poincare_x"]],
             poincare_v=[float(v) for v in rec_["poincare_v"]],
+            direction=rec_.get("direction"),
         )
         rows.append(r)
     if rows:
