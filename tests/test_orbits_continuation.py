@@ -136,3 +136,35 @@ def test_grazing_points_have_a_turning_point_on_the_boundary(standard_branches):
 def test_bad_parameter_name():
     with pytest.raises(ParameterError, match="'name'"):
         continue_orbit(ONE, "omega", 0.9, 1.0, n=1)
+
+
+def test_exact_landmarks_pair_grid_intervals_with_located_points():
+    import pandas as pd
+
+    from gearsim.exact_landmarks import exact_landmarks, report_lines
+
+    def lm(kind, lo, hi, fr, to, n_from, n_to, direction=1):
+        return {"kind": kind, "value": 0.5 * (lo + hi), "lo": lo, "hi": hi, "from_npq": fr,
+                "to_npq": to, "n_from": n_from, "n_to": n_to, "direction": direction}
+
+    grid = pd.DataFrame([
+        lm("grazing", 0.566, 0.568, "1-0-0", "1-1-0", 1, 1),
+        lm("jump", 0.658, 0.660, "1-1-0", "1-1-0", 1, 1),
+        lm("period_doubling", 0.986, 0.988, "1-1-0", "2-2-0", 1, 2),
+        lm("period_doubling", 1.330, 1.332, "2-1-0", "4-2-0", 2, 4),
+    ])
+    points = pd.DataFrame([
+        {"kind": "grazing", "value": 0.56712345, "period": 1, "stable": True},
+        {"kind": "fold", "value": 0.6591, "period": 1, "stable": False},
+        {"kind": "period_doubling", "value": 0.98799, "period": 1, "stable": True},
+        {"kind": "period_doubling", "value": 1.3335, "period": 2, "stable": True},  # outside
+        {"kind": "period_doubling", "value": 1.7, "period": 2, "stable": True},  # elsewhere
+    ])
+    t = exact_landmarks(points, grid=grid, slack=0.002).set_index("key")
+    assert t.loc["grazing_1", "exact"] == 0.56712345 and t.loc["grazing_1", "inside"]
+    assert t.loc["jump", "exact_kind"] == "fold" and t.loc["jump", "inside"]
+    assert t.loc["pd_1_2", "exact"] == 0.98799 and t.loc["pd_1_2", "inside"]
+    assert t.loc["pd_2_4", "exact"] == 1.3335 and not t.loc["pd_2_4", "inside"]
+    assert not np.isfinite(t.loc["chaos_onset", "exact"])  # no exact point for chaos onset
+    lines = report_lines(t.reset_index())
+    assert len(lines) == 2 + len(t) and "0.56712345" in "".join(lines)

@@ -202,6 +202,7 @@ class Report:
     thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
     planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
     hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
+    exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -467,6 +468,11 @@ def to_markdown(rep: Report) -> str:
             out.append("")
     else:
         out += ["Not computed (standard sweep missing).", ""]
+    if rep.exact is not None:
+        from .exact_landmarks import report_lines
+
+        out += ["Exact bifurcation points (Newton-Floquet continuation of the standard set, "
+                "located to 1e-8; docs/orbits.md):", "", *report_lines(rep.exact), ""]
     out += ["## 2. DC and Kmax at the jump", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
@@ -582,6 +588,12 @@ def build_report(
     rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
                   configured_sweeps=sweeps)
     rep.audit = load_audits(results, names)
+    # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
+    exact_points = Path(results) / "orbits" / "standard_points.parquet"
+    if exact_points.is_file() and "standard" in loaded:
+        from .exact_landmarks import exact_landmarks
+
+        rep.exact = exact_landmarks(pd.read_parquet(exact_points), loaded["standard"])
     return rep, to_markdown(rep)
 
 
