@@ -201,6 +201,8 @@ class Report:
     compared: int = 0  # comparisons with the paper actually made
     thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
     planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
+    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
+    exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -336,6 +338,12 @@ def analyse(
     else:
         rep.notes.append("results/sweeps/standard.parquet missing: landmarks not computed")
 
+    hyst = sweeps.get("hysteresis")
+    if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
+        from .attractors import hysteresis
+
+        rep.hysteresis = hysteresis(hyst).lines()
+
     for paper_axes, fn, name, paper in (
         (("w", "b"), double_sided, "b above which no double-sided impact occurs",
          PAPER_B_THRESHOLD),
@@ -460,6 +468,11 @@ def to_markdown(rep: Report) -> str:
             out.append("")
     else:
         out += ["Not computed (standard sweep missing).", ""]
+    if rep.exact is not None:
+        from .exact_landmarks import report_lines
+
+        out += ["Exact bifurcation points (Newton-Floquet continuation of the standard set, "
+                "located to 1e-8; docs/orbits.md):", "", *report_lines(rep.exact), ""]
     out += ["## 2. DC and Kmax at the jump", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
@@ -480,6 +493,9 @@ def to_markdown(rep: Report) -> str:
         out.append("")
     else:
         out += ["Not computed (no jump found or standard sweep missing).", ""]
+    if rep.hysteresis:
+        out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
+                *rep.hysteresis, ""]
     out += ["## 3. Thresholds", "", "| threshold | paper | ours | rows (last with / first "
             "without) | difference |", "|---|---|---|---|---|"]
     for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
@@ -573,6 +589,12 @@ def build_report(
     rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
                   configured_sweeps=sweeps)
     rep.audit = load_audits(results, names)
+    # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
+    exact_points = Path(results) / "orbits" / "standard_points.parquet"
+    if exact_points.is_file() and "standard" in loaded:
+        from .exact_landmarks import exact_landmarks
+
+        rep.exact = exact_landmarks(pd.read_parquet(exact_points), loaded["standard"])
     return rep, to_markdown(rep)
 
 

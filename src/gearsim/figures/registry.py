@@ -616,7 +616,7 @@ def build_maps(plane: str, df: pd.DataFrame, kinds: Sequence[str] | None = None
 
 #: modules of other analyses that register figures numbered after 17 (imported by
 #: :func:`figures`; a module missing from this checkout is skipped).
-EXTENSIONS: tuple[str, ...] = ()
+EXTENSIONS: tuple[str, ...] = ("gearsim.figures.multistability",)
 
 
 def figures() -> dict[int, FigureSpec]:
