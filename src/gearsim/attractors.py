@@ -26,9 +26,10 @@ Algorithm per cell (all cells and starts of a call advance together as SIMD lane
 2. The other starts advance ``chunk`` periods at a time. After each chunk every start's last
    section points are compared with the attractors found so far (*recurrence*): a start whose
    last ``max(2 n, confirm)`` points follow a period-``n`` attractor's points in phase order,
-   each within ``recur_rtol`` of the attractor's scale, or whose last ``confirm_cloud`` points
-   all fall in the (one-cell dilated) grid occupancy of a non-periodic attractor, is labelled
-   and stops. A start that diverges is recorded as divergent.
+   each within ``recur_rtol`` of the attractor's scale, and themselves repeat after ``n``
+   periods within ``period_rtol`` (the classifier's own period test), or whose last
+   ``confirm_cloud`` points all fall in the (one-cell dilated) grid occupancy of a
+   non-periodic attractor, is labelled and stops. A start that diverges is recorded as divergent.
    Every ``rescout`` periods the first still unlabelled start of each cell is promoted to a
    scout: its full-length run continues from where it is (so it is exactly its full-length
    run) and its motion joins the list the others are tested against.
@@ -58,6 +59,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+import pandas as pd
 
 from .parameters import ModelParameters, ParameterError
 
@@ -249,6 +251,7 @@ class _Known:
     def __init__(self, opts: _Options):
         self.opts = opts
         self.steadies: list[Steady] = []
+        self.ambiguous: list[bool] = []
         self._clouds: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = []
 
     def add(self, s: Steady) -> int:
@@ -262,6 +265,17 @@ class _Known:
             ):
                 return k
         self.steadies.append(s)
+        self.ambiguous.append(False)
+        if s.period > 0:
+            # a period-n and a period-2n motion close together: the cell sits at a period
+            # doubling, where the full-length label depends on how far a slowly decaying
+            # alternation has decayed; no early labelling onto either (their starts run full)
+            for k, t in enumerate(self.steadies[:-1]):
+                if t.period > 0 and max(s.period, t.period) == 2 * min(s.period, t.period):
+                    tx, tv = _tolerances(s, t, self.opts.doubling_rtol)
+                    ps, pt = s.points[-s.period :, :2], t.points[-t.period :, :2]
+                    if _near_all(ps, pt, tx, tv) and _near_all(pt, ps, tx, tv):
+                        self.ambiguous[k] = self.ambiguous[-1] = True
         if s.period > 0 or s.status == "unsettled":
             self._clouds.append(None)  # no cloud: unsettled starts are never labelled early
         else:
@@ -280,12 +294,12 @@ class _Known:
         out = np.full(k, -1, dtype=np.int64)
         # periodic attractors first (a periodic start must never be taken for a cloud)
         for a, s in enumerate(self.steadies):
-            if s.period <= 0:
+            if s.period <= 0 or self.ambiguous[a]:
                 continue
             n = s.period
-            need = min(max(2 * n, o.confirm), L)
-            rows = np.nonzero((out < 0) & (filled >= need))[0]
-            if len(rows) == 0:
+            need = min(max(2 * n, o.confirm), L - n)
+            rows = np.nonzero((out < 0) & (filled >= need + n))[0]
+            if len(rows) == 0 or need < 1:
                 continue
             w = hist[rows, L - need :, :2]  # (r, need, 2)
             pts = s.points[-n:, :2]
@@ -298,7 +312,14 @@ class _Known:
             dmin = np.take_along_axis(d, j[:, :, None], axis=2)[:, :, 0]
             close = np.all(dmin <= 1.0, axis=1)
             phase = np.all((j - j[:, :1] - np.arange(need)[None, :]) % n == 0, axis=1)
-            out[rows[close & phase]] = a
+            # the start itself passes the period-n test the classifier would apply (so a
+            # nearby period-2n motion, e.g. just past a period doubling, is not taken for it)
+            prev = hist[rows, L - need - n : L - n, :2]
+            px = o.period_rtol * max(s.scale_x, 1e-9)
+            pv = o.period_rtol * max(s.scale_v, 1e-9)
+            periodic = np.all((np.abs(w[:, :, 0] - prev[:, :, 0]) <= px)
+                              & (np.abs(w[:, :, 1] - prev[:, :, 1]) <= pv), axis=1)  # fmt: skip
+            out[rows[close & phase & periodic]] = a
         for a in range(len(self.steadies)):
             cloud = self._clouds[a]
             if cloud is None:
@@ -324,6 +345,8 @@ class _Options:
     cloud_overlap: float = 0.5
     scouts: int = 1
     rescout: int = 24
+    period_rtol: float = 1e-5
+    doubling_rtol: float = 0.05
 
 
 # ============================================================================ the engine
@@ -345,6 +368,7 @@ def map_attractors(
     cloud_overlap: float = 0.5,
     scouts: int = 1,
     rescout: int = 24,
+    period_rtol: float = 1e-5,
 ) -> list[CellAttractors]:
     """Attractors of ``n_cells`` cells of ``system`` from the start states ``starts[c]``.
 
@@ -364,6 +388,10 @@ def map_attractors(
         See the module docstring; ``scouts`` random starts per cell get full-length runs first,
         and every ``rescout`` probed periods (a multiple of ``chunk``; 0: never) the first
         still unlabelled start of each cell gets its full-length run too.
+    period_rtol
+        A start is labelled onto a period-``n`` attractor only when its own last points also
+        repeat after ``n`` periods within ``period_rtol`` of the attractor's scale (the
+        classifier's period test; :class:`GearCells` passes ``settings.period_rtol``).
     """
     if len(starts) != n_cells:
         raise ParameterError("map_attractors: one array of start states per cell expected")
@@ -375,7 +403,7 @@ def map_attractors(
     if isinstance(rescout, bool) or not isinstance(rescout, int) or rescout < 0:
         raise ParameterError(f"setting 'rescout' = {rescout!r} must be an integer >= 0")
     opts = _Options(chunk, confirm, confirm_cloud, recur_rtol, merge_rtol, grid, cloud_overlap,
-                    scouts, rescout)  # fmt: skip
+                    scouts, rescout, period_rtol)  # fmt: skip
     known = [_Known(opts) for _ in range(n_cells)]
     starts = [np.atleast_2d(np.asarray(s, dtype=float)) for s in starts]
     K = [len(s) for s in starts]
@@ -482,7 +510,7 @@ def _probe(system, known, starts, labels, is_early, periods_run, opts: _Options,
         return
     d = starts[todo[0][0]].shape[1]
     n_top = max((s.period for k in known for s in k.steadies), default=1)
-    L = max(opts.confirm_cloud, opts.confirm, 2 * n_top)
+    L = max(opts.confirm_cloud, opts.confirm + n_top, 3 * n_top)
     cells = np.array([c for c, _ in todo])
     states = np.array([starts[c][i] for c, i in todo])
     hist = np.full((len(todo), L, d), np.nan)
@@ -697,6 +725,7 @@ def find_attractors_many(
             if backward is not None and backward[c] is not None:
                 m["backward"] = np.asarray(backward[c], dtype=float)[:10]
             cont.append(m)
+    options.setdefault("period_rtol", system.settings.period_rtol)
     return map_attractors(
         system, len(params_list), st, continuation=cont,
         continuation_transient=system.settings.transient_continuation, early=early, **options,
@@ -799,3 +828,90 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
             r = a.record()
             out.append({**common, **{k: r.get(k) for k in TILE_COLUMNS if k in r}})
     return out
+
+
+# ============================================================================ hysteresis
+@dataclass
+class Hysteresis:
+    """The fold of a pair of sweeps: where each direction jumps (parameter values).
+
+    ``jump_forward`` is the value (midpoint of the two neighbouring grid values) where the
+    sweep in increasing order jumps, ``jump_backward`` where the sweep in decreasing order jumps
+    back; ``band`` is the interval between them (the hysteresis band: both motions coexist
+    there). ``dc_*`` are the disengagement duty cycles on both sides of each jump; ``differ``
+    lists the grid values where the two sweeps reach different motions (pattern or DC).
+    """
+
+    parameter: str
+    jump_forward: float | None
+    jump_backward: float | None
+    dc_forward: tuple[float, float] | None
+    dc_backward: tuple[float, float] | None
+    differ: list[float]
+
+    @property
+    def band(self) -> tuple[float, float] | None:
+        if self.jump_forward is None or self.jump_backward is None:
+            return None
+        return (min(self.jump_forward, self.jump_backward),
+                max(self.jump_forward, self.jump_backward))  # fmt: skip
+
+    def lines(self) -> list[str]:
+        """Report lines (Markdown bullets)."""
+        p = self.parameter
+        if self.band is None:
+            return [f"- no jump pair found in the {p} sweeps (forward jump {self.jump_forward}, "
+                    f"backward jump {self.jump_backward})"]  # fmt: skip
+        (a, b), (c, d) = self.dc_forward, self.dc_backward
+        lo, hi = self.band
+        return [
+            f"- jump in the increasing-{p} sweep at {p} = {self.jump_forward:.4f} "
+            f"(DC {a:.3f} -> {b:.3f})",
+            f"- jump back in the decreasing-{p} sweep at {p} = {self.jump_backward:.4f} "
+            f"(DC {c:.3f} -> {d:.3f})",
+            f"- hysteresis band {lo:.4f} <= {p} <= {hi:.4f} (width {hi - lo:.4f}); the two "
+            f"sweeps reach different motions at {len(self.differ)} grid values, "
+            f"{sum(lo <= v <= hi for v in self.differ)} of them inside the band",
+        ]
+
+
+def _largest_jump(df: pd.DataFrame, jump_dc: float):
+    from .landmarks import find_landmarks
+
+    lms = find_landmarks(df.reset_index(drop=True), jump_dc=jump_dc)
+    j = lms[lms["kind"] == "jump"]
+    if not len(j):
+        return None, None
+    k = (j["dc_hi"] - j["dc_lo"]).abs().idxmax()
+    r = j.loc[k]
+    return float(r["value"]), (float(r["dc_lo"]), float(r["dc_hi"]))
+
+
+def hysteresis(
+    sweeps: pd.DataFrame, *, jump_dc: float = 0.15, dc_tol: float = 0.02
+) -> Hysteresis:
+    """Jump-up and jump-down values of the fold from a sweep run in both directions.
+
+    ``sweeps``: rows of a ``direction: both`` sweep (or a forward and a backward sweep
+    concatenated) with ``direction``, ``value``, ``label``, ``label_npq``, ``dc`` (the output
+    of ``gearsim sweep``). Jumps are the largest DC discontinuity of each direction
+    (:func:`gearsim.landmarks.find_landmarks`, ``jump_dc``). Two sweeps *differ* at a grid
+    value when pattern (label, n-p-q) or DC (by more than ``dc_tol``) differ.
+    """
+    need = {"direction", "value", "label", "label_npq", "dc", "parameter"}
+    if not need <= set(sweeps.columns):
+        raise ParameterError(f"hysteresis: sweep table lacks {sorted(need - set(sweeps.columns))}")
+    fwd = sweeps[sweeps["direction"] == "forward"].sort_values("value")
+    bwd = sweeps[sweeps["direction"] == "backward"].sort_values("value", ascending=False)
+    if not len(fwd) or not len(bwd):
+        raise ParameterError("hysteresis: needs a forward and a backward sweep (direction: both)")
+    jf, dcf = _largest_jump(fwd, jump_dc)
+    jb, dcb = _largest_jump(bwd, jump_dc)
+    a = fwd.set_index("value")[["label", "label_npq", "dc"]]
+    b = bwd.set_index("value")[["label", "label_npq", "dc"]]
+    common = a.index.intersection(b.index)
+    differ = [float(v) for v in common
+              if (a.loc[v, "label"], a.loc[v, "label_npq"])
+              != (b.loc[v, "label"], b.loc[v, "label_npq"])
+              or abs(float(a.loc[v, "dc"]) - float(b.loc[v, "dc"])) > dc_tol]  # fmt: skip
+    return Hysteresis(str(fwd["parameter"].iloc[0]), jf, jb, dcf, dcb, sorted(differ))

@@ -153,6 +153,9 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("audits", "kmax"): RESULT["kmax"],
     ("audits", "lyapunov"): RESULT["lyapunov"],
     ("audits", "agree"): ("", "same label and n-p-q as the catalogue cell"),
+    ("sweep_points", "direction"): (
+        "", "forward | backward: the sweep order that reached the point (hysteresis)"
+    ),
     ("cells", "n_attractors"): (
         "1", "coexisting attractors found from the plane's multistability starts (NULL: off)"
     ),
