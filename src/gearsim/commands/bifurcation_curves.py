@@ -70,11 +70,13 @@ def run(args: argparse.Namespace) -> int:
 
     seed = simulate_cell(params).final_state
     orbit = find_periodic_orbit(params, args.period, seed, grazing=False)
-    cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth, max_points=600)
+    cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth, max_points=600,
+                       progress=_log)
     branches = continue_orbit(params, xn, x0, x1, orbit, config=cfg)
     t_branch = time.perf_counter() - t0
     points = bifurcation_points(branches)
-    curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds)
+    curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds,
+                           config=Continuation(progress=_log))
     wall = time.perf_counter() - t0
     out = Path(args.out)
     stem = out.with_suffix("")
@@ -109,3 +111,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out}, {stem}_points.parquet, {stem}_branches.parquet and "
           f"{out.with_suffix('.png')}", file=sys.stderr)
     return 0
+
+
+def _log(line: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {line}", file=sys.stderr, flush=True)
