@@ -26,6 +26,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--at", type=float, default=None,
                    help="y value of the seeding continuation (default: the base parameter "
                    "value, clipped into the plane's y range)")
+    p.add_argument("--from", dest="start", type=float, default=None,
+                   help="start of the seeding continuation along x (default: the plane's x min)")
+    p.add_argument("--to", dest="stop", type=float, default=None,
+                   help="end of the seeding continuation along x (default: the plane's x max)")
     p.add_argument("--period", "-n", type=int, default=1,
                    help="period of the orbit at the start of the x range (default 1)")
     p.add_argument("--step2", type=float, default=None,
@@ -56,6 +60,12 @@ def run(args: argparse.Namespace) -> int:
     pl = config["planes"][args.plane]
     xn, yn = pl["x"]["name"], pl["y"]["name"]
     x0, x1 = float(pl["x"]["min"]), float(pl["x"]["max"])
+    if args.start is not None:
+        x0 = args.start
+    if args.stop is not None:
+        x1 = args.stop
+    if x0 == x1:
+        raise UsageError(f"--from and --to are equal ({x0}): empty range")
     y0, y1 = float(pl["y"]["min"]), float(pl["y"]["max"])
     base = tiles.plane_base(config, args.plane)
     at = float(getattr(base, yn)) if args.at is None else args.at
