@@ -251,6 +251,10 @@ def test_pipeline_config_in_physical_units_converts_in_place():
     assert config["parameters"] == {"b": pytest.approx(0.25)}
     assert config["points"]["mine"]["w"] == pytest.approx([6000 * k_rpm, 12000 * k_rpm])
     assert config["points"]["fig5"] == [0.48]
+    label, vals = units.axis_label_values(y, np.array([y["min"], y["max"]]))
+    assert label == "torque_Nm [N m]"
+    np.testing.assert_allclose(vals, [5.0, 30.0], rtol=1e-12)
+    assert units.axis_label_values({"name": "xi", "min": 0, "max": 1}, [0.5]) == ("xi", [0.5])
     before = json.dumps(config, sort_keys=True)
     units.dimensionless_config(config, root=ROOT)  # idempotent
     assert json.dumps(config, sort_keys=True) == before

@@ -183,6 +183,20 @@ def dimensionless_mapping(values: Mapping[str, Any], gear: GearGeometry | None,
     return out
 
 
+def axis_label_values(spec: Mapping[str, Any], values: Any) -> tuple[str, Any]:
+    """``(label, values)`` to draw an axis converted by :func:`dimensionless_axis` in its
+    physical unit, e.g. ``("torque_Nm [N m]", values in N m)``; a dimensionless axis gives
+    ``(name, values)`` unchanged. Needs no gear: the conversion is proportional, so the factor
+    is ``physical max / max`` (or min when max is 0)."""
+    phys = spec.get("physical")
+    if not isinstance(phys, Mapping):
+        return str(spec.get("name")), values
+    ref = "max" if float(spec.get("max", 0.0)) != 0.0 else "min"
+    factor = float(phys[ref]) / float(spec[ref])
+    return f"{phys['name']} [{phys['unit']}]", values * factor if not isinstance(
+        values, (list, tuple)) else [v * factor for v in values]
+
+
 def config_gear(config: Mapping[str, Any], root: str | Path = ".") -> GearGeometry | None:
     """The gear file named by the pipeline configuration's ``gear`` key (``None`` without)."""
     path = config.get("gear")
@@ -412,8 +426,9 @@ def physical_line(row: Mapping[str, Any], gear_source: str = "") -> str:
 
 
 __all__ = [
-    "COLUMNS", "DEFAULT_GEAR", "PHYSICAL_AXES", "axis_factor", "config_gear", "describe",
-    "dimensionless_axis", "dimensionless_columns", "dimensionless_config",
-    "dimensionless_mapping", "gear_from_mapping", "gear_yaml", "load_gear", "physical_columns",
-    "physical_line", "range_text", "to_dimensionless", "to_physical",
+    "COLUMNS", "DEFAULT_GEAR", "PHYSICAL_AXES", "axis_factor", "axis_label_values",
+    "config_gear", "describe", "dimensionless_axis", "dimensionless_columns",
+    "dimensionless_config", "dimensionless_mapping", "gear_from_mapping", "gear_yaml",
+    "load_gear", "physical_columns", "physical_line", "range_text", "to_dimensionless",
+    "to_physical",
 ]
