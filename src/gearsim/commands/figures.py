@@ -20,7 +20,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .simulate_tile import add_config_arguments, config_from_args
 
 NAME = "figures"
@@ -56,10 +56,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _context(args, config):
+    from ..config import base_parameters, integration_settings
     from ..figures.data import read_table
     from ..figures.registry import Context
     from ..parameters import ModelParameters
-    from ..tiles import base_parameters, integration_settings
 
     values, _source = base_parameters(config)
     ctx = Context(

@@ -13,7 +13,7 @@ import sqlite3
 import sys
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 NAME = "query"
 HELP = "run a read-only SELECT on results/catalogue.sqlite and print the result"

@@ -8,7 +8,11 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import UsageError
+from .. import catalogue, provenance, tiles
+from ..cluster import describe, open_client
+from ..config import DEFAULT_CONFIG, load_config
+from ..errors import UsageError
+from ..grid import tile_rows
 
 NAME = "simulate-tile"
 HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and write its Parquet file"
@@ -34,8 +38,6 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> dict:
-    from ..tiles import DEFAULT_CONFIG, load_config
-
     paths = args.configfile or [DEFAULT_CONFIG]
     overrides = None
     if args.config_json:
@@ -99,15 +101,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import catalogue, tiles
-    from ..cluster import describe, open_client
-
     config = config_from_args(args)
     if args.plane not in config["planes"]:
         raise UsageError(
             f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
         )
-    rows = tiles.tile_rows(config, args.plane, args.tile)
+    rows = tile_rows(config, args.plane, args.tile)
     out = Path(args.out or f"results/{args.plane}/tiles/{args.tile}.parquet")
     nx = int(config["planes"][args.plane]["x"]["n"])
     label = f"{args.plane}/tile {args.tile}"
@@ -128,8 +127,8 @@ def run(args: argparse.Namespace) -> int:
             df = tiles.run_tile(config, args.plane, args.tile, client=client, progress=progress)
     progress.close()
     wall = time.perf_counter() - t0
-    prov = tiles.provenance(
-        tiles.plane_subtree(config, args.plane),
+    prov = provenance.provenance(
+        provenance.plane_subtree(config, args.plane),
         kind="tile",
         name=args.plane,
         config=config,

@@ -12,7 +12,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..cli import UsageError
+from .. import catalogue
+from ..batch import simulate_rows
+from ..config import base_parameters, integration_settings, resolved_parameters
+from ..errors import UsageError
+from ..grid import sweep_values
+from ..parameters import ModelParameters
+from ..provenance import provenance, sweep_subtree
+from ..simulate import simulate_cell, trajectory
+from ..sweep import continuation_chain
+from ..tiles import records_to_frame
 from .simulate_tile import Progress, add_config_arguments, config_from_args
 
 NAME = "sweep"
@@ -45,8 +54,6 @@ def sweep_frame(
     base, name: str, values: np.ndarray, direction: str, settings, progress=None
 ) -> pd.DataFrame:
     """The rows of :func:`gearsim.sweep.orbit_diagram` plus final_state/final_period/elapsed_s."""
-    from ..sweep import continuation_chain
-
     vals = np.sort(np.asarray(values, dtype=float))
     if direction == "backward":
         vals = vals[::-1]
@@ -60,8 +67,6 @@ def sweep_frame(
             progress(i + 1, len(plist), stamps[-1] - t0)
 
     if settings.method == "rk4":
-        from ..batch import simulate_rows
-
         results = simulate_rows(
             [plist], settings=settings, on_cell=lambda _r, i, res: on_cell(i, res)
         )[0]
@@ -79,8 +84,6 @@ def sweep_frame(
         row["elapsed_s"] = t - prev
         prev = t
         rows.append(row)
-    from ..tiles import records_to_frame
-
     return records_to_frame(rows)
 
 
@@ -94,11 +97,6 @@ def _point_list(spec) -> list[dict[str, float]]:
 
 def points_frame(config, fig: str, args, progress=None) -> pd.DataFrame:
     """Each point twice: reached by a forward ramp in w (as in the sweeps) and from rest."""
-    from ..parameters import ModelParameters
-    from ..simulate import simulate_cell, trajectory
-    from ..sweep import continuation_chain
-    from ..tiles import base_parameters, integration_settings, records_to_frame
-
     values, _ = base_parameters(config)
     settings = integration_settings(config)
     points = _point_list(config["points"][fig])
@@ -152,9 +150,6 @@ def points_frame(config, fig: str, args, progress=None) -> pd.DataFrame:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import catalogue, tiles
-    from ..parameters import ModelParameters
-
     config = config_from_args(args)
     started = catalogue.now_iso()
     t0 = time.perf_counter()
@@ -164,19 +159,19 @@ def run(args: argparse.Namespace) -> int:
                 f"unknown sweep '{args.name}'; configured: {', '.join(config['sweeps']) or 'none'}"
             )
         spec = config["sweeps"][args.name]
-        values, _ = tiles.base_parameters(config)
+        values, _ = base_parameters(config)
         base = ModelParameters.from_mapping({**values, **spec.get("fixed", {})})
-        vals = tiles.sweep_values(spec)
+        vals = sweep_values(spec)
         progress = Progress(f"sweep {args.name}", len(vals))
         df = sweep_frame(
             base,
             spec["name"],
             vals,
             spec.get("direction", "forward"),
-            tiles.integration_settings(config),
+            integration_settings(config),
             progress,
         )
-        subtree = tiles.sweep_subtree(config, args.name)
+        subtree = sweep_subtree(config, args.name)
         kind, name = "sweep", args.name
         out = Path(args.out or f"results/sweeps/{args.name}.parquet")
     else:
@@ -191,8 +186,8 @@ def run(args: argparse.Namespace) -> int:
         df = points_frame(config, args.points, args, progress)
         subtree = {
             "points": config["points"][args.points],
-            "parameters": tiles.resolved_parameters(config),
-            "integration": tiles.integration_settings(config).to_dict(),
+            "parameters": resolved_parameters(config),
+            "integration": integration_settings(config).to_dict(),
             "recording": {
                 "ramp_from": args.ramp_from,
                 "ramp_step": args.ramp_step,
@@ -204,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.out or f"results/points/{args.points}.parquet")
     progress.close()
     wall = time.perf_counter() - t0
-    prov = tiles.provenance(
+    prov = provenance(
         subtree,
         kind=kind,
         name=name,

@@ -146,7 +146,7 @@ def point_settings(ctx: Context) -> IntegrationSettings:
 
 def _need(table: dict[str, pd.DataFrame], name: str, kind: str) -> pd.DataFrame:
     if name not in table:
-        from ..cli import UsageError
+        from ..errors import UsageError
 
         raise UsageError(f"this figure needs the {kind} '{name}' (pass --{kind} {name}=PATH)")
     return table[name]
@@ -444,7 +444,7 @@ def build(numbers, ctx: Context) -> list[Built]:
         if n in done:
             continue
         if n not in BUILDERS:
-            from ..cli import UsageError
+            from ..errors import UsageError
 
             raise UsageError(f"unknown figure {n}; allowed: 1-17")
         built = BUILDERS[n](ctx)
