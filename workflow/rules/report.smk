@@ -12,6 +12,8 @@ rule table1:
         csv="results/table1.csv",
     log:
         "logs/report/table1.log",
+    conda:
+        GEARSIM_ENV
     shell:
         "gearsim table1 --params {input} --md {output.md} --csv {output.csv} > {log} 2>&1"
 
@@ -25,6 +27,8 @@ rule report:
         "results/report.md",
     log:
         "logs/report/report.log",
+    conda:
+        GEARSIM_ENV
     params:
         code_version=CODE_VERSION,
     shell:
