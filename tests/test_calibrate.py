@@ -94,7 +94,7 @@ def test_standard_file_round_trip_and_table1(tmp_path, capsys):
     values = load_standard_parameters(path)
     assert values["Fe"] == pytest.approx(0.35) and values["model"] == "6dof"
     assert doc["dimensionless"]["Fe"]["provenance"] == "calibrated"
-    assert doc["dimensional"]["bearing_k"]["unit"] == "N/m"
+    assert doc["dimensional"]["bearing_stiffness_N_per_m"]["unit"] == "N/m"
     md, csv = tmp_path / "t.md", tmp_path / "t.csv"
     assert main(["table1", "--params", str(path), "--md", str(md), "--csv", str(csv)]) == 0
     text = md.read_text()

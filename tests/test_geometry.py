@@ -41,10 +41,11 @@ def test_geometry_derived_values():
 
 
 def test_conversion_formulas():
-    g = GearGeometry(torque_p=20.0, te_amplitude_m=2e-6, backlash_half_m=5e-6,
-                     nominal_length_m=1e-5, bearing_k=2e9, bearing_c_p=500.0,
-                     bearing_c_g=900.0,
-                     mesh_damping_ratio=0.06, eps_stiffness=0.2, friction_mu=0.05)
+    g = GearGeometry(torque_Nm=20.0, te_amplitude_um=2.0, half_backlash_um=5.0,
+                     nominal_length_um=10.0, bearing_stiffness_N_per_m=2e9,
+                     bearing_damping_p_Ns_per_m=500.0, bearing_damping_g_Ns_per_m=900.0,
+                     mesh_damping_ratio=0.06, eps_stiffness=0.2, friction_mu=0.05,
+                     speed_rpm=3000.0)
     p = g.to_model_parameters()
     assert isinstance(p, ModelParameters)
     km, me = g.mesh_stiffness, g.equivalent_mass
@@ -58,6 +59,8 @@ def test_conversion_formulas():
     assert p.xi_gz == pytest.approx(900.0 / (2 * g.mass_g * g.natural_frequency))
     assert p.friction == pytest.approx(0.05 * g.friction_arm / 0.036)
     assert p.var_ratio_order == pytest.approx(2 / 18)
+    # w = 2 pi (zp n / 60) / w_n: 18 teeth at 3000 rpm mesh at 900 Hz
+    assert p.w == pytest.approx(2 * math.pi * 900.0 / g.natural_frequency, rel=1e-12)
 
 
 def test_round_trip_from_dimensionless():
@@ -75,7 +78,8 @@ def test_round_trip_from_dimensionless():
     [({"module_mm": -4.0}, "module_mm"), ({"zp": 17}, "zg"), ({"zp": 2.5}, "zp"),
      ({"face_width_mm": 0.0}, "face_width_mm"), ({"pressure_angle_deg": 50.0},
                                                  "pressure_angle_deg"),
-     ({"friction_mu": 1.5}, "friction_mu"), ({"torque_p": float("nan")}, "torque_p"),
+     ({"friction_mu": 1.5}, "friction_mu"), ({"torque_Nm": float("nan")}, "torque_Nm"),
+     ({"speed_rpm": 0.0}, "speed_rpm"), ({"mass_p_kg": -1.0}, "mass_p_kg"),
      ({"eps_stiffness": "x"}, "eps_stiffness")],
 )
 def test_bad_values_raise_one_clear_error(kw, name):
@@ -84,7 +88,23 @@ def test_bad_values_raise_one_clear_error(kw, name):
 
 
 def test_unknown_key_and_bad_tooth_number():
-    with pytest.raises(ParameterError, match="unknown geometry parameter 'bogus'"):
+    with pytest.raises(ParameterError, match="unknown gear parameter 'bogus'"):
         GearGeometry.from_mapping({"bogus": 1})
     with pytest.raises(ParameterError, match="zn1"):
         iso_flexibility(3, 36)
+
+
+def test_masses_from_density_and_given_masses():
+    g = GearGeometry()
+    # solid steel disk on R_p = 36 mm, 20 mm wide: M = 7850 pi 0.036^2 0.02 kg, I = M R^2 / 2
+    m = 7850.0 * math.pi * 0.036**2 * 0.02
+    assert g.mass_p == pytest.approx(m, rel=1e-12)
+    assert g.inertia_p == pytest.approx(0.5 * m * 0.036**2, rel=1e-12)
+    assert g.mass_g == pytest.approx(4 * m, rel=1e-12)  # R_g = 2 R_p
+    # disks: Me = Ip Ig / (Ip Rg^2 + Ig Rp^2) = 0.4 M_p, so rho_p = 0.4 and rho_g = 0.1
+    assert g.equivalent_mass == pytest.approx(0.4 * m, rel=1e-12)
+    # aluminium halves the masses' density; given masses replace the disks, inertia follows
+    assert GearGeometry(density_kg_per_m3=2700.0).mass_p == pytest.approx(m * 2700 / 7850)
+    h = GearGeometry(mass_p_kg=1.0)
+    assert h.mass_p == 1.0 and h.inertia_p == pytest.approx(0.5 * 0.036**2)
+    assert h.to_dict()["mass_p_kg"] == 1.0 and h.to_dict()["mass_g_kg"] is None

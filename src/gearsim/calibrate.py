@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .geometry import DERIVED_UNITS as _GEOMETRY_DERIVED_UNITS
 from .landmarks import PAPER_LANDMARKS, find_landmarks, match_paper
 from .parameters import ModelParameters
 from .simulate import IntegrationSettings
@@ -424,20 +425,15 @@ def damping_threshold(
 #: units and meaning of the dimensional fields (for the YAML and Table 1)
 DIMENSIONAL_UNITS = {
     "module_mm": "mm", "zp": "-", "zg": "-", "n1": "-", "n2": "-", "pressure_angle_deg": "deg",
-    "face_width_mm": "mm", "c_m": "-", "mesh_factor": "-", "eps_stiffness": "-", "mass_p": "kg",
-    "mass_g": "kg", "inertia_p": "kg m^2", "inertia_g": "kg m^2", "bearing_k": "N/m",
-    "bearing_c_p": "N s/m", "bearing_c_g": "N s/m", "bearing_clearance_m": "m",
-    "mesh_damping_ratio": "-",
-    "torque_p": "N m", "te_amplitude_m": "m", "te_phase_deg": "deg", "friction_mu": "-",
-    "backlash_half_m": "m", "nominal_length_m": "m",
+    "face_width_mm": "mm", "c_m": "-", "mesh_factor": "-", "eps_stiffness": "-",
+    "density_kg_per_m3": "kg/m^3", "mass_p_kg": "kg", "mass_g_kg": "kg",
+    "inertia_p_kg_m2": "kg m^2", "inertia_g_kg_m2": "kg m^2", "bearing_stiffness_N_per_m": "N/m",
+    "bearing_damping_p_Ns_per_m": "N s/m", "bearing_damping_g_Ns_per_m": "N s/m",
+    "bearing_clearance_um": "um", "mesh_damping_ratio": "-", "torque_Nm": "N m",
+    "speed_rpm": "rpm", "te_amplitude_um": "um", "te_phase_deg": "deg", "friction_mu": "-",
+    "half_backlash_um": "um", "nominal_length_um": "um",
 }
-DERIVED_UNITS = {
-    "pitch_radius_p": "m", "pitch_radius_g": "m", "base_pitch": "m", "contact_ratio": "-",
-    "friction_arm": "m", "iso_flexibility_q": "mm um/N", "single_stiffness_per_width":
-    "N/(mm um)", "single_tooth_stiffness": "N/m", "mesh_stiffness": "N/m",
-    "stiffness_fluctuation": "N/m", "equivalent_mass": "kg", "natural_frequency": "rad/s",
-    "mesh_damping": "N s/m",
-}
+DERIVED_UNITS = _GEOMETRY_DERIVED_UNITS
 
 
 def standard_document(
@@ -469,6 +465,8 @@ def standard_document(
     dimless = {k: entry(k, v, ("assumed", "")) for k, v in params.to_dict().items()}
     dims = {}
     for k, v in geometry.to_dict().items():
+        if v is None:  # masses / inertias computed from the density: listed under derived
+            continue
         e = entry(k, v, ("derived", "back-computed from the dimensionless set"))
         e["unit"] = DIMENSIONAL_UNITS.get(k, "")
         dims[k] = e

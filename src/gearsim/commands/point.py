@@ -10,6 +10,7 @@ import numpy as np
 
 from ..simulate import simulate_cell, trajectory
 from ._common import add_parameter_arguments, parameters_from_args, settings_from_args
+from .gear import add_gear_arguments, point_parameters
 
 NAME = "point"
 HELP = "simulate one point and print its pattern, DC, Kmax, Lyapunov exponent and convergence"
@@ -17,9 +18,11 @@ HELP = "simulate one point and print its pattern, DC, Kmax, Lyapunov exponent an
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--omega", "-w", type=float, required=True, help="dimensionless mesh frequency w"
+        "--omega", "-w", type=float, default=None,
+        help="dimensionless mesh frequency w (required unless --gear with --rpm)",
     )
     add_parameter_arguments(p)
+    add_gear_arguments(p)
     p.add_argument("--save", metavar="PARQUET", help="write time series, Poincare points, spectrum")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument(
@@ -28,7 +31,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    params = parameters_from_args(args, w=args.omega)
+    params, gear = point_parameters(args, parameters_from_args)
     settings = settings_from_args(args)
     t0 = time.perf_counter()
     res = simulate_cell(params, settings=settings)
@@ -36,6 +39,10 @@ def run(args: argparse.Namespace) -> int:
     c = res.classification
     row = res.row()
     row.update(w=params.w, elapsed_s=elapsed)
+    if gear is not None:
+        from ..units import physical_columns
+
+        row = physical_columns(row, gear, params)
     if args.check:
         tight = simulate_cell(params, settings=settings.tightened()).classification
         row["tight_label"] = tight.label
@@ -54,6 +61,10 @@ def run(args: argparse.Namespace) -> int:
         if args.check:
             line += f" tight={row['tight_label']} stable={row['classification_stable']}"
         print(line)
+        if gear is not None:
+            from ..units import physical_line
+
+            print(physical_line(row, args.gear))
     if args.save:
         _save(args.save, params, res, settings)
     return 0

@@ -1,0 +1,96 @@
+"""``gearsim continue``: pseudo-arclength continuation of a periodic orbit in one parameter."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from ..continuation import Continuation, continue_orbit, write_branches
+from ..errors import UsageError
+from ..orbits import find_periodic_orbit, orbit_parameters, shooting_settings
+from ..simulate import simulate_cell
+from .orbit import add_orbit_parameter_arguments
+
+NAME = "continue"
+HELP = (
+    "continue a periodic orbit in one parameter: stable and unstable branches, located folds, "
+    "period doublings (with branch switching), Neimark-Sacker points and grazings"
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--name", default="w", help="continuation parameter (default w)")
+    p.add_argument("--from", dest="start", type=float, required=True, help="start value")
+    p.add_argument("--to", dest="stop", type=float, required=True, help="end value")
+    p.add_argument("--period", "-n", type=int, default=None,
+                   help="period of the start orbit (default: the period simulated from rest)")
+    add_orbit_parameter_arguments(p)
+    p.add_argument("--ds", type=float, default=0.01, help="initial arclength step")
+    p.add_argument("--ds-max", type=float, default=0.05, help="largest arclength step")
+    p.add_argument("--max-points", type=int, default=400, help="points per branch")
+    p.add_argument("--switch-depth", type=int, default=2,
+                   help="period doublings followed onto the doubled branch (0: none)")
+    p.add_argument("--out", metavar="PARQUET", default=None,
+                   help="branch table (default results/orbits/continue_NAME_FROM_TO_pN.parquet)")
+    p.add_argument("--figure", metavar="PNG", default=None,
+                   help="branch figure (default: the Parquet path with .png)")
+    p.add_argument("--json", action="store_true", help="print the events as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    for key in ("ds", "ds_max"):
+        v = getattr(args, key)
+        if not (0 < v <= 1):
+            raise UsageError(f"--{key.replace('_', '-')} = {v} must be in (0, 1]")
+    if args.max_points < 2:
+        raise UsageError(f"--max-points = {args.max_points} must be >= 2")
+    if not 0 <= args.switch_depth <= 6:
+        raise UsageError(f"--switch-depth = {args.switch_depth} must be in [0, 6]")
+    if args.start == args.stop:
+        raise UsageError(f"--from and --to are equal ({args.start}): empty range")
+    params, source = orbit_parameters(args.params, args.set, **{args.name: args.start})
+    st = shooting_settings(args.rtol)
+    t0 = time.perf_counter()
+    sim = simulate_cell(params)
+    n = args.period if args.period is not None else max(sim.classification.n, 1)
+    orbit = find_periodic_orbit(params, n, sim.final_state, st, grazing=False)
+    cfg = Continuation(ds=args.ds, ds_max=args.ds_max, max_points=args.max_points,
+                       switch_depth=args.switch_depth, settings=st)
+    df = continue_orbit(params, args.name, args.start, args.stop, orbit, config=cfg)
+    elapsed = time.perf_counter() - t0
+    out = Path(args.out or
+               f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}.parquet")
+    df.attrs["parameters_source"] = source
+    write_branches(df, out)
+    fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
+    from ..figures.style import save_figure
+    from ..orbit_plots import figure_branches
+
+    fig = figure_branches(df, title=f"continuation in {args.name}, start period {n}; {source}")
+    save_figure(fig, fig_path)
+    ev = df[df["event"] != ""]
+    if args.json:
+        print(json.dumps({
+            "parameters_source": source, "name": args.name, "period": n,
+            "points": int(len(df)), "elapsed_s": elapsed, "parquet": str(out),
+            "figure": str(fig_path),
+            "events": [
+                {"event": r.event, "value": r.value, "period": int(r.period),
+                 "branch": int(r.branch), "boundary": r.boundary, "x": r.x}
+                for r in ev.itertuples()
+            ],
+            "reasons": df.attrs["reasons"],
+        }, default=float))
+        return 0
+    print(f"parameters: {source} (model {params.model})")
+    print(f"{len(df)} branch points on {df['branch'].nunique()} branches in {elapsed:.1f} s")
+    for r in ev.itertuples():
+        extra = f" ({r.boundary})" if r.boundary else ""
+        print(f"  {r.event:16s}{extra:10s} {args.name} = {r.value:.10f}  period {r.period}  "
+              f"x = {r.x:.6f}")
+    for reason in df.attrs["reasons"]:
+        print(f"  {reason}")
+    print(f"wrote {out} and {fig_path}")
+    return 0

@@ -1,0 +1,86 @@
+"""Figures of periodic-orbit branches and two-parameter bifurcation curves (matplotlib).
+
+Branch diagram: section displacement ``x`` (dimensionless, units of ``b_c``) against the
+continuation parameter, stable parts solid, unstable parts dashed, located events marked
+(fold, period doubling, Neimark-Sacker, grazing); below it the largest Floquet multiplier
+modulus with the unit circle's radius as a reference line.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .figures.style import param_label
+
+EVENT_STYLE = {
+    "fold": ("s", "#2ca02c", "fold (LP)"),
+    "period_doubling": ("o", "#d62728", "period doubling (PD)"),
+    "neimark_sacker": ("D", "#9467bd", "Neimark-Sacker (NS)"),
+    "grazing": ("^", "#ff7f0e", "grazing (G)"),
+}
+PERIOD_COLOURS = ("#000000", "#1f4fd6", "#17becf", "#8c564b", "#e377c2")
+
+
+def _segments(values: np.ndarray, flags: np.ndarray):
+    """Split a polyline into runs of equal stability (adjacent runs share their end point)."""
+    start = 0
+    for k in range(1, len(values) + 1):
+        if k == len(values) or flags[k] != flags[start]:
+            yield slice(start, min(k + 1, len(values))), bool(flags[start])
+            start = k
+
+
+def draw_branches(ax, df: pd.DataFrame, column: str = "x") -> None:
+    """Draw every branch of a :func:`gearsim.continuation.continue_orbit` table on ``ax``."""
+    periods_seen: set[int] = set()
+    for _, br in df.groupby("branch", sort=True):
+        br = br.sort_index()
+        n = int(br["period"].iloc[0])
+        colour = PERIOD_COLOURS[min(int(np.log2(max(n, 1))), len(PERIOD_COLOURS) - 1)]
+        vals = br["value"].to_numpy()
+        ys = br[column].to_numpy()
+        stab = br["stable"].to_numpy()
+        for sl, st in _segments(vals, stab):
+            label = None
+            if n not in periods_seen and st:
+                label = f"period {n} (stable solid, unstable dashed)"
+                periods_seen.add(n)
+            ax.plot(vals[sl], ys[sl], color=colour, lw=1.3 if st else 1.0,
+                    ls="-" if st else "--", label=label)
+    seen: set[str] = set()
+    ev = df[df["event"] != ""]
+    for _, r in ev.iterrows():
+        marker, colour, text = EVENT_STYLE[r["event"]]
+        ax.plot(r["value"], r[column], marker=marker, color=colour, ms=6, ls="none",
+                mfc="none" if r["event"] == "grazing" else colour,
+                label=None if r["event"] in seen else text)
+        seen.add(r["event"])
+
+
+def figure_branches(df: pd.DataFrame, *, title: str | None = None):
+    """Branch diagram (section ``x``) and the largest multiplier modulus, two stacked panels."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    name = str(df["name"].iloc[0]) if len(df) else "w"
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.0, 6.2), sharex=True,
+                                 gridspec_kw={"height_ratios": [3, 2]})
+    draw_branches(a1, df, "x")
+    a1.set_ylabel(r"section displacement $x(\tau = kT)$ (units of $b_c$)")
+    a1.legend(fontsize=7, loc="best")
+    for _, br in df.groupby("branch", sort=True):
+        n = int(br["period"].iloc[0])
+        colour = PERIOD_COLOURS[min(int(np.log2(max(n, 1))), len(PERIOD_COLOURS) - 1)]
+        a2.plot(br["value"], br["mu_max"], color=colour, lw=1.0, label=f"period {n}")
+    a2.axhline(1.0, color="grey", lw=0.8, ls=":")
+    a2.set_yscale("log")
+    a2.set_ylabel(r"largest Floquet multiplier $|\mu|_{max}$")
+    a2.set_xlabel(param_label(name))
+    a2.legend(fontsize=7, loc="best")
+    if title:
+        a1.set_title(title, fontsize=9)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,207 @@
+"""Coexisting attractors: the finder against independent references.
+
+- A hardening Duffing oscillator ``x'' + 2 zeta x' + x + gamma x^3 = F cos(W t)``, integrated with
+  scipy (DOP853), drives the model-agnostic engine: inside the resonance band harmonic balance
+  gives two stable branches, outside it one; amplitudes within 1 %.
+- Gear cells: early labelling by recurrence gives exactly the basin fractions (and the attractor
+  of every start) of full-length runs of every start; a chaotic attractor is counted once.
+"""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from gearsim.attractors import (
+    Steady,
+    find_attractors,
+    find_attractors_many,
+    map_attractors,
+    same_attractor,
+    sobol_unit,
+)
+from gearsim.parameters import ModelParameters, ParameterError
+from gearsim.simulate import IntegrationSettings
+
+ZETA, GAMMA, FORCE = 0.02, 0.1, 0.1
+
+
+def harmonic_balance(W: float) -> np.ndarray:
+    """Amplitudes ``A`` of ``x ~ A cos(W t - phi)``: ``A^2 [(1 - W^2 + 3/4 g A^2)^2 + (2 z W)^2]
+    = F^2`` (all real positive roots, increasing; the middle one of three is unstable)."""
+    a, d = 0.75 * GAMMA, 1.0 - W * W
+    r = np.roots([a * a, 2 * d * a, d * d + (2 * ZETA * W) ** 2, -FORCE**2])
+    r = np.sort(r[np.abs(r.imag) < 1e-9].real)
+    return np.sqrt(r[r > 0])
+
+
+class Duffing:
+    """The Duffing oscillator as a system of the engine; one cell per forcing frequency."""
+
+    transient = 200
+
+    def __init__(self, freqs):
+        self.freqs = list(freqs)
+
+    def start_states(self, cell, unit):
+        return np.column_stack([(2 * unit[:, 0] - 1) * 4.0, (2 * unit[:, 1] - 1) * 4.0])
+
+    def _integrate(self, W, states, n, dense=False):
+        k = len(states)
+        T = 2 * np.pi / W
+
+        def f(t, y):
+            x, v = y[:k], y[k:]
+            return np.concatenate([v, -2 * ZETA * v - x - GAMMA * x**3 + FORCE * np.cos(W * t)])
+
+        y0 = np.concatenate([states[:, 0], states[:, 1]])
+        t_eval = np.linspace(0, n * T, 64 * n + 1) if dense else T * np.arange(1, n + 1)
+        s = solve_ivp(f, (0, n * T), y0, method="DOP853", rtol=1e-10, atol=1e-12, t_eval=t_eval)
+        return s.t, np.stack([s.y[:k], s.y[k:]], axis=-1)  # (k, m, 2)
+
+    def advance(self, cells, states, n, start_periods):
+        secs = np.zeros((len(cells), n, 2))
+        for c in np.unique(cells):
+            rows = np.nonzero(cells == c)[0]
+            _, secs[rows] = self._integrate(self.freqs[c], np.asarray(states)[rows], n)
+        return secs, secs[:, -1].copy(), np.zeros(len(cells), dtype=bool)
+
+    def steady(self, cells, states, transient, start_periods):
+        out = [None] * len(cells)
+        states = np.asarray(states, dtype=float)
+        if transient > 0:
+            _, states = self.advance(cells, states, transient, start_periods)[:2]
+        secs, _, _ = self.advance(cells, states, 24, start_periods)
+        for r, c in enumerate(cells):
+            W = self.freqs[c]
+            t, tr = self._integrate(W, secs[r, -1:], 1, dense=True)
+            x = tr[0, :-1, 0]
+            th = W * t[:-1]
+            amp = float(np.hypot(2 * np.mean(x * np.cos(th)), 2 * np.mean(x * np.sin(th))))
+            scale = float(x.max() - x.min())
+            s = secs[r]
+            n = next(
+                (n for n in range(1, 9) if np.all(np.abs(s[n:] - s[:-n]) <= 1e-6 * scale)), 0
+            )
+            pts = s[-n:] if n else s
+            out[r] = Steady("ok", n, pts, scale, scale * W, f"P{n}", {"amplitude": amp})
+        return out
+
+
+@pytest.mark.parametrize("W", [1.12, 1.13])
+def test_duffing_bistable_band_two_attractors_harmonic_balance(W):
+    hb = harmonic_balance(W)
+    assert len(hb) == 3  # inside the band
+    sys_ = Duffing([W])
+    (ca,) = map_attractors(sys_, 1, [sys_.start_states(0, sobol_unit(16, 5))])
+    assert len(ca.attractors) == 2
+    amps = sorted(a.steady.info["amplitude"] for a in ca.attractors)
+    assert all(a.steady.period == 1 for a in ca.attractors)
+    assert amps[0] == pytest.approx(hb[0], rel=0.01)
+    assert amps[1] == pytest.approx(hb[2], rel=0.01)
+    assert sum(a.basin_fraction for a in ca.attractors) == pytest.approx(1.0)
+    assert ca.early.sum() > 0  # recurrence labelled some starts
+
+
+@pytest.mark.parametrize("W", [0.9, 1.3])
+def test_duffing_monostable_band_one_attractor(W):
+    hb = harmonic_balance(W)
+    assert len(hb) == 1
+    sys_ = Duffing([W])
+    (ca,) = map_attractors(sys_, 1, [sys_.start_states(0, sobol_unit(8, 5))])
+    assert len(ca.attractors) == 1
+    assert ca.attractors[0].basin_fraction == 1.0
+    assert ca.attractors[0].steady.info["amplitude"] == pytest.approx(hb[0], rel=0.01)
+
+
+def test_duffing_early_equals_full_length():
+    sys_ = Duffing([1.12])
+    st = [sys_.start_states(0, sobol_unit(6, 2))]
+    fast = map_attractors(sys_, 1, st)
+    full = map_attractors(sys_, 1, st, early=False)
+    for a, b in zip(fast, full, strict=True):
+        assert [x.basin_fraction for x in a.attractors] == [x.basin_fraction for x in b.attractors]
+        assert np.array_equal(a.start_labels, b.start_labels)
+
+
+def _steady(n, pts, scale=1.0):
+    pts = np.asarray(pts, dtype=float)
+    return Steady("ok", n, pts, scale, scale, f"P{n}")
+
+
+def test_same_attractor_cyclic_shift_and_tolerance():
+    a = _steady(3, [[0.0, 0.0], [1.0, 0.5], [0.5, -0.5]])
+    shifted = _steady(3, [[1.0, 0.5], [0.5, -0.5], [0.0, 0.0]])
+    assert same_attractor(a, shifted)
+    near = _steady(3, [[1.0 + 5e-4, 0.5], [0.5, -0.5], [0.0, 0.0]])
+    assert same_attractor(a, near)
+    far = _steady(3, [[1.0 + 5e-3, 0.5], [0.5, -0.5], [0.0, 0.0]])
+    assert not same_attractor(a, far)
+    assert not same_attractor(a, _steady(6, np.vstack([a.points, a.points])))
+    rng = np.random.default_rng(0)
+    ring = rng.uniform(0, 2 * np.pi, (2, 200))
+    c1 = _steady(0, np.column_stack([np.cos(ring[0]), np.sin(ring[0])]))
+    c2 = _steady(0, np.column_stack([np.cos(ring[1]), np.sin(ring[1])]))
+    c3 = _steady(0, np.column_stack([np.cos(ring[1]) + 3, np.sin(ring[1])]))
+    assert same_attractor(c1, c2)
+    assert not same_attractor(c1, c3)
+
+
+GEAR = IntegrationSettings(method="rk4")
+REFERENCE = dict(
+    Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,
+)  # the fixed reference set of tests/test_convergence.py (calibration does not move it)
+
+
+def test_gear_early_labelling_equals_full_length_runs():
+    cells = [
+        ModelParameters(w=1.1, b=0.15, **REFERENCE),
+        ModelParameters(w=0.82, b=0.15, **REFERENCE),
+        ModelParameters(w=1.5, b=1.0, **REFERENCE),
+        ModelParameters(w=0.66, b=1.0, **REFERENCE),
+        ModelParameters(w=1.95, b=0.3, **REFERENCE),
+    ]
+    fast = find_attractors_many(cells, starts=24, seed=7, settings=GEAR)
+    full = find_attractors_many(cells, starts=24, seed=7, settings=GEAR, early=False)
+    n_early = 0
+    for a, b in zip(fast, full, strict=True):
+        fa = sorted((x.basin_fraction, x.label) for x in a.attractors)
+        fb = sorted((x.basin_fraction, x.label) for x in b.attractors)
+        assert fa == fb
+        for i in range(a.n_starts):  # every start reaches the same attractor
+            la, lb = a.start_labels[i], b.start_labels[i]
+            assert (la < 0) == (lb < 0)
+            if la >= 0:
+                assert same_attractor(a.attractors[la].steady, b.attractors[lb].steady)
+        n_early += int(a.early.sum())
+        assert a.start_periods_run.sum() < b.start_periods_run.sum()
+    assert n_early >= 0.5 * 24 * len(cells)
+    assert any(len(a.attractors) >= 2 for a in fast)
+
+
+def test_gear_chaotic_attractor_counted_once():
+    ca = find_attractors(ModelParameters(w=1.45, b=1.0, **REFERENCE), starts=32, seed=3,
+                         settings=GEAR)  # fmt: skip
+    chaos = [a for a in ca.attractors if a.label == "chaos"]
+    assert len(chaos) == 1
+    assert chaos[0].n_starts >= 8  # many starts landed on it, one attractor
+    assert chaos[0].steady.info["lyapunov"] > 0.005
+    assert sum(a.n_starts for a in ca.attractors) + int(np.sum(ca.start_labels < 0)) == 32
+
+
+def test_gear_continuation_states_found_by():
+    from gearsim.simulate import simulate_cell
+
+    p = ModelParameters(w=1.1, b=0.15, **REFERENCE)
+    fwd = simulate_cell(p.with_(w=1.09), settings=GEAR).final_state
+    ca = find_attractors(p, starts=8, seed=1, settings=GEAR, forward=fwd)
+    assert "forward" in ca.continuation
+    k = ca.continuation["forward"]
+    assert "forward" in ca.attractors[k].found_by
+    assert sum(a.basin_fraction for a in ca.attractors) + ca.diverged_fraction == pytest.approx(1)
+
+
+def test_bad_settings_rejected():
+    with pytest.raises(ParameterError, match="starts"):
+        sobol_unit(0, 1)
+    with pytest.raises(ParameterError, match="chunk"):
+        map_attractors(Duffing([1.0]), 1, [np.zeros((1, 2))], chunk=0)

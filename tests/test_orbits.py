@@ -1,0 +1,246 @@
+"""Periodic orbits by Newton shooting: independent references (analytic, numpy/scipy).
+
+* linear limit (b = 0, eps = 0): multipliers exp(T(-xi +/- i sqrt(1 - xi^2))) and the analytic
+  frequency response (single-DOF); 6-DOF against scipy.linalg.expm of the hand-written matrix;
+* monodromy matrix against finite differences of the section map computed with scipy's DOP853 at
+  1e-12 (equations written out here, restarted at every contact switch) on impacting orbits of
+  periods 1, 2 and 4;
+* Newton refinement reproduces tightly simulated section points (30 stable cells).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from scipy.integrate import solve_ivp
+
+from gearsim.config_io import load_standard_parameters
+from gearsim.orbits import (
+    SHOOTING,
+    OrbitError,
+    find_periodic_orbit,
+    grazing_margin,
+    multiplier_kind,
+    section_map,
+)
+from gearsim.parameters import ModelParameters, ParameterError
+from gearsim.simulate import IntegrationSettings, simulate_cell
+
+STANDARD = ModelParameters.from_mapping(load_standard_parameters("config/standard_parameters.yaml"))
+ONE = STANDARD.with_(model="1dof")
+
+
+# ----------------------------------------------------------------------------- linear limit
+@pytest.mark.parametrize("xi,w", [(0.05, 0.7), (0.2, 1.3), (0.06, 2.1)])
+def test_linear_single_dof_multipliers_and_frequency_response(xi, w):
+    p = ONE.with_(b=0.0, eps=0.0, friction=0.0, xi=xi, w=w)
+    orbit = find_periodic_orbit(p, 1, np.zeros(10))
+    T = 2 * math.pi / w
+    wd = math.sqrt(1 - xi**2)
+    expect = np.exp(T * np.array([-xi + 1j * wd, -xi - 1j * wd]))
+    got = np.sort_complex(orbit.multipliers)
+    assert np.max(np.abs(got - np.sort_complex(expect))) < 1e-10
+    # x'' + 2 xi x' + x = Fm + Fe w^2 cos(w t + phi_e): steady response at t = 0
+    H = p.Fe * w**2 * np.exp(1j * p.phi_e) / (1 - w**2 + 2j * xi * w)
+    assert abs(orbit.state[0] - (p.Fm + H.real)) < 1e-9
+    assert abs(orbit.state[1] - (1j * w * H).real) < 1e-9
+    assert orbit.residual < 1e-10 and orbit.stable
+    assert orbit.critical_kind == "neimark_sacker"
+
+
+def _linear_6dof_matrix(p: ModelParameters):
+    """First-order form y' = A y + f(t) of the 6-DOF equations with b = 0, eps = 0, gamma = 0."""
+    ca, sa = math.cos(p.alpha), math.sin(p.alpha)
+    d = {"py": ca, "pz": sa, "gy": ca, "gz": sa}
+    A = np.zeros((10, 10))
+    # F = x + 2 xi x'  (mesh force, linear)
+    Fx = np.zeros(10)
+    Fx[0], Fx[1] = 1.0, 2 * p.xi
+    rows = {}
+    for k, (name, rho, sgn) in enumerate(
+        [("py", p.rho_p, -1), ("pz", p.rho_p, -1), ("gy", p.rho_g, 1), ("gz", p.rho_g, 1)]
+    ):
+        i = 2 + 2 * k
+        r = np.zeros(10)
+        r[i] = -getattr(p, f"kappa_{name}")
+        r[i + 1] = -2 * getattr(p, f"xi_{name}")
+        r += sgn * rho * d[name] * Fx
+        rows[name] = r
+        A[i, i + 1] = 1.0
+        A[i + 1] = r
+    A[0, 1] = 1.0
+    A[1] = -Fx + (rows["py"] - rows["gy"]) * ca + (rows["pz"] - rows["gz"]) * sa
+    return A
+
+
+def test_linear_6dof_monodromy_is_matrix_exponential():
+    p = STANDARD.with_(b=0.0, eps=0.0, friction=0.0, w=1.3)
+    orbit = find_periodic_orbit(p, 1, np.zeros(10))
+    A = _linear_6dof_matrix(p)
+    T = 2 * math.pi / p.w
+    E = scipy.linalg.expm(A * T)
+    # the kernel's error norm covers the state, not the tangent, which carries the fast bearing
+    # modes: the monodromy error is ~6e4 rtol here (see gearsim.orbits.SHOOTING)
+    assert np.max(np.abs(orbit.monodromy - E)) < 2e-7
+    mu = np.linalg.eigvals(E)
+    got = orbit.multipliers
+    for m in mu:
+        assert np.min(np.abs(got - m)) < 2e-7
+    fine = find_periodic_orbit(p, 1, orbit.state, SHOOTING.with_(rtol=1e-13, atol=1e-15),
+                               grazing=False)
+    assert np.max(np.abs(fine.monodromy - E)) < 2e-8
+    # forced response: constant part -A^-1 f0, harmonic part Re[(i w - A)^-1 g e^{i w t}]
+    f0 = np.zeros(10)
+    f0[1] = p.Fm
+    g = np.zeros(10, dtype=complex)
+    g[1] = p.Fe * p.w**2 * np.exp(1j * p.phi_e)
+    y0 = -np.linalg.solve(A, f0) + np.linalg.solve(1j * p.w * np.eye(10) - A, g).real
+    assert np.max(np.abs(orbit.state - y0)) < 1e-9
+
+
+# ------------------------------------------------------------- scipy reference section map
+def _scipy_section_map(p: ModelParameters, y0, n: int, rtol=1e-12, atol=1e-14):
+    """P^n of the single-DOF equations, written out here; DOP853 restarted at every switch.
+
+    x'' + 2 xi x' + (1 + eps cos w t) f(x, b) (1 + gamma lam) = Fm + Fe w^2 cos(w t + phi_e),
+    f the dead zone, lam = +1 on the first half of each mesh period and -1 on the second.
+    """
+    w, b = p.w, p.b
+    T = 2 * math.pi / w
+
+    def region(x):
+        return 1 if x > b else (-1 if x < -b else 0)
+
+    def field(t, y, r, lam):
+        x, v = y
+        f = x - b if r > 0 else (x + b if r < 0 else 0.0)
+        F = (1 + p.eps * math.cos(w * t)) * f + 2 * p.xi * v
+        return [v, p.Fm + p.Fe * w * w * math.cos(w * t + p.phi_e) - F * (1 + p.friction * lam)]
+
+    y = np.array(y0[:2], dtype=float)
+    for k in range(n):
+        for half, lam in ((0, 1.0), (1, -1.0)):
+            t = k * T + half * T / 2
+            t_end = t + T / 2
+            r = region(y[0])
+            while t < t_end - 1e-13:
+                evs = []
+                for bnd in ((b, -b) if b > 0 else (0.0,)):
+                    def ev(tt, yy, *_, bnd=bnd):
+                        return yy[0] - bnd
+                    ev.terminal = True
+                    evs.append(ev)
+                sol = solve_ivp(field, (t, t_end), y, method="DOP853", rtol=rtol, atol=atol,
+                                events=evs, args=(r, lam))
+                y = sol.y[:, -1].copy()
+                t = sol.t[-1]
+                if sol.status == 1:  # a switch: step off the boundary into the new region
+                    v = y[1]
+                    bnd = b if abs(y[0] - b) < abs(y[0] + b) else -b
+                    r = (1 if v > 0 else 0) if bnd > 0 else (0 if v > 0 else -1)
+                    if b == 0:
+                        r = 1 if v > 0 else -1
+                    # advance a hair so the event does not fire again at the same point
+                    dt = 1e-10
+                    y = y + dt * np.array(field(t, y, r, lam))
+                    t += dt
+    return y
+
+
+@pytest.mark.parametrize("w,n", [(0.86, 1), (1.02, 2), (1.35, 4)])
+def test_monodromy_against_scipy_finite_differences(w, n):
+    p = ONE.with_(w=w)
+    orbit = find_periodic_orbit(p, n)
+    assert orbit.grazing.switches >= n  # impacting orbit
+    y = orbit.state
+    # the reference map reproduces the fixed point
+    assert np.max(np.abs(_scipy_section_map(p, y, n) - y[:2])) < 1e-8
+    h = 1e-5
+    J = np.zeros((2, 2))
+    for j in range(2):
+        e = np.zeros(10)
+        e[j] = h
+        J[:, j] = (_scipy_section_map(p, y + e, n) - _scipy_section_map(p, y - e, n)) / (2 * h)
+    err = np.max(np.abs(J - orbit.monodromy)) / max(1.0, np.max(np.abs(J)))
+    assert err < 1e-6, (J, orbit.monodromy)
+
+
+def test_monodromy_6dof_against_finite_differences_of_the_map():
+    p = STANDARD.with_(w=1.02)
+    orbit = find_periodic_orbit(p, 2)
+    h = 1e-6
+    J = np.zeros((10, 10))
+    for j in range(10):
+        e = np.zeros(10)
+        e[j] = h
+        J[:, j] = (section_map(p, orbit.state + e, 2, jacobian=False)[0]
+                   - section_map(p, orbit.state - e, 2, jacobian=False)[0]) / (2 * h)
+    assert np.max(np.abs(J - orbit.monodromy)) < 1e-5 * max(1.0, np.max(np.abs(J)))
+
+
+# ---------------------------------------------------------------- simulation agreement
+def test_newton_reproduces_simulated_section_points_on_30_stable_cells():
+    tight = IntegrationSettings(rtol=1e-11, atol=1e-13, transient=400, max_periods=64, n_max=8)
+    ws = np.linspace(0.3, 1.33, 30)
+    worst = 0.0
+    checked = 0
+    for w in ws:
+        p = ONE.with_(w=float(w))
+        res = simulate_cell(p, settings=tight)
+        n = res.classification.n
+        if n < 1:
+            continue
+        orbit = find_periodic_orbit(p, n, res.final_state, grazing=False)
+        assert orbit.stable
+        worst = max(worst, float(np.max(np.abs(orbit.state[:2] - res.final_state[:2]))))
+        checked += 1
+    assert checked >= 28
+    assert worst < 1e-8
+
+
+# ----------------------------------------------------------------------- details
+def test_grazing_margin_is_distance_of_turning_point_to_the_boundary():
+    # no contact change: x stays above b; the margin is min x - b from a dense scipy solution
+    p = ONE.with_(w=0.6)
+    orbit = find_periodic_orbit(p, 1)
+    T = 2 * math.pi / p.w
+    ts = np.linspace(0, T, 20001)
+
+    def f(t, y):
+        x, v = y
+        F = (1 + p.eps * math.cos(p.w * t)) * (x - p.b) + 2 * p.xi * v
+        lam = 1.0 if (t % T) < T / 2 else -1.0
+        return [v, p.Fm + p.Fe * p.w**2 * math.cos(p.w * t + p.phi_e) - F * (1 + p.friction * lam)]
+
+    sol = solve_ivp(f, (0, T), orbit.state[:2], method="DOP853", rtol=1e-12, atol=1e-14,
+                    t_eval=ts)
+    assert sol.y[0].min() > p.b
+    i = int(np.argmin(sol.y[0]))
+    # refine the minimum on the dense output by a parabola through the neighbours
+    x0, x1, x2 = sol.y[0][i - 1: i + 2]
+    xmin = x1 - 0.125 * (x2 - x0) ** 2 / (x2 - 2 * x1 + x0)
+    gm = grazing_margin(p, orbit.state, 1)
+    assert gm.switches == 0
+    assert abs(gm.margins["x=+b"] - (xmin - p.b)) < 1e-9
+    assert gm.signed["x=+b"] > 0
+
+
+def test_multiplier_kinds():
+    assert multiplier_kind(complex(1.2, 0)) == "fold"
+    assert multiplier_kind(complex(-1.1, 0)) == "period_doubling"
+    assert multiplier_kind(complex(0.5, 0.9)) == "neimark_sacker"
+
+
+def test_bad_input():
+    with pytest.raises(ParameterError, match="'n'"):
+        find_periodic_orbit(ONE, 0, np.zeros(10))
+    with pytest.raises(ParameterError, match="var_ratio"):
+        find_periodic_orbit(ONE.with_(var_ratio=0.1), 1, np.zeros(10))
+
+
+def test_newton_fails_loudly_when_it_cannot_converge():
+    with pytest.raises(OrbitError):
+        find_periodic_orbit(ONE.with_(w=1.53), 1, np.array([0.5, 0.1] + [0.0] * 8), max_iter=2)
