@@ -131,7 +131,72 @@ def test_foreign_keys_enforced(tmp_path):
 def test_catalogue_replaced_atomically(small, tmp_path):
     out = tmp_path / "c.sqlite"
     out.write_text("old")
-    with pytest.raises(OSError):
+    with pytest.raises(gc.CatalogueError, match="missing.parquet: not found"):
         gc.build_catalogue(out, [tmp_path / "missing.parquet"])
     assert out.read_text() == "old"
     assert not list(tmp_path.glob(".c.sqlite.tmp*"))
+
+
+# ------------------------------------------------------------------------- metadata (13.4)
+def test_schema_version_and_application_id(small):
+    con = sqlite3.connect(small["db"])
+    assert con.execute("PRAGMA user_version").fetchone()[0] == gc.SCHEMA_VERSION == 2
+    assert con.execute("PRAGMA application_id").fetchone()[0] == 0x47454152
+    con.close()
+    gc.open_catalogue(small["db"]).close()
+
+
+def test_column_dictionary_covers_every_column(small):
+    con = sqlite3.connect(small["db"])
+    docs = {(t, c): (u, m) for t, c, u, m in con.execute(
+        "SELECT table_name, column_name, unit, meaning FROM column_dictionary")}
+    tables = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+    assert len(tables) == 8
+    for t in tables:
+        for col in con.execute(f'PRAGMA table_info("{t}")'):
+            assert (t, col[1]) in docs, (t, col[1])
+            assert docs[(t, col[1])][1], (t, col[1])
+    assert docs[("cells", "lyapunov")][0] == "1/tau"
+    assert docs[("cells", "x_max")][0].startswith("1 (X_n / b_c)")
+    assert ("plane_cells", "*") in docs
+    con.close()
+
+
+def test_catalogue_info_and_integration(small):
+    import json
+    import subprocess
+
+    con = sqlite3.connect(small["db"])
+    info = {k: json.loads(v) for k, v in con.execute("SELECT key, value FROM catalogue_info")}
+    assert info["schema_version"] == 2
+    assert info["code_versions"] == [gprov.code_version()]
+    want = gcfg.integration_settings(small["cfg"]).to_dict()
+    assert info["integration"] == json.loads(json.dumps(want))
+    (plane_int,) = con.execute("SELECT integration FROM planes").fetchone()
+    assert json.loads(plane_int) == info["integration"]
+    head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
+                          text=True)
+    if head.returncode == 0:
+        assert info["git_commit"] == head.stdout.strip()
+    assert info["counts"]["cells"] == 12
+    con.close()
+
+
+def test_sweep_parameters_are_the_values_used(small):
+    """b015 runs at b = 0.15 (its `fixed`), not the standard b: the recorded set says so."""
+    import json
+
+    con = sqlite3.connect(small["db"])
+    name, params, fixed = con.execute("SELECT name, parameters, fixed FROM sweeps").fetchone()
+    params, fixed = json.loads(params), json.loads(fixed)
+    assert name == "b015" and fixed == {"b": 0.15}
+    assert params["b"] == 0.15
+    assert "w" not in params  # the swept parameter is in sweep_points.value
+    base = gcfg.resolved_parameters(small["cfg"])
+    assert base["b"] != 0.15
+    assert {k: v for k, v in params.items() if k != "b"} == {
+        k: v for k, v in base.items() if k not in ("b", "w")}
+    # plane parameters leave out the two axes
+    pparams = json.loads(con.execute("SELECT parameters FROM planes").fetchone()[0])
+    assert "w" not in pparams and "b" not in pparams and pparams["xi"] == base["xi"]
+    con.close()

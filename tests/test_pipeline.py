@@ -204,14 +204,14 @@ def test_editing_one_plane_reruns_only_its_tiles(tiny_run):
         assert planned == {
             "results/wxi/tiles/0.parquet", "results/wxi/tiles/1.parquet",
             "results/wxi/cells.parquet", "results/wxi/audit.parquet",
-            "results/catalogue.sqlite",
+            "results/catalogue.d/build.sqlite",
         }, out
         # editing one sweep re-runs that sweep (and the catalogue) only
         cfg = yaml.safe_load(original)
         cfg["sweeps"]["b025"]["fixed"] = {"b": 0.26}
         cfg_file.write_text(yaml.safe_dump(cfg))
         planned = planned_outputs(dry(wd, "config/tiny.yaml"))
-        assert planned == {"results/sweeps/b025.parquet", "results/catalogue.sqlite"}
+        assert planned == {"results/sweeps/b025.parquet", "results/catalogue.d/build.sqlite"}
     finally:
         cfg_file.write_text(original)
     assert "Nothing to be done" in dry(wd, "config/tiny.yaml")

@@ -54,9 +54,10 @@ def _plane(tmp: Path, name: str, yname: str, lo: float, hi: float) -> Path:
     df["p"] = df["p"].astype("Int64")
     df["q"] = df["q"].astype("Int64")
     tiles = [{"kind": "tile", "name": name, "tile": t, "config_hash": "h", "code_version": "c",
-              "package_versions": {}, "tangent_seed": 1} for t in (0, 1)]
+              "package_versions": {}, "tangent_seed": 1, "cells": NX * NY // 2} for t in (0, 1)]
     rec = {"name": name, "x": {"name": "w", "min": 0.1, "max": 2.5, "n": NX},
-           "y": {"name": yname, "min": lo, "max": hi, "n": NY}, "fixed": {}, "parameters": {}}
+           "y": {"name": yname, "min": lo, "max": hi, "n": NY}, "fixed": {}, "parameters": {},
+           "config_hash": "h", "code_version": "c"}
     return gc.write_parquet(df, tmp / f"{name}.parquet", {gc.PLANE_KEY: rec, gc.TILES_KEY: tiles})
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import os
-import sqlite3
 import subprocess
 import sys
 import time
@@ -91,12 +90,10 @@ def test_unreachable_scheduler_fails_fast(tmp_path):
 
 @pytest.fixture()
 def catalogue(tmp_path):
+    from gearsim.catalogue import build_catalogue
+
     db = tmp_path / "catalogue.sqlite"
-    con = sqlite3.connect(db)
-    con.execute("CREATE TABLE cells (id INTEGER PRIMARY KEY, label TEXT)")
-    con.execute("INSERT INTO cells (label) VALUES ('1/1T')")
-    con.commit()
-    con.close()
+    build_catalogue(db)  # an empty catalogue of the current schema (readers refuse others)
     return db
 
 

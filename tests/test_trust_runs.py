@@ -29,7 +29,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
-TARGET = "results/catalogue.sqlite"
+TARGET = "results/catalogue.d/build.sqlite"
 
 pytestmark = pytest.mark.slow
 

@@ -223,3 +223,39 @@ def test_point_with_gear_prints_physical_columns(tmp_path, capsys):
     t = units.physical_columns(ts, g)
     assert t["mesh_force_N"].max() == pytest.approx(row["peak_mesh_force_N"], rel=2e-3)
     assert t["x_um"].max() - t["x_um"].min() == pytest.approx(row["dte_pp_um"], rel=2e-3)
+
+
+def test_pipeline_config_in_physical_units_converts_in_place():
+    config = {
+        "gear": "config/gears/standard.yaml",
+        "parameters": {"half_backlash_um": 2.5},
+        "planes": {"tw": {"x": {"name": "speed_rpm", "min": 2000, "max": 40000, "n": 30},
+                          "y": {"name": "torque_Nm", "min": 5, "max": 30, "n": 30},
+                          "fixed": {"xi": 0.05}}},
+        "sweeps": {"torque": {"name": "torque_Nm", "min": 4.0, "max": 40.0, "n": 91,
+                              "direction": "forward", "fixed": {"speed_rpm": 6000}}},
+        "points": {"mine": {"speed_rpm": [6000, 12000], "b": 0.5}, "fig5": [0.48]},
+    }
+    out = units.dimensionless_config(config, root=ROOT)
+    assert out is config
+    k_t, k_rpm = 1.0 / (0.036 * KM * BC), 2 * math.pi * 18 / 60 / WN
+    x, y = config["planes"]["tw"]["x"], config["planes"]["tw"]["y"]
+    assert x["name"] == "w" and x["min"] == pytest.approx(2000 * k_rpm, rel=1e-12)
+    assert x["physical"] == {"name": "speed_rpm", "unit": "rpm", "min": 2000, "max": 40000}
+    assert y["name"] == "Fm" and y["max"] == pytest.approx(30 * k_t, rel=1e-12)
+    assert config["planes"]["tw"]["fixed"] == {"xi": 0.05}
+    sw = config["sweeps"]["torque"]
+    assert sw["name"] == "Fm" and sw["n"] == 91 and sw["direction"] == "forward"
+    assert sw["min"] == pytest.approx(4 * k_t, rel=1e-12)
+    assert sw["fixed"]["w"] == pytest.approx(6000 * k_rpm, rel=1e-12)
+    assert config["parameters"] == {"b": pytest.approx(0.25)}
+    assert config["points"]["mine"]["w"] == pytest.approx([6000 * k_rpm, 12000 * k_rpm])
+    assert config["points"]["fig5"] == [0.48]
+    before = json.dumps(config, sort_keys=True)
+    units.dimensionless_config(config, root=ROOT)  # idempotent
+    assert json.dumps(config, sort_keys=True) == before
+    with pytest.raises(ParameterError, match="config key 'sweeps.s.name'.*needs a gear file"):
+        units.dimensionless_config({"sweeps": {"s": {"name": "torque_Nm", "min": 1, "max": 2,
+                                                     "n": 3}}})
+    with pytest.raises(ParameterError, match="config key 'gear': file not found: .*nope.yaml"):
+        units.dimensionless_config({"gear": "nope.yaml"}, root=ROOT)

@@ -45,4 +45,4 @@ def targets(workdir: Path, *configs: str) -> list[str]:
     out = [f"results/{p}/cells.parquet" for p in cfg["planes"]]
     out += [f"results/sweeps/{s}.parquet" for s in cfg["sweeps"]]
     out += [f"results/points/{f}.parquet" for f in cfg["points"]]
-    return [*out, "results/catalogue.sqlite"]
+    return [*out, "results/catalogue.d/build.sqlite"]

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import os
+import sqlite3
 from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
@@ -38,6 +39,7 @@ from sqlalchemy import (
     Integer,
     MetaData,
     String,
+    Text,
     UniqueConstraint,
     create_engine,
     event,
@@ -45,15 +47,51 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
+from .integrity import CatalogueError, _one_line
+
+__all__ = ["CatalogueError", "build_catalogue", "combine_tiles", "open_catalogue", "publish"]
+
 PROVENANCE_KEY = b"gearsim.provenance"
 PLANE_KEY = b"gearsim.plane"
 TILES_KEY = b"gearsim.tiles"
-SCHEMA_VERSION = 1
+#: ``PRAGMA user_version`` of the catalogue this code writes and reads (2: column dictionary,
+#: catalogue_info, integration settings of planes and sweeps).
+SCHEMA_VERSION = 2
+#: ``PRAGMA application_id``: "GEAR"; tells a gearsim catalogue from any other SQLite file.
+APPLICATION_ID = 0x47454152
+#: Tables and views a reader may rely on.
+REQUIRED = frozenset(
+    {
+        "runs",
+        "planes",
+        "cells",
+        "sweeps",
+        "sweep_points",
+        "audits",
+        "catalogue_info",
+        "column_dictionary",
+        "plane_cells",
+    }
+)
 
 
 # ------------------------------------------------------------------------------ Parquet
 def _tmp_name(path: Path) -> Path:
     return path.with_name(f".{path.name}.tmp-{os.getpid()}")
+
+
+def _remove_stale_tmp(path: Path) -> None:
+    """Delete temporary files of ``path`` left by writers that were killed (their pid is gone)."""
+    for f in path.parent.glob(f".{path.name}.tmp-*"):
+        pid = f.name.rsplit("-", 1)[-1]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            f.unlink(missing_ok=True)
+        except PermissionError:  # alive, another user's
+            pass
 
 
 def write_parquet(df: pd.DataFrame, path: str | Path, metadata: Mapping[bytes, Any]) -> Path:
@@ -95,20 +133,71 @@ def _json_default(o: Any) -> Any:
 
 
 def combine_tiles(paths: Iterable[str | Path], out: str | Path, plane_record: Mapping) -> Path:
-    """Concatenate a plane's tile files into ``cells.parquet`` (sorted by j, i)."""
+    """Check a plane's tile files and stream them into ``cells.parquet`` (sorted by j, i).
+
+    Every tile must carry the plane's configuration hash and code version and as many cells as
+    its provenance recorded; together the tiles must cover each cell ``(i, j)`` of the grid
+    exactly once (:mod:`gearsim.integrity`). Otherwise :class:`CatalogueError` names the tile
+    and nothing is written. One tile is in memory at a time.
+    """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    tables, provs = [], []
-    for p in paths:
-        t = pq.read_table(p)
-        tables.append(t.replace_schema_metadata(None))
-        prov = read_metadata(p)
-        prov["file"] = str(p)
-        provs.append(prov)
-    table = pa.concat_tables(tables, promote_options="permissive")
-    df = table.to_pandas().sort_values(["j", "i"], kind="stable").reset_index(drop=True)
-    return write_parquet(df, out, {PLANE_KEY: dict(plane_record), TILES_KEY: provs})
+    from .integrity import Coverage, tile_info
+
+    infos = [tile_info(p, plane_record, PROVENANCE_KEY) for p in paths]
+    if not infos:
+        raise CatalogueError(f"plane {plane_record['name']!r}: no tiles given")
+    infos.sort(key=lambda t: (t.first_row, str(t.path)))
+    try:
+        schema = pa.unify_schemas([t.schema for t in infos], promote_options="permissive")
+    except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
+        raise CatalogueError(
+            f"plane {plane_record['name']!r}: tiles with incompatible columns ({_one_line(exc)})"
+        ) from None
+    provs = [{**t.provenance, "file": str(t.path)} for t in infos]
+    meta = {k: v for k, v in (schema.metadata or {}).items() if k == b"pandas"}
+    meta[PLANE_KEY] = json.dumps(dict(plane_record), default=_json_default).encode()
+    meta[TILES_KEY] = json.dumps(provs, default=_json_default).encode()
+    schema = schema.with_metadata(meta)
+    coverage = Coverage(plane_record)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_tmp(out)
+    tmp = _tmp_name(out)
+    try:
+        with pq.ParquetWriter(tmp, schema) as writer:
+            for t in infos:
+                try:
+                    table = pq.read_table(t.path)
+                except Exception as exc:  # damaged pages behind a valid footer
+                    raise CatalogueError(
+                        f"tile {t.path}: not a readable Parquet file ({_one_line(exc)})"
+                    ) from None
+                missing = [c for c in ("i", "j", "x", "y") if c not in table.column_names]
+                if missing:
+                    raise CatalogueError(f"tile {t.path}: no column {missing[0]!r}")
+                table = table.sort_by([("j", "ascending"), ("i", "ascending")])
+                coverage.add(
+                    table["i"].to_numpy(),
+                    table["j"].to_numpy(),
+                    table["x"].to_numpy(),
+                    table["y"].to_numpy(),
+                    f"tile {t.path}",
+                )
+                cols = []
+                for field in schema:
+                    if field.name in table.column_names:
+                        cols.append(table[field.name].cast(field.type))
+                    else:
+                        cols.append(pa.nulls(len(table), field.type))
+                writer.write_table(pa.Table.from_arrays(cols, schema=schema))
+        coverage.finish(f"plane {plane_record['name']!r}")
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return out
 
 
 # ---------------------------------------------------------------------- SQLite catalogue
@@ -163,6 +252,8 @@ class Plane(Base):
     fixed: Mapped[dict] = mapped_column(JSON)  # the plane's `fixed` overrides
     parameters: Mapped[dict] = mapped_column(JSON)  # every fixed parameter value of the plane
     config_hash: Mapped[str] = mapped_column(String(64))
+    code_version: Mapped[str] = mapped_column(String(64))
+    integration: Mapped[dict] = mapped_column(JSON)  # IntegrationSettings fields
 
 
 class _CellColumns:
@@ -251,7 +342,9 @@ class Sweep(Base):
     n: Mapped[int] = mapped_column(Integer)
     direction: Mapped[str] = mapped_column(String(16))
     fixed: Mapped[dict] = mapped_column(JSON)
-    parameters: Mapped[dict] = mapped_column(JSON)
+    parameters: Mapped[dict] = mapped_column(JSON)  # values held fixed (swept one omitted)
+    config_hash: Mapped[str] = mapped_column(String(64))
+    integration: Mapped[dict] = mapped_column(JSON)
 
 
 class SweepPoint(_CellColumns, Base):
@@ -283,6 +376,24 @@ class Audit(Base):
     kmax: Mapped[float | None] = mapped_column(Float)
     lyapunov: Mapped[float | None] = mapped_column(Float)
     agree: Mapped[bool] = mapped_column(Boolean)  # same label and n-p-q as the catalogue cell
+
+
+class CatalogueInfo(Base):
+    """Facts about the build: schema version, git commit, code versions, integration settings."""
+
+    __tablename__ = "catalogue_info"
+    key: Mapped[str] = mapped_column(String(64), primary_key=True)
+    value: Mapped[str] = mapped_column(Text)  # JSON text (TEXT affinity keeps '2' a string)
+
+
+class ColumnDoc(Base):
+    """Unit and meaning of every column (:data:`gearsim.columns.CATALOGUE`)."""
+
+    __tablename__ = "column_dictionary"
+    table_name: Mapped[str] = mapped_column(String(64), primary_key=True)
+    column_name: Mapped[str] = mapped_column(String(64), primary_key=True)
+    unit: Mapped[str] = mapped_column(String(64))
+    meaning: Mapped[str] = mapped_column(String(256))
 
 
 @event.listens_for(Base.metadata, "after_create")
@@ -361,6 +472,313 @@ def _run_row(prov: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
+def _plane_row(rec: Mapping[str, Any]) -> dict[str, Any]:
+    axes = {rec["x"]["name"], rec["y"]["name"]}
+    return dict(
+        name=rec["name"],
+        x_name=rec["x"]["name"],
+        x_min=rec["x"]["min"],
+        x_max=rec["x"]["max"],
+        x_n=rec["x"]["n"],
+        y_name=rec["y"]["name"],
+        y_min=rec["y"]["min"],
+        y_max=rec["y"]["max"],
+        y_n=rec["y"]["n"],
+        fixed=rec.get("fixed", {}),
+        parameters={k: v for k, v in rec.get("parameters", {}).items() if k not in axes},
+        config_hash=rec.get("config_hash", ""),
+        code_version=rec.get("code_version", ""),
+        integration=rec.get("integration", {}),
+    )
+
+
+_CELL_INSERT_COLUMNS = (
+    "plane_id",
+    "run_id",
+    "i",
+    "j",
+    "x",
+    "y",
+    "elapsed_s",
+    *("impact" if c == "I" else c for c in ROW_COLUMNS),
+)
+_FLOAT_COLUMNS = {
+    "x",
+    "y",
+    "elapsed_s",
+    "dc",
+    "kmax",
+    "kmax_peak_mean",
+    "kmax_peak_static",
+    "kmax_section_mean",
+    "kmax_section_static",
+    "kmin_peak_mean",
+    "lyapunov",
+    "x_min",
+    "x_max",
+}
+
+
+def _column_values(batch, name: str, n: int) -> list:
+    """A batch column as Python values: NaN -> None (SQL NULL), booleans as 0/1."""
+    if name not in batch.schema.names:
+        return [None] * n
+    vals = batch.column(name).to_pylist()
+    if name in _FLOAT_COLUMNS:
+        return [None if v is None or v != v else float(v) for v in vals]
+    if name == "converged":
+        return [bool(v) for v in vals]
+    return vals
+
+
+def _insert_plane(session: Session, f: Path, names: set[str], counts: dict, chunk: int) -> None:
+    """Check one ``cells.parquet`` (plane record, tiles' hashes, cell counts, coverage) and insert
+    it batch by batch (bounded memory)."""
+    import pyarrow.parquet as pq
+
+    from .integrity import Coverage, check_run, read_footer
+
+    meta, kv = read_footer(f, "plane file")
+    if PLANE_KEY not in kv:
+        raise CatalogueError(
+            f"plane file {f}: no plane record (not written by 'gearsim catalogue cells')"
+        )
+    rec = json.loads(kv[PLANE_KEY])
+    tiles = json.loads(kv.get(TILES_KEY, b"[]"))
+    if rec["name"] in names:
+        raise CatalogueError(f"plane file {f}: plane {rec['name']!r} is given twice")
+    names.add(rec["name"])
+    for prov in tiles:
+        check_run(prov, rec, f"plane file {f}: tile {prov.get('file', prov.get('tile'))}")
+    recorded = sum(int(p.get("cells") or 0) for p in tiles)
+    if recorded != meta.num_rows:
+        raise CatalogueError(
+            f"plane file {f}: {meta.num_rows} cells stored but its tiles recorded {recorded} "
+            "(truncated or altered; re-run its plane_cells job)"
+        )
+    plane = Plane(**_plane_row(rec))
+    session.add(plane)
+    run_of_tile: dict[int, int] = {}
+    for prov in tiles:
+        run = Run(**_run_row(prov))
+        session.add(run)
+        session.flush()
+        if int(prov["tile"]) in run_of_tile:
+            raise CatalogueError(f"plane file {f}: tile {prov['tile']} recorded twice")
+        run_of_tile[int(prov["tile"])] = run.id
+        counts["runs"] += 1
+    session.flush()
+    counts["planes"] += 1
+    coverage = Coverage(rec)
+    cols = ["tile", "i", "j", "x", "y", "elapsed_s", *ROW_COLUMNS]
+    dbapi = session.connection().connection.dbapi_connection
+    sql = (
+        f"INSERT INTO cells ({', '.join(_CELL_INSERT_COLUMNS)}) "
+        f"VALUES ({', '.join('?' * len(_CELL_INSERT_COLUMNS))})"
+    )
+    try:
+        pf = pq.ParquetFile(f)
+        present = [c for c in cols if c in pf.schema_arrow.names]
+        for batch in pf.iter_batches(batch_size=chunk, columns=present):
+            n = batch.num_rows
+            i = batch.column("i").to_numpy()
+            j = batch.column("j").to_numpy()
+            coverage.add(
+                i, j, batch.column("x").to_numpy(), batch.column("y").to_numpy(), f"plane file {f}"
+            )
+            tile = batch.column("tile").to_pylist()
+            unknown = set(tile) - set(run_of_tile)
+            if unknown:
+                raise CatalogueError(
+                    f"plane file {f}: cells of tile {min(unknown)} that has no provenance"
+                )
+            values = [[plane.id] * n, [run_of_tile[t] for t in tile]]
+            values += [
+                _column_values(batch, "I" if c == "impact" else c, n)
+                for c in _CELL_INSERT_COLUMNS[2:]
+            ]
+            dbapi.executemany(sql, zip(*values, strict=True))
+            counts["cells"] += n
+    except CatalogueError:
+        raise
+    except (OSError, ValueError, KeyError) as exc:
+        raise CatalogueError(f"plane file {f}: unreadable cells ({_one_line(exc)})") from None
+    coverage.finish(f"plane file {f}")
+
+
+def _insert_sweep(session: Session, f: Path, counts: dict) -> None:
+    from .integrity import read_footer
+
+    _, kv = read_footer(f, "sweep file")
+    prov = json.loads(kv.get(PROVENANCE_KEY, b"{}"))
+    if prov.get("kind") != "sweep":
+        raise CatalogueError(f"sweep file {f}: no sweep provenance (not written by gearsim sweep)")
+    prov = {**prov, "file": str(f)}
+    df = pd.read_parquet(f)
+    if prov.get("cells") is not None and int(prov["cells"]) != len(df):
+        raise CatalogueError(
+            f"sweep file {f}: {len(df)} points stored but {prov['cells']} recorded "
+            "(truncated or altered)"
+        )
+    run = Run(**_run_row(prov))
+    session.add(run)
+    session.flush()
+    counts["runs"] += 1
+    subtree = prov.get("subtree", {})
+    spec = subtree.get("sweep", {})
+    swept = spec.get("name", df["parameter"].iloc[0] if len(df) else "?")
+    # the values actually used: the resolved parameters with the sweep's own overrides on top
+    used = {**subtree.get("parameters", {}), **spec.get("fixed", {})}
+    used.pop(swept, None)
+    sweep = Sweep(
+        name=prov.get("name", Path(f).stem),
+        run_id=run.id,
+        parameter=swept,
+        min=float(spec.get("min", df["value"].min())),
+        max=float(spec.get("max", df["value"].max())),
+        n=int(spec.get("n", len(df))),
+        direction=spec.get("direction", "forward"),
+        fixed=spec.get("fixed", {}),
+        parameters=used,
+        config_hash=prov.get("config_hash", ""),
+        integration=subtree.get("integration", {}),
+    )
+    session.add(sweep)
+    session.flush()
+    counts["sweeps"] += 1
+    rows = []
+    for k, rec_ in enumerate(df.to_dict("records")):
+        r = _row_values(rec_)
+        r.update(
+            sweep_id=sweep.id,
+            k=k,
+            value=float(rec_["value"]),
+            poincare_x=[float(v) for v in rec_["poincare_x"]],
+            poincare_v=[float(v) for v in rec_["poincare_v"]],
+        )
+        rows.append(r)
+    if rows:
+        session.execute(insert(SweepPoint), rows)
+    counts["sweep_points"] += len(rows)
+
+
+def _insert_audit(session: Session, f: Path, counts: dict) -> None:
+    from sqlalchemy import select
+
+    from .integrity import read_footer
+
+    _, kv = read_footer(f, "audit file")
+    prov = {**json.loads(kv.get(PROVENANCE_KEY, b"{}")), "file": str(f)}
+    run = Run(**_run_row(prov))
+    session.add(run)
+    session.flush()
+    counts["runs"] += 1
+    df = pd.read_parquet(f)
+    q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == prov.get("name"))
+    planes = set(df["plane"]) if len(df) else set()
+    cell_ids = {}
+    for name in planes:
+        q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
+        cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+    rows = []
+    for rec_ in df.to_dict("records"):
+        key = (rec_["plane"], int(rec_["i"]), int(rec_["j"]))
+        if key not in cell_ids:
+            raise CatalogueError(
+                f"audit file {f}: cell {key} is not in the catalogue (audit of another plane run)"
+            )
+        rows.append(
+            {
+                "cell_id": cell_ids[key],
+                "run_id": run.id,
+                "label": rec_["tight_label"],
+                "label_npq": rec_["tight_label_npq"],
+                "impact": int(rec_["tight_I"]),
+                "dc": _nan_to_none(rec_["tight_dc"]),
+                "kmax": _nan_to_none(rec_["tight_kmax"]),
+                "lyapunov": _nan_to_none(rec_["tight_lyapunov"]),
+                "agree": bool(rec_["agree"]),
+            }
+        )
+    if rows:
+        session.execute(insert(Audit), rows)
+    counts["audits"] += len(rows)
+
+
+def git_commit(root: str | Path | None = None) -> tuple[str | None, bool | None]:
+    """``(commit, dirty)`` of the source checkout, or ``(None, None)`` outside a git checkout."""
+    import subprocess
+
+    root = Path(root) if root is not None else Path(__file__).resolve().parents[2]
+    if not (root / ".git").exists():
+        return None, None
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        if head.returncode != 0:
+            return None, None
+        st = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no", "--", "src"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None, None
+    return head.stdout.strip(), bool(st.stdout.strip()) if st.returncode == 0 else None
+
+
+def _info_rows(session: Session, counts: Mapping[str, int]) -> list[dict[str, Any]]:
+    from sqlalchemy import select
+
+    from . import __version__
+
+    commit, dirty = git_commit()
+    settings = [
+        json.dumps(s, sort_keys=True)
+        for col in (Plane.integration, Sweep.integration)
+        for (s,) in session.execute(select(col))
+    ]
+    codes = sorted({c for (c,) in session.execute(select(Run.code_version)) if c})
+    info = {
+        "schema_version": SCHEMA_VERSION,
+        "built": now_iso(),
+        "git_commit": commit,
+        "git_dirty": dirty,
+        "gearsim_version": __version__,
+        "code_versions": codes,
+        "integration": json.loads(settings[0]) if len(set(settings)) == 1 else None,
+        "counts": dict(counts),
+    }
+    return [{"key": k, "value": json.dumps(v, sort_keys=True)} for k, v in info.items()]
+
+
+def _column_rows() -> list[dict[str, str]]:
+    from .columns import CATALOGUE
+
+    rows = []
+    for table in Base.metadata.sorted_tables:
+        for col in table.columns:
+            doc = CATALOGUE.get((table.name, col.name))
+            if doc is None:
+                raise RuntimeError(f"column {table.name}.{col.name} has no dictionary entry")
+            rows.append(
+                {
+                    "table_name": table.name,
+                    "column_name": col.name,
+                    "unit": doc[0],
+                    "meaning": doc[1],
+                }
+            )
+    unit, meaning = CATALOGUE[("plane_cells", "*")]
+    rows.append({"table_name": "plane_cells", "column_name": "*", "unit": unit, "meaning": meaning})
+    return rows
+
+
 def build_catalogue(
     out: str | Path,
     plane_files: Iterable[str | Path] = (),
@@ -368,16 +786,20 @@ def build_catalogue(
     audit_files: Iterable[str | Path] = (),
     *,
     chunk: int = 20_000,
+    publish_to: str | Path | None = None,
 ) -> dict[str, int]:
     """Build the SQLite catalogue in one transaction into a temp file renamed to ``out``.
 
-    ``plane_files`` are ``cells.parquet`` files, ``sweep_files`` sweep Parquet files and
-    ``audit_files`` audit Parquet files (the hook of the numerical audit). Returns row counts.
+    ``plane_files`` are ``cells.parquet`` files (each checked: plane record, every tile of the
+    plane's configuration hash and code version, cell counts, each ``(i, j)`` exactly once),
+    ``sweep_files`` sweep Parquet files and ``audit_files`` audit Parquet files. Cells stream in
+    batches of ``chunk`` rows (bounded memory). A bad input raises :class:`CatalogueError` and
+    leaves ``out`` (and ``publish_to``) as they were. With ``publish_to``, the finished catalogue
+    is then published there atomically (:func:`publish`). Returns row counts.
     """
-    import pyarrow.parquet as pq
-
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_tmp(out)
     tmp = _tmp_name(out)
     if tmp.exists():
         tmp.unlink()
@@ -386,131 +808,95 @@ def build_catalogue(
     try:
         Base.metadata.create_all(engine)
         with Session(engine) as session, session.begin():
-            cell_ids: dict[tuple[str, int, int], int] = {}
+            names: set[str] = set()
             for f in plane_files:
-                rec = read_metadata(f, PLANE_KEY)
-                tiles = read_metadata(f, TILES_KEY) or []
-                plane = Plane(
-                    name=rec["name"],
-                    x_name=rec["x"]["name"],
-                    x_min=rec["x"]["min"],
-                    x_max=rec["x"]["max"],
-                    x_n=rec["x"]["n"],
-                    y_name=rec["y"]["name"],
-                    y_min=rec["y"]["min"],
-                    y_max=rec["y"]["max"],
-                    y_n=rec["y"]["n"],
-                    fixed=rec.get("fixed", {}),
-                    parameters=rec.get("parameters", {}),
-                    config_hash=rec.get("config_hash", ""),
-                )
-                session.add(plane)
-                run_of_tile: dict[int, int] = {}
-                for prov in tiles:
-                    run = Run(**_run_row(prov))
-                    session.add(run)
-                    session.flush()
-                    run_of_tile[int(prov["tile"])] = run.id
-                    counts["runs"] += 1
-                session.flush()
-                counts["planes"] += 1
-                cols = ["tile", "i", "j", "x", "y", "elapsed_s", *ROW_COLUMNS]
-                pf = pq.ParquetFile(f)
-                for batch in pf.iter_batches(batch_size=chunk, columns=cols):
-                    df = batch.to_pandas()
-                    rows = []
-                    for rec_ in df.to_dict("records"):
-                        r = _row_values(rec_)
-                        r.update(
-                            plane_id=plane.id,
-                            run_id=run_of_tile[int(rec_["tile"])],
-                            i=int(rec_["i"]),
-                            j=int(rec_["j"]),
-                            x=float(rec_["x"]),
-                            y=float(rec_["y"]),
-                            elapsed_s=_nan_to_none(rec_["elapsed_s"]),
-                        )
-                        rows.append(r)
-                    session.execute(insert(Cell), rows)
-                    counts["cells"] += len(rows)
-            # cell ids for the audit hook
-            if audit_files:
-                from sqlalchemy import select
-
-                q = select(Cell.id, Plane.name, Cell.i, Cell.j).join(Plane)
-                cell_ids = {(p, i, j): cid for cid, p, i, j in session.execute(q)}
+                _insert_plane(session, Path(f), names, counts, chunk)
             for f in sweep_files:
-                prov = read_metadata(f) or {}
-                prov = {**prov, "file": str(f)}
-                run = Run(**_run_row(prov))
-                session.add(run)
-                session.flush()
-                counts["runs"] += 1
-                spec = prov.get("subtree", {}).get("sweep", {})
-                df = pd.read_parquet(f)
-                sweep = Sweep(
-                    name=prov.get("name", Path(f).stem),
-                    run_id=run.id,
-                    parameter=spec.get("name", df["parameter"].iloc[0] if len(df) else "?"),
-                    min=float(spec.get("min", df["value"].min())),
-                    max=float(spec.get("max", df["value"].max())),
-                    n=int(spec.get("n", len(df))),
-                    direction=spec.get("direction", "forward"),
-                    fixed=spec.get("fixed", {}),
-                    parameters=prov.get("subtree", {}).get("parameters", {}),
-                )
-                session.add(sweep)
-                session.flush()
-                counts["sweeps"] += 1
-                rows = []
-                for k, rec_ in enumerate(df.to_dict("records")):
-                    r = _row_values(rec_)
-                    r.update(
-                        sweep_id=sweep.id,
-                        k=k,
-                        value=float(rec_["value"]),
-                        poincare_x=[float(v) for v in rec_["poincare_x"]],
-                        poincare_v=[float(v) for v in rec_["poincare_v"]],
-                    )
-                    rows.append(r)
-                if rows:
-                    session.execute(insert(SweepPoint), rows)
-                counts["sweep_points"] += len(rows)
+                _insert_sweep(session, Path(f), counts)
             for f in audit_files:
-                prov = read_metadata(f) or {}
-                prov = {**prov, "file": str(f)}
-                run = Run(**_run_row(prov))
-                session.add(run)
-                session.flush()
-                counts["runs"] += 1
-                rows = []
-                for rec_ in pd.read_parquet(f).to_dict("records"):
-                    key = (rec_["plane"], int(rec_["i"]), int(rec_["j"]))
-                    if key not in cell_ids:
-                        continue
-                    rows.append(
-                        {
-                            "cell_id": cell_ids[key],
-                            "run_id": run.id,
-                            "label": rec_["tight_label"],
-                            "label_npq": rec_["tight_label_npq"],
-                            "impact": int(rec_["tight_I"]),
-                            "dc": _nan_to_none(rec_["tight_dc"]),
-                            "kmax": _nan_to_none(rec_["tight_kmax"]),
-                            "lyapunov": _nan_to_none(rec_["tight_lyapunov"]),
-                            "agree": bool(rec_["agree"]),
-                        }
-                    )
-                if rows:
-                    session.execute(insert(Audit), rows)
-                counts["audits"] += len(rows)
+                _insert_audit(session, Path(f), counts)
+            session.execute(insert(ColumnDoc), _column_rows())
+            session.execute(insert(CatalogueInfo), _info_rows(session, counts))
+        with engine.begin() as con:
+            con.exec_driver_sql(f"PRAGMA application_id = {APPLICATION_ID}")
+            con.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
         engine.dispose()
         os.replace(tmp, out)
     finally:
         engine.dispose()
         if tmp.exists():
             tmp.unlink()
+    if publish_to is not None:
+        publish(out, publish_to)
     return counts
+
+
+def publish(built: str | Path, target: str | Path) -> Path:
+    """Make ``target`` the catalogue ``built``, atomically: a hard link (or copy) of ``built`` under
+    a temporary name in ``target``'s directory, renamed over ``target``.
+
+    At every instant ``target`` is either the previous catalogue or the new one, whole. Readers
+    holding the previous file open keep reading it (the rename does not change its inode), and a
+    workflow that deletes ``built`` before rebuilding it leaves ``target`` untouched.
+    """
+    import shutil
+
+    built, target = Path(built), Path(target)
+    open_catalogue(built).close()  # never publish a file that readers would refuse
+    target.parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_tmp(target)
+    tmp = _tmp_name(target)
+    try:
+        if tmp.exists():
+            tmp.unlink()
+        try:
+            os.link(built, tmp)
+        except OSError:  # no hard links here (another file system, FAT, ...): copy
+            shutil.copyfile(built, tmp)
+        os.replace(tmp, target)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return target
+
+
+def open_catalogue(path: str | Path) -> sqlite3.Connection:
+    """Open a catalogue read-only (``sqlite3``), refusing anything that is not one of our schema.
+
+    Checks ``PRAGMA application_id`` (gearsim), ``PRAGMA user_version`` (= :data:`SCHEMA_VERSION`)
+    and the tables readers rely on; raises :class:`CatalogueError` with one line otherwise. Every
+    reader (query, export, report, figures) opens the catalogue through this function.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise CatalogueError(f"catalogue not found: {p} (build it with snakemake)")
+    con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
+    try:
+        app = con.execute("PRAGMA application_id").fetchone()[0]
+        version = con.execute("PRAGMA user_version").fetchone()[0]
+        names = {
+            r[0]
+            for r in con.execute("SELECT name FROM sqlite_master WHERE type IN ('table', 'view')")
+        }
+    except sqlite3.DatabaseError as exc:
+        con.close()
+        raise CatalogueError(
+            f"{p}: not a database of the gearsim catalogue schema ({_one_line(exc)})"
+        ) from None
+    problem = None
+    if app != APPLICATION_ID:
+        problem = f"not a gearsim catalogue (application_id {app:#x}, expected {APPLICATION_ID:#x})"
+    elif version != SCHEMA_VERSION:
+        problem = (
+            f"catalogue schema version {version}, this gearsim reads version "
+            f"{SCHEMA_VERSION} (rebuild it: snakemake --forcerun catalogue)"
+        )
+    elif not REQUIRED <= names:
+        problem = f"catalogue lacks table {sorted(REQUIRED - names)[0]!r} (damaged)"
+    if problem:
+        con.close()
+        raise CatalogueError(f"{p}: {problem}")
+    return con
 
 
 def now_iso() -> str:

@@ -134,7 +134,8 @@ def dimensionless_axis(spec: Mapping[str, Any], gear: GearGeometry | None,
 
     Axes that already name a dimensionless parameter are returned unchanged (copied). The
     conversion is linear and through zero, so ``min``/``max`` convert directly and the grid
-    points ``v_i`` are the images of the physical grid points.
+    points ``v_i`` are the images of the physical grid points. A converted axis keeps its
+    physical form under ``physical: {name, unit, min, max}`` (for labels in physical units).
     """
     out = dict(spec)
     name = out.get("name")
@@ -144,6 +145,7 @@ def dimensionless_axis(spec: Mapping[str, Any], gear: GearGeometry | None,
         raise ParameterError(f"config key '{where}.name': {name!r} is in physical units and "
                              "needs a gear file (config key 'gear')")
     param, k = axis_factor(name, gear)
+    physical = {"name": name, "unit": PHYSICAL_AXES[name][1]}
     out["name"] = param
     for key in ("min", "max"):
         if key in out:
@@ -151,7 +153,9 @@ def dimensionless_axis(spec: Mapping[str, Any], gear: GearGeometry | None,
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise ParameterError(f"config key '{where}.{key}' must be a number in {name}, "
                                      f"got {v!r}")
+            physical[key] = v
             out[key] = k * float(v)
+    out["physical"] = physical
     return out
 
 
@@ -177,6 +181,47 @@ def dimensionless_mapping(values: Mapping[str, Any], gear: GearGeometry | None,
         conv = [k * float(item) for item in items]
         out[param] = conv if isinstance(v, list) else conv[0]
     return out
+
+
+def config_gear(config: Mapping[str, Any], root: str | Path = ".") -> GearGeometry | None:
+    """The gear file named by the pipeline configuration's ``gear`` key (``None`` without)."""
+    path = config.get("gear")
+    if not path:
+        return None
+    try:
+        return load_gear(Path(root) / path)
+    except ParameterError as exc:
+        raise ParameterError(f"config key 'gear': {exc}") from None
+
+
+def dimensionless_config(config: dict[str, Any], root: str | Path = ".") -> dict[str, Any]:
+    """Convert every physical name of a pipeline configuration, in place; returns ``config``.
+
+    Plane and sweep axes, ``fixed`` values, ``parameters`` and mapping point sets may use the
+    names of :data:`PHYSICAL_AXES`, with the gear file of the ``gear`` key. Idempotent (a
+    converted configuration names only dimensionless parameters).
+    """
+    gear = config_gear(config, root)
+    if config.get("parameters"):
+        config["parameters"] = dimensionless_mapping(config["parameters"], gear, "parameters")
+    for pname, plane in (config.get("planes") or {}).items():
+        for ax in ("x", "y"):
+            if isinstance(plane.get(ax), Mapping):
+                plane[ax] = dimensionless_axis(plane[ax], gear, f"planes.{pname}.{ax}")
+        if plane.get("fixed"):
+            plane["fixed"] = dimensionless_mapping(plane["fixed"], gear,
+                                                   f"planes.{pname}.fixed")
+    for sname, sweep in (config.get("sweeps") or {}).items():
+        if not isinstance(sweep, dict):
+            continue
+        fixed = sweep.get("fixed")
+        sweep.update(dimensionless_axis(sweep, gear, f"sweeps.{sname}"))
+        if fixed:
+            sweep["fixed"] = dimensionless_mapping(fixed, gear, f"sweeps.{sname}.fixed")
+    for fig, spec in (config.get("points") or {}).items():
+        if isinstance(spec, Mapping):
+            config["points"][fig] = dimensionless_mapping(spec, gear, f"points.{fig}")
+    return config
 
 
 # ----------------------------------------------------------------------------- result columns
@@ -367,8 +412,8 @@ def physical_line(row: Mapping[str, Any], gear_source: str = "") -> str:
 
 
 __all__ = [
-    "COLUMNS", "DEFAULT_GEAR", "PHYSICAL_AXES", "axis_factor", "describe", "dimensionless_axis",
-    "dimensionless_columns", "dimensionless_mapping", "gear_from_mapping", "gear_yaml",
-    "load_gear", "physical_columns", "physical_line", "range_text", "to_dimensionless",
-    "to_physical",
+    "COLUMNS", "DEFAULT_GEAR", "PHYSICAL_AXES", "axis_factor", "config_gear", "describe",
+    "dimensionless_axis", "dimensionless_columns", "dimensionless_config",
+    "dimensionless_mapping", "gear_from_mapping", "gear_yaml", "load_gear", "physical_columns",
+    "physical_line", "range_text", "to_dimensionless", "to_physical",
 ]

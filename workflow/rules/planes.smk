@@ -1,5 +1,11 @@
 # Planes: tiles (one job each, rows mapped over dask) -> cells.parquet per plane -> audit ->
 # the SQLite catalogue (the only writer of results/catalogue.sqlite).
+#
+# Snakemake deletes a job's declared outputs before the job starts. The catalogue rule therefore
+# declares results/catalogue.d/build.sqlite and publishes it as results/catalogue.sqlite (hard
+# link renamed into place): readers of results/catalogue.sqlite never see it missing or partial,
+# and a failed rebuild keeps the last good one (docs/pipeline.md, Guarantees).
+CATALOGUE = "results/catalogue.d/build.sqlite"
 
 
 rule compile:
@@ -80,15 +86,16 @@ rule catalogue:
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
         audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
     output:
-        "results/catalogue.sqlite",
+        CATALOGUE,
     log:
         "logs/catalogue.log",
     conda:
         GEARSIM_ENV
     shell:
         "gearsim catalogue build --cells {input.cells} --sweeps {input.sweeps} "
-        "--audits {input.audits} --out {output} > {log} 2>&1"
+        "--audits {input.audits} --out {output} --publish results/catalogue.sqlite "
+        "> {log} 2>&1"
 
 
 ALL_TARGETS += expand("results/{plane}/cells.parquet", plane=PLANES)
-ALL_TARGETS += ["results/catalogue.sqlite"]
+ALL_TARGETS += [CATALOGUE]

@@ -21,7 +21,7 @@ rule table1:
 rule report:
     input:
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
-        catalogue="results/catalogue.sqlite",
+        catalogue=CATALOGUE,
         table1="results/table1.md",
     output:
         "results/report.md",

@@ -6,7 +6,9 @@ Subcommands (each is one Snakemake rule):
 * ``gearsim catalogue audit --plane wb --cells results/wb/cells.parquet
   --out results/wb/audit.parquet``
 * ``gearsim catalogue build --cells C1 C2 --sweeps S1 S2 [--audits A1 A2]
-  --out results/catalogue.sqlite``
+  --out results/catalogue.d/build.sqlite --publish results/catalogue.sqlite``
+* ``gearsim catalogue publish --from results/catalogue.d/build.sqlite
+  --to results/catalogue.sqlite`` (restore the published copy by hand)
 """
 
 from __future__ import annotations
@@ -39,7 +41,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
     b.add_argument("--sweeps", nargs="*", default=[], help="sweep Parquet files")
     b.add_argument("--audits", nargs="*", default=[], help="audit Parquet files")
-    b.add_argument("--out", required=True)
+    b.add_argument("--out", required=True, help="the catalogue file to write (the rule's output)")
+    b.add_argument(
+        "--publish",
+        metavar="PATH",
+        help="then replace PATH atomically by the new catalogue (results/catalogue.sqlite: "
+        "readers never see it missing or partial, a failed build keeps the last good one)",
+    )
+    pub = sub.add_parser(
+        "publish", help="check a built catalogue and atomically replace --to by it"
+    )
+    pub.add_argument("--from", dest="source", required=True, help="a built catalogue")
+    pub.add_argument("--to", required=True, help="e.g. results/catalogue.sqlite")
 
 
 def plane_record(config: dict, plane: str) -> dict:
@@ -55,6 +68,7 @@ def plane_record(config: dict, plane: str) -> dict:
         "parameters": gcfg.plane_base(config, plane).to_dict(),
         "config_hash": provenance.config_hash(provenance.plane_subtree(config, plane)),
         "code_version": provenance.code_version(),
+        "integration": gcfg.integration_settings(config).to_dict(),
     }
 
 
@@ -203,11 +217,26 @@ def _build(args) -> int:
         if not Path(f).is_file():
             raise UsageError(f"input file not found: {f}")
     t0 = time.perf_counter()
-    counts = catalogue.build_catalogue(args.out, args.cells, args.sweeps, args.audits)
+    counts = catalogue.build_catalogue(
+        args.out, args.cells, args.sweeps, args.audits, publish_to=args.publish
+    )
     summary = ", ".join(f"{k}={v}" for k, v in counts.items())
-    print(f"catalogue {args.out}: {summary} ({time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+    where = f" -> {args.publish}" if args.publish else ""
+    print(
+        f"catalogue {args.out}{where}: {summary} ({time.perf_counter() - t0:.1f} s)",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def _publish(args) -> int:
+    from .. import catalogue
+
+    catalogue.publish(args.source, args.to)
+    print(f"catalogue {args.source} -> {args.to}", file=sys.stderr)
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
-    return {"cells": _cells, "audit": _audit, "build": _build}[args.action](args)
+    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish}
+    return actions[args.action](args)
