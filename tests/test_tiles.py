@@ -51,19 +51,35 @@ def test_configs_load():
 
 
 def test_schema_integration_matches_settings():
-    """The schema's integration keys and defaults are IntegrationSettings' fields."""
+    """The schema's integration keys are IntegrationSettings' fields, and its defaults are the
+    study's (config/config.yaml), so a config file that leaves a key out gets the study's value."""
     props = gcfg.load_schema()["properties"]["integration"]["properties"]
-    fields = {f.name: f.default for f in dataclasses.fields(IntegrationSettings)}
-    assert set(props) == set(fields)
-    for name, default in fields.items():
-        assert props[name]["default"] == default, name
+    fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
+    assert set(props) == fields
+    study = _raw()["integration"]
+    assert set(study) == fields
+    for name in fields:
+        assert props[name]["default"] == study[name], name
+
+
+def test_schema_defaults_equal_config_yaml():
+    """Every scalar setting config/config.yaml gives equals the schema's default."""
+    schema = gcfg.load_schema()["properties"]
+    raw = _raw()
+    for key in ("standard_parameters", "tile_rows"):
+        assert schema[key]["default"] == raw[key], key
+    for section in ("integration", "cluster", "audit"):
+        for name, value in raw[section].items():
+            assert schema[section]["properties"][name]["default"] == value, f"{section}.{name}"
+    assert raw["parameters"] == {} and schema.get("study", {}).get("default") is None
 
 
 def test_defaults_filled():
     cfg = {"planes": {"p": {"x": {"name": "w", "min": 0.5, "max": 1, "n": 4},
                             "y": {"name": "b", "min": 0, "max": 1, "n": 4}}}}
     gcfg.validate_schema(cfg)
-    assert cfg["tile_rows"] == 8 and cfg["integration"]["method"] == "dp5"
+    assert cfg["tile_rows"] == 40 and cfg["integration"]["method"] == "rk4"
+    assert cfg["integration"]["transient_continuation"] == 40 and cfg["study"] is None
     assert cfg["planes"]["p"]["fixed"] == {} and cfg["cluster"]["scheduler_address"] is None
 
 
@@ -123,9 +139,12 @@ def test_grid_and_tiles(tiny):
     assert s[0] == 0.1 and s[-1] == 2.5 and np.isclose(s[1] - s[0], 0.002)
 
 
-def test_parameters_fall_back_to_builtin_defaults(tiny, tmp_path):
+def test_parameters_builtin_defaults_only_when_asked(tiny, tmp_path):
     cfg = copy.deepcopy(tiny)
     cfg["standard_parameters"] = str(tmp_path / "absent.yaml")
+    with pytest.raises(gcfg.ConfigError, match=r"standard_parameters.*absent\.yaml.*not found"):
+        gcfg.base_parameters(cfg)  # a misspelled path is an error, never a silent fallback
+    cfg["standard_parameters"] = None
     values, source = gcfg.base_parameters(cfg)
     assert source == "builtin-defaults" and values == {}
     assert gcfg.resolved_parameters(cfg) == ModelParameters().to_dict()
@@ -134,9 +153,9 @@ def test_parameters_fall_back_to_builtin_defaults(tiny, tmp_path):
     cfg["standard_parameters"] = str(f)
     cfg["parameters"] = {"eps": 0.3}
     values, source = gcfg.base_parameters(cfg)
-    assert source == str(f) and values == {"xi": 0.07, "eps": 0.3}
+    assert source == f"{f} + parameters eps=0.3" and values == {"xi": 0.07, "eps": 0.3}
     prov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg)
-    assert prov["parameters_source"] == str(f)
+    assert prov["parameters_source"] == f"{f} + parameters eps=0.3"
 
 
 def test_hashes_track_the_plane_subtree(tiny):

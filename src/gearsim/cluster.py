@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -25,6 +26,33 @@ WORKER_ENV = {
     "MKL_NUM_THREADS": "1",
     "OPENBLAS_NUM_THREADS": "1",
 }
+
+
+#: Most worker processes a job may start (``--workers``, Snakemake threads).
+MAX_WORKERS = 256
+#: A dask scheduler address: protocol://host:port.
+ADDRESS = re.compile(r"(tcp|tls|inproc|ucx|ws|wss)://[A-Za-z0-9._\-]+(:[0-9]{1,5})?|"
+                     r"(tcp|tls|ws|wss)://\[[0-9A-Fa-f:.]+\](:[0-9]{1,5})?")
+
+
+def check_address(address: str) -> str:
+    """``address`` if it looks like a scheduler address, else one-line UsageError."""
+    if not isinstance(address, str) or not ADDRESS.fullmatch(address):
+        shown = repr(address)[:80]
+        raise UsageError(
+            f"scheduler address {shown} is malformed; expected protocol://host:port, "
+            "e.g. tcp://10.0.0.5:8786"
+        )
+    return address
+
+
+def check_workers(workers: int) -> int:
+    """``workers`` if 1 <= workers <= :data:`MAX_WORKERS`, else one-line UsageError."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or not (
+        1 <= workers <= MAX_WORKERS
+    ):
+        raise UsageError(f"--workers must be in 1..{MAX_WORKERS}, got {workers!r}")
+    return workers
 
 
 #: How long to wait for a configured scheduler before giving up (env GEARSIM_SCHEDULER_TIMEOUT).
@@ -55,17 +83,17 @@ def open_client(workers: int = 1, scheduler_address: str | None = None) -> Itera
     from distributed import Client, LocalCluster
 
     if scheduler_address:
+        check_address(scheduler_address)
         try:
             client = Client(scheduler_address, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
             raise UsageError(f"cannot reach dask scheduler {scheduler_address}: {exc}") from None
         try:
             yield client
         finally:
             client.close()
         return
-    if workers < 1:
-        raise UsageError(f"--workers must be >= 1, got {workers}")
+    check_workers(workers)
     with (
         LocalCluster(
             n_workers=workers,

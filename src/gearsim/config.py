@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import copy
 import math
+import re
+import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -19,7 +21,7 @@ from typing import Any
 import yaml
 from jsonschema import Draft202012Validator, validators
 
-from .config_io import load_standard_parameters, load_yaml
+from .config_io import load_mapping, load_standard_parameters
 from .errors import ConfigError
 from .grid import axis_values, sweep_values
 from .parameters import ModelParameters, ParameterError, check_value
@@ -28,6 +30,25 @@ from .simulate import IntegrationSettings
 __all__ = ["ConfigError"]
 
 DEFAULT_CONFIG = "config/config.yaml"
+DEFAULT_STANDARD_PARAMETERS = "config/standard_parameters.yaml"
+#: Names of planes, sweeps, point sets and studies: a letter, then letters, digits or ``_``.
+MAX_NAME_LENGTH = 64
+NAME_PATTERN = re.compile(rf"[A-Za-z][A-Za-z0-9_]{{0,{MAX_NAME_LENGTH - 1}}}")
+#: Largest plane (cells); a 2000 x 2000 plane is the documented scale test (docs/pipeline.md).
+MAX_PLANE_CELLS = 4_000_000
+#: Upper bounds of the integration budget (a cell must end in bounded time).
+INTEGRATION_LIMITS = {
+    "steps_per_period": 65_536,
+    "transient": 100_000,
+    "transient_continuation": 100_000,
+    "chunk": 10_000,
+    "max_periods": 100_000,
+    "n_max": 4096,
+}
+#: Smallest positive normal float: smaller non-zero values (subnormals) are refused.
+SMALLEST_NORMAL = sys.float_info.min
+#: What a study file replaces instead of merging (:func:`merge_study`).
+STUDY_KEYS = ("planes", "sweeps", "points")
 #: Names a plane may not take (they are directories of results/ used by other outputs).
 RESERVED_PLANE_NAMES = ("sweeps", "points", "figures", "benchmarks", "logs", "report")
 SCHEMA_RELATIVE = Path("workflow/schemas/config.schema.yaml")
@@ -152,16 +173,23 @@ def _check_axis(axis: Mapping[str, Any], where: str, *, centres: bool) -> None:
             raise ConfigError(f"config key '{where}': {exc}") from None
 
 
-def check_config(config: dict, root: str | Path = ".") -> dict:
-    """Checks beyond the schema; call after :func:`validate_schema`. Returns ``config``."""
+def check_config(config: dict, root: str | Path | None = None) -> dict:
+    """Checks beyond the schema; call after :func:`validate_schema`. Returns ``config``.
+
+    ``root`` is the study directory that relative paths are resolved against
+    (default :func:`study_root`).
+    """
+    _check_finite(config, [])
+    _check_limits(config)
+    study = config.get("study")
+    if study is not None:
+        _check_name(study, "study")
     _check_names(config.get("parameters", {}), "parameters")
-    sp = config.get("standard_parameters")
-    if sp and (Path(root) / sp).is_file():
-        try:
-            load_standard_parameters(Path(root) / sp)
-        except ParameterError as exc:
-            raise ConfigError(f"config key 'standard_parameters': {exc}") from None
+    base_parameters(config, root)  # the standard-parameter file exists and is valid
     rows = int(config["tile_rows"])
+    for kind in ("planes", "sweeps", "points"):
+        for name in config.get(kind, {}):
+            _check_name(name, f"{kind}.{name!r}")
     for pname, plane in config.get("planes", {}).items():
         where = f"planes.{pname}"
         if pname in RESERVED_PLANE_NAMES:
@@ -182,6 +210,12 @@ def check_config(config: dict, root: str | Path = ".") -> dict:
                 f"config key 'tile_rows': {rows} is larger than the grid of plane '{pname}' "
                 f"({plane['y']['n']} rows)"
             )
+        cells = int(plane["x"]["n"]) * int(plane["y"]["n"])
+        if cells > MAX_PLANE_CELLS:
+            raise ConfigError(
+                f"config key '{where}': {plane['x']['n']} x {plane['y']['n']} = {cells} cells is "
+                f"more than the limit of {MAX_PLANE_CELLS} cells per plane (docs/pipeline.md)"
+            )
         try:
             plane_base(config, pname, root=root)
         except ParameterError as exc:
@@ -194,6 +228,11 @@ def check_config(config: dict, root: str | Path = ".") -> dict:
             raise ConfigError(f"config key '{where}.fixed.{sweep['name']}': is the swept name")
     for fig, spec in config.get("points", {}).items():
         if isinstance(spec, dict):
+            if "w" not in spec:
+                raise ConfigError(
+                    f"config key 'points.{fig}.w': required key is missing (every point needs "
+                    "a mesh frequency w)"
+                )
             _check_names(
                 {k: (v[0] if isinstance(v, list) else v) for k, v in spec.items()}, f"points.{fig}"
             )
@@ -216,6 +255,42 @@ def check_config(config: dict, root: str | Path = ".") -> dict:
     return config
 
 
+def _check_name(name: Any, where: str) -> None:
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name):
+        shown = repr(name)[:40] if isinstance(name, str) else type(name).__name__
+        raise ConfigError(
+            f"config key '{where}': name {shown} must be a letter then letters, digits or _ "
+            f"(at most {MAX_NAME_LENGTH} characters)"
+        )
+
+
+def _check_finite(node: Any, path: list) -> None:
+    """Every number of the configuration is finite and not subnormal (no NaN, inf, 1e-320)."""
+    if isinstance(node, Mapping):
+        for k, v in node.items():
+            _check_finite(v, [*path, k])
+    elif isinstance(node, list):
+        for k, v in enumerate(node):
+            _check_finite(v, [*path, k])
+    elif isinstance(node, float) and not isinstance(node, bool):
+        if not math.isfinite(node):
+            raise ConfigError(f"config key '{_key(path)}': {node!r} is not a finite number")
+        if node != 0.0 and abs(node) < SMALLEST_NORMAL:
+            raise ConfigError(
+                f"config key '{_key(path)}': {node!r} is subnormal (|value| < {SMALLEST_NORMAL:g})"
+            )
+
+
+def _check_limits(config: Mapping) -> None:
+    """Documented upper bounds of the integration budget (beyond them a cell never ends)."""
+    for name, limit in INTEGRATION_LIMITS.items():
+        v = (config.get("integration") or {}).get(name)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and v > limit:
+            raise ConfigError(
+                f"config key 'integration.{name}': {v!r} is more than the limit of {limit}"
+            )
+
+
 def merge(base: dict, update: Mapping) -> dict:
     """Recursive update (Snakemake's semantics for config files given with --configfile)."""
     for key, value in update.items():
@@ -226,57 +301,163 @@ def merge(base: dict, update: Mapping) -> dict:
     return base
 
 
+def merge_study(config: dict, doc: Mapping) -> dict:
+    """Merge one config file (or ``--config`` overrides) over ``config``.
+
+    Snakemake's rule (recursive update), with one addition: a document that names a ``study``
+    starts its own ``planes``, ``sweeps`` and ``points`` (those merged before it are dropped), so
+    a study file runs only what it lists. Snakemake's own merge is redone this way in
+    ``workflow/rules/common.smk``.
+    """
+    if doc.get("study") is not None:
+        for key in STUDY_KEYS:
+            config[key] = {}
+    return merge(config, doc)
+
+
 def load_config(
     paths: str | Path | Iterable[str | Path],
     overrides: Mapping | None = None,
-    root: str | Path = ".",
+    root: str | Path | None = None,
 ) -> dict:
-    """Merge config files in order (later wins, recursively), validate and fill defaults."""
+    """Merge config files in order (later wins, recursively; :func:`merge_study`), validate and
+    fill defaults. Relative paths inside are resolved against ``root`` (:func:`study_root`)."""
     if isinstance(paths, (str, Path)):
         paths = [paths]
     config: dict = {}
     for p in paths:
         try:
-            doc = load_yaml(p)
+            doc = load_mapping(p, "config file")
         except ParameterError as exc:
             raise ConfigError(str(exc)) from None
-        if doc is None:
-            doc = {}
-        if not isinstance(doc, dict):
-            raise ConfigError(f"{p}: a config file must be a mapping of keys")
-        merge(config, doc)
+        merge_study(config, doc)
     if overrides:
-        merge(config, overrides)
+        if not isinstance(overrides, Mapping):
+            raise ConfigError("config overrides must be a mapping of keys")
+        merge_study(config, overrides)
     validate_schema(config)
     return check_config(config, root=root)
 
 
-# ------------------------------------------------------------------- parameters, settings
-def base_parameters(config: Mapping, root: str | Path = ".") -> tuple[dict[str, Any], str]:
-    """Standard parameters (file, or built-in defaults when absent) plus ``parameters`` overrides.
+def study_root(root: str | Path | None = None) -> Path:
+    """The directory a study runs in: ``root``; else the working directory when it holds
+    ``config/config.yaml`` (Snakemake's working directory); else the source checkout."""
+    if root is not None:
+        return Path(root)
+    cwd = Path.cwd()
+    if (cwd / DEFAULT_CONFIG).is_file():
+        return cwd
+    return project_root()
 
-    Returns the values and their source: the file path, or ``"builtin-defaults"``.
+
+def study_config(
+    configfiles: Iterable[str | Path] = (),
+    overrides: Mapping | None = None,
+    root: str | Path | None = None,
+) -> dict:
+    """The study's configuration as the pipeline sees it: ``config/config.yaml`` of
+    :func:`study_root`, then ``configfiles`` merged over it in order (as ``snakemake
+    --configfile``), then ``overrides`` (as ``snakemake --config``).
+
+    This is the one resolution of "the study's defaults": the CLI, the Python API
+    (:meth:`ModelParameters.standard`, :meth:`IntegrationSettings.from_config`) and the workflow
+    use it.
+    """
+    base = study_root(root) / DEFAULT_CONFIG
+    if not base.is_file():
+        raise ConfigError(f"{base}: the study's configuration is missing")
+    paths = [base]
+    for p in configfiles:
+        if Path(p).resolve() != base.resolve():
+            paths.append(Path(p))
+    return load_config(paths, overrides, root=study_root(root))
+
+
+# ------------------------------------------------------------------- parameters, settings
+def standard_parameters_path(config: Mapping, root: str | Path | None = None) -> Path | None:
+    """The standard-parameter file of ``config`` (relative to :func:`study_root`), or ``None``
+    for an explicit ``standard_parameters: null`` (the built-in ModelParameters defaults)."""
+    sp = config.get("standard_parameters", DEFAULT_STANDARD_PARAMETERS)
+    if sp is None:
+        return None
+    path = Path(sp)
+    return path if path.is_absolute() else study_root(root) / path
+
+
+def base_parameters(
+    config: Mapping, root: str | Path | None = None
+) -> tuple[dict[str, Any], str]:
+    """Standard parameters (the file, or the built-in defaults for ``standard_parameters: null``)
+    plus the ``parameters`` overrides.
+
+    Returns the values and their source: ``"<file>"``, ``"builtin-defaults"``, with
+    ``" + parameters {...}"`` when the config overrides some. A missing or invalid file is a
+    :class:`ConfigError` (never a silent fallback).
     """
     values: dict[str, Any] = {}
     source = "builtin-defaults"
-    sp = config.get("standard_parameters")
-    if sp and (Path(root) / sp).is_file():
-        values = dict(load_standard_parameters(Path(root) / sp))
-        source = str(sp)
-    values.update(config.get("parameters", {}) or {})
+    path = standard_parameters_path(config, root)
+    if path is not None:
+        try:
+            values = dict(load_standard_parameters(path))
+        except ParameterError as exc:
+            raise ConfigError(
+                f"config key 'standard_parameters': {exc} (standard_parameters: null means the "
+                "built-in defaults)"
+            ) from None
+        source = str(config.get("standard_parameters", DEFAULT_STANDARD_PARAMETERS))
+    extra = dict(config.get("parameters", {}) or {})
+    values.update(extra)
+    if extra:
+        source += " + parameters " + ", ".join(f"{k}={v}" for k, v in sorted(extra.items()))
     return values, source
 
 
-def resolved_parameters(config: Mapping, root: str | Path = ".") -> dict[str, Any]:
+def resolved_parameters(config: Mapping, root: str | Path | None = None) -> dict[str, Any]:
     """The full parameter set (every ModelParameters field) the pipeline simulates from."""
     values, _ = base_parameters(config, root)
     return ModelParameters.from_mapping(values).to_dict()
 
 
-def plane_base(config: Mapping, plane: str, root: str | Path = ".") -> ModelParameters:
+def study_parameters(
+    config: Mapping | None = None, root: str | Path | None = None
+) -> ModelParameters:
+    """The study's standard parameters (``config`` default: :func:`study_config`)."""
+    config = study_config(root=root) if config is None else config
+    return ModelParameters.from_mapping(resolved_parameters(config, root))
+
+
+def plane_base(config: Mapping, plane: str, root: str | Path | None = None) -> ModelParameters:
+    """The parameters of a plane's cells before its axes are set (the plane's ``fixed`` on top)."""
     values, _ = base_parameters(config, root)
     values.update(config["planes"][plane].get("fixed", {}) or {})
     return ModelParameters.from_mapping(values)
+
+
+def settings_text(settings: IntegrationSettings) -> str:
+    """One line describing integration settings (printed and saved beside every result)."""
+    if settings.method == "rk4":
+        how = f"rk4 {settings.steps_per_period} steps/period"
+    else:
+        how = f"dp5 rtol={settings.rtol:g} atol={settings.atol:g}"
+    return (
+        f"{how}, hmax={settings.hmax:g}, transient {settings.transient} periods "
+        f"({settings.transient_continuation} on continuation), up to {settings.max_periods} "
+        f"measured, n_max={settings.n_max}"
+    )
+
+
+def results_dir(config: Mapping) -> Path:
+    """Where a study's results go: ``results`` for the default study, else
+    ``studies/<study>/results`` (logs beside it in ``studies/<study>/logs``)."""
+    study = config.get("study")
+    return Path("results") if study is None else Path("studies", study, "results")
+
+
+def logs_dir(config: Mapping) -> Path:
+    """Where a study's logs go (``logs`` or ``studies/<study>/logs``)."""
+    study = config.get("study")
+    return Path("logs") if study is None else Path("studies", study, "logs")
 
 
 def integration_settings(config: Mapping) -> IntegrationSettings:

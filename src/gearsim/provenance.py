@@ -98,7 +98,7 @@ def package_versions() -> dict[str, str]:
     return out
 
 
-def plane_subtree(config: Mapping, plane: str, root: str | Path = ".") -> dict[str, Any]:
+def plane_subtree(config: Mapping, plane: str, root: str | Path | None = None) -> dict[str, Any]:
     """What a plane's tiles depend on (the Snakemake params and the hashed provenance)."""
     return {
         "plane": copy.deepcopy(dict(config["planes"][plane])),
@@ -108,7 +108,7 @@ def plane_subtree(config: Mapping, plane: str, root: str | Path = ".") -> dict[s
     }
 
 
-def sweep_subtree(config: Mapping, sweep: str, root: str | Path = ".") -> dict[str, Any]:
+def sweep_subtree(config: Mapping, sweep: str, root: str | Path | None = None) -> dict[str, Any]:
     """What a sweep depends on (its Snakemake params and hashed provenance)."""
     return {
         "sweep": copy.deepcopy(dict(config["sweeps"][sweep])),
@@ -118,7 +118,13 @@ def sweep_subtree(config: Mapping, sweep: str, root: str | Path = ".") -> dict[s
 
 
 def provenance(
-    subtree: Mapping, *, kind: str, name: str, root: str | Path = ".", config=None, **extra: Any
+    subtree: Mapping,
+    *,
+    kind: str,
+    name: str,
+    root: str | Path | None = None,
+    config=None,
+    **extra: Any,
 ) -> dict[str, Any]:
     """Provenance record (goes into Parquet key-value metadata and the catalogue's runs)."""
     _, source = base_parameters(config, root) if config is not None else ({}, "unknown")

@@ -111,7 +111,7 @@ def row_groups(specs: list[dict], workers: int) -> list[list[dict]]:
     return [specs[k : k + size] for k in range(0, len(specs), size)]
 
 
-def row_specs(config: Mapping, plane: str, tile: int, root: str | Path = ".") -> list[dict]:
+def row_specs(config: Mapping, plane: str, tile: int, root: str | Path | None = None) -> list[dict]:
     """The dask tasks of a tile: one spec per row."""
     pl = config["planes"][plane]
     base = plane_base(config, plane, root).to_dict()
@@ -160,7 +160,7 @@ def run_tile(
     tile: int,
     *,
     client=None,
-    root: str | Path = ".",
+    root: str | Path | None = None,
     progress: Callable[[int, int, float], None] | None = None,
 ) -> pd.DataFrame:
     """Simulate all cells of a tile (rows mapped over ``client``, or in-process when None).

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -14,7 +14,7 @@ import pandas as pd
 
 from .. import catalogue
 from ..batch import simulate_rows
-from ..config import base_parameters, integration_settings, resolved_parameters
+from ..config import base_parameters, integration_settings, resolved_parameters, results_dir
 from ..errors import UsageError
 from ..grid import sweep_values
 from ..parameters import ModelParameters
@@ -22,6 +22,7 @@ from ..provenance import provenance, sweep_subtree
 from ..simulate import simulate_cell, trajectory
 from ..sweep import continuation_chain
 from ..tiles import records_to_frame
+from ._common import check_new_file
 from .simulate_tile import Progress, add_config_arguments, config_from_args
 
 NAME = "sweep"
@@ -33,7 +34,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     what.add_argument("--name", help="sweep name (a key of `sweeps:`)")
     what.add_argument("--points", metavar="FIG", help="point set name (a key of `points:`)")
     add_config_arguments(p)
-    p.add_argument("--out", default=None, help="output Parquet file")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="output Parquet file (default <results>/sweeps/<name>.parquet or "
+        "<results>/points/<set>.parquet)",
+    )
     p.add_argument(
         "--ramp-from",
         type=float,
@@ -149,8 +155,30 @@ def points_frame(config, fig: str, args, progress=None) -> pd.DataFrame:
     return records_to_frame(rows)
 
 
+def _check_recording(args: argparse.Namespace) -> None:
+    checks = (
+        ("--ramp-from", args.ramp_from, 0.0, 100.0, False),
+        ("--ramp-step", args.ramp_step, 0.0, 10.0, False),
+        ("--periods", args.periods, 1, 100_000, True),
+        ("--samples-per-period", args.samples_per_period, 4, 100_000, True),
+    )
+    for flag, v, lo, hi, closed in checks:
+        ok = math.isfinite(v) and (lo <= v if closed else lo < v) and v <= hi
+        if not ok:
+            rng = f"[{lo}, {hi}]" if closed else f"({lo}, {hi}]"
+            raise UsageError(f"{flag}: {v!r} is outside {rng}")
+
+
 def run(args: argparse.Namespace) -> int:
+    _check_recording(args)
     config = config_from_args(args)
+    res = results_dir(config)
+    default = (
+        res / "sweeps" / f"{args.name}.parquet"
+        if args.name
+        else res / "points" / f"{args.points}.parquet"
+    )
+    out = check_new_file(args.out or default)
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     if args.name:
@@ -173,7 +201,6 @@ def run(args: argparse.Namespace) -> int:
         )
         subtree = sweep_subtree(config, args.name)
         kind, name = "sweep", args.name
-        out = Path(args.out or f"results/sweeps/{args.name}.parquet")
     else:
         if args.points not in config["points"]:
             raise UsageError(
@@ -196,7 +223,6 @@ def run(args: argparse.Namespace) -> int:
             },
         }
         kind, name = "points", args.points
-        out = Path(args.out or f"results/points/{args.points}.parquet")
     progress.close()
     wall = time.perf_counter() - t0
     prov = provenance(
