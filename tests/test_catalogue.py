@@ -151,7 +151,7 @@ def test_column_dictionary_covers_every_column(small):
     docs = {(t, c): (u, m) for t, c, u, m in con.execute(
         "SELECT table_name, column_name, unit, meaning FROM column_dictionary")}
     tables = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
-    assert len(tables) == 8
+    assert len(tables) == 12  # 8 + bifurcation_points, bifurcation_curves, cell_orbits, attractors
     for t in tables:
         for col in con.execute(f'PRAGMA table_info("{t}")'):
             assert (t, col[1]) in docs, (t, col[1])

@@ -30,15 +30,24 @@ from gearsim.commands.catalogue import plane_record
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _gearsim(args, cwd, timeout=60):
-    env = dict(os.environ)
-    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
-    env["PYTHONPATH"] = str(ROOT / "src")
-    t0 = time.monotonic()
-    r = subprocess.run([sys.executable, "-m", "gearsim", *map(str, args)], cwd=cwd, env=env,
-                       capture_output=True, text=True, timeout=timeout)
-    r.seconds = time.monotonic() - t0
-    return r
+class _Result:
+    def __init__(self, returncode, stderr, seconds):
+        self.returncode, self.stderr, self.seconds = returncode, stderr, seconds
+
+
+@pytest.fixture()
+def gearsim(capsys, monkeypatch):
+    """Run the CLI in-process (interpreter start-up excluded from the time) from ``cwd``."""
+    from gearsim.cli import main
+
+    def run(args, cwd):
+        monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        t0 = time.monotonic()
+        code = main([str(a) for a in args])
+        return _Result(code, capsys.readouterr().err, time.monotonic() - t0)
+
+    return run
 
 
 def _refused(r, words):
@@ -132,11 +141,11 @@ TILE_CASES = [
 
 
 @pytest.mark.parametrize("case", TILE_CASES, ids=[c[0] for c in TILE_CASES])
-def test_bad_tile_is_refused(study, tmp_path, case):
+def test_bad_tile_is_refused(study, tmp_path, gearsim, case):
     _, make, words = case
     tiles = make(study, tmp_path)
     out = tmp_path / "out" / "cells.parquet"
-    r = _gearsim(["catalogue", "cells", "--plane", "wb", "--tiles", *tiles, *study["conf"],
+    r = gearsim(["catalogue", "cells", "--plane", "wb", "--tiles", *tiles, *study["conf"],
                   "--out", out], cwd=ROOT)  # the config names config/standard_parameters.yaml
     _refused(r, ["gearsim catalogue: error:", *words])
     assert not out.exists()
@@ -189,21 +198,21 @@ BUILD_CASES = [
 
 
 @pytest.mark.parametrize("case", BUILD_CASES, ids=[c[0] for c in BUILD_CASES])
-def test_bad_plane_file_is_refused(study, tmp_path, case):
+def test_bad_plane_file_is_refused(study, tmp_path, gearsim, case):
     _, make, words = case
     files = make(study, tmp_path)
     out, pub = tmp_path / "build.sqlite", tmp_path / "catalogue.sqlite"
     pub.write_bytes(b"previous")
-    r = _gearsim(["catalogue", "build", "--cells", *files, "--out", out, "--publish", pub],
+    r = gearsim(["catalogue", "build", "--cells", *files, "--out", out, "--publish", pub],
                  cwd=tmp_path)
     _refused(r, ["gearsim catalogue: error:", *words])
     assert not out.exists() and pub.read_bytes() == b"previous"
     assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
 
 
-def test_good_build_has_every_cell_once(study, tmp_path):
+def test_good_build_has_every_cell_once(study, tmp_path, gearsim):
     out = tmp_path / "build.sqlite"
-    r = _gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], study["cells"]["wxi"],
+    r = gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], study["cells"]["wxi"],
                   "--out", out, "--publish", tmp_path / "catalogue.sqlite"], cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     con = gc.open_catalogue(tmp_path / "catalogue.sqlite")
@@ -254,8 +263,8 @@ READER_FILES = [
 
 
 @pytest.mark.parametrize("case", READER_FILES, ids=[c[0] for c in READER_FILES])
-@pytest.mark.parametrize("command", ["query"])
-def test_readers_refuse_what_is_not_a_catalogue(tmp_path, case, command):
+@pytest.mark.parametrize("command", ["query", "export"])
+def test_readers_refuse_what_is_not_a_catalogue(tmp_path, gearsim, case, command):
     _, make, words = case
     db = make(tmp_path / "catalogue.sqlite")
     before = db.read_bytes() if db.exists() else None
@@ -264,7 +273,7 @@ def test_readers_refuse_what_is_not_a_catalogue(tmp_path, case, command):
     else:
         args = ["export", "--catalogue", db, "--plane", "wb", "--format", "csv", "--out",
                 tmp_path / "wb.csv"]
-    r = _gearsim(args, cwd=tmp_path)
+    r = gearsim(args, cwd=tmp_path)
     _refused(r, [f"gearsim {command}: error:", *words])
     assert (db.read_bytes() if db.exists() else None) == before
     assert not (tmp_path / "wb.csv").exists()

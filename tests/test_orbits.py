@@ -244,3 +244,22 @@ def test_bad_input():
 def test_newton_fails_loudly_when_it_cannot_converge():
     with pytest.raises(OrbitError):
         find_periodic_orbit(ONE.with_(w=1.53), 1, np.array([0.5, 0.1] + [0.0] * 8), max_iter=2)
+
+
+def test_refine_cells_flags_disagreement_with_the_simulation():
+    import pandas as pd
+
+    from gearsim.orbit_cells import refine_cells
+
+    rows = []
+    for i, (w, n_claim) in enumerate([(0.86, None), (1.02, None), (1.02, 1)]):
+        res = simulate_cell(ONE.with_(w=w))
+        n = res.classification.n if n_claim is None else n_claim
+        rows.append({"plane": "t", "i": i, "j": 0, "x": w, "y": ONE.b, "n": n, "status": "ok",
+                     "label": res.classification.label, "final_state": res.final_state.tolist()})
+    out = refine_cells(pd.DataFrame(rows), ONE, "w", "b")
+    assert list(out.orbit_flag) == ["", "", "unstable"]  # 1.02 is period 2: its 1T is unstable
+    assert out.orbit_converged.all()
+    assert (out.orbit_shift.iloc[:2] < 1e-6).all()
+    assert out.orbit_kind.iloc[2] == "period_doubling" and out.orbit_mu_max.iloc[2] > 1
+    assert (out.orbit_ms > 0).all()

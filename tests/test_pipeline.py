@@ -58,9 +58,9 @@ def fresh(tmp_path_factory):
 @pytest.mark.parametrize(
     ("configs", "tiles", "sweeps", "points"),
     [
-        ((), 2 * 10, 7, 3),
-        (("config/quick.yaml",), 2 * 2, 7, 3),
-        (("config/tiny.yaml",), 2 * 2, 7, 3),
+        ((), 2 * 10, 8, 3),
+        (("config/quick.yaml",), 2 * 2, 8, 3),
+        (("config/tiny.yaml",), 2 * 2, 8, 3),
     ],
 )
 def test_dry_run_plans_the_expected_jobs(fresh, configs, tiles, sweeps, points):

@@ -83,7 +83,8 @@ def _tmp_name(path: Path) -> Path:
 def _remove_stale_tmp(path: Path) -> None:
     """Delete temporary files of ``path`` left by writers that were killed (their pid is gone)."""
     for f in path.parent.glob(f".{path.name}.tmp-*"):
-        pid = f.name.rsplit("-", 1)[-1]
+        # .NAME.tmp-PID, and SQLite's .NAME.tmp-PID-journal / -wal / -shm beside it
+        pid = f.name[len(path.name) + 6 :].split("-", 1)[0]
         if not pid.isdigit() or int(pid) == os.getpid():
             continue
         try:
@@ -320,6 +321,8 @@ class Cell(_CellColumns, Base):
     x: Mapped[float] = mapped_column(Float)  # value of planes.x_name
     y: Mapped[float] = mapped_column(Float)  # value of planes.y_name
     elapsed_s: Mapped[float | None] = mapped_column(Float)
+    # coexisting attractors found from many starts (NULL: multistability off for the plane)
+    n_attractors: Mapped[int | None] = mapped_column(Integer)
     __table_args__ = (
         UniqueConstraint("plane_id", "i", "j"),
         Index(None, "plane_id", "label"),
@@ -355,6 +358,8 @@ class SweepPoint(_CellColumns, Base):
     value: Mapped[float] = mapped_column(Float)
     poincare_x: Mapped[list] = mapped_column(JSON)
     poincare_v: Mapped[list] = mapped_column(JSON)
+    # forward | backward (a `direction: both` sweep holds both, forward first)
+    direction: Mapped[str | None] = mapped_column(String(16))
     __table_args__ = (
         UniqueConstraint("sweep_id", "k"),
         Index(None, "sweep_id", "value"),
@@ -376,6 +381,92 @@ class Audit(Base):
     kmax: Mapped[float | None] = mapped_column(Float)
     lyapunov: Mapped[float | None] = mapped_column(Float)
     agree: Mapped[bool] = mapped_column(Boolean)  # same label and n-p-q as the catalogue cell
+
+
+class CellAttractor(Base):
+    """One of the coexisting attractors of a plane cell (gearsim.attractors, many starts)."""
+
+    __tablename__ = "attractors"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    cell_id: Mapped[int] = mapped_column(ForeignKey("cells.id"), index=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    attractor: Mapped[int] = mapped_column(Integer)  # index in the cell, most starts first
+    motion: Mapped[str] = mapped_column(String(16))
+    label: Mapped[str] = mapped_column(String(32))
+    label_npq: Mapped[str] = mapped_column(String(32))
+    impact: Mapped[int] = mapped_column(Integer)
+    n: Mapped[int] = mapped_column(Integer)
+    p: Mapped[int | None] = mapped_column(Integer)
+    q: Mapped[int | None] = mapped_column(Integer)
+    dc: Mapped[float | None] = mapped_column(Float)
+    kmax: Mapped[float | None] = mapped_column(Float)
+    lyapunov: Mapped[float | None] = mapped_column(Float)
+    basin_fraction: Mapped[float] = mapped_column(Float)
+    n_starts: Mapped[int] = mapped_column(Integer)
+    n_early: Mapped[int] = mapped_column(Integer)
+    found_by: Mapped[str] = mapped_column(String(32))  # forward,backward,start (subset)
+    __table_args__ = (UniqueConstraint("cell_id", "attractor"), Index(None, "label"))
+
+
+class BifurcationPoint(Base):
+    """A bifurcation located by continuation (gearsim.continuation; docs/orbits.md)."""
+
+    __tablename__ = "bifurcation_points"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    period: Mapped[int] = mapped_column(Integer)
+    boundary: Mapped[str] = mapped_column(String(32))
+    name: Mapped[str] = mapped_column(String(32))
+    value: Mapped[float] = mapped_column(Float)
+    name2: Mapped[str] = mapped_column(String(32))
+    value2: Mapped[float] = mapped_column(Float)
+    x: Mapped[float] = mapped_column(Float)
+    v: Mapped[float] = mapped_column(Float)
+    mu_max: Mapped[float] = mapped_column(Float)
+    multipliers: Mapped[list] = mapped_column(JSON)
+    stable: Mapped[bool] = mapped_column(Boolean)
+
+
+class BifurcationCurve(Base):
+    """A point of a two-parameter bifurcation curve (gearsim.bifcurves; docs/orbits.md)."""
+
+    __tablename__ = "bifurcation_curves"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+    curve: Mapped[int] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    period: Mapped[int] = mapped_column(Integer)
+    boundary: Mapped[str] = mapped_column(String(32))
+    name: Mapped[str] = mapped_column(String(32))
+    value: Mapped[float] = mapped_column(Float)
+    name2: Mapped[str] = mapped_column(String(32))
+    value2: Mapped[float] = mapped_column(Float)
+    x: Mapped[float] = mapped_column(Float)
+    v: Mapped[float] = mapped_column(Float)
+    mu_max: Mapped[float] = mapped_column(Float)
+    multipliers: Mapped[list] = mapped_column(JSON)
+    stable: Mapped[bool] = mapped_column(Boolean)
+
+
+class CellOrbit(Base):
+    """Newton refinement of a periodic cell (gearsim refine-orbits; docs/orbits.md)."""
+
+    __tablename__ = "cell_orbits"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    cell_id: Mapped[int] = mapped_column(ForeignKey("cells.id"), index=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    converged: Mapped[bool] = mapped_column(Boolean)
+    residual: Mapped[float | None] = mapped_column(Float)
+    mu_max: Mapped[float | None] = mapped_column(Float)
+    kind: Mapped[str] = mapped_column(String(32))
+    grazing_margin: Mapped[float | None] = mapped_column(Float)
+    shift: Mapped[float | None] = mapped_column(Float)
+    minimal_period: Mapped[int] = mapped_column(Integer)
+    flag: Mapped[str] = mapped_column(String(32))
+    ms: Mapped[float | None] = mapped_column(Float)
 
 
 class CatalogueInfo(Base):
@@ -655,6 +746,7 @@ def _insert_sweep(session: Session, f: Path, counts: dict) -> None:
             value=float(rec_["value"]),
             poincare_x=[float(v) for v in rec_["poincare_x"]],
             poincare_v=[float(v) for v in rec_["poincare_v"]],
+            direction=rec_.get("direction"),
         )
         rows.append(r)
     if rows:
@@ -703,6 +795,120 @@ def _insert_audit(session: Session, f: Path, counts: dict) -> None:
     if rows:
         session.execute(insert(Audit), rows)
     counts["audits"] += len(rows)
+
+
+def _insert_attractors(session: Session, f: Path, counts: dict) -> None:
+    """Insert one attractor tile (``gearsim attractor-tile``) and set ``cells.n_attractors``."""
+    from sqlalchemy import select, update
+
+    from .integrity import read_footer
+
+    _, kv = read_footer(f, "attractor file")
+    prov = json.loads(kv.get(PROVENANCE_KEY, b"{}"))
+    if prov.get("kind") != "attractors":
+        raise CatalogueError(
+            f"attractor file {f}: no attractor provenance (not written by gearsim attractor-tile)"
+        )
+    plane = session.execute(select(Plane).where(Plane.name == prov.get("name"))).scalar()
+    if plane is None:
+        raise CatalogueError(f"attractor file {f}: plane {prov.get('name')!r} is not catalogued")
+    if prov.get("config_hash") != plane.config_hash:
+        raise CatalogueError(
+            f"attractor file {f}: made for another configuration of plane {plane.name!r} "
+            "(re-run its attractor_tile job)"
+        )
+    run = Run(**_run_row({**prov, "file": str(f)}))
+    session.add(run)
+    session.flush()
+    counts["runs"] += 1
+    q = select(Cell.id, Cell.i, Cell.j).where(Cell.plane_id == plane.id)
+    cell_ids = {(i, j): cid for cid, i, j in session.execute(q)}
+    df = pd.read_parquet(f)
+    rows, n_of = [], {}
+    for r in df.to_dict("records"):
+        key = (int(r["i"]), int(r["j"]))
+        if key not in cell_ids:
+            raise CatalogueError(f"attractor file {f}: cell {key} is not in plane {plane.name!r}")
+        cid = cell_ids[key]
+        n_of[cid] = int(r["n_attractors"])
+        if int(r["attractor"]) < 0:
+            continue  # every start diverged: no attractor, n_attractors = 0
+        rows.append(
+            {
+                "cell_id": cid, "run_id": run.id, "attractor": int(r["attractor"]),
+                "motion": r["motion"], "label": r["label"], "label_npq": r["label_npq"] or "",
+                "impact": int(r["I"]), "n": int(r["n"]),
+                "p": None if _nan_to_none(r["p"]) is None else int(r["p"]),
+                "q": None if _nan_to_none(r["q"]) is None else int(r["q"]),
+                "dc": _nan_to_none(r["dc"]), "kmax": _nan_to_none(r["kmax"]),
+                "lyapunov": _nan_to_none(r["lyapunov"]),
+                "basin_fraction": float(r["basin_fraction"]), "n_starts": int(r["n_starts"]),
+                "n_early": int(r["n_early"]), "found_by": r["found_by"],
+            }  # fmt: skip
+        )
+    if rows:
+        session.execute(insert(CellAttractor), rows)
+    for cid, n in n_of.items():
+        session.execute(update(Cell).where(Cell.id == cid).values(n_attractors=n))
+    counts["attractors"] = counts.get("attractors", 0) + len(rows)
+
+
+def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
+    """Insert a bifurcation points / curves file or a refine-orbits file (by its columns)."""
+    from sqlalchemy import select
+
+    from .integrity import read_footer
+
+    _, kv = read_footer(f, "orbit file")
+    prov = {**json.loads(kv.get(PROVENANCE_KEY, b"{}")), "file": str(f)}
+    run = Run(**_run_row(prov))
+    session.add(run)
+    session.flush()
+    counts["runs"] += 1
+    df = pd.read_parquet(f)
+    if "orbit_flag" in df.columns:
+        cell_ids = {}
+        for name in set(df["plane"]):
+            q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
+            cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+        rows = []
+        for r in df.to_dict("records"):
+            key = (r["plane"], int(r["i"]), int(r["j"]))
+            if key not in cell_ids:
+                raise CatalogueError(f"orbit file {f}: cell {key} is not in the catalogue")
+            rows.append({
+                "cell_id": cell_ids[key], "run_id": run.id,
+                "converged": bool(r["orbit_converged"]),
+                "residual": _nan_to_none(r["orbit_residual"]),
+                "mu_max": _nan_to_none(r["orbit_mu_max"]), "kind": r["orbit_kind"],
+                "grazing_margin": _nan_to_none(r["orbit_grazing_margin"]),
+                "shift": _nan_to_none(r["orbit_shift"]),
+                "minimal_period": int(r["orbit_minimal_period"]), "flag": r["orbit_flag"],
+                "ms": _nan_to_none(r["orbit_ms"]),
+            })
+        table, key = CellOrbit, "cell_orbits"
+    else:
+        is_curve = "curve" in df.columns
+        rows = []
+        for r in df.to_dict("records"):
+            row = {
+                "run_id": run.id, "plane": r.get("plane", ""), "kind": r["kind"],
+                "period": int(r["period"]), "boundary": r["boundary"] or "", "name": r["name"],
+                "value": float(r["value"]), "name2": r.get("name2", ""),
+                "value2": float(r.get("value2", float("nan"))), "x": float(r["x"]),
+                "v": float(r["v"]), "mu_max": float(r["mu_max"]),
+                "multipliers": [[float(a), float(b)]
+                                for a, b in zip(r["mu_re"], r["mu_im"], strict=True)],
+                "stable": bool(r["stable"]),
+            }
+            if is_curve:
+                row["curve"] = int(r["curve"])
+            rows.append(row)
+        table, key = ((BifurcationCurve, "bifurcation_curves") if is_curve
+                      else (BifurcationPoint, "bifurcation_points"))
+    if rows:
+        session.execute(insert(table), rows)
+    counts[key] = counts.get(key, 0) + len(rows)
 
 
 def git_commit(root: str | Path | None = None) -> tuple[str | None, bool | None]:
@@ -785,6 +991,8 @@ def build_catalogue(
     sweep_files: Iterable[str | Path] = (),
     audit_files: Iterable[str | Path] = (),
     *,
+    attractor_files: Iterable[str | Path] = (),
+    orbit_files: Iterable[str | Path] = (),
     chunk: int = 20_000,
     publish_to: str | Path | None = None,
 ) -> dict[str, int]:
@@ -792,7 +1000,9 @@ def build_catalogue(
 
     ``plane_files`` are ``cells.parquet`` files (each checked: plane record, every tile of the
     plane's configuration hash and code version, cell counts, each ``(i, j)`` exactly once),
-    ``sweep_files`` sweep Parquet files and ``audit_files`` audit Parquet files. Cells stream in
+    ``sweep_files`` sweep Parquet files and ``audit_files`` audit Parquet files;
+    ``attractor_files`` per-tile attractor files of planes with multistability (the
+    ``attractors`` table and ``cells.n_attractors``). Cells stream in
     batches of ``chunk`` rows (bounded memory). A bad input raises :class:`CatalogueError` and
     leaves ``out`` (and ``publish_to``) as they were. With ``publish_to``, the finished catalogue
     is then published there atomically (:func:`publish`). Returns row counts.
@@ -815,6 +1025,10 @@ def build_catalogue(
                 _insert_sweep(session, Path(f), counts)
             for f in audit_files:
                 _insert_audit(session, Path(f), counts)
+            for f in attractor_files:
+                _insert_attractors(session, Path(f), counts)
+            for f in orbit_files:  # docs/orbits.md: bifurcation points, curves, cell orbits
+                _insert_orbit_file(session, Path(f), counts)
             session.execute(insert(ColumnDoc), _column_rows())
             session.execute(insert(CatalogueInfo), _info_rows(session, counts))
         with engine.begin() as con:

@@ -1,7 +1,9 @@
 # Reconstructed Table 1 and the reproduction report (calibration + report owner).
-# Inputs: the sweeps, the catalogue (plane cells) and the standard-parameter file; the
-# calibration record docs/calibration.json is read when present (it is produced offline by
-# `gearsim calibrate`, a long search that is not part of the workflow).
+# The report reads exactly its declared inputs: the configured sweeps, the catalogue (plane
+# cells), each plane's cells and numerical audit, Table 1 and, when the repository has it, the
+# calibration record docs/calibration.json (produced offline by `gearsim calibrate`, a long
+# search that is not part of the workflow). Its planes and sweeps come from the config.
+CALIBRATION = Path(workflow.basedir, "docs/calibration.json")
 
 
 rule table1:
@@ -22,7 +24,11 @@ rule report:
     input:
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
         catalogue=CATALOGUE,
+        cells=expand("results/{plane}/cells.parquet", plane=PLANES),
+        audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
+        calibration=[str(CALIBRATION)] if CALIBRATION.is_file() else [],
         table1="results/table1.md",
+        config=CONFIG,
     output:
         "results/report.md",
     log:
@@ -30,10 +36,12 @@ rule report:
     conda:
         GEARSIM_ENV
     params:
+        calibration=str(CALIBRATION),
         code_version=CODE_VERSION,
     shell:
         "gearsim report --sweeps results/sweeps --catalogue {input.catalogue} "
-        "--results results --out {output} > {log} 2>&1"
+        "--results results --calibration {params.calibration} --configfile {input.config} "
+        "--out {output} > {log} 2>&1"
 
 
 ALL_TARGETS += ["results/table1.md", "results/table1.csv", "results/report.md"]

@@ -41,6 +41,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
     b.add_argument("--sweeps", nargs="*", default=[], help="sweep Parquet files")
     b.add_argument("--audits", nargs="*", default=[], help="audit Parquet files")
+    b.add_argument("--attractors", nargs="*", default=[],
+                   help="attractor tile files (gearsim attractor-tile)")
+    b.add_argument("--orbits", nargs="*", default=[],
+                   help="bifurcation points / curves and refine-orbits Parquet files "
+                   "(docs/orbits.md)")
     b.add_argument("--out", required=True, help="the catalogue file to write (the rule's output)")
     b.add_argument(
         "--publish",
@@ -213,12 +218,14 @@ def _audit(args) -> int:
 def _build(args) -> int:
     from .. import catalogue
 
-    for f in [*args.cells, *args.sweeps, *args.audits]:
+    for f in [*args.cells, *args.sweeps, *args.audits, *args.orbits]:
         if not Path(f).is_file():
             raise UsageError(f"input file not found: {f}")
     t0 = time.perf_counter()
     counts = catalogue.build_catalogue(
-        args.out, args.cells, args.sweeps, args.audits, publish_to=args.publish
+        args.out, args.cells, args.sweeps, args.audits, publish_to=args.publish,
+        attractor_files=args.attractors,
+        orbit_files=args.orbits,
     )
     summary = ", ".join(f"{k}={v}" for k, v in counts.items())
     where = f" -> {args.publish}" if args.publish else ""

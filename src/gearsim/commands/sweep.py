@@ -59,7 +59,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def sweep_frame(
     base, name: str, values: np.ndarray, direction: str, settings, progress=None
 ) -> pd.DataFrame:
-    """The rows of :func:`gearsim.sweep.orbit_diagram` plus final_state/final_period/elapsed_s."""
+    """The rows of :func:`gearsim.sweep.orbit_diagram` plus final_state/final_period/elapsed_s.
+
+    ``direction="both"``: the forward rows, then the backward rows (hysteresis in one job).
+    """
+    if direction == "both":
+        return pd.concat(
+            [sweep_frame(base, name, values, d, settings, progress)
+             for d in ("forward", "backward")],
+            ignore_index=True,
+        )  # fmt: skip
+
     vals = np.sort(np.asarray(values, dtype=float))
     if direction == "backward":
         vals = vals[::-1]
