@@ -43,7 +43,7 @@ def test_configs_load():
         cfg = gcfg.load_config([DEFAULT, *(ROOT / "config" / e for e in extra)])
         assert set(cfg["planes"]) == {"wb", "wxi"}
         assert set(cfg["sweeps"]) == {
-            "standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"
+            "standard", "b015", "b025", "b035", "xi005", "xi009", "xi015", "hysteresis"
         }
     full = gcfg.load_config(DEFAULT)
     assert full["planes"]["wb"]["x"]["n"] * full["planes"]["wb"]["y"]["n"] == 160_000

@@ -36,7 +36,7 @@ rule report:
     conda:
         GEARSIM_ENV
     params:
-        calibration=str(CALIBRATION),
+        calibration=lambda wildcards: str(CALIBRATION),  # a function: `snakemake --lint` clean
         code_version=CODE_VERSION,
     shell:
         "gearsim report --sweeps results/sweeps --catalogue {input.catalogue} "
