@@ -356,21 +356,6 @@ def test_catalogue_stays_valid_through_rebuilds(study, tmp_path):
     assert [p.name for p in build.parent.iterdir()] == ["build.sqlite"]
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
-def test_read_only_directory_keeps_the_old_catalogue(study, tmp_path, gearsim):
-    d = tmp_path / "ro"
-    d.mkdir()
-    (d / "build.sqlite").write_bytes(b"old")
-    d.chmod(0o555)
-    try:
-        r = gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], "--out",
-                     d / "build.sqlite"], cwd=tmp_path)
-    finally:
-        d.chmod(0o755)
-    _refused(r, ["cannot write it"])
-    assert (d / "build.sqlite").read_bytes() == b"old"
-
-
 def test_unwritable_output_is_one_line(study, tmp_path, gearsim):
     """The output's directory is a file (as on a full or broken disk, the write fails)."""
     (tmp_path / "blocker").write_text("a file where a directory should be")

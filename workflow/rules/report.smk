@@ -36,11 +36,11 @@ rule report:
     conda:
         GEARSIM_ENV
     params:
-        calibration=lambda wildcards: str(CALIBRATION),  # a function: `snakemake --lint` clean
+        calibration=lambda wildcards, input: input.calibration or "",
         code_version=CODE_VERSION,
     shell:
         "gearsim report --sweeps results/sweeps --catalogue {input.catalogue} "
-        "--results results --calibration {params.calibration} --configfile {input.config} "
+        "--results results --calibration {params.calibration:q} --configfile {input.config} "
         "--out {output} > {log} 2>&1"
 
 

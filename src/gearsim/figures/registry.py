@@ -468,12 +468,6 @@ def register(spec: FigureSpec) -> FigureSpec:
     return spec
 
 
-def _register_group(numbers: tuple[int, ...], captions: dict[int, str], inputs: Inputs,
-                    builder, **kw) -> None:
-    for n in numbers:
-        register(FigureSpec(n, captions[n], inputs, builder, group=numbers, **kw))
-
-
 @dataclass(frozen=True)
 class MapSpec:
     """A map drawn for every plane of a study, whatever its two axes
