@@ -15,6 +15,7 @@ configfile: "config/config.yaml"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/points.smk"
+include: "workflow/rules/multistability.smk"
 include: "workflow/rules/planes.smk"
 
 
@@ -22,6 +23,11 @@ include: "workflow/rules/planes.smk"
 if Path(workflow.basedir, "workflow/rules/figures.smk").exists():
 
     include: "workflow/rules/figures.smk"
+
+
+if Path(workflow.basedir, "workflow/rules/orbits.smk").exists():
+
+    include: "workflow/rules/orbits.smk"
 
 
 if Path(workflow.basedir, "workflow/rules/report.smk").exists():

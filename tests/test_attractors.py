@@ -205,3 +205,71 @@ def test_bad_settings_rejected():
         sobol_unit(0, 1)
     with pytest.raises(ParameterError, match="chunk"):
         map_attractors(Duffing([1.0]), 1, [np.zeros((1, 2))], chunk=0)
+
+
+def test_forward_backward_sweeps_differ_only_inside_fold_band():
+    """The standard set's softening fold: the increasing-w sweep jumps up, the decreasing-w
+    sweep jumps down at a lower w, and the two sweeps differ exactly between the jumps."""
+    from pathlib import Path
+
+    from gearsim.attractors import hysteresis
+    from gearsim.commands.sweep import sweep_frame
+    from gearsim.config_io import load_standard_parameters
+
+    root = Path(__file__).resolve().parents[1]
+    base = ModelParameters.from_mapping(
+        load_standard_parameters(root / "config/standard_parameters.yaml")
+    )
+    vals = np.round(np.arange(0.40, 0.9001, 0.01), 10)
+    st = IntegrationSettings(method="rk4", transient=150, transient_continuation=40)
+    df = sweep_frame(base, "w", vals, "both", st)
+    assert list(df["direction"].unique()) == ["forward", "backward"]
+    h = hysteresis(df)
+    lo, hi = h.band
+    assert 0.45 < lo < hi < 0.85 and hi - lo >= 0.03
+    assert h.jump_forward == hi and h.jump_backward == lo  # softening: jump up at the upper end
+    assert h.dc_forward[1] > h.dc_forward[0] + 0.15  # DC jumps up going forward
+    assert h.dc_backward[1] < h.dc_backward[0] - 0.15  # and down going backward
+    inside = [float(v) for v in vals if lo < v < hi]
+    assert len(inside) >= 3
+    assert h.differ == pytest.approx(inside)
+    assert any("hysteresis band" in line for line in h.lines())
+
+
+def _synthetic_sweeps():
+    """Hand-built fold: forward stays on the DC = 0 branch up to w = 0.67, backward on the
+    DC ~ 0.6 branch down to w = 0.58 (so the band is 0.575 ... 0.675 between the midpoints)."""
+    import pandas as pd
+
+    ws = np.round(np.arange(0.50, 0.751, 0.01), 10)
+    rows = []
+    for d, order in (("forward", ws), ("backward", ws[::-1])):
+        for w in order:
+            upper = w >= 0.68 if d == "forward" else w >= 0.58
+            rows.append({"parameter": "w", "value": float(w), "direction": d,
+                         "label": "1/1T" if upper else "0/1T",
+                         "label_npq": "1-1-0" if upper else "1-0-0", "I": 1 if upper else 0,
+                         "n": 1, "p": 1 if upper else 0, "q": 0, "motion": "periodic",
+                         "dc": 0.6 if upper else 0.0, "kmax": 1.0,
+                         "poincare_x": [1.0 if upper else 0.3], "poincare_v": [0.0]})
+    return pd.DataFrame(rows)
+
+
+def test_hysteresis_of_a_hand_built_fold_and_its_figure(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from gearsim.attractors import hysteresis
+    from gearsim.figures.multistability import figure_hysteresis
+    from gearsim.figures.registry import figures
+
+    h = hysteresis(_synthetic_sweeps())
+    assert h.jump_forward == pytest.approx(0.675) and h.jump_backward == pytest.approx(0.575)
+    assert h.band == pytest.approx((0.575, 0.675))
+    assert h.differ == pytest.approx([0.58, 0.59, 0.60, 0.61, 0.62, 0.63, 0.64, 0.65, 0.66,
+                                      0.67])  # fmt: skip
+    fig, _ = figure_hysteresis(_synthetic_sweeps())
+    fig.savefig(tmp_path / "h.png")
+    assert {18, 19, 20} <= set(figures())
+    with pytest.raises(ParameterError, match="backward"):
+        hysteresis(_synthetic_sweeps().query("direction == 'forward'"))

@@ -23,21 +23,31 @@ import yaml
 from synthetic_tiles import tile_frame, write_tile
 
 from gearsim import catalogue as gc
-from gearsim import tiles as gt
+from gearsim import config as gcfg
+from gearsim import grid as ggrid
 from gearsim.commands.catalogue import plane_record
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _gearsim(args, cwd, timeout=60):
-    env = dict(os.environ)
-    env.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
-    env["PYTHONPATH"] = str(ROOT / "src")
-    t0 = time.monotonic()
-    r = subprocess.run([sys.executable, "-m", "gearsim", *map(str, args)], cwd=cwd, env=env,
-                       capture_output=True, text=True, timeout=timeout)
-    r.seconds = time.monotonic() - t0
-    return r
+class _Result:
+    def __init__(self, returncode, stderr, seconds):
+        self.returncode, self.stderr, self.seconds = returncode, stderr, seconds
+
+
+@pytest.fixture()
+def gearsim(capsys, monkeypatch):
+    """Run the CLI in-process (interpreter start-up excluded from the time) from ``cwd``."""
+    from gearsim.cli import main
+
+    def run(args, cwd):
+        monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        t0 = time.monotonic()
+        code = main([str(a) for a in args])
+        return _Result(code, capsys.readouterr().err, time.monotonic() - t0)
+
+    return run
 
 
 def _refused(r, words):
@@ -64,8 +74,8 @@ def study(tmp_path_factory):
     cfg_file = d / "study.yaml"
     cfg_file.write_text(yaml.safe_dump(over))
     config_yaml = ROOT / "config/config.yaml"
-    cfg = gt.load_config([config_yaml, ROOT / "config/tiny.yaml", cfg_file], root=ROOT)
-    tiles = {p: [write_tile(cfg, p, t, d / p / f"{t}.parquet") for t in gt.tile_ids(cfg, p)]
+    cfg = gcfg.load_config([config_yaml, ROOT / "config/tiny.yaml", cfg_file], root=ROOT)
+    tiles = {p: [write_tile(cfg, p, t, d / p / f"{t}.parquet") for t in ggrid.tile_ids(cfg, p)]
              for p in ("wb", "wxi")}
     cells = {p: gc.combine_tiles(tiles[p], d / p / "cells.parquet", plane_record(cfg, p))
              for p in ("wb", "wxi")}
@@ -131,11 +141,11 @@ TILE_CASES = [
 
 
 @pytest.mark.parametrize("case", TILE_CASES, ids=[c[0] for c in TILE_CASES])
-def test_bad_tile_is_refused(study, tmp_path, case):
+def test_bad_tile_is_refused(study, tmp_path, gearsim, case):
     _, make, words = case
     tiles = make(study, tmp_path)
     out = tmp_path / "out" / "cells.parquet"
-    r = _gearsim(["catalogue", "cells", "--plane", "wb", "--tiles", *tiles, *study["conf"],
+    r = gearsim(["catalogue", "cells", "--plane", "wb", "--tiles", *tiles, *study["conf"],
                   "--out", out], cwd=ROOT)  # the config names config/standard_parameters.yaml
     _refused(r, ["gearsim catalogue: error:", *words])
     assert not out.exists()
@@ -188,21 +198,21 @@ BUILD_CASES = [
 
 
 @pytest.mark.parametrize("case", BUILD_CASES, ids=[c[0] for c in BUILD_CASES])
-def test_bad_plane_file_is_refused(study, tmp_path, case):
+def test_bad_plane_file_is_refused(study, tmp_path, gearsim, case):
     _, make, words = case
     files = make(study, tmp_path)
     out, pub = tmp_path / "build.sqlite", tmp_path / "catalogue.sqlite"
     pub.write_bytes(b"previous")
-    r = _gearsim(["catalogue", "build", "--cells", *files, "--out", out, "--publish", pub],
+    r = gearsim(["catalogue", "build", "--cells", *files, "--out", out, "--publish", pub],
                  cwd=tmp_path)
     _refused(r, ["gearsim catalogue: error:", *words])
     assert not out.exists() and pub.read_bytes() == b"previous"
     assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
 
 
-def test_good_build_has_every_cell_once(study, tmp_path):
+def test_good_build_has_every_cell_once(study, tmp_path, gearsim):
     out = tmp_path / "build.sqlite"
-    r = _gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], study["cells"]["wxi"],
+    r = gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], study["cells"]["wxi"],
                   "--out", out, "--publish", tmp_path / "catalogue.sqlite"], cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     con = gc.open_catalogue(tmp_path / "catalogue.sqlite")
@@ -253,8 +263,8 @@ READER_FILES = [
 
 
 @pytest.mark.parametrize("case", READER_FILES, ids=[c[0] for c in READER_FILES])
-@pytest.mark.parametrize("command", ["query"])
-def test_readers_refuse_what_is_not_a_catalogue(tmp_path, case, command):
+@pytest.mark.parametrize("command", ["query", "export"])
+def test_readers_refuse_what_is_not_a_catalogue(tmp_path, gearsim, case, command):
     _, make, words = case
     db = make(tmp_path / "catalogue.sqlite")
     before = db.read_bytes() if db.exists() else None
@@ -263,7 +273,7 @@ def test_readers_refuse_what_is_not_a_catalogue(tmp_path, case, command):
     else:
         args = ["export", "--catalogue", db, "--plane", "wb", "--format", "csv", "--out",
                 tmp_path / "wb.csv"]
-    r = _gearsim(args, cwd=tmp_path)
+    r = gearsim(args, cwd=tmp_path)
     _refused(r, [f"gearsim {command}: error:", *words])
     assert (db.read_bytes() if db.exists() else None) == before
     assert not (tmp_path / "wb.csv").exists()
@@ -344,3 +354,49 @@ def test_catalogue_stays_valid_through_rebuilds(study, tmp_path):
     assert len(reader.counts) > 20
     # the killed build's temporary file was removed by the next build
     assert [p.name for p in build.parent.iterdir()] == ["build.sqlite"]
+
+
+def test_unwritable_output_is_one_line(study, tmp_path, gearsim):
+    """The output's directory is a file (as on a full or broken disk, the write fails)."""
+    (tmp_path / "blocker").write_text("a file where a directory should be")
+    pub = tmp_path / "catalogue.sqlite"
+    pub.write_bytes(b"previous")
+    r = gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], "--out",
+                 tmp_path / "blocker/build.sqlite", "--publish", pub], cwd=tmp_path)
+    _refused(r, ["blocker"])
+    assert pub.read_bytes() == b"previous"
+
+
+@pytest.mark.slow
+def test_snakemake_rebuilds_keep_the_catalogue_readable(tiny_run, tmp_path):
+    """The real workflow: a forced rebuild that succeeds and one that fails mid-build (a sweep
+    file damaged after the planes went in), queries on results/catalogue.sqlite throughout."""
+    from workflow_helpers import smk
+
+    wd = tmp_path / "wd"
+    shutil.copytree(tiny_run[0], wd, symlinks=True,
+                    ignore=shutil.ignore_patterns(".snakemake"))
+    pub = wd / "results/catalogue.sqlite"
+    target = "results/catalogue.d/build.sqlite"
+    n_cells = gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0]
+    reader = Reader(pub)
+    reader.start()
+    try:
+        smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml",
+            "--forcerun", "catalogue")
+        assert (wd / target).exists() and os.path.samefile(wd / target, pub)
+        sweep = wd / "results/sweeps/b015.parquet"
+        good = sweep.read_bytes()
+        sweep.write_bytes(good[: len(good) // 2])
+        r = smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml", check=False)
+        assert r.returncode != 0
+        log = (wd / "logs/catalogue.log").read_text()
+        assert "b015.parquet: not a readable Parquet file" in log, log
+        assert not (wd / target).exists()
+        time.sleep(0.3)
+    finally:
+        reader.stop.set()
+        reader.join(10)
+    assert reader.errors == []
+    assert set(reader.counts) == {n_cells} and len(reader.counts) > 20
+    assert gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0] == n_cells

@@ -24,7 +24,7 @@ from gearsim.classify import Classification  # noqa: E402
 from gearsim.cli import main  # noqa: E402
 from gearsim.figures import bifurcation, phase, planes, schematic, spectra, style  # noqa: E402
 from gearsim.figures.data import PointMotion, plane_axes, spectrum  # noqa: E402
-from gearsim.figures.registry import PAPER_CAPTIONS, Context, build, sweep_title  # noqa: E402
+from gearsim.figures.registry import FIGURES, Context, build, sweep_title  # noqa: E402
 from gearsim.parameters import ModelParameters  # noqa: E402
 from gearsim.simulate import CellResult, IntegrationSettings, Trajectory  # noqa: E402
 
@@ -298,7 +298,7 @@ def test_cli_fig1_and_index(tmp_path, monkeypatch):
     for ext in ("png", "pdf", "json"):
         assert (tmp_path / f"fig01.{ext}").stat().st_size > 1000 or ext == "json"
     rec = json.loads((tmp_path / "fig01.json").read_text())
-    assert rec["paper_caption"] == PAPER_CAPTIONS[1] and rec["differences"]
+    assert rec["paper_caption"] == FIGURES[1].paper_caption and rec["differences"]
     index = (tmp_path / "README.md").read_text()
     assert "## Fig 1" in index and "## Fig 17" in index and "Not built yet" in index
 

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import re
 
+import pytest
 from workflow_helpers import make_workdir, smk
 
+from gearsim.figures import registry
 from gearsim.figures import rules as gfr
 
 
@@ -20,15 +22,47 @@ def test_dry_run_plans_every_figure(tmp_path):
     wd = make_workdir(tmp_path)
     r = smk(wd, "-n", "-p", "results/figures/README.md", "--configfile", "config/tiny.yaml")
     jobs = _jobs(r.stdout)
-    assert jobs["figure"] == len(gfr.FIGURE_INPUTS) == 14
-    assert jobs["figures_double_sided"] == 1 and jobs["figures_index"] == 1
-    assert "gearsim figures --fig 04 --sweep standard=results/sweeps/standard.parquet" in r.stdout
-    assert "--plane wb=results/wb/cells.parquet" in r.stdout
+    singles = [f"figure_{n:02d}" for n in (1, 2, 3, 4, 5, 6, 7, 8, 12, 13, 14, 15, 16, 17)]
+    assert all(jobs[name] == 1 for name in singles), jobs
+    assert jobs["figure_09_10_11"] == 1 and jobs["figures_index"] == 1
+    assert jobs["plane_maps"] == 2  # wb and wxi
+    assert "gearsim figures --fig 4 --sweep standard=results/sweeps/standard.parquet" in r.stdout
+    assert "--fig 9 10 11 --sweep b015=results/sweeps/b015.parquet" in r.stdout
+    assert "--fig 5 --points fig5=results/points/fig5.parquet" in r.stdout
+    assert "--fig 7 --plane wb=results/wb/cells.parquet" in r.stdout
+    assert "gearsim figures --maps --plane wb=results/wb/cells.parquet" in r.stdout
 
 
-def test_unconfigured_plane_drops_its_figures():
-    sweeps = ["standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"]
-    built = gfr.built_figures(sweeps, ["wb"], ["fig5", "fig6", "fig9_11"])
-    assert 14 not in built and 16 not in built and 17 not in built
-    assert {1, 2, 3, 4, 7, 9, 10, 11, 12, 13, 15} <= set(built)
-    assert gfr.built_figures([], [], []) == [1]
+def test_one_table_drives_rules_cli_and_index():
+    """The rules' inputs and CLI arguments are those of the figure table, for every figure."""
+    for spec in gfr.groups(["standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"],
+                           ["wb", "wxi"], ["fig5", "fig6", "fig9_11"]):
+        paths = gfr.input_paths(spec)
+        args = gfr.cli_args(spec)
+        for name, path in zip(spec.inputs.sweeps, paths["sweeps"], strict=True):
+            assert f"--sweep {name}={path}" in args
+        for name, path in zip(spec.inputs.planes, paths["planes"], strict=True):
+            assert f"--plane {name}={path}" in args
+        assert gfr.outputs(spec)["png"] == [f"results/figures/fig{n:02d}.png"
+                                            for n in spec.members]
+    # Figs 5 and 6 read their recorded points (the two tables disagreed before)
+    assert gfr.input_paths(registry.FIGURES[5])["points"] == ["results/points/fig5.parquet"]
+
+
+def test_a_new_figure_registers_in_one_place():
+    def build_new(ctx):
+        return []
+
+    n = max(registry.figures()) + 1
+    spec = registry.register(registry.FigureSpec(
+        n, "Basins in the (w, b) plane.", registry.Inputs(planes=("wb",)), build_new,
+        in_paper=False))
+    try:
+        assert n in gfr.built_figures([], ["wb"], [])
+        assert n not in gfr.built_figures([], ["wxi"], [])
+        assert gfr.cli_args(spec) == f"--fig {n} --plane wb=results/wb/cells.parquet"
+        assert gfr.rule_name(spec) == f"figure_{n:02d}"
+        with pytest.raises(ValueError, match="registered twice"):
+            registry.register(registry.FigureSpec(n, "x", registry.Inputs(), lambda c: []))
+    finally:
+        registry.FIGURES.pop(n)

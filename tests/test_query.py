@@ -146,3 +146,125 @@ def test_with_select_is_allowed(db):
     sql = "WITH t AS (SELECT label FROM plane_cells) SELECT COUNT(*) AS n FROM t"
     cols, rows = execute(db, sql)
     assert cols == ["n"] and rows == [(NX * NY * 2,)]
+
+
+# --------------------------------------------------------------- limits and guards (14.2, 13.6)
+COUNT = "SELECT i, j, label FROM plane_cells ORDER BY plane, j, i"
+ENDLESS = "WITH RECURSIVE n(k) AS (SELECT 1 UNION ALL SELECT k + 1 FROM n) SELECT k FROM n"
+
+
+def _gen(n):
+    return f"WITH RECURSIVE n(k) AS (SELECT 1 UNION ALL SELECT k + 1 FROM n WHERE k < {n}) " \
+           "SELECT k FROM n"
+
+
+@pytest.mark.parametrize(
+    "fmt, max_rows, sql, lines, cut",
+    [
+        ("csv", ["--max-rows", "-1"], COUNT, 1 + 2 * NX * NY, False),  # -1 drops no row
+        ("csv", [], _gen(2500), 2501, False),  # file formats stream every row by default
+        ("json", [], _gen(2500), 2 + 2500, False),
+        ("csv", ["--max-rows", "10"], _gen(2500), 11, True),
+        ("csv", ["--max-rows", "80"], COUNT, 81, False),  # exactly the limit: nothing cut
+        ("table", [], _gen(2500), 2 + 1000 + 1, True),  # the table shows 1000 by default
+        ("table", ["--max-rows", "-1"], _gen(2500), 2 + 2500 + 1, False),
+        ("table", [], ENDLESS, 2 + 1000 + 1, True),  # endless CTE: the fetch is bounded
+    ],
+)
+def test_row_limit(db, capsys, fmt, max_rows, sql, lines, cut):
+    assert main(["query", "--db", str(db), "--format", fmt, *max_rows, sql]) == 0
+    out, err = capsys.readouterr()
+    assert len(out.splitlines()) == lines
+    if cut:
+        assert "output cut at" in err and err.count("\n") == 1
+        if fmt == "table":
+            assert out.splitlines()[-1] == "(1000 rows, more not shown)"
+    else:
+        assert err == ""
+    if fmt == "json":
+        import json
+
+        assert [r["k"] for r in json.loads(out)] == list(range(1, 2501))
+
+
+def test_max_rows_minus_one_returns_every_row(db):
+    cols, rows = execute(db, COUNT)
+    assert len(rows) == 2 * NX * NY == 80
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--format", "csv", "--max-rows", "-1", "--timeout", "1", ENDLESS], ["stopped after 1 s"]),
+        (["--timeout", "1", "SELECT COUNT(*) FROM cells a, cells b, cells c, cells d, cells e"],
+         ["stopped after 1 s"]),
+        (["--max-rows", "-2", "SELECT 1"], ["--max-rows", "-1"]),
+        (["--timeout", "0", "SELECT 1"], ["--timeout"]),
+        (["--timeout", "nan", "SELECT 1"], ["--timeout"]),
+        (["SELECT fts3_tokenizer('simple')"], ["only reading"]),
+        (["SELECT load_extension('x')"], ["only reading"]),
+        (["SELECT length(randomblob(1000000000))"], ["only reading"]),
+        (["SELECT zeroblob(10)"], ["only reading"]),
+        (["SELECT * FROM pragma_table_info('cells')"], ["only reading"]),
+        (["SELECT writefile('x', 'y')"], ["writefile"]),
+        (["-- only a comment"], ["only SELECT"]),
+    ],
+)
+def test_refused_with_one_line(db, capsys, args, words):
+    import time
+
+    t0 = time.monotonic()
+    assert main(["query", "--db", str(db), *args]) == 2
+    assert time.monotonic() - t0 < 5
+    err = capsys.readouterr().err
+    assert err.startswith("gearsim query: error:") and err.count("\n") == 1, err
+    for w in words:
+        assert w in err, (w, err)
+
+
+@pytest.mark.parametrize(
+    "sql, want",
+    [
+        ("-- how many cells\nSELECT COUNT(*) AS n FROM cells", [(80,)]),
+        ("/* block */ SELECT COUNT(*) AS n FROM cells -- trailing", [(80,)]),
+        ("SELECT round(abs(-1.26), 1) AS v", [(1.3,)]),
+        ("SELECT json_extract(fixed, '$') AS v FROM planes WHERE name = 'wb'", [("{}",)]),
+        ("SELECT group_concat(DISTINCT label) AS v FROM cells WHERE impact = 2 AND label = '2/1T'",
+         [("2/1T",)]),
+        ("SELECT COUNT(*) FROM (SELECT row_number() OVER (ORDER BY id) FROM cells)", [(80,)]),
+        ("SELECT unit FROM column_dictionary WHERE table_name = 'cells' AND column_name = 'x_max'",
+         [("1 (X_n / b_c)",)]),
+    ],
+)
+def test_allowed_reads(db, sql, want):
+    assert execute(db, sql)[1] == want
+
+
+def test_blob_and_non_finite_values_in_json_and_csv(db, capsys):
+    import json
+
+    sql = "SELECT x'00ff10' AS b, 1e999 AS big, 'text' AS t"
+    assert main(["query", "--db", str(db), "--format", "json", sql]) == 0
+    assert json.loads(capsys.readouterr().out) == [{"b": "AP8Q", "big": None, "t": "text"}]
+    assert main(["query", "--db", str(db), "--format", "csv", sql]) == 0
+    assert capsys.readouterr().out.splitlines() == ["b,big,t", "AP8Q,,text"]
+    assert main(["query", "--db", str(db), sql]) == 0
+    assert "<3 bytes>" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("fmt", ["table", "csv", "json"])
+def test_closed_pipe_is_quiet(db, fmt):
+    """`gearsim query ... | head -1`: the reader leaves early; no traceback, no error."""
+    import os
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "gearsim", "query", "--db", str(db), "--format", fmt,
+         "--max-rows", "-1", _gen(200_000)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    proc.stdout.readline()
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 0
+    assert err == "", err

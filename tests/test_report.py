@@ -95,22 +95,3 @@ def test_report_cli_reads_sweeps_and_cells(tmp_path):
                  "--calibration", str(tmp_path / "none.json"), "--out", str(out)]) == 0
     text = out.read_text()
     assert "b: no double-sided impact above | 0.4125 | 0.4" in text
-
-
-def test_cells_from_sqlite_catalogue(tmp_path):
-    import sqlite3
-
-    from gearsim.report import load_plane
-
-    db = tmp_path / "c.sqlite"
-    # the pipeline's layout: cells(plane_id, x, y, impact, ...) joined to planes(id, name)
-    df = (plane_wb().assign(plane_id=1).rename(columns={"I": "impact", "w": "x", "b": "y"})
-          .drop(columns=["p", "q"]))
-    with sqlite3.connect(db) as con:
-        df.to_sql("cells", con, index=False)
-        pd.DataFrame({"id": [1, 2], "name": ["wb", "wxi"]}).to_sql("planes", con, index=False)
-    got = load_plane("wb", catalogue=db, results=tmp_path)
-    assert len(got) == len(df) and "I" in got.columns
-    assert load_plane("wxi", catalogue=db, results=tmp_path) is None
-    rep = analyse({}, {"wb": got})
-    assert rep.b_threshold.last_with < 0.41 < rep.b_threshold.first_without

@@ -26,9 +26,10 @@ Algorithm per cell (all cells and starts of a call advance together as SIMD lane
 2. The other starts advance ``chunk`` periods at a time. After each chunk every start's last
    section points are compared with the attractors found so far (*recurrence*): a start whose
    last ``max(2 n, confirm)`` points follow a period-``n`` attractor's points in phase order,
-   each within ``recur_rtol`` of the attractor's scale, or whose last ``confirm_cloud`` points
-   all fall in the (one-cell dilated) grid occupancy of a non-periodic attractor, is labelled
-   and stops. A start that diverges is recorded as divergent.
+   each within ``recur_rtol`` of the attractor's scale, and themselves repeat after ``n``
+   periods within ``period_rtol`` (the classifier's own period test), or whose last
+   ``confirm_cloud`` points all fall in the (one-cell dilated) grid occupancy of a
+   non-periodic attractor, is labelled and stops. A start that diverges is recorded as divergent.
    Every ``rescout`` periods the first still unlabelled start of each cell is promoted to a
    scout: its full-length run continues from where it is (so it is exactly its full-length
    run) and its motion joins the list the others are tested against.
@@ -36,11 +37,13 @@ Algorithm per cell (all cells and starts of a call advance together as SIMD lane
    classification exactly as their full-length run would (same state, remaining transient 0),
    and their steady motions are merged into the list.
 
-Merging: two steady motions are the same attractor when both have the same period ``n > 0`` and
-each section point of one lies within ``merge_rtol * scale`` of a point of the other (so any
-cyclic shift matches), or when both are non-periodic and at least ``cloud_overlap`` of each
-cloud's points fall in the dilated grid occupancy (``grid`` x ``grid`` over the joint bounding
-box) of the other.
+Merging: starts that did not settle within the budget (status ``unsettled``) form one entry
+per cell (label ``unsettled``, never labelled early). Two steady motions are the same attractor
+when both have the same period ``n > 0`` and each section point of one lies within
+``merge_rtol * scale`` of a point of the other (so any cyclic shift matches), or when both are
+non-periodic and at least ``cloud_overlap`` of each cloud's points fall in the dilated grid
+occupancy of the other (``g x g`` cells over the joint bounding box, ``g = grid`` or fewer for
+sparse clouds: ``g <= 2 sqrt(points)``, at least 4; so a cell holds ~2 points on average).
 
 Basin fraction of an attractor: its share of the ``K`` random starts (continuation states are
 not samples and are not counted; an attractor found only by continuation has fraction 0).
@@ -56,6 +59,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+import pandas as pd
 
 from .parameters import ModelParameters, ParameterError
 
@@ -73,7 +77,7 @@ class Steady:
     the matching tolerances (system units); ``info`` the classification record.
     """
 
-    status: str  # "ok" or "diverged" (any other status is an attractor of its own label)
+    status: str  # "ok", "unsettled" (no steady motion within the budget) or "diverged"
     period: int
     points: np.ndarray
     scale_x: float
@@ -221,6 +225,9 @@ def same_attractor(
     """Whether two steady motions are one attractor (see the module docstring)."""
     if a.status == "diverged" or b.status == "diverged":
         return False
+    if a.status == "unsettled" or b.status == "unsettled":
+        # not settled within the budget: one bucket per cell, never a real attractor
+        return a.status == b.status
     if a.period > 0 or b.period > 0:
         if a.period != b.period:
             return False
@@ -229,6 +236,8 @@ def same_attractor(
         return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
     both = np.vstack([a.points[:, :2], b.points[:, :2]])
     lo, hi = _cloud_box(both, pad=0.0)
+    # a sparse cloud fills few cells of a fine grid: ~2 points per cell on average at least
+    grid = int(max(4, min(grid, 2 * math.isqrt(max(min(len(a.points), len(b.points)), 1)))))
     occ_a = _occupancy(a.points, lo, hi, grid)
     occ_b = _occupancy(b.points, lo, hi, grid)
     fa = float(np.mean(_in_occupancy(a.points, occ_b, lo, hi)))
@@ -242,6 +251,7 @@ class _Known:
     def __init__(self, opts: _Options):
         self.opts = opts
         self.steadies: list[Steady] = []
+        self.ambiguous: list[bool] = []
         self._clouds: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = []
 
     def add(self, s: Steady) -> int:
@@ -255,8 +265,19 @@ class _Known:
             ):
                 return k
         self.steadies.append(s)
+        self.ambiguous.append(False)
         if s.period > 0:
-            self._clouds.append(None)
+            # a period-n and a period-2n motion close together: the cell sits at a period
+            # doubling, where the full-length label depends on how far a slowly decaying
+            # alternation has decayed; no early labelling onto either (their starts run full)
+            for k, t in enumerate(self.steadies[:-1]):
+                if t.period > 0 and max(s.period, t.period) == 2 * min(s.period, t.period):
+                    tx, tv = _tolerances(s, t, self.opts.doubling_rtol)
+                    ps, pt = s.points[-s.period :, :2], t.points[-t.period :, :2]
+                    if _near_all(ps, pt, tx, tv) and _near_all(pt, ps, tx, tv):
+                        self.ambiguous[k] = self.ambiguous[-1] = True
+        if s.period > 0 or s.status == "unsettled":
+            self._clouds.append(None)  # no cloud: unsettled starts are never labelled early
         else:
             lo, hi = _cloud_box(s.points)
             self._clouds.append((_occupancy(s.points, lo, hi, o.grid), lo, hi))
@@ -273,12 +294,12 @@ class _Known:
         out = np.full(k, -1, dtype=np.int64)
         # periodic attractors first (a periodic start must never be taken for a cloud)
         for a, s in enumerate(self.steadies):
-            if s.period <= 0:
+            if s.period <= 0 or self.ambiguous[a]:
                 continue
             n = s.period
-            need = min(max(2 * n, o.confirm), L)
-            rows = np.nonzero((out < 0) & (filled >= need))[0]
-            if len(rows) == 0:
+            need = min(max(2 * n, o.confirm), L - n)
+            rows = np.nonzero((out < 0) & (filled >= need + n))[0]
+            if len(rows) == 0 or need < 1:
                 continue
             w = hist[rows, L - need :, :2]  # (r, need, 2)
             pts = s.points[-n:, :2]
@@ -291,7 +312,14 @@ class _Known:
             dmin = np.take_along_axis(d, j[:, :, None], axis=2)[:, :, 0]
             close = np.all(dmin <= 1.0, axis=1)
             phase = np.all((j - j[:, :1] - np.arange(need)[None, :]) % n == 0, axis=1)
-            out[rows[close & phase]] = a
+            # the start itself passes the period-n test the classifier would apply (so a
+            # nearby period-2n motion, e.g. just past a period doubling, is not taken for it)
+            prev = hist[rows, L - need - n : L - n, :2]
+            px = o.period_rtol * max(s.scale_x, 1e-9)
+            pv = o.period_rtol * max(s.scale_v, 1e-9)
+            periodic = np.all((np.abs(w[:, :, 0] - prev[:, :, 0]) <= px)
+                              & (np.abs(w[:, :, 1] - prev[:, :, 1]) <= pv), axis=1)  # fmt: skip
+            out[rows[close & phase & periodic]] = a
         for a in range(len(self.steadies)):
             cloud = self._clouds[a]
             if cloud is None:
@@ -317,6 +345,8 @@ class _Options:
     cloud_overlap: float = 0.5
     scouts: int = 1
     rescout: int = 24
+    period_rtol: float = 1e-5
+    doubling_rtol: float = 0.05
 
 
 # ============================================================================ the engine
@@ -338,6 +368,7 @@ def map_attractors(
     cloud_overlap: float = 0.5,
     scouts: int = 1,
     rescout: int = 24,
+    period_rtol: float = 1e-5,
 ) -> list[CellAttractors]:
     """Attractors of ``n_cells`` cells of ``system`` from the start states ``starts[c]``.
 
@@ -357,6 +388,10 @@ def map_attractors(
         See the module docstring; ``scouts`` random starts per cell get full-length runs first,
         and every ``rescout`` probed periods (a multiple of ``chunk``; 0: never) the first
         still unlabelled start of each cell gets its full-length run too.
+    period_rtol
+        A start is labelled onto a period-``n`` attractor only when its own last points also
+        repeat after ``n`` periods within ``period_rtol`` of the attractor's scale (the
+        classifier's period test; :class:`GearCells` passes ``settings.period_rtol``).
     """
     if len(starts) != n_cells:
         raise ParameterError("map_attractors: one array of start states per cell expected")
@@ -368,7 +403,7 @@ def map_attractors(
     if isinstance(rescout, bool) or not isinstance(rescout, int) or rescout < 0:
         raise ParameterError(f"setting 'rescout' = {rescout!r} must be an integer >= 0")
     opts = _Options(chunk, confirm, confirm_cloud, recur_rtol, merge_rtol, grid, cloud_overlap,
-                    scouts, rescout)  # fmt: skip
+                    scouts, rescout, period_rtol)  # fmt: skip
     known = [_Known(opts) for _ in range(n_cells)]
     starts = [np.atleast_2d(np.asarray(s, dtype=float)) for s in starts]
     K = [len(s) for s in starts]
@@ -475,7 +510,7 @@ def _probe(system, known, starts, labels, is_early, periods_run, opts: _Options,
         return
     d = starts[todo[0][0]].shape[1]
     n_top = max((s.period for k in known for s in k.steadies), default=1)
-    L = max(opts.confirm_cloud, opts.confirm, 2 * n_top)
+    L = max(opts.confirm_cloud, opts.confirm + n_top, 3 * n_top)
     cells = np.array([c for c, _ in todo])
     states = np.array([starts[c][i] for c, i in todo])
     hist = np.full((len(todo), L, d), np.nan)
@@ -647,7 +682,9 @@ def gear_steady(res) -> Steady:
     info.pop("label", None)
     scale = float(c.x_max - c.x_min) if math.isfinite(c.x_max - c.x_min) else 0.0
     return Steady(
-        status="diverged" if c.status == "diverged" else "ok",
+        status="diverged" if c.status == "diverged" else (
+            "unsettled" if c.motion == "unsettled" else "ok"
+        ),
         period=int(c.n),
         points=np.asarray(res.poincare, dtype=float),
         scale_x=scale,
@@ -688,6 +725,7 @@ def find_attractors_many(
             if backward is not None and backward[c] is not None:
                 m["backward"] = np.asarray(backward[c], dtype=float)[:10]
             cont.append(m)
+    options.setdefault("period_rtol", system.settings.period_rtol)
     return map_attractors(
         system, len(params_list), st, continuation=cont,
         continuation_transient=system.settings.transient_continuation, early=early, **options,
@@ -720,6 +758,11 @@ def find_attractors(
     )[0]  # fmt: skip
 
 
+def n_real(ca: CellAttractors) -> int:
+    """Number of attractors of a cell (the ``unsettled`` bucket does not count)."""
+    return sum(1 for a in ca.attractors if a.steady.status != "unsettled")
+
+
 def summary_lines(ca: CellAttractors) -> list[str]:
     """Human-readable lines: one per attractor, then the divergent share."""
     lines = []
@@ -737,3 +780,138 @@ def summary_lines(ca: CellAttractors) -> list[str]:
     nd = int(np.sum(ca.start_labels < 0))
     lines.append(f"diverged: {nd}/{ca.n_starts} starts ({ca.diverged_fraction:.3f})")
     return lines
+
+
+# ============================================================================ plane tiles
+#: Columns of a plane's attractor tile (results/<plane>/attractors/<tile>.parquet).
+TILE_COLUMNS = ("plane", "tile", "i", "j", "x", "y", "attractor", "n_attractors", "motion",
+                "status", "label", "label_npq", "I", "n", "p", "q", "dc", "kmax", "lyapunov",
+                "basin_fraction", "n_starts", "n_early", "found_by", "starts",
+                "diverged_fraction", "periods_run", "poincare_x", "poincare_v")  # fmt: skip
+
+
+def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Attractor records of a group of plane cells (one dask task of ``gearsim attractor-tile``).
+
+    ``spec`` (plain data): ``plane``, ``tile``, ``params`` (dict), ``settings`` (dict),
+    ``x_name``, ``y_name``, ``cells`` (list of ``(i, j, x, y, forward_state or None)``),
+    ``starts``, ``seed``. One record per attractor of each cell; a cell whose starts all
+    diverged gets one record with ``attractor = -1`` and label ``diverged``.
+    """
+    from .simulate import IntegrationSettings
+
+    base = ModelParameters.from_mapping(dict(spec["params"]))
+    settings = IntegrationSettings(**spec["settings"])
+    xn, yn = spec["x_name"], spec["y_name"]
+    cells = spec["cells"]
+    plist = [base.with_(**{xn: float(c[2]), yn: float(c[3])}) for c in cells]
+    fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
+    found = find_attractors_many(plist, starts=int(spec["starts"]), seed=int(spec["seed"]),
+                                 settings=settings, forward=fwd)  # fmt: skip
+    out: list[dict[str, Any]] = []
+    for (i, j, x, y, _), ca in zip(cells, found, strict=True):
+        common = {
+            "plane": spec["plane"], "tile": int(spec["tile"]), "i": int(i), "j": int(j),
+            "x": float(x), "y": float(y), "n_attractors": n_real(ca),
+            "starts": int(ca.n_starts), "diverged_fraction": ca.diverged_fraction,
+            "periods_run": int(ca.start_periods_run.sum()),
+        }  # fmt: skip
+        if not ca.attractors:
+            out.append({**common, "attractor": -1, "motion": "diverged", "status": "diverged",
+                        "label": "diverged", "label_npq": "", "I": 0, "n": 0, "p": None,
+                        "q": None, "dc": float("nan"), "kmax": float("nan"),
+                        "lyapunov": float("nan"), "basin_fraction": 0.0, "n_starts": 0,
+                        "n_early": 0, "found_by": "", "poincare_x": [],
+                        "poincare_v": []})  # fmt: skip
+            continue
+        for a in ca.attractors:
+            r = a.record()
+            out.append({**common, **{k: r.get(k) for k in TILE_COLUMNS if k in r}})
+    return out
+
+
+# ============================================================================ hysteresis
+@dataclass
+class Hysteresis:
+    """The fold of a pair of sweeps: where each direction jumps (parameter values).
+
+    ``jump_forward`` is the value (midpoint of the two neighbouring grid values) where the
+    sweep in increasing order jumps, ``jump_backward`` where the sweep in decreasing order jumps
+    back; ``band`` is the interval between them (the hysteresis band: both motions coexist
+    there). ``dc_*`` are the disengagement duty cycles on both sides of each jump; ``differ``
+    lists the grid values where the two sweeps reach different motions (pattern or DC).
+    """
+
+    parameter: str
+    jump_forward: float | None
+    jump_backward: float | None
+    dc_forward: tuple[float, float] | None
+    dc_backward: tuple[float, float] | None
+    differ: list[float]
+
+    @property
+    def band(self) -> tuple[float, float] | None:
+        if self.jump_forward is None or self.jump_backward is None:
+            return None
+        return (min(self.jump_forward, self.jump_backward),
+                max(self.jump_forward, self.jump_backward))  # fmt: skip
+
+    def lines(self) -> list[str]:
+        """Report lines (Markdown bullets)."""
+        p = self.parameter
+        if self.band is None:
+            return [f"- no jump pair found in the {p} sweeps (forward jump {self.jump_forward}, "
+                    f"backward jump {self.jump_backward})"]  # fmt: skip
+        (a, b), (c, d) = self.dc_forward, self.dc_backward
+        lo, hi = self.band
+        return [
+            f"- jump in the increasing-{p} sweep at {p} = {self.jump_forward:.4f} "
+            f"(DC {a:.3f} -> {b:.3f})",
+            f"- jump back in the decreasing-{p} sweep at {p} = {self.jump_backward:.4f} "
+            f"(DC {c:.3f} -> {d:.3f})",
+            f"- hysteresis band {lo:.4f} <= {p} <= {hi:.4f} (width {hi - lo:.4f}); the two "
+            f"sweeps reach different motions at {len(self.differ)} grid values, "
+            f"{sum(lo <= v <= hi for v in self.differ)} of them inside the band",
+        ]
+
+
+def _largest_jump(df: pd.DataFrame, jump_dc: float):
+    from .landmarks import find_landmarks
+
+    lms = find_landmarks(df.reset_index(drop=True), jump_dc=jump_dc)
+    j = lms[lms["kind"] == "jump"]
+    if not len(j):
+        return None, None
+    k = (j["dc_hi"] - j["dc_lo"]).abs().idxmax()
+    r = j.loc[k]
+    return float(r["value"]), (float(r["dc_lo"]), float(r["dc_hi"]))
+
+
+def hysteresis(
+    sweeps: pd.DataFrame, *, jump_dc: float = 0.15, dc_tol: float = 0.02
+) -> Hysteresis:
+    """Jump-up and jump-down values of the fold from a sweep run in both directions.
+
+    ``sweeps``: rows of a ``direction: both`` sweep (or a forward and a backward sweep
+    concatenated) with ``direction``, ``value``, ``label``, ``label_npq``, ``dc`` (the output
+    of ``gearsim sweep``). Jumps are the largest DC discontinuity of each direction
+    (:func:`gearsim.landmarks.find_landmarks`, ``jump_dc``). Two sweeps *differ* at a grid
+    value when pattern (label, n-p-q) or DC (by more than ``dc_tol``) differ.
+    """
+    need = {"direction", "value", "label", "label_npq", "dc", "parameter"}
+    if not need <= set(sweeps.columns):
+        raise ParameterError(f"hysteresis: sweep table lacks {sorted(need - set(sweeps.columns))}")
+    fwd = sweeps[sweeps["direction"] == "forward"].sort_values("value")
+    bwd = sweeps[sweeps["direction"] == "backward"].sort_values("value", ascending=False)
+    if not len(fwd) or not len(bwd):
+        raise ParameterError("hysteresis: needs a forward and a backward sweep (direction: both)")
+    jf, dcf = _largest_jump(fwd, jump_dc)
+    jb, dcb = _largest_jump(bwd, jump_dc)
+    a = fwd.set_index("value")[["label", "label_npq", "dc"]]
+    b = bwd.set_index("value")[["label", "label_npq", "dc"]]
+    common = a.index.intersection(b.index)
+    differ = [float(v) for v in common
+              if (a.loc[v, "label"], a.loc[v, "label_npq"])
+              != (b.loc[v, "label"], b.loc[v, "label_npq"])
+              or abs(float(a.loc[v, "dc"]) - float(b.loc[v, "dc"])) > dc_tol]  # fmt: skip
+    return Hysteresis(str(fwd["parameter"].iloc[0]), jf, jb, dcf, dcb, sorted(differ))

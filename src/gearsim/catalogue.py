@@ -45,6 +45,7 @@ from sqlalchemy import (
     event,
     insert,
 )
+from sqlalchemy.exc import DBAPIError as SQLAlchemyDBAPIError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
 from .integrity import CatalogueError, _one_line
@@ -80,10 +81,20 @@ def _tmp_name(path: Path) -> Path:
     return path.with_name(f".{path.name}.tmp-{os.getpid()}")
 
 
+def _prepare_dir(out: Path) -> None:
+    """Create ``out``'s directory and clear dead writers' temporary files, or one line."""
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        _remove_stale_tmp(out)
+    except OSError as exc:
+        raise CatalogueError(f"cannot write {out} ({_one_line(exc)})") from None
+
+
 def _remove_stale_tmp(path: Path) -> None:
     """Delete temporary files of ``path`` left by writers that were killed (their pid is gone)."""
     for f in path.parent.glob(f".{path.name}.tmp-*"):
-        pid = f.name.rsplit("-", 1)[-1]
+        # .NAME.tmp-PID, and SQLite's .NAME.tmp-PID-journal / -wal / -shm beside it
+        pid = f.name[len(path.name) + 6 :].split("-", 1)[0]
         if not pid.isdigit() or int(pid) == os.getpid():
             continue
         try:
@@ -162,8 +173,7 @@ def combine_tiles(paths: Iterable[str | Path], out: str | Path, plane_record: Ma
     schema = schema.with_metadata(meta)
     coverage = Coverage(plane_record)
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    _remove_stale_tmp(out)
+    _prepare_dir(out)
     tmp = _tmp_name(out)
     try:
         with pq.ParquetWriter(tmp, schema) as writer:
@@ -194,6 +204,8 @@ def combine_tiles(paths: Iterable[str | Path], out: str | Path, plane_record: Ma
                 writer.write_table(pa.Table.from_arrays(cols, schema=schema))
         coverage.finish(f"plane {plane_record['name']!r}")
         os.replace(tmp, out)
+    except OSError as exc:  # full disk, vanished directory: one line, the old file stays
+        raise CatalogueError(f"cannot write {out} ({_one_line(exc)})") from None
     finally:
         if tmp.exists():
             tmp.unlink()
@@ -320,6 +332,8 @@ class Cell(_CellColumns, Base):
     x: Mapped[float] = mapped_column(Float)  # value of planes.x_name
     y: Mapped[float] = mapped_column(Float)  # value of planes.y_name
     elapsed_s: Mapped[float | None] = mapped_column(Float)
+    # coexisting attractors found from many starts (NULL: multistability off for the plane)
+    n_attractors: Mapped[int | None] = mapped_column(Integer)
     __table_args__ = (
         UniqueConstraint("plane_id", "i", "j"),
         Index(None, "plane_id", "label"),
@@ -355,6 +369,8 @@ class SweepPoint(_CellColumns, Base):
     value: Mapped[float] = mapped_column(Float)
     poincare_x: Mapped[list] = mapped_column(JSON)
     poincare_v: Mapped[list] = mapped_column(JSON)
+    # forward | backward (a `direction: both` sweep holds both, forward first)
+    direction: Mapped[str | None] = mapped_column(String(16))
     __table_args__ = (
         UniqueConstraint("sweep_id", "k"),
         Index(None, "sweep_id", "value"),
@@ -376,6 +392,92 @@ class Audit(Base):
     kmax: Mapped[float | None] = mapped_column(Float)
     lyapunov: Mapped[float | None] = mapped_column(Float)
     agree: Mapped[bool] = mapped_column(Boolean)  # same label and n-p-q as the catalogue cell
+
+
+class CellAttractor(Base):
+    """One of the coexisting attractors of a plane cell (gearsim.attractors, many starts)."""
+
+    __tablename__ = "attractors"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    cell_id: Mapped[int] = mapped_column(ForeignKey("cells.id"), index=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    attractor: Mapped[int] = mapped_column(Integer)  # index in the cell, most starts first
+    motion: Mapped[str] = mapped_column(String(16))
+    label: Mapped[str] = mapped_column(String(32))
+    label_npq: Mapped[str] = mapped_column(String(32))
+    impact: Mapped[int] = mapped_column(Integer)
+    n: Mapped[int] = mapped_column(Integer)
+    p: Mapped[int | None] = mapped_column(Integer)
+    q: Mapped[int | None] = mapped_column(Integer)
+    dc: Mapped[float | None] = mapped_column(Float)
+    kmax: Mapped[float | None] = mapped_column(Float)
+    lyapunov: Mapped[float | None] = mapped_column(Float)
+    basin_fraction: Mapped[float] = mapped_column(Float)
+    n_starts: Mapped[int] = mapped_column(Integer)
+    n_early: Mapped[int] = mapped_column(Integer)
+    found_by: Mapped[str] = mapped_column(String(32))  # forward,backward,start (subset)
+    __table_args__ = (UniqueConstraint("cell_id", "attractor"), Index(None, "label"))
+
+
+class BifurcationPoint(Base):
+    """A bifurcation located by continuation (gearsim.continuation; docs/orbits.md)."""
+
+    __tablename__ = "bifurcation_points"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    period: Mapped[int] = mapped_column(Integer)
+    boundary: Mapped[str] = mapped_column(String(32))
+    name: Mapped[str] = mapped_column(String(32))
+    value: Mapped[float] = mapped_column(Float)
+    name2: Mapped[str] = mapped_column(String(32))
+    value2: Mapped[float] = mapped_column(Float)
+    x: Mapped[float] = mapped_column(Float)
+    v: Mapped[float] = mapped_column(Float)
+    mu_max: Mapped[float] = mapped_column(Float)
+    multipliers: Mapped[list] = mapped_column(JSON)
+    stable: Mapped[bool] = mapped_column(Boolean)
+
+
+class BifurcationCurve(Base):
+    """A point of a two-parameter bifurcation curve (gearsim.bifcurves; docs/orbits.md)."""
+
+    __tablename__ = "bifurcation_curves"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+    curve: Mapped[int] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    period: Mapped[int] = mapped_column(Integer)
+    boundary: Mapped[str] = mapped_column(String(32))
+    name: Mapped[str] = mapped_column(String(32))
+    value: Mapped[float] = mapped_column(Float)
+    name2: Mapped[str] = mapped_column(String(32))
+    value2: Mapped[float] = mapped_column(Float)
+    x: Mapped[float] = mapped_column(Float)
+    v: Mapped[float] = mapped_column(Float)
+    mu_max: Mapped[float] = mapped_column(Float)
+    multipliers: Mapped[list] = mapped_column(JSON)
+    stable: Mapped[bool] = mapped_column(Boolean)
+
+
+class CellOrbit(Base):
+    """Newton refinement of a periodic cell (gearsim refine-orbits; docs/orbits.md)."""
+
+    __tablename__ = "cell_orbits"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    cell_id: Mapped[int] = mapped_column(ForeignKey("cells.id"), index=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    converged: Mapped[bool] = mapped_column(Boolean)
+    residual: Mapped[float | None] = mapped_column(Float)
+    mu_max: Mapped[float | None] = mapped_column(Float)
+    kind: Mapped[str] = mapped_column(String(32))
+    grazing_margin: Mapped[float | None] = mapped_column(Float)
+    shift: Mapped[float | None] = mapped_column(Float)
+    minimal_period: Mapped[int] = mapped_column(Integer)
+    flag: Mapped[str] = mapped_column(String(32))
+    ms: Mapped[float | None] = mapped_column(Float)
 
 
 class CatalogueInfo(Base):
@@ -405,16 +507,31 @@ def _views(target, connection, **kw):  # pragma: no cover - exercised via build_
     )
 
 
-def make_engine(url: str):
+def make_engine(url: str, *, bulk: bool = False):
+    """A SQLAlchemy engine with foreign keys enforced. ``bulk``: for a build into a temporary
+    file that is renamed only when complete (no rollback journal, no syncs until the final
+    fsync, a 64 MB page cache): a crash mid-build loses only the temporary file."""
     engine = create_engine(url)
 
     @event.listens_for(engine, "connect")
     def _fk_on(dbapi_connection, _record):
         cur = dbapi_connection.cursor()
         cur.execute("PRAGMA foreign_keys=ON")
+        if bulk:
+            cur.execute("PRAGMA journal_mode=OFF")
+            cur.execute("PRAGMA synchronous=OFF")
+            cur.execute("PRAGMA cache_size=-65536")
         cur.close()
 
     return engine
+
+
+def _fsync(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 # ------------------------------------------------------------------------------ builders
@@ -655,6 +772,7 @@ def _insert_sweep(session: Session, f: Path, counts: dict) -> None:
             value=float(rec_["value"]),
             poincare_x=[float(v) for v in rec_["poincare_x"]],
             poincare_v=[float(v) for v in rec_["poincare_v"]],
+            direction=rec_.get("direction"),
         )
         rows.append(r)
     if rows:
@@ -703,6 +821,120 @@ def _insert_audit(session: Session, f: Path, counts: dict) -> None:
     if rows:
         session.execute(insert(Audit), rows)
     counts["audits"] += len(rows)
+
+
+def _insert_attractors(session: Session, f: Path, counts: dict) -> None:
+    """Insert one attractor tile (``gearsim attractor-tile``) and set ``cells.n_attractors``."""
+    from sqlalchemy import select, update
+
+    from .integrity import read_footer
+
+    _, kv = read_footer(f, "attractor file")
+    prov = json.loads(kv.get(PROVENANCE_KEY, b"{}"))
+    if prov.get("kind") != "attractors":
+        raise CatalogueError(
+            f"attractor file {f}: no attractor provenance (not written by gearsim attractor-tile)"
+        )
+    plane = session.execute(select(Plane).where(Plane.name == prov.get("name"))).scalar()
+    if plane is None:
+        raise CatalogueError(f"attractor file {f}: plane {prov.get('name')!r} is not catalogued")
+    if prov.get("config_hash") != plane.config_hash:
+        raise CatalogueError(
+            f"attractor file {f}: made for another configuration of plane {plane.name!r} "
+            "(re-run its attractor_tile job)"
+        )
+    run = Run(**_run_row({**prov, "file": str(f)}))
+    session.add(run)
+    session.flush()
+    counts["runs"] += 1
+    q = select(Cell.id, Cell.i, Cell.j).where(Cell.plane_id == plane.id)
+    cell_ids = {(i, j): cid for cid, i, j in session.execute(q)}
+    df = pd.read_parquet(f)
+    rows, n_of = [], {}
+    for r in df.to_dict("records"):
+        key = (int(r["i"]), int(r["j"]))
+        if key not in cell_ids:
+            raise CatalogueError(f"attractor file {f}: cell {key} is not in plane {plane.name!r}")
+        cid = cell_ids[key]
+        n_of[cid] = int(r["n_attractors"])
+        if int(r["attractor"]) < 0:
+            continue  # every start diverged: no attractor, n_attractors = 0
+        rows.append(
+            {
+                "cell_id": cid, "run_id": run.id, "attractor": int(r["attractor"]),
+                "motion": r["motion"], "label": r["label"], "label_npq": r["label_npq"] or "",
+                "impact": int(r["I"]), "n": int(r["n"]),
+                "p": None if _nan_to_none(r["p"]) is None else int(r["p"]),
+                "q": None if _nan_to_none(r["q"]) is None else int(r["q"]),
+                "dc": _nan_to_none(r["dc"]), "kmax": _nan_to_none(r["kmax"]),
+                "lyapunov": _nan_to_none(r["lyapunov"]),
+                "basin_fraction": float(r["basin_fraction"]), "n_starts": int(r["n_starts"]),
+                "n_early": int(r["n_early"]), "found_by": r["found_by"],
+            }  # fmt: skip
+        )
+    if rows:
+        session.execute(insert(CellAttractor), rows)
+    for cid, n in n_of.items():
+        session.execute(update(Cell).where(Cell.id == cid).values(n_attractors=n))
+    counts["attractors"] = counts.get("attractors", 0) + len(rows)
+
+
+def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
+    """Insert a bifurcation points / curves file or a refine-orbits file (by its columns)."""
+    from sqlalchemy import select
+
+    from .integrity import read_footer
+
+    _, kv = read_footer(f, "orbit file")
+    prov = {**json.loads(kv.get(PROVENANCE_KEY, b"{}")), "file": str(f)}
+    run = Run(**_run_row(prov))
+    session.add(run)
+    session.flush()
+    counts["runs"] += 1
+    df = pd.read_parquet(f)
+    if "orbit_flag" in df.columns:
+        cell_ids = {}
+        for name in set(df["plane"]):
+            q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
+            cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+        rows = []
+        for r in df.to_dict("records"):
+            key = (r["plane"], int(r["i"]), int(r["j"]))
+            if key not in cell_ids:
+                raise CatalogueError(f"orbit file {f}: cell {key} is not in the catalogue")
+            rows.append({
+                "cell_id": cell_ids[key], "run_id": run.id,
+                "converged": bool(r["orbit_converged"]),
+                "residual": _nan_to_none(r["orbit_residual"]),
+                "mu_max": _nan_to_none(r["orbit_mu_max"]), "kind": r["orbit_kind"],
+                "grazing_margin": _nan_to_none(r["orbit_grazing_margin"]),
+                "shift": _nan_to_none(r["orbit_shift"]),
+                "minimal_period": int(r["orbit_minimal_period"]), "flag": r["orbit_flag"],
+                "ms": _nan_to_none(r["orbit_ms"]),
+            })
+        table, key = CellOrbit, "cell_orbits"
+    else:
+        is_curve = "curve" in df.columns
+        rows = []
+        for r in df.to_dict("records"):
+            row = {
+                "run_id": run.id, "plane": r.get("plane", ""), "kind": r["kind"],
+                "period": int(r["period"]), "boundary": r["boundary"] or "", "name": r["name"],
+                "value": float(r["value"]), "name2": r.get("name2", ""),
+                "value2": float(r.get("value2", float("nan"))), "x": float(r["x"]),
+                "v": float(r["v"]), "mu_max": float(r["mu_max"]),
+                "multipliers": [[float(a), float(b)]
+                                for a, b in zip(r["mu_re"], r["mu_im"], strict=True)],
+                "stable": bool(r["stable"]),
+            }
+            if is_curve:
+                row["curve"] = int(r["curve"])
+            rows.append(row)
+        table, key = ((BifurcationCurve, "bifurcation_curves") if is_curve
+                      else (BifurcationPoint, "bifurcation_points"))
+    if rows:
+        session.execute(insert(table), rows)
+    counts[key] = counts.get(key, 0) + len(rows)
 
 
 def git_commit(root: str | Path | None = None) -> tuple[str | None, bool | None]:
@@ -785,6 +1017,8 @@ def build_catalogue(
     sweep_files: Iterable[str | Path] = (),
     audit_files: Iterable[str | Path] = (),
     *,
+    attractor_files: Iterable[str | Path] = (),
+    orbit_files: Iterable[str | Path] = (),
     chunk: int = 20_000,
     publish_to: str | Path | None = None,
 ) -> dict[str, int]:
@@ -792,21 +1026,28 @@ def build_catalogue(
 
     ``plane_files`` are ``cells.parquet`` files (each checked: plane record, every tile of the
     plane's configuration hash and code version, cell counts, each ``(i, j)`` exactly once),
-    ``sweep_files`` sweep Parquet files and ``audit_files`` audit Parquet files. Cells stream in
+    ``sweep_files`` sweep Parquet files and ``audit_files`` audit Parquet files;
+    ``attractor_files`` per-tile attractor files of planes with multistability (the
+    ``attractors`` table and ``cells.n_attractors``). Cells stream in
     batches of ``chunk`` rows (bounded memory). A bad input raises :class:`CatalogueError` and
     leaves ``out`` (and ``publish_to``) as they were. With ``publish_to``, the finished catalogue
     is then published there atomically (:func:`publish`). Returns row counts.
     """
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    _remove_stale_tmp(out)
+    _prepare_dir(out)
     tmp = _tmp_name(out)
     if tmp.exists():
         tmp.unlink()
-    engine = make_engine(f"sqlite:///{tmp}")
+    engine = make_engine(f"sqlite:///{tmp}", bulk=True)
     counts = {"runs": 0, "planes": 0, "cells": 0, "sweeps": 0, "sweep_points": 0, "audits": 0}
     try:
         Base.metadata.create_all(engine)
+        # the cells' lookup indexes are built once after the bulk insert (much faster than
+        # maintaining them row by row); the unique (plane_id, i, j) constraint stays on
+        cell_indexes = sorted(Cell.__table__.indexes, key=lambda ix: ix.name)
+        with engine.begin() as con:
+            for ix in cell_indexes:
+                ix.drop(con)
         with Session(engine) as session, session.begin():
             names: set[str] = set()
             for f in plane_files:
@@ -815,13 +1056,23 @@ def build_catalogue(
                 _insert_sweep(session, Path(f), counts)
             for f in audit_files:
                 _insert_audit(session, Path(f), counts)
+            for f in attractor_files:
+                _insert_attractors(session, Path(f), counts)
+            for f in orbit_files:  # docs/orbits.md: bifurcation points, curves, cell orbits
+                _insert_orbit_file(session, Path(f), counts)
             session.execute(insert(ColumnDoc), _column_rows())
             session.execute(insert(CatalogueInfo), _info_rows(session, counts))
         with engine.begin() as con:
+            for ix in cell_indexes:
+                ix.create(con)
             con.exec_driver_sql(f"PRAGMA application_id = {APPLICATION_ID}")
             con.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
         engine.dispose()
+        _fsync(tmp)
         os.replace(tmp, out)
+    except (OSError, sqlite3.Error, SQLAlchemyDBAPIError) as exc:
+        # full disk, read-only or vanished directory: one line; the previous files stay
+        raise CatalogueError(f"catalogue {out}: cannot write it ({_one_line(exc)})") from None
     finally:
         engine.dispose()
         if tmp.exists():
@@ -843,8 +1094,7 @@ def publish(built: str | Path, target: str | Path) -> Path:
 
     built, target = Path(built), Path(target)
     open_catalogue(built).close()  # never publish a file that readers would refuse
-    target.parent.mkdir(parents=True, exist_ok=True)
-    _remove_stale_tmp(target)
+    _prepare_dir(target)
     tmp = _tmp_name(target)
     try:
         if tmp.exists():
@@ -854,6 +1104,10 @@ def publish(built: str | Path, target: str | Path) -> Path:
         except OSError:  # no hard links here (another file system, FAT, ...): copy
             shutil.copyfile(built, tmp)
         os.replace(tmp, target)
+    except OSError as exc:
+        raise CatalogueError(
+            f"cannot publish {built} as {target} ({_one_line(exc)}); {target} is unchanged"
+        ) from None
     finally:
         if tmp.exists():
             tmp.unlink()

@@ -153,10 +153,74 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("audits", "kmax"): RESULT["kmax"],
     ("audits", "lyapunov"): RESULT["lyapunov"],
     ("audits", "agree"): ("", "same label and n-p-q as the catalogue cell"),
+    ("sweep_points", "direction"): (
+        "", "forward | backward: the sweep order that reached the point (hysteresis)"
+    ),
+    ("cells", "n_attractors"): (
+        "1", "coexisting attractors found from the plane's multistability starts (NULL: off)"
+    ),
+    ("attractors", "id"): _ID,
+    ("attractors", "cell_id"): ("", "cells.id of the cell"),
+    ("attractors", "run_id"): ("", "runs.id of the attractor-tile job"),
+    ("attractors", "attractor"): ("", "index of the attractor in its cell (most starts first)"),
+    ("attractors", "motion"): RESULT["motion"],
+    ("attractors", "label"): RESULT["label"],
+    ("attractors", "label_npq"): RESULT["label_npq"],
+    ("attractors", "impact"): RESULT["impact"],
+    ("attractors", "n"): RESULT["n"],
+    ("attractors", "p"): RESULT["p"],
+    ("attractors", "q"): RESULT["q"],
+    ("attractors", "dc"): RESULT["dc"],
+    ("attractors", "kmax"): RESULT["kmax"],
+    ("attractors", "lyapunov"): RESULT["lyapunov"],
+    ("attractors", "basin_fraction"): ("1", "share of the cell's seeded starts that reach it"),
+    ("attractors", "n_starts"): ("1", "seeded starts that reach it"),
+    ("attractors", "n_early"): ("1", "of those, labelled early by recurrence"),
+    ("attractors", "found_by"): (
+        "", "who reached it: subset of forward (continuation state), backward, start"
+    ),
 }
 for _table in ("cells", "sweep_points"):
     for _col, _doc in RESULT.items():
         CATALOGUE[(_table, _col)] = _doc
+# periodic orbits (docs/orbits.md)
+for _t in ("bifurcation_points", "bifurcation_curves"):
+    CATALOGUE.update({
+        (_t, "id"): _ID,
+        (_t, "run_id"): ("", "runs.id of the continuation job"),
+        (_t, "plane"): ("", "plane the point belongs to"),
+        (_t, "kind"): ("", "fold | period_doubling | neimark_sacker | grazing"),
+        (_t, "period"): ("mesh periods", "period n of the orbit at the point"),
+        (_t, "boundary"): ("", "contact boundary that grazes (x=+b, x=-b, ...), else empty"),
+        (_t, "name"): ("", "continuation parameter"),
+        (_t, "value"): ("as the parameter", "its value at the point (located to 1e-8)"),
+        (_t, "name2"): ("", "second parameter"),
+        (_t, "value2"): ("as the parameter", "its value at the point"),
+        (_t, "x"): ("1 (X_n / b_c)", "section displacement x(tau = 0) of the orbit"),
+        (_t, "v"): ("1", "section velocity dx/dtau of the orbit"),
+        (_t, "mu_max"): ("1", "largest Floquet multiplier modulus (per n mesh periods)"),
+        (_t, "multipliers"): ("JSON", "all Floquet multipliers as [re, im], by modulus"),
+        (_t, "stable"): ("", "largest multiplier modulus below 1"),
+    })
+CATALOGUE[("bifurcation_curves", "curve")] = ("", "curve number (one located point followed)")
+CATALOGUE.update({
+    ("cell_orbits", "id"): _ID,
+    ("cell_orbits", "cell_id"): ("", "cells.id of the refined cell"),
+    ("cell_orbits", "run_id"): ("", "runs.id of the refine-orbits job"),
+    ("cell_orbits", "converged"): ("", "Newton reached residual 1e-10"),
+    ("cell_orbits", "residual"): ("1", "max |P^n(y) - y| at the refined orbit"),
+    ("cell_orbits", "mu_max"): ("1", "largest Floquet multiplier modulus (per n mesh periods)"),
+    ("cell_orbits", "kind"): ("", "kind of that multiplier: fold | period_doubling | "
+                              "neimark_sacker"),
+    ("cell_orbits", "grazing_margin"): ("1 (X_n / b_c)",
+                                        "smallest turning-point distance to a contact boundary"),
+    ("cell_orbits", "shift"): ("1", "max |orbit - simulated section point| over (x, x')"),
+    ("cell_orbits", "minimal_period"): ("mesh periods", "true period of the refined orbit"),
+    ("cell_orbits", "flag"): ("", "empty when Newton confirms the simulation, else "
+                              "no_convergence | unstable | period"),
+    ("cell_orbits", "ms"): ("ms", "wall time of the refinement"),
+})
+
 CATALOGUE[("plane_cells", "*")] = ("", "view: cells joined to planes (plane, x_name, y_name)")
 
 

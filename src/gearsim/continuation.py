@@ -322,6 +322,11 @@ def continue_orbit(
 
     cfg = config or Continuation()
     t0 = time.perf_counter()
+    if name not in ModelParameters.names():
+        raise ParameterError(
+            f"continuation parameter 'name' = {name!r}; allowed: "
+            f"{', '.join(ModelParameters.names())}"
+        )
     if orbit is None:
         if n is None:
             raise ParameterError("continue_orbit needs 'orbit' or the period 'n'")

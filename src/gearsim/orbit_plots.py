@@ -84,3 +84,61 @@ def figure_branches(df: pd.DataFrame, *, title: str | None = None):
         a1.set_title(title, fontsize=9)
     fig.tight_layout()
     return fig
+
+
+CURVE_STYLE = {
+    "period_doubling": ("-", "#d62728", "period doubling"),
+    "fold": ("-.", "#2ca02c", "fold (hysteresis edge)"),
+    "grazing": (":", "#ff7f0e", "grazing"),
+    "neimark_sacker": ("--", "#9467bd", "Neimark-Sacker"),
+}
+
+
+def draw_curves(ax, curves: pd.DataFrame, *, swap: bool = False, labels: bool = True) -> None:
+    """Draw two-parameter bifurcation curves (``value`` on x, ``value2`` on y)."""
+    seen: set[str] = set()
+    for _, c in curves.groupby("curve", sort=True):
+        kind = str(c["kind"].iloc[0])
+        ls, colour, text = CURVE_STYLE.get(kind, ("-", "k", kind))
+        n = int(c["period"].iloc[0])
+        xs, ys = c["value"].to_numpy(), c["value2"].to_numpy()
+        if swap:
+            xs, ys = ys, xs
+        ax.plot(xs, ys, ls=ls, color=colour, lw=1.8,
+                label=None if (kind in seen or not labels) else text)
+        seen.add(kind)
+        k = len(xs) // 2
+        ax.annotate(f"{n}T", (xs[k], ys[k]), fontsize=6.5, color=colour,
+                    xytext=(3, 3), textcoords="offset points")
+
+
+def figure_curves(curves: pd.DataFrame, cells: pd.DataFrame | None = None, *,
+                  title: str | None = None):
+    """Bifurcation curves over the plane's pattern map (if ``cells`` is given)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    if cells is not None and len(cells):
+        from .figures.planes import draw_pattern_map
+
+        draw_pattern_map(ax, cells, legend=True, legend_kw={"fontsize": 6, "loc": "upper left",
+                                                            "bbox_to_anchor": (1.01, 1.0)})
+    name = str(curves["name"].iloc[0]) if len(curves) else "w"
+    name2 = str(curves["name2"].iloc[0]) if len(curves) else "b"
+    draw_curves(ax, curves)
+    if cells is not None and len(cells):
+        ax.set_xlim(float(cells["x"].min()), float(cells["x"].max()))
+        ax.set_ylim(float(cells["y"].min()), float(cells["y"].max()))
+    handles = [h for h in ax.get_lines() if h.get_label() and not h.get_label().startswith("_")]
+    if handles:
+        fig.legend(handles=handles, loc="lower right", fontsize=7, title="curves (Newton)",
+                   title_fontsize=7)
+    ax.set_xlabel(param_label(name))
+    ax.set_ylabel(param_label(name2))
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    return fig

@@ -1,9 +1,13 @@
 """The reproduction report: the paper's numbers beside ours, every one of ours computed here.
 
-Inputs (pipeline outputs, docs/TEAM.md): ``results/sweeps/<sweep>.parquet`` (orbit diagrams),
-the plane cells (``results/catalogue.sqlite``, or ``results/<plane>/cells.parquet`` when the
-catalogue has no cell table), and optionally the calibration record ``docs/calibration.json``.
-Output: Markdown (``results/report.md``).
+Inputs (pipeline outputs, docs/TEAM.md): ``results/sweeps/<sweep>.parquet`` of the configured
+sweeps (orbit diagrams), the cells of the configured planes (``results/catalogue.sqlite``, or
+``results/<plane>/cells.parquet`` when the catalogue has no cell table), the planes' numerical
+audits ``results/<plane>/audit.parquet`` and optionally the calibration record
+``docs/calibration.json``; the rule ``report`` declares each of them. The planes and sweeps are
+those of the config: a plane is compared with the paper's thresholds when its axes are the
+paper's ((w, b) or (w, xi)); for any other plane, and for a paper sweep the study does not
+configure, the report says "not applicable". Output: Markdown (``results/report.md``).
 
 Sections
 --------
@@ -12,7 +16,9 @@ Sections
 3. Thresholds: the backlash above which no double-sided impact occurs (wb plane) and the damping
    above which only 0/1T and 1/1T remain (wxi plane).
 4. Pattern sequences at b = 0.15, 0.25, 0.35 (Fig 8) and xi = 0.05, 0.09, 0.15 (Fig 15).
-5. What does not match, with the evidence.
+5. What does not match, with the evidence (or that nothing was compared).
+6. Every plane of the study: axes, grid, the most frequent patterns, and what the paper has to
+   compare with it.
 
 Paper numbers appear only in the "paper" columns; a quantity we did not compute is reported as
 "not computed", never filled with the paper's value.
@@ -22,7 +28,6 @@ from __future__ import annotations
 
 import json
 import math
-import sqlite3
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +46,7 @@ from .landmarks import (
     pattern_sequence,
 )
 
+NOT_APPLICABLE = "not applicable"
 PAPER_B_THRESHOLD = 0.4125
 PAPER_XI_THRESHOLD = 0.1436
 LANDMARK_TOL = 0.02
@@ -72,35 +78,32 @@ SEQUENCE_SWEEPS = {"b015": ("b", 0.15), "b025": ("b", 0.25), "b035": ("b", 0.35)
 
 
 # ----------------------------------------------------------------------------- loading
-def load_sweeps(directory: str | Path) -> dict[str, pd.DataFrame]:
-    """All ``<name>.parquet`` orbit diagrams in ``directory``, keyed by name."""
+def load_sweeps(directory: str | Path, names: Sequence[str] | None = None
+                ) -> dict[str, pd.DataFrame]:
+    """The orbit diagrams ``<name>.parquet`` in ``directory`` of the sweeps ``names`` (default:
+    every one there), keyed by name; a missing file is left out."""
     d = Path(directory)
     if not d.is_dir():
         return {}
-    return {p.stem: pd.read_parquet(p) for p in sorted(d.glob("*.parquet"))}
+    paths = (sorted(d.glob("*.parquet")) if names is None else
+             [d / f"{n}.parquet" for n in names if (d / f"{n}.parquet").is_file()])
+    return {p.stem: pd.read_parquet(p) for p in paths}
 
 
 def _cells_from_catalogue(path: Path, plane: str) -> pd.DataFrame | None:
     """Cells of ``plane`` from the pipeline's catalogue (``cells`` joined to ``planes`` by
-    ``plane_id``; the impact state is stored as ``impact``, the axes as ``x`` / ``y``)."""
+    ``plane_id``; the impact state is stored as ``impact``, the axes as ``x`` / ``y``), opened
+    through :func:`gearsim.catalogue.open_catalogue` (a file that is not a catalogue of our
+    schema is an error). ``None`` when there is no catalogue or the plane is not in it."""
     if not path.is_file():
         return None
-    con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    from .catalogue import open_catalogue
+
+    con = open_catalogue(path)
     try:
-        tables = [r[0] for r in con.execute("select name from sqlite_master where type='table'")]
-        if "cells" not in tables:
-            return None
-        cols = [r[1] for r in con.execute('pragma table_info("cells")')]
-        if "plane_id" in cols and "planes" in tables:
-            df = pd.read_sql_query(
-                "select c.* from cells c join planes p on c.plane_id = p.id where p.name = ?",
-                con, params=(plane,))
-        elif "plane" in cols:
-            df = pd.read_sql_query("select * from cells where plane = ?", con, params=(plane,))
-        else:
-            return None
-    except (sqlite3.Error, pd.errors.DatabaseError):
-        return None
+        df = pd.read_sql_query(
+            "select c.* from cells c join planes p on c.plane_id = p.id where p.name = ?",
+            con, params=(plane,))
     finally:
         con.close()
     if not len(df):
@@ -195,6 +198,11 @@ class Report:
     notes: list[str] = field(default_factory=list)
     calibration: dict[str, Any] | None = None
     audit: list[dict[str, Any]] = field(default_factory=list)
+    compared: int = 0  # comparisons with the paper actually made
+    thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
+    planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
+    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
+    exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -234,21 +242,72 @@ def _audit_lines(audits: list[dict[str, Any]]) -> list[str]:
     return out
 
 
+def _table_axes(plane: str, df: pd.DataFrame | None) -> tuple[str, str]:
+    """(x, y) parameter names of a cells table (names of varying parameter columns)."""
+    known = {"wb": ("w", "b"), "wxi": ("w", "xi")}
+    if df is not None and len(df) and {"i", "j"} <= set(df.columns):
+        from .parameters import ModelParameters
+
+        names = [c for c in df.columns if c in ModelParameters.names()]
+        x = [c for c in names if df.groupby("j")[c].nunique().max() > 1]
+        y = [c for c in names if df.groupby("i")[c].nunique().max() > 1]
+        if len(x) == 1 and len(y) == 1:
+            return x[0], y[0]
+    return known.get(plane, ("x", "y"))
+
+
+#: what the paper has for a plane of these axes
+PAPER_PLANES = {("w", "b"): "Figs 7, 12, 13 and the backlash threshold b = 0.4125",
+                ("w", "xi"): "Figs 14, 16, 17 and the damping threshold xi = 0.1436"}
+
+
+def plane_summary(plane: str, axes: tuple[str, str], cells: pd.DataFrame | None
+                  ) -> dict[str, Any]:
+    """A plane of the study in a few numbers: cells, grid, the most frequent patterns."""
+    out: dict[str, Any] = {"plane": plane, "axes": axes,
+                           "paper": PAPER_PLANES.get(axes, NOT_APPLICABLE)}
+    if cells is None or not len(cells):
+        out["cells"] = None
+        return out
+    out["cells"] = len(cells)
+    if {"i", "j"} <= set(cells.columns):
+        out["grid"] = (int(cells["i"].max()) + 1, int(cells["j"].max()) + 1)
+    if "label" in cells.columns:
+        counts = cells["label"].fillna("?").value_counts()
+        out["patterns"] = [(str(k), int(v)) for k, v in counts.head(6).items()]
+        out["n_patterns"] = int(len(counts))
+    return out
+
+
 def analyse(
     sweeps: dict[str, pd.DataFrame],
     planes: dict[str, pd.DataFrame | None],
     *,
     calibration: dict[str, Any] | None = None,
     plane_axes: dict[str, tuple[str, str]] | None = None,
+    configured_sweeps: Sequence[str] | None = None,
 ) -> Report:
-    """Compute the report's content (no formatting)."""
+    """Compute the report's content (no formatting).
+
+    ``plane_axes``: the (x, y) parameter names of every plane of the study (the config's
+    ``planes``; default: read off the tables, ``wb`` = (w, b) and ``wxi`` = (w, xi) when
+    they cannot be). ``configured_sweeps``: the study's sweeps (default: the paper's and those
+    given); a paper sweep outside it is "not applicable" rather than "not computed".
+    """
     rep = Report(calibration=calibration)
-    axes = plane_axes or {"wb": ("w", "b"), "wxi": ("w", "xi")}
+    axes = dict(plane_axes) if plane_axes is not None else {
+        p: _table_axes(p, df) for p, df in planes.items()}
+    configured = ({"standard", *SEQUENCE_SWEEPS, *sweeps} if configured_sweeps is None
+                  else set(configured_sweeps))
     std = sweeps.get("standard")
-    if std is not None and len(std):
+    if "standard" not in configured:
+        rep.notes.append("this study has no sweep 'standard': the paper's landmarks are "
+                         f"{NOT_APPLICABLE}")
+    elif std is not None and len(std):
         lms = find_landmarks(std)
         rep.landmarks = lms
         rep.matched = match_paper(lms)
+        rep.compared += len(rep.matched)
         for r in rep.matched.itertuples():
             if not r.found:
                 rep.misses.append(f"landmark '{r.text}' (paper w = {r.paper:g}) not found in "
@@ -279,34 +338,57 @@ def analyse(
     else:
         rep.notes.append("results/sweeps/standard.parquet missing: landmarks not computed")
 
-    for plane, fn, name, paper in (
-        ("wb", double_sided, "b above which no double-sided impact occurs", PAPER_B_THRESHOLD),
-        ("wxi", not_period_one, "xi above which only 0/1T and 1/1T remain", PAPER_XI_THRESHOLD),
+    hyst = sweeps.get("hysteresis")
+    if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
+        from .attractors import hysteresis
+
+        rep.hysteresis = hysteresis(hyst).lines()
+
+    for paper_axes, fn, name, paper in (
+        (("w", "b"), double_sided, "b above which no double-sided impact occurs",
+         PAPER_B_THRESHOLD),
+        (("w", "xi"), not_period_one, "xi above which only 0/1T and 1/1T remain",
+         PAPER_XI_THRESHOLD),
     ):
+        standard = "w" + paper_axes[1]
+        names = sorted((p for p, ax in axes.items() if tuple(ax) == paper_axes),
+                       key=lambda p: p != standard)
+        if not names:
+            rep.thresholds_na[paper_axes[1]] = (f"this study has no ({paper_axes[0]}, "
+                                               f"{paper_axes[1]}) plane")
+            continue
+        plane = names[0]
         cells = planes.get(plane)
         if cells is None or len(cells) == 0:
             rep.notes.append(f"plane {plane} not available: threshold not computed")
             continue
         try:
-            y = _axis_column(cells, axes[plane][1], "y")
+            y = _axis_column(cells, paper_axes[1], "y")
         except KeyError as exc:
             rep.notes.append(f"plane {plane}: {exc}")
             continue
         th = row_threshold(cells, y, fn(cells), name=name, paper=paper)
-        if plane == "wb":
+        th.note = (f"plane {plane}; " + th.note) if th.note else f"plane {plane}"
+        rep.compared += 1
+        if paper_axes[1] == "b":
             rep.b_threshold = th
         else:
             rep.xi_threshold = th
         if th is not None and not (abs(th.difference) <= THRESHOLD_TOL):
             rep.misses.append(f"{name}: ours {th.value:.4f} (rows {th.last_with:.4f} / "
-                              f"{th.first_without:.4f}), paper {paper}")
+                              f"{th.first_without:.4f}, plane {plane}), paper {paper}")
+
+    for plane, ax in axes.items():
+        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane)))
 
     for key, (pname, pval) in SEQUENCE_SWEEPS.items():
         df = sweeps.get(key)
         entry: dict[str, Any] = {"parameter": pname, "value": pval,
                                  "paper_text": PAPER_SEQUENCE_TEXT[key],
                                  "paper": PAPER_SEQUENCES[key]}
-        if df is None or len(df) == 0:
+        if key not in configured:
+            entry.update(ours=None, in_order=None, exact=None, applicable=False)
+        elif df is None or len(df) == 0:
             entry.update(ours=None, in_order=None, exact=None)
             rep.notes.append(f"sweep {key} missing: sequence not computed")
         else:
@@ -315,6 +397,7 @@ def analyse(
             entry["ours_npq"] = pattern_sequence(df, use_npq=True)
             expected = PAPER_SEQUENCES[key]
             if expected is not None:
+                rep.compared += 1
                 entry["in_order"] = is_subsequence(expected, seq)
                 entry["exact"] = list(seq) == list(expected)
                 if not entry["exact"]:
@@ -355,7 +438,9 @@ def to_markdown(rep: Report) -> str:
                     "docs/calibration.md.", ""]
     out += _audit_lines(rep.audit)
     out += ["## 1. Landmarks of the standard sweep", ""]
-    if rep.matched is not None:
+    if any("no sweep 'standard'" in n for n in rep.notes):
+        out += ["Not applicable: this study has no sweep 'standard'.", ""]
+    elif rep.matched is not None:
         out += ["| landmark | paper w | ours w | grid interval | difference | pattern (ours) |",
                 "|---|---|---|---|---|---|"]
         errs = []
@@ -383,8 +468,15 @@ def to_markdown(rep: Report) -> str:
             out.append("")
     else:
         out += ["Not computed (standard sweep missing).", ""]
+    if rep.exact is not None:
+        from .exact_landmarks import report_lines
+
+        out += ["Exact bifurcation points (Newton-Floquet continuation of the standard set, "
+                "located to 1e-8; docs/orbits.md):", "", *report_lines(rep.exact), ""]
     out += ["## 2. DC and Kmax at the jump", ""]
-    if rep.jump:
+    if any("no sweep 'standard'" in n for n in rep.notes):
+        out += ["Not applicable: this study has no sweep 'standard'.", ""]
+    elif rep.jump:
         j = rep.jump
         out += [f"Jump between w = {j['w_lo']:.4f} and {j['w_hi']:.4f}. DC {j['dc_before']:.3f}"
                 f" -> {j['dc_after']:.3f} (paper: DC -> {PAPER_JUMP_DC}).", "",
@@ -401,24 +493,34 @@ def to_markdown(rep: Report) -> str:
         out.append("")
     else:
         out += ["Not computed (no jump found or standard sweep missing).", ""]
+    if rep.hysteresis:
+        out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
+                *rep.hysteresis, ""]
     out += ["## 3. Thresholds", "", "| threshold | paper | ours | rows (last with / first "
             "without) | difference |", "|---|---|---|---|---|"]
-    for th, paper, label in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided impact "
-                              "above"), (rep.xi_threshold, PAPER_XI_THRESHOLD,
-                                         "xi: only 0/1T, 1/1T above")):
-        if th is None:
+    for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
+                                   "impact above", "b"),
+                                  (rep.xi_threshold, PAPER_XI_THRESHOLD,
+                                   "xi: only 0/1T, 1/1T above", "xi")):
+        if key in rep.thresholds_na:
+            out.append(f"| {label} | {paper} | {NOT_APPLICABLE} ({rep.thresholds_na[key]}) "
+                       "| | |")
+        elif th is None:
             out.append(f"| {label} | {paper} | not computed | | |")
         else:
+            note = f"; {th.note}" if th.note else ""
             out.append(f"| {label} | {paper} | {_f(th.value)} | {_f(th.last_with)} / "
-                       f"{_f(th.first_without)} ({th.rows} rows) | {_f(th.difference, '+.4f')} |"
-                       + (f" {th.note}" if th.note else ""))
+                       f"{_f(th.first_without)} ({th.rows} rows{note}) | "
+                       f"{_f(th.difference, '+.4f')} |")
     out.append("")
     out += ["## 4. Pattern sequences (Fig 8, Fig 15)", ""]
     for key, e in rep.sequences.items():
         out.append(f"**{e['parameter']} = {e['value']}** (sweep `{key}`)")
         out.append("")
         out.append(f"- paper: {e['paper_text']}")
-        if e.get("ours") is None:
+        if e.get("applicable") is False:
+            out.append(f"- ours: {NOT_APPLICABLE} (this study has no sweep `{key}`)")
+        elif e.get("ours") is None:
             out.append("- ours: not computed")
         else:
             out.append(f"- ours: {' -> '.join(e['ours'])}")
@@ -428,12 +530,39 @@ def to_markdown(rep: Report) -> str:
                            f"identical sequence: {'yes' if e['exact'] else 'no'}")
         out.append("")
     out += ["## 5. What does not match", ""]
-    out += [f"- {m}" for m in rep.misses] or ["- nothing beyond the tolerances "
-                                              f"({LANDMARK_TOL} in w, {THRESHOLD_TOL} thresholds)"]
+    if rep.misses:
+        out += [f"- {m}" for m in rep.misses]
+    elif rep.compared:
+        out += [f"- nothing beyond the tolerances ({LANDMARK_TOL} in w, {THRESHOLD_TOL} "
+                f"thresholds) in {rep.compared} comparisons with the paper"]
+    else:
+        out += [f"- {NOT_APPLICABLE}: nothing of this study was compared with the paper (it "
+                "has none of the paper's sweeps or planes, or they were not computed)"]
     if rep.notes:
         out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
     out.append("")
+    out += _plane_lines(rep.planes)
     return "\n".join(out)
+
+
+def _plane_lines(planes: list[dict[str, Any]]) -> list[str]:
+    if not planes:
+        return []
+    out = ["## 6. Planes of this study", "",
+           "| plane | axes (x, y) | cells (grid) | patterns (most frequent, cells) | "
+           "the paper has |", "|---|---|---|---|---|"]
+    for p in planes:
+        ax = f"({p['axes'][0]}, {p['axes'][1]})"
+        if p["cells"] is None:
+            out.append(f"| {p['plane']} | {ax} | not computed | | {p['paper']} |")
+            continue
+        grid = f" ({p['grid'][0]} x {p['grid'][1]})" if p.get("grid") else ""
+        pats = ", ".join(f"{k} {v}" for k, v in p.get("patterns", []))
+        more = p.get("n_patterns", 0) - len(p.get("patterns", []))
+        pats += f", {more} more" if more > 0 else ""
+        out.append(f"| {p['plane']} | {ax} | {p['cells']}{grid} | {pats} | {p['paper']} |")
+    out.append("")
+    return out
 
 
 def build_report(
@@ -442,14 +571,35 @@ def build_report(
     catalogue: str | Path | None = "results/catalogue.sqlite",
     results: str | Path = "results",
     calibration: str | Path | None = "docs/calibration.json",
-    planes: Sequence[str] = ("wb", "wxi"),
+    planes: Sequence[str] | dict[str, tuple[str, str]] = ("wb", "wxi"),
+    sweeps: Sequence[str] | None = None,
 ) -> tuple[Report, str]:
-    """Load the pipeline outputs, analyse and format. Returns (report, markdown)."""
-    sweeps = load_sweeps(sweeps_dir)
-    cells = {p: load_plane(p, catalogue=catalogue, results=results) for p in planes}
+    """Load the pipeline outputs, analyse and format. Returns (report, markdown).
+
+    ``planes``: the study's planes, by name, or ``{name: (x, y)}`` with their axes (the
+    config's ``planes``, :func:`study_from_config`); ``sweeps``: the study's sweeps (default:
+    every table in ``sweeps_dir``)."""
+    loaded = load_sweeps(sweeps_dir, sweeps)
+    names = list(planes)
+    cells = {p: load_plane(p, catalogue=catalogue, results=results) for p in names}
     cal = None
     if calibration is not None and Path(calibration).is_file():
         cal = json.loads(Path(calibration).read_text())
-    rep = analyse(sweeps, cells, calibration=cal)
-    rep.audit = load_audits(results, planes)
+    axes = ({p: tuple(v) for p, v in planes.items()} if isinstance(planes, dict) else None)
+    rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
+                  configured_sweeps=sweeps)
+    rep.audit = load_audits(results, names)
+    # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
+    exact_points = Path(results) / "orbits" / "standard_points.parquet"
+    if exact_points.is_file() and "standard" in loaded:
+        from .exact_landmarks import exact_landmarks
+
+        rep.exact = exact_landmarks(pd.read_parquet(exact_points), loaded["standard"])
     return rep, to_markdown(rep)
+
+
+def study_from_config(config: dict[str, Any]) -> tuple[dict[str, tuple[str, str]], list[str]]:
+    """The planes ``{name: (x, y)}`` and sweep names of a pipeline config."""
+    planes = {name: (str(spec["x"]["name"]), str(spec["y"]["name"]))
+              for name, spec in (config.get("planes") or {}).items()}
+    return planes, list(config.get("sweeps") or {})

@@ -1,81 +1,74 @@
-# Figures of the study (figures owner). Every rule only calls `gearsim figures`; which tables a
-# figure reads is fixed by the paper (gearsim.figures.rules.FIGURE_INPUTS). A figure whose
-# tables are not configured is left out of ALL_TARGETS.
-# Outputs: results/figures/figNN.{png,pdf,json} and the index results/figures/README.md.
+# Figures of the study (figures owner). One rule per figure group, generated from the one figure
+# table gearsim.figures.registry.FIGURES (inputs, CLI arguments, outputs, captions); a figure
+# whose tables are not configured is left out. Every plane, whatever its axes, also gets its
+# maps (pattern, DC, Kmax, and any registered later) from rule plane_maps.
+# Outputs: results/figures/figNN.{png,pdf,json}, results/figures/planes/<plane>-<kind>.*, and
+# the index results/figures/README.md.
 from gearsim.figures import rules as gfr
 
 FIGURE_PARAMS = gfr.figure_params(config)
+FIGURE_GROUPS = gfr.groups(SWEEPS, PLANES, POINT_SETS)
 FIGURES_BUILT = gfr.built_figures(SWEEPS, PLANES, POINT_SETS)
 
 
-rule figure:
+for _spec in FIGURE_GROUPS:
+
+    rule:
+        name:
+            gfr.rule_name(_spec)
+        input:
+            **gfr.input_paths(_spec),
+            config=CONFIG,
+        output:
+            *[
+                report(p, caption=f"../report/{c}", category="Figures")
+                for p, c in zip(gfr.outputs(_spec)["png"], gfr.report_captions(_spec))
+            ],
+            *gfr.outputs(_spec)["other"],
+        log:
+            f"logs/figures/{gfr.rule_name(_spec)}.log",
+        conda:
+            GEARSIM_ENV
+        threads: 1
+        params:
+            args=gfr.cli_args(_spec),
+            caption=gfr.caption_params(_spec),
+            figure=FIGURE_PARAMS,
+            code_version=CODE_VERSION,
+        shell:
+            "gearsim figures {params.args} --configfile {input.config} "
+            "--outdir results/figures > {log} 2>&1"
+
+
+rule plane_maps:
     input:
-        unpack(gfr.figure_inputs),
+        cells="results/{plane}/cells.parquet",
         config=CONFIG,
     output:
-        png=report(
-            "results/figures/fig{n}.png",
-            caption="../report/figure.rst",
-            category="Figures",
-        ),
-        pdf="results/figures/fig{n}.pdf",
-        json="results/figures/fig{n}.json",
+        [
+            (
+                report(p, caption="../report/plane_map.rst", category="Plane maps")
+                if p.endswith(".png")
+                else p
+            )
+            for p in gfr.map_outputs("{plane}")
+        ],
     log:
-        "logs/figures/fig{n}.log",
-    wildcard_constraints:
-        n=gfr.FIGURE_WILDCARDS,
+        "logs/figures/maps_{plane}.log",
     conda:
         GEARSIM_ENV
     threads: 1
     params:
-        args=gfr.figure_args,
-        figure=FIGURE_PARAMS,
         code_version=CODE_VERSION,
     shell:
-        "gearsim figures --fig {wildcards.n} {params.args} --configfile {input.config} "
-        "--outdir results/figures > {log} 2>&1"
-
-
-# Figs 9-11: one search for coexisting motions at the captioned point, three figures.
-rule figures_double_sided:
-    input:
-        sweep="results/sweeps/b015.parquet",
-        config=CONFIG,
-    output:
-        png9=report(
-            "results/figures/fig09.png",
-            caption="../report/fig09.rst",
-            category="Figures",
-        ),
-        png10=report(
-            "results/figures/fig10.png",
-            caption="../report/fig10.rst",
-            category="Figures",
-        ),
-        png11=report(
-            "results/figures/fig11.png",
-            caption="../report/fig11.rst",
-            category="Figures",
-        ),
-        other=multiext("results/figures/fig09", ".pdf", ".json")
-        + multiext("results/figures/fig10", ".pdf", ".json")
-        + multiext("results/figures/fig11", ".pdf", ".json"),
-    log:
-        "logs/figures/fig09_11.log",
-    conda:
-        GEARSIM_ENV
-    threads: 1
-    params:
-        figure=FIGURE_PARAMS,
-        code_version=CODE_VERSION,
-    shell:
-        "gearsim figures --fig 9 10 11 --sweep b015={input.sweep} --configfile {input.config} "
-        "--outdir results/figures > {log} 2>&1"
+        "gearsim figures --maps --plane {wildcards.plane}={input.cells} "
+        "--configfile {input.config} --outdir results/figures > {log} 2>&1"
 
 
 rule figures_index:
     input:
         expand("results/figures/fig{n:02d}.json", n=FIGURES_BUILT),
+        [f for plane in PLANES for f in gfr.map_outputs(plane) if f.endswith(".json")],
     output:
         "results/figures/README.md",
     log:
@@ -89,4 +82,28 @@ rule figures_index:
 ALL_TARGETS += expand(
     "results/figures/fig{n:02d}.{ext}", n=FIGURES_BUILT, ext=["png", "pdf"]
 )
+ALL_TARGETS += [f for plane in PLANES for f in gfr.map_outputs(plane)]
 ALL_TARGETS += ["results/figures/README.md"]
+
+
+# The explorer: one static page with every plane's maps and every sweep's diagram.
+rule explorer:
+    input:
+        cells=expand("results/{plane}/cells.parquet", plane=PLANES),
+        sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
+        catalogue=CATALOGUE,
+        config=CONFIG,
+    output:
+        "results/explorer/index.html",
+    log:
+        "logs/figures/explorer.log",
+    conda:
+        GEARSIM_ENV
+    params:
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim explorer --results results --catalogue {input.catalogue} "
+        "--configfile {input.config} --out {output} > {log} 2>&1"
+
+
+ALL_TARGETS += ["results/explorer/index.html"]

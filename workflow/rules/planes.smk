@@ -85,6 +85,7 @@ rule catalogue:
         cells=expand("results/{plane}/cells.parquet", plane=PLANES),
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
         audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
+        attractors=ATTRACTOR_FILES,
     output:
         CATALOGUE,
     log:
@@ -93,7 +94,8 @@ rule catalogue:
         GEARSIM_ENV
     shell:
         "gearsim catalogue build --cells {input.cells} --sweeps {input.sweeps} "
-        "--audits {input.audits} --out {output} --publish results/catalogue.sqlite "
+        "--audits {input.audits} --attractors {input.attractors} "
+        "--out {output} --publish results/catalogue.sqlite "
         "> {log} 2>&1"
 
 

@@ -1,7 +1,9 @@
 # Reconstructed Table 1 and the reproduction report (calibration + report owner).
-# Inputs: the sweeps, the catalogue (plane cells) and the standard-parameter file; the
-# calibration record docs/calibration.json is read when present (it is produced offline by
-# `gearsim calibrate`, a long search that is not part of the workflow).
+# The report reads exactly its declared inputs: the configured sweeps, the catalogue (plane
+# cells), each plane's cells and numerical audit, Table 1 and, when the repository has it, the
+# calibration record docs/calibration.json (produced offline by `gearsim calibrate`, a long
+# search that is not part of the workflow). Its planes and sweeps come from the config.
+CALIBRATION = Path(workflow.basedir, "docs/calibration.json")
 
 
 rule table1:
@@ -12,6 +14,8 @@ rule table1:
         csv="results/table1.csv",
     log:
         "logs/report/table1.log",
+    conda:
+        GEARSIM_ENV
     shell:
         "gearsim table1 --params {input} --md {output.md} --csv {output.csv} > {log} 2>&1"
 
@@ -20,16 +24,24 @@ rule report:
     input:
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
         catalogue=CATALOGUE,
+        cells=expand("results/{plane}/cells.parquet", plane=PLANES),
+        audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
+        calibration=[str(CALIBRATION)] if CALIBRATION.is_file() else [],
         table1="results/table1.md",
+        config=CONFIG,
     output:
         "results/report.md",
     log:
         "logs/report/report.log",
+    conda:
+        GEARSIM_ENV
     params:
+        calibration=lambda wildcards, input: input.calibration or "",
         code_version=CODE_VERSION,
     shell:
         "gearsim report --sweeps results/sweeps --catalogue {input.catalogue} "
-        "--results results --out {output} > {log} 2>&1"
+        "--results results --calibration {params.calibration:q} --configfile {input.config} "
+        "--out {output} > {log} 2>&1"
 
 
 ALL_TARGETS += ["results/table1.md", "results/table1.csv", "results/report.md"]

@@ -36,6 +36,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="branch table (default results/orbits/continue_NAME_FROM_TO_pN.parquet)")
     p.add_argument("--figure", metavar="PNG", default=None,
                    help="branch figure (default: the Parquet path with .png)")
+    p.add_argument("--sweep", metavar="PARQUET", default=None,
+                   help="a simulated sweep of the same parameter set (results/sweeps/*.parquet): "
+                   "write the exact landmarks (paper, grid-read, continuation) beside the branches")
     p.add_argument("--json", action="store_true", help="print the events as JSON")
 
 
@@ -64,6 +67,12 @@ def run(args: argparse.Namespace) -> int:
                f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}.parquet")
     df.attrs["parameters_source"] = source
     write_branches(df, out)
+    from .. import catalogue
+    from ..bifcurves import bifurcation_points
+
+    points_path = out.with_name(out.stem + "_points.parquet")
+    catalogue.write_parquet(bifurcation_points(df).assign(name2="", value2=float("nan")),
+                            points_path, {b"gearsim.continuation": dict(df.attrs)})
     fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     from ..figures.style import save_figure
     from ..orbit_plots import figure_branches
@@ -71,6 +80,19 @@ def run(args: argparse.Namespace) -> int:
     fig = figure_branches(df, title=f"continuation in {args.name}, start period {n}; {source}")
     save_figure(fig, fig_path)
     ev = df[df["event"] != ""]
+    landmarks_path = None
+    if args.sweep:
+        import pandas as pd
+
+        from ..exact_landmarks import exact_landmarks, report_lines
+
+        if not Path(args.sweep).is_file():
+            raise UsageError(f"--sweep: file not found: {args.sweep}")
+        table = exact_landmarks(bifurcation_points(df), pd.read_parquet(args.sweep))
+        landmarks_path = out.with_name(out.stem + "_landmarks.parquet")
+        catalogue.write_parquet(table, landmarks_path, {b"gearsim.sweep": str(args.sweep)})
+        if not args.json:
+            print("\n".join(report_lines(table)))
     if args.json:
         print(json.dumps({
             "parameters_source": source, "name": args.name, "period": n,
@@ -82,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
                 for r in ev.itertuples()
             ],
             "reasons": df.attrs["reasons"],
+            "landmarks": None if landmarks_path is None else str(landmarks_path),
         }, default=float))
         return 0
     print(f"parameters: {source} (model {params.model})")
@@ -92,5 +115,6 @@ def run(args: argparse.Namespace) -> int:
               f"x = {r.x:.6f}")
     for reason in df.attrs["reasons"]:
         print(f"  {reason}")
-    print(f"wrote {out} and {fig_path}")
+    print(f"wrote {out}, {points_path} and {fig_path}"
+          + (f" and {landmarks_path}" if landmarks_path else ""))
     return 0

@@ -5,10 +5,16 @@ Examples::
     gearsim figures --fig 4 --sweep standard=results/sweeps/standard.parquet
     gearsim figures --fig 7 12 13 --plane wb=results/wb/cells.parquet
     gearsim figures --fig 9 10 11 --sweep b015=results/sweeps/b015.parquet
+    gearsim figures --maps --plane weps=results/weps/cells.parquet   # any axes
     gearsim figures --index
 
 Each figure is written as ``<outdir>/figNN.png`` (200 dpi) and ``.pdf`` plus ``figNN.json``
-(captions and differences from the paper) that ``--index`` collects into ``README.md``.
+(captions and differences from the paper) that ``--index`` collects into ``README.md``. The
+figures and what they read: :data:`gearsim.figures.registry.FIGURES`. ``--maps`` draws every
+registered plane map (pattern, DC, Kmax, ...) of each ``--plane``, whatever its two axes, as
+``<outdir>/planes/<plane>-<kind>.{png,pdf,json}``. A paper figure of one plane (e.g. Fig 7)
+given one ``--plane`` of another name draws that plane (the paper comparison then says "not
+applicable" when the paper has no plane of those axes).
 Parameters and integration settings come from the pipeline config (``--configfile``), exactly
 as the simulation rules see them.
 """
@@ -20,7 +26,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .simulate_tile import add_config_arguments, config_from_args
 
 NAME = "figures"
@@ -41,7 +47,8 @@ def _pairs(items: list[str], flag: str) -> dict[str, str]:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fig", type=int, nargs="+", action="extend", default=[], metavar="N",
-                   help="figure number(s), 1-17 (9, 10, 11 are built together)")
+                   help="figure number(s): 1-17 of the paper, higher for later analyses "
+                   "(9, 10, 11 are built together)")
     p.add_argument("--all", action="store_true", help="every figure whose inputs are given")
     p.add_argument("--sweep", action="append", default=[], metavar="NAME=PATH",
                    help="a sweep table (results/sweeps/NAME.parquet), repeatable")
@@ -50,16 +57,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--points", action="append", default=[], metavar="NAME=PATH",
                    help="a recorded point set (results/points/NAME.parquet), repeatable")
     p.add_argument("--outdir", default="results/figures", help="output directory")
+    p.add_argument("--maps", action="store_true",
+                   help="draw the maps of every --plane (any two axes) into OUTDIR/planes/")
+    p.add_argument("--map", nargs="+", default=None, metavar="KIND",
+                   help="with --maps: only these maps (default every registered one: "
+                   "pattern, dc, kmax, ...)")
     p.add_argument("--index", action="store_true",
                    help="write OUTDIR/README.md from the figure records present")
     add_config_arguments(p)
 
 
 def _context(args, config):
+    from ..config import base_parameters, integration_settings
     from ..figures.data import read_table
     from ..figures.registry import Context
     from ..parameters import ModelParameters
-    from ..tiles import base_parameters, integration_settings
 
     values, _source = base_parameters(config)
     ctx = Context(
@@ -78,6 +90,25 @@ def _context(args, config):
     return ctx
 
 
+def _bind_single_plane(numbers, ctx, table) -> dict[str, str]:
+    """A figure of one plane (e.g. Fig 7 of ``wb``) given exactly one plane of another name
+    draws that one: returns ``{paper's plane: given plane}``."""
+    bound: dict[str, str] = {}
+    if len(ctx.planes) != 1:
+        return bound
+    (given, df), = ctx.planes.items()
+    for n in numbers:
+        wanted = table[n].inputs.planes if n in table else ()
+        if len(wanted) == 1 and wanted[0] not in ctx.planes:
+            ctx.planes[wanted[0]] = df
+            bound[wanted[0]] = given
+    return bound
+
+
+def _write_record(path: Path, rec: dict) -> None:
+    path.write_text(json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
+
+
 def run(args: argparse.Namespace) -> int:
     import matplotlib
 
@@ -89,24 +120,50 @@ def run(args: argparse.Namespace) -> int:
     from ..figures.style import save_figure
 
     outdir = Path(args.outdir)
+    table = registry.figures()
     numbers = list(dict.fromkeys(args.fig))
     if args.all:
-        numbers = list(registry.ALL)
-    if not numbers and not args.index:
-        raise UsageError("nothing to do: give --fig N, --all or --index")
-    if numbers:
+        numbers = list(table)
+    if not numbers and not args.index and not args.maps:
+        raise UsageError("nothing to do: give --fig N, --all, --maps or --index")
+    if args.map and not args.maps:
+        raise UsageError("--map KIND needs --maps")
+    if args.maps and not args.plane:
+        raise UsageError("--maps needs at least one --plane NAME=PATH")
+    if numbers or args.maps:
         config = config_from_args(args)
         ctx = _context(args, config)
-        if args.all:  # keep the figures whose inputs are present
-            numbers = [n for n in numbers if all(
-                name in getattr(ctx, kind) for kind, names in registry.INPUTS[n].items()
-                if kind != "points" and n not in (2, 5, 6, 9, 10, 11) for name in names)]
+        if args.maps:
+            for plane, df in ctx.planes.items():
+                for spec, fig, caption, notes in registry.build_maps(plane, df, args.map):
+                    stem = outdir / "planes" / f"{plane}-{spec.kind}"
+                    stem.parent.mkdir(parents=True, exist_ok=True)
+                    files = [str(f) for f in save_figure(fig, stem)]
+                    plt.close(fig)
+                    _write_record(stem.with_suffix(".json"), {
+                        "plane": plane, "map": spec.kind, "title": spec.title,
+                        "axes": list(registry._axes(df)), "files": files, "caption": caption,
+                        "notes": notes, "inputs": [f"{plane}/cells"],
+                        "parameters": ctx.params.to_dict(),
+                        "integration": ctx.settings.to_dict()})
+                    print(f"plane {plane} map {spec.kind}: wrote {', '.join(files)}",
+                          file=sys.stderr)
+        if args.all:  # keep the figures whose tables are present (or that simulate without)
+            numbers = [n for n in numbers if not table[n].tables_required or all(
+                name in getattr(ctx, kind) for kind, names in table[n].inputs.tables().items()
+                for name in names)]
+        bound = {} if args.all else _bind_single_plane(numbers, ctx, table)
         for b in registry.build(numbers, ctx):
+            for paper, given in bound.items():
+                if f"{paper}/cells" in b.inputs:
+                    b.inputs = [f"{given}/cells" if i == f"{paper}/cells" else i
+                                for i in b.inputs]
+                    b.differences.insert(0, f"Drawn for the plane '{given}' (the paper's "
+                                         f"figure shows the plane '{paper}').")
+                    print(f"figure {b.number}: drawn for plane '{given}'", file=sys.stderr)
             files = [str(f) for f in save_figure(b.figure, outdir / f"fig{b.number:02d}")]
             plt.close(b.figure)
-            rec = registry.record(b, files, ctx)
-            (outdir / f"fig{b.number:02d}.json").write_text(
-                json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
+            _write_record(outdir / f"fig{b.number:02d}.json", registry.record(b, files, ctx))
             print(f"figure {b.number}: wrote {', '.join(files)}", file=sys.stderr)
     if args.index:
         path = write_index(outdir)

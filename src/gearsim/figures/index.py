@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .registry import ALL, PAPER_CAPTIONS
+from .registry import figures
 
 
 def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
@@ -35,11 +35,11 @@ def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
             f"{k}={v:.6g}" if isinstance(v, float) else f"{k}={v}"
             for k, v in params[0].items()) + "` (the sweeps and planes fix w, b or xi).")
         lines.append("")
-    for n in ALL:
+    for n, spec in figures().items():
         rec_path = outdir / f"fig{n:02d}.json"
         lines.append(f"## Fig {n}")
         lines.append("")
-        lines.append(f"**Paper:** {PAPER_CAPTIONS[n]}")
+        lines.append(f"**{'Paper' if spec.in_paper else 'Shows'}:** {spec.paper_caption}")
         lines.append("")
         if not rec_path.is_file():
             lines += ["*Not built yet.*", ""]
@@ -56,6 +56,25 @@ def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
             lines.append("")
             lines += [f"- {d}" for d in rec["differences"]]
             lines.append("")
+    lines += _map_lines(outdir)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines))
     return out
+
+
+def _map_lines(outdir: Path) -> list[str]:
+    """The maps of every plane (``planes/<plane>-<kind>.json``), one section per plane."""
+    recs = [json.loads(p.read_text()) for p in sorted((outdir / "planes").glob("*.json"))]
+    if not recs:
+        return []
+    lines = ["# Maps of every plane", "",
+             "Drawn for each plane of the study whatever its two axes (`gearsim figures "
+             "--maps`).", ""]
+    for plane in dict.fromkeys(r["plane"] for r in recs):
+        lines += [f"## Plane {plane}", ""]
+        for r in (r for r in recs if r["plane"] == plane):
+            files = ", ".join(f"[{Path(f).name}](planes/{Path(f).name})" for f in r["files"])
+            lines.append(f"- **{r['title']}** ({files}): {r['caption']}")
+            lines += [f"  - {n}" for n in r.get("notes", [])]
+        lines.append("")
+    return lines

@@ -1,4 +1,18 @@
-"""Every figure of the study: the paper's caption, the inputs, and how ours is built.
+"""Every figure of the study, in one table: :data:`FIGURES` holds one :class:`FigureSpec` per
+figure (number, the paper's caption, the tables it reads, the builder, the figures built with
+it). The CLI (``gearsim figures``), the Snakemake figure rules (:mod:`gearsim.figures.rules`) and
+the index (:mod:`gearsim.figures.index`) all read this table and nothing else.
+
+Adding a figure (e.g. Fig 18 of a new analysis) is one call in the module that draws it::
+
+    from gearsim.figures.registry import FigureSpec, Inputs, register
+
+    register(FigureSpec(18, "Basins of attraction in the (w, b) plane.",
+                        Inputs(planes=("wb",)), build_fig18))
+
+(and the module listed in :data:`EXTENSIONS` so it is imported). ``build_fig18(ctx)`` returns a
+list of :class:`Built`. Maps drawn for *every* plane of a study (pattern, DC, Kmax, ...) are
+:class:`MapSpec` entries of :data:`PLANE_MAPS` (:func:`register_map`).
 
 :func:`build` turns a :class:`Context` (tables read by the CLI, the parameters and integration
 settings of the pipeline config) into matplotlib figures plus a record (our caption, where we
@@ -9,55 +23,16 @@ differ from the paper and why) that the CLI writes next to the image as ``figNN.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
+from ..errors import UsageError
 from ..parameters import ModelParameters
 from ..simulate import IntegrationSettings
-
-PAPER_CAPTIONS: dict[int, str] = {
-    1: "Dynamic model of curve-face gear transmission system.",
-    2: "Distribution of the system's phase trajectories on the plane.",
-    3: "(Caption lost in our copy; the text: schematic diagram of two-parameter co-simulation, "
-       "the (u, v) plane divided into grids with the cell centres a(i, j).)",
-    4: "(a) Bifurcation diagram of mesh displacement; (b) I: DC diagram; (c) Kmax diagram.",
-    5: "Superpositions of the phase diagram and Poincaré mapping of the gear pair: (a) ω = 0.48 "
-       "1-0-0, (b) ω = 0.569 grazing, (c) ω = 0.86 1-1-0, (d) ω = 1.02 2-2-0, (e) ω = 1.072 "
-       "grazing, (f) ω = 1.25 2-1-0, (g) ω = 1.37 4-3-0, (h) ω = 1.384 8-6-0, (i) ω = 1.53 "
-       "chaotic, (j) ω = 1.7 4-3-0, (k) ω = 1.81 2-2-0, (l) ω = 2.24 1-1-0.",
-    6: "FFT spectrum: (a) ω = 0.48 1-0-0, (b) ω = 1.02 2-2-0, (c) ω = 1.37 4-3-0, (d) ω = 1.53 "
-       "chaotic.",
-    7: "Meshing motion law diagram of the system in the (ω, b) parameter plane: (a) relative "
-       "micro-displacement bifurcation diagram of gear pair, (b) pattern types and distribution "
-       "regions of periodic motions.",
-    8: "Single-parameter bifurcation diagrams of mesh displacement under different dimensionless "
-       "backlash b: (a) b = 0.15, (b) b = 0.25, (c) b = 0.35.",
-    9: "1-1-1 double-sided impact motion, when b = 0.15, ω = 0.82: (a) superposition of phase "
-       "diagram and Poincaré map, (b) time history diagram, (c) dynamic load coefficient diagram.",
-    10: "2-2-1 double-sided impact motion, when b = 0.15, ω = 0.82: (a) superposition of phase "
-        "diagram and Poincaré map, (b) time history diagram, (c) dynamic load coefficient "
-        "diagram.",
-    11: "4-4-2 double-sided impact motion, when b = 0.15, ω = 0.82: (a) superposition of phase "
-        "diagram and Poincaré map, (b) time history diagram, (c) dynamic load coefficient "
-        "diagram.",
-    12: "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, b) parameter plane: "
-        "(a) DC cloud diagram, (b) I: DC plane distribution diagram.",
-    13: "Maximum dynamic load coefficient in the (ω, b) parameter plane: (a) cloud diagram, "
-        "(b) plane distribution diagram.",
-    14: "Meshing motion law diagram of the system in the (ω, ξ) parameter plane: (a) relative "
-        "micro-displacement bifurcation diagram of gear pair, (b) pattern types and distribution "
-        "regions of periodic motions.",
-    15: "Single-parameter bifurcation diagrams of mesh displacement under different meshing "
-        "damping ratios ξ: (a) ξ = 0.05, (b) ξ = 0.09, (c) ξ = 0.15.",
-    16: "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, ξ) parameter plane: "
-        "(a) DC cloud diagram, (b) I: DC plane distribution diagram.",
-    17: "Maximum dynamic load coefficient in the (ω, ξ) parameter plane: (a) cloud diagram, "
-        "(b) plane distribution diagram.",
-}
 
 # the paper's pattern sequences along the sweeps of Figs 8 and 15 (Sect 3.2, 3.3)
 PAPER_SEQUENCES: dict[str, str] = {
@@ -68,29 +43,6 @@ PAPER_SEQUENCES: dict[str, str] = {
     "xi009": "0/1T → 1/1T → 1/2T → 1/4T → 1/2T → 1/1T",
     "xi015": "0/1T → 1/1T",
 }
-
-# which inputs each figure reads: sweeps, planes, point sets (names as in config/config.yaml)
-INPUTS: dict[int, dict[str, list[str]]] = {
-    1: {},
-    2: {"sweeps": ["b015"]},
-    3: {"planes": ["wb"]},
-    4: {"sweeps": ["standard"]},
-    5: {"sweeps": ["standard"], "points": ["fig5"]},
-    6: {"sweeps": ["standard"], "points": ["fig6"]},
-    7: {"planes": ["wb"]},
-    8: {"sweeps": ["b015", "b025", "b035"]},
-    9: {"sweeps": ["b015"], "points": ["fig9_11"]},
-    12: {"planes": ["wb"]},
-    13: {"planes": ["wb"]},
-    14: {"planes": ["wxi"]},
-    15: {"sweeps": ["xi005", "xi009", "xi015"]},
-    16: {"planes": ["wxi"]},
-    17: {"planes": ["wxi"]},
-}
-INPUTS[10] = INPUTS[11] = INPUTS[9]
-GROUPS = {9: (9, 10, 11), 10: (9, 10, 11), 11: (9, 10, 11)}
-ALL = tuple(range(1, 18))
-
 
 @dataclass
 class Context:
@@ -146,8 +98,6 @@ def point_settings(ctx: Context) -> IntegrationSettings:
 
 def _need(table: dict[str, pd.DataFrame], name: str, kind: str) -> pd.DataFrame:
     if name not in table:
-        from ..cli import UsageError
-
         raise UsageError(f"this figure needs the {kind} '{name}' (pass --{kind} {name}=PATH)")
     return table[name]
 
@@ -199,10 +149,11 @@ def _fig2(ctx: Context) -> list[Built]:
 def _fig3(ctx: Context) -> list[Built]:
     from .planes import figure3
 
-    df = _need(ctx.planes, "wb", "plane")
-    return [Built(3, figure3(df), "Two-parameter co-simulation: the (u, v) = (ω, b) plane cut "
+    df = _plane(ctx, "wb")
+    ax = axes_text(df)
+    return [Built(3, figure3(df), f"Two-parameter co-simulation: the (u, v) = {ax} plane cut "
                   "into cells with centres a(i, j); each cell coloured by the pattern computed "
-                  "at its centre (a coarse view of the (ω, b) plane).",
+                  f"at its centre (a coarse view of the {ax} plane).",
                   [f"A coarse 12 x 8 view taken from our computed plane ({_grid_note(df)}) "
                    "instead of a blank schematic grid."], ["wb/cells"])]
 
@@ -298,6 +249,19 @@ def _fig6(ctx: Context) -> list[Built]:
                   f"ω and ω/2, ω/4, ω/8 marked; motions {how}.", diffs, inputs)]
 
 
+def _axes(df: pd.DataFrame) -> tuple[str, str]:
+    from .data import plane_axes
+
+    return plane_axes(df)
+
+
+def axes_text(df: pd.DataFrame) -> str:
+    """``(ω, b)``: the plane's two axes, as the paper writes them."""
+    sym = {"b": "b", "xi": "ξ", "w": "ω", "eps": "ε"}
+    x, y = _axes(df)
+    return f"({sym.get(x, x)}, {sym.get(y, y)})"
+
+
 def _threshold_b(df: pd.DataFrame) -> str:
     two = df[df["I"] == 2]
     if not len(two):
@@ -314,18 +278,32 @@ def _threshold_xi(df: pd.DataFrame) -> str:
             "ours (paper: only 0/1T and 1/1T for ξ > 0.1436)")
 
 
+def paper_comparison(df: pd.DataFrame) -> str:
+    """The paper's threshold for a plane of these axes beside ours, or "not applicable" when
+    the paper has no plane of these axes."""
+    axes = _axes(df)
+    if axes == ("w", "b"):
+        return _threshold_b(df)
+    if axes == ("w", "xi"):
+        return _threshold_xi(df)
+    return (f"Paper comparison not applicable: the paper has no {axes_text(df)} plane (it "
+            "maps (ω, b) and (ω, ξ) only).")
+
+
+def _plane(ctx: Context, plane: str) -> pd.DataFrame:
+    return _need(ctx.planes, plane, "plane")
+
+
 def _fig_pattern(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from .planes import figure_pattern
 
-        df = _need(ctx.planes, plane, "plane")
-        axis = "(ω, b)" if plane == "wb" else "(ω, ξ)"
-        diffs = [_grid_note(df)]
-        diffs.append(_threshold_b(df) if plane == "wb" else _threshold_xi(df))
+        df = _plane(ctx, plane)
+        diffs = [_grid_note(df), paper_comparison(df)]
         diffs.append("Categories: quasi-periodic cells get a lighter grey than chaotic ones "
                      "(the paper greys both); high periods other than 1, 2, 4, 8 are grouped.")
-        return [Built(number, figure_pattern(df), f"Motion in the {axis} plane: (a) 3-D "
-                      "bifurcation diagram of the Poincaré points of x over the plane "
+        return [Built(number, figure_pattern(df), f"Motion in the {axes_text(df)} plane: (a) "
+                      "3-D bifurcation diagram of the Poincaré points of x over the plane "
                       "(at most 40 rows, coloured by I); (b) pattern I/nT of every cell "
                       "(red 0/1T, yellow 1/1T, colours for sub-harmonics and double-sided "
                       "patterns, dark grey double-sided chaos, light grey face-impact chaos).",
@@ -359,9 +337,9 @@ def _fig_dc(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from .planes import figure_dc
 
-        df = _need(ctx.planes, plane, "plane")
-        axis = "(ω, b)" if plane == "wb" else "(ω, ξ)"
-        return [Built(number, figure_dc(df), f"Disengagement duty cycle in the {axis} plane: "
+        df = _plane(ctx, plane)
+        return [Built(number, figure_dc(df), "Disengagement duty cycle in the "
+                      f"{axes_text(df)} plane: "
                       "(a) DC surface; (b) I:DC map, each cell labelled by its impact state and "
                       "DC band (0.0 exactly, then bands of 0.1).",
                       [_grid_note(df), "The paper merges some bands (0.4–0.6 in Fig 12b, "
@@ -376,8 +354,8 @@ def _fig_kmax(number: int, plane: str):
         from .data import plane_grid
         from .planes import figure_kmax, robust_max
 
-        df = _need(ctx.planes, plane, "plane")
-        axis = "(ω, b)" if plane == "wb" else "(ω, ξ)"
+        df = _plane(ctx, plane)
+        axis = axes_text(df)
         diffs = [_grid_note(df), f"Kmax reading: {DEFAULT_KMAX} ({KMAX_READINGS[DEFAULT_KMAX]}); "
                  "the paper's normalisation is not stated (docs/model.md)."]
         col = "kmax" if "kmax" in df.columns else DEFAULT_KMAX
@@ -416,42 +394,268 @@ def _fig9_11(ctx: Context) -> list[Built]:
     return out
 
 
-BUILDERS: dict[int, Callable[[Context], list[Built]]] = {
-    1: _fig1,
-    2: _fig2,
-    3: _fig3,
-    4: _fig4,
-    5: _fig5,
-    6: _fig6,
-    7: _fig_pattern(7, "wb"),
-    8: _fig_sweeps(8, ("b015", "b025", "b035")),
-    9: _fig9_11,
-    12: _fig_dc(12, "wb"),
-    13: _fig_kmax(13, "wb"),
-    14: _fig_pattern(14, "wxi"),
-    15: _fig_sweeps(15, ("xi005", "xi009", "xi015")),
-    16: _fig_dc(16, "wxi"),
-    17: _fig_kmax(17, "wxi"),
-}
-BUILDERS[10] = BUILDERS[11] = BUILDERS[9]
+# ------------------------------------------------------------------------------ the table
+@dataclass(frozen=True)
+class Inputs:
+    """The tables a figure reads, by their config names (``config/config.yaml``).
+
+    ``sweeps``, ``planes`` and ``points`` are tables (``results/sweeps/NAME.parquet``,
+    ``results/NAME/cells.parquet``, ``results/points/NAME.parquet``) that the pipeline passes to
+    the CLI and declares as rule inputs. ``config_points`` are entries of the config's
+    ``points:`` that the figure reads from the config only (no table), e.g. Figs 9-11's
+    ``fig9_11: {b, w}``: the figure is drawn only where they are configured.
+    """
+
+    sweeps: tuple[str, ...] = ()
+    planes: tuple[str, ...] = ()
+    points: tuple[str, ...] = ()
+    config_points: tuple[str, ...] = ()
+
+    def tables(self) -> dict[str, tuple[str, ...]]:
+        """``{"sweeps": names, "planes": names, "points": names}``."""
+        return {"sweeps": self.sweeps, "planes": self.planes, "points": self.points}
 
 
-def build(numbers, ctx: Context) -> list[Built]:
-    """Build the figures ``numbers`` (a group such as 9-11 is built once)."""
+@dataclass(frozen=True)
+class FigureSpec:
+    """One figure of the study.
+
+    ``number``: the paper's figure number (new analyses: 18 and up); ``paper_caption``: the
+    paper's caption, or for a figure of ours that the paper does not have, what it shows;
+    ``inputs``: what the pipeline gives it; ``builder(ctx) -> list[Built]``; ``group``: every
+    figure drawn by the same builder call (e.g. (9, 10, 11)), the first is the lead;
+    ``tables_required``: False when the builder draws without its tables (it then simulates
+    the few points it needs itself, Figs 2, 5, 6, 9-11); ``report_caption``: the caption file
+    of Snakemake's HTML report (``workflow/report/``), ``figure.rst`` renders ``caption``.
+    """
+
+    number: int
+    paper_caption: str
+    inputs: Inputs
+    builder: Callable[[Context], list[Built]]
+    group: tuple[int, ...] = ()
+    tables_required: bool = True
+    caption: str = ""  # one line for Snakemake's HTML report
+    report_caption: str = "figure.rst"
+    in_paper: bool = True
+
+    @property
+    def members(self) -> tuple[int, ...]:
+        return self.group or (self.number,)
+
+    @property
+    def lead(self) -> int:
+        return self.members[0]
+
+    def available(self, sweeps, planes, points) -> bool:
+        """True when every input is configured (names of the config's sweeps, planes, points)."""
+        i = self.inputs
+        return (all(s in sweeps for s in i.sweeps) and all(p in planes for p in i.planes)
+                and all(q in points for q in (*i.points, *i.config_points)))
+
+
+FIGURES: dict[int, FigureSpec] = {}
+
+
+def register(spec: FigureSpec) -> FigureSpec:
+    """Add a figure to :data:`FIGURES` (every member of its group points at the same spec)."""
+    for n in spec.members:
+        if n in FIGURES and FIGURES[n] is not spec and FIGURES[n].builder is not spec.builder:
+            raise ValueError(f"figure {n} is registered twice")
+    if spec.number not in spec.members:
+        raise ValueError(f"figure {spec.number} is not in its group {spec.group}")
+    FIGURES[spec.number] = spec
+    return spec
+
+
+@dataclass(frozen=True)
+class MapSpec:
+    """A map drawn for every plane of a study, whatever its two axes
+    (``results/figures/planes/<plane>-<kind>.png``).
+
+    ``builder(cells) -> (figure, caption, notes)``; ``columns``: cell columns it needs (a plane
+    without them, e.g. an old catalogue, is skipped with a note).
+    """
+
+    kind: str
+    title: str
+    builder: Callable[[pd.DataFrame], tuple[Any, str, list[str]]]
+    columns: tuple[str, ...] = ()
+
+
+PLANE_MAPS: dict[str, MapSpec] = {}
+
+
+def register_map(spec: MapSpec) -> MapSpec:
+    if spec.kind in PLANE_MAPS and PLANE_MAPS[spec.kind] is not spec:
+        raise ValueError(f"plane map '{spec.kind}' is registered twice")
+    PLANE_MAPS[spec.kind] = spec
+    return spec
+
+
+register(FigureSpec(1, "Dynamic model of curve-face gear transmission system.", Inputs(), _fig1,
+                    caption="Schematic of the 6-DOF bending-torsional model (drawn)."))
+register(FigureSpec(2, "Distribution of the system's phase trajectories on the plane.",
+                    Inputs(sweeps=("b015",)), _fig2, tables_required=False,
+                    caption="Phase plane split by x = +b and x = -b, with simulated steady "
+                    "trajectories of impact states I = 0, 1 and 2."))
+register(FigureSpec(3, "(Caption lost in our copy; the text: schematic diagram of two-parameter "
+                    "co-simulation, the (u, v) plane divided into grids with the cell centres "
+                    "a(i, j).)", Inputs(planes=("wb",)), _fig3,
+                    caption="The co-simulation grid: a coarse view of the (w, b) plane."))
+register(FigureSpec(4, "(a) Bifurcation diagram of mesh displacement; (b) I: DC diagram; (c) "
+                    "Kmax diagram.", Inputs(sweeps=("standard",)), _fig4,
+                    caption="Standard forward sweep in w: Poincare points, I:DC and Kmax."))
+register(FigureSpec(5, "Superpositions of the phase diagram and Poincaré mapping of the gear "
+                    "pair: (a) ω = 0.48 1-0-0, (b) ω = 0.569 grazing, (c) ω = 0.86 1-1-0, (d) "
+                    "ω = 1.02 2-2-0, (e) ω = 1.072 grazing, (f) ω = 1.25 2-1-0, (g) ω = 1.37 "
+                    "4-3-0, (h) ω = 1.384 8-6-0, (i) ω = 1.53 chaotic, (j) ω = 1.7 4-3-0, (k) "
+                    "ω = 1.81 2-2-0, (l) ω = 2.24 1-1-0.", Inputs(points=("fig5",)), _fig5,
+                    tables_required=False,
+                    caption="Phase trajectories with Poincare points at the paper's values of "
+                    "w; every panel names the paper's pattern and ours."))
+register(FigureSpec(6, "FFT spectrum: (a) ω = 0.48 1-0-0, (b) ω = 1.02 2-2-0, (c) ω = 1.37 "
+                    "4-3-0, (d) ω = 1.53 chaotic.", Inputs(points=("fig6",)), _fig6,
+                    tables_required=False,
+                    caption="FFT amplitude spectra of x, w and its sub-harmonics marked."))
+register(FigureSpec(7, "Meshing motion law diagram of the system in the (ω, b) parameter plane: "
+                    "(a) relative micro-displacement bifurcation diagram of gear pair, (b) "
+                    "pattern types and distribution regions of periodic motions.",
+                    Inputs(planes=("wb",)), _fig_pattern(7, "wb"),
+                    caption="(w, b) plane: 3-D bifurcation diagram and pattern map."))
+register(FigureSpec(8, "Single-parameter bifurcation diagrams of mesh displacement under "
+                    "different dimensionless backlash b: (a) b = 0.15, (b) b = 0.25, (c) b = "
+                    "0.35.", Inputs(sweeps=("b015", "b025", "b035")),
+                    _fig_sweeps(8, ("b015", "b025", "b035")),
+                    caption="Bifurcation diagrams at b = 0.15, 0.25 and 0.35."))
+_DOUBLE_SIDED = {
+    n: f"{npq} double-sided impact motion, when b = 0.15, ω = 0.82: (a) superposition of phase "
+       "diagram and Poincaré map, (b) time history diagram, (c) dynamic load coefficient "
+       "diagram." for n, npq in ((9, "1-1-1"), (10, "2-2-1"), (11, "4-4-2"))}
+for _n in (9, 10, 11):
+    register(FigureSpec(_n, _DOUBLE_SIDED[_n], Inputs(sweeps=("b015",),
+                        config_points=("fig9_11",)), _fig9_11, group=(9, 10, 11),
+                        tables_required=False, report_caption=f"fig{_n:02d}.rst"))
+register(FigureSpec(12, "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, b) "
+                    "parameter plane: (a) DC cloud diagram, (b) I: DC plane distribution "
+                    "diagram.", Inputs(planes=("wb",)), _fig_dc(12, "wb"),
+                    caption="(w, b) plane: DC surface and I:DC map."))
+register(FigureSpec(13, "Maximum dynamic load coefficient in the (ω, b) parameter plane: (a) "
+                    "cloud diagram, (b) plane distribution diagram.", Inputs(planes=("wb",)),
+                    _fig_kmax(13, "wb"), caption="(w, b) plane: Kmax surface and contours."))
+register(FigureSpec(14, "Meshing motion law diagram of the system in the (ω, ξ) parameter "
+                    "plane: (a) relative micro-displacement bifurcation diagram of gear pair, "
+                    "(b) pattern types and distribution regions of periodic motions.",
+                    Inputs(planes=("wxi",)), _fig_pattern(14, "wxi"),
+                    caption="(w, xi) plane: 3-D bifurcation diagram and pattern map."))
+register(FigureSpec(15, "Single-parameter bifurcation diagrams of mesh displacement under "
+                    "different meshing damping ratios ξ: (a) ξ = 0.05, (b) ξ = 0.09, (c) ξ = "
+                    "0.15.", Inputs(sweeps=("xi005", "xi009", "xi015")),
+                    _fig_sweeps(15, ("xi005", "xi009", "xi015")),
+                    caption="Bifurcation diagrams at xi = 0.05, 0.09 and 0.15."))
+register(FigureSpec(16, "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, ξ) "
+                    "parameter plane: (a) DC cloud diagram, (b) I: DC plane distribution "
+                    "diagram.", Inputs(planes=("wxi",)), _fig_dc(16, "wxi"),
+                    caption="(w, xi) plane: DC surface and I:DC map."))
+register(FigureSpec(17, "Maximum dynamic load coefficient in the (ω, ξ) parameter plane: (a) "
+                    "cloud diagram, (b) plane distribution diagram.", Inputs(planes=("wxi",)),
+                    _fig_kmax(17, "wxi"), caption="(w, xi) plane: Kmax surface and contours."))
+
+def _map_pattern(df: pd.DataFrame):
+    from .planes import figure_pattern
+
+    return (figure_pattern(df), f"Motion in the {axes_text(df)} plane: (a) 3-D bifurcation "
+            "diagram of the Poincaré points of x (coloured by I); (b) pattern I/nT of every "
+            "cell.", [_grid_note(df), paper_comparison(df)])
+
+
+def _map_dc(df: pd.DataFrame):
+    from .planes import figure_dc
+
+    return (figure_dc(df), f"Disengagement duty cycle in the {axes_text(df)} plane: (a) DC "
+            "surface; (b) I:DC map (impact state : DC band of 0.1).", [_grid_note(df)])
+
+
+def _map_kmax(df: pd.DataFrame):
+    from ..classify import DEFAULT_KMAX, KMAX_READINGS
+    from .planes import figure_kmax
+
+    return (figure_kmax(df), f"Maximum dynamic load coefficient in the {axes_text(df)} plane: "
+            "(a) surface; (b) filled contours.",
+            [_grid_note(df), f"Kmax reading: {DEFAULT_KMAX} ({KMAX_READINGS[DEFAULT_KMAX]})."])
+
+
+register_map(MapSpec("pattern", "pattern I/nT", _map_pattern, ("I", "label", "poincare_x")))
+register_map(MapSpec("dc", "disengagement duty cycle", _map_dc, ("I", "dc")))
+register_map(MapSpec("kmax", "maximum dynamic load coefficient", _map_kmax, ("kmax",)))
+
+
+def build_maps(plane: str, df: pd.DataFrame, kinds: Sequence[str] | None = None
+               ) -> list[tuple[MapSpec, Any, str, list[str]]]:
+    """Draw the maps ``kinds`` (default: every registered one) of one plane of any axes:
+    ``(spec, figure, caption, notes)`` each; a map whose columns the table lacks is left out."""
+    figures()  # extensions register their maps on import
+    out = []
+    for kind in kinds or list(PLANE_MAPS):
+        if kind not in PLANE_MAPS:
+            raise UsageError(f"unknown plane map '{kind}'; allowed: {', '.join(PLANE_MAPS)}")
+        spec = PLANE_MAPS[kind]
+        if any(c not in df.columns for c in spec.columns):
+            continue
+        fig, caption, notes = spec.builder(df)
+        fig.suptitle(f"plane {plane}: {spec.title}", fontsize=10)
+        out.append((spec, fig, caption, notes))
+    return out
+
+
+#: modules of other analyses that register figures numbered after 17 (imported by
+#: :func:`figures`; a module missing from this checkout is skipped).
+EXTENSIONS: tuple[str, ...] = ("gearsim.figures.multistability",)
+
+
+def figures() -> dict[int, FigureSpec]:
+    """Every registered figure, by number (the extensions imported first)."""
+    import importlib
+
+    for mod in EXTENSIONS:
+        try:
+            importlib.import_module(mod)
+        except ModuleNotFoundError as exc:
+            if exc.name != mod:
+                raise
+    return dict(sorted(FIGURES.items()))
+
+
+def numbers() -> tuple[int, ...]:
+    return tuple(figures())
+
+
+def build(numbers: Sequence[int], ctx: Context) -> list[Built]:
+    """Build the figures ``numbers`` (a group such as 9-11 is built once, all its members)."""
+    table = figures()
     done: set[int] = set()
     out: list[Built] = []
     for n in numbers:
         if n in done:
             continue
-        if n not in BUILDERS:
-            from ..cli import UsageError
-
-            raise UsageError(f"unknown figure {n}; allowed: 1-17")
-        built = BUILDERS[n](ctx)
+        if n not in table:
+            raise UsageError(f"unknown figure {n}; allowed: {_ranges(tuple(table))}")
+        built = table[n].builder(ctx)
         for b in built:
             done.add(b.number)
-        out.extend(b for b in built if b.number in numbers or GROUPS.get(n))
+        out.extend(built)
     return out
+
+
+def _ranges(ns: tuple[int, ...]) -> str:
+    out, start = [], None
+    for k, n in enumerate(ns):
+        if start is None:
+            start = n
+        if k + 1 == len(ns) or ns[k + 1] != n + 1:
+            out.append(f"{start}" if start == n else f"{start}-{n}")
+            start = None
+    return ", ".join(out)
 
 
 def record(b: Built, files: list[str], ctx: Context | None = None) -> dict[str, Any]:
@@ -461,7 +665,7 @@ def record(b: Built, files: list[str], ctx: Context | None = None) -> dict[str, 
     rec = {
         "figure": b.number,
         "files": files,
-        "paper_caption": PAPER_CAPTIONS[b.number],
+        "paper_caption": FIGURES[b.number].paper_caption,
         "caption": b.caption,
         "differences": b.differences,
         "inputs": b.inputs,

@@ -1,78 +1,97 @@
 """Helpers of ``workflow/rules/figures.smk`` (kept here so the rules file holds only rules).
 
-Which tables each figure reads is fixed by the paper; the names are those of
-``config/config.yaml`` (sweeps ``standard``, ``b015``..., planes ``wb``, ``wxi``, point sets
-``fig5``, ``fig6``, ``fig9_11``).
+Everything comes from the one figure table :data:`gearsim.figures.registry.FIGURES`: which
+tables a figure reads (rule inputs and the CLI's ``--sweep/--plane/--points NAME=PATH``), which
+figures are drawn together (one job per group, e.g. Figs 9-11), the report caption. Names are
+those of the config (``sweeps``, ``planes``, ``points``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from pathlib import Path
+from collections.abc import Iterable, Mapping
 from typing import Any
 
-# figure -> (sweeps, planes, point sets) it reads; Figs 9-11 have their own rule
-FIGURE_INPUTS: dict[int, tuple[list[str], list[str], list[str]]] = {
-    1: ([], [], []),
-    2: (["b015"], [], []),
-    3: ([], ["wb"], []),
-    4: (["standard"], [], []),
-    5: ([], [], ["fig5"]),
-    6: ([], [], ["fig6"]),
-    7: ([], ["wb"], []),
-    8: (["b015", "b025", "b035"], [], []),
-    12: ([], ["wb"], []),
-    13: ([], ["wb"], []),
-    14: ([], ["wxi"], []),
-    15: (["xi005", "xi009", "xi015"], [], []),
-    16: ([], ["wxi"], []),
-    17: ([], ["wxi"], []),
-}
-DOUBLE_SIDED = (9, 10, 11)
-DOUBLE_SIDED_INPUTS = (["b015"], [], ["fig9_11"])
-FIGURE_WILDCARDS = "|".join(f"{n:02d}" for n in FIGURE_INPUTS)
+from . import registry
 
 
-def figure_inputs(wildcards) -> dict[str, list[str]]:
-    sweeps, planes, points = FIGURE_INPUTS[int(wildcards.n)]
-    return {
-        "sweeps": [f"results/sweeps/{s}.parquet" for s in sweeps],
-        "planes": [f"results/{p}/cells.parquet" for p in planes],
-        "points": [f"results/points/{p}.parquet" for p in points],
-    }
-
-
-def figure_args(wildcards, input) -> str:  # noqa: A002 (Snakemake's name)
-    """``--sweep/--plane/--points NAME=PATH`` for the CLI, names taken from the file paths."""
-    args = [f"--sweep {Path(p).stem}={p}" for p in input.sweeps]
-    args += [f"--plane {Path(p).parent.name}={p}" for p in input.planes]
-    args += [f"--points {Path(p).stem}={p}" for p in input.points]
-    return " ".join(args)
+def groups(sweeps: Iterable[str], planes: Iterable[str], points: Iterable[str]
+           ) -> list[registry.FigureSpec]:
+    """The lead spec of every figure group whose inputs are all configured (one job each)."""
+    sweeps, planes, points = list(sweeps), list(planes), list(points)
+    out, seen = [], set()
+    for spec in registry.figures().values():
+        if spec.lead in seen:
+            continue
+        seen.add(spec.lead)
+        lead = registry.FIGURES[spec.lead]
+        if lead.available(sweeps, planes, points):
+            out.append(lead)
+    return out
 
 
 def built_figures(sweeps, planes, point_sets) -> list[int]:
-    """The figures whose input tables are all configured."""
+    """Every figure number the pipeline draws for this config."""
+    return sorted(n for g in groups(sweeps, planes, point_sets) for n in g.members)
 
-    def ok(spec):
-        s, p, q = spec
-        return all(x in sweeps for x in s) and all(x in planes for x in p) and all(
-            x in point_sets for x in q
-        )
 
-    out = [n for n, spec in FIGURE_INPUTS.items() if ok(spec)]
-    if ok(DOUBLE_SIDED_INPUTS):
-        out += list(DOUBLE_SIDED)
-    return sorted(out)
+def input_paths(spec: registry.FigureSpec) -> dict[str, list[str]]:
+    """Rule inputs of a figure: its tables' paths, by kind."""
+    i = spec.inputs
+    return {
+        "sweeps": [f"results/sweeps/{s}.parquet" for s in i.sweeps],
+        "planes": [f"results/{p}/cells.parquet" for p in i.planes],
+        "points": [f"results/points/{p}.parquet" for p in i.points],
+    }
+
+
+def cli_args(spec: registry.FigureSpec) -> str:
+    """``--fig N [M ...] --sweep NAME=PATH --plane NAME=PATH --points NAME=PATH``."""
+    paths = input_paths(spec)
+    i = spec.inputs
+    args = ["--fig", *(str(n) for n in spec.members)]
+    args += [f"--sweep {n}={p}" for n, p in zip(i.sweeps, paths["sweeps"], strict=True)]
+    args += [f"--plane {n}={p}" for n, p in zip(i.planes, paths["planes"], strict=True)]
+    args += [f"--points {n}={p}" for n, p in zip(i.points, paths["points"], strict=True)]
+    return " ".join(args)
+
+
+def outputs(spec: registry.FigureSpec) -> dict[str, list[str]]:
+    """``png`` (report items), and the ``other`` files (PDF, JSON record) of a group."""
+    stems = [f"results/figures/fig{n:02d}" for n in spec.members]
+    return {"png": [f"{s}.png" for s in stems],
+            "other": [f"{s}.{ext}" for s in stems for ext in ("pdf", "json")]}
+
+
+def rule_name(spec: registry.FigureSpec) -> str:
+    return "figure_" + "_".join(f"{n:02d}" for n in spec.members)
+
+
+def report_captions(spec: registry.FigureSpec) -> list[str]:
+    return [registry.FIGURES[n].report_caption for n in spec.members]
+
+
+def caption_params(spec: registry.FigureSpec) -> dict[str, Any]:
+    """What ``workflow/report/figure.rst`` renders: number, our line, the paper's caption."""
+    return {"number": spec.number, "caption": spec.caption,
+            "paper_caption": spec.paper_caption}
+
+
+def map_outputs(plane: str) -> list[str]:
+    """The maps drawn for a plane of any axes (PNG, PDF, JSON of each registered kind)."""
+    registry.figures()
+    return [f"results/figures/planes/{plane}-{kind}.{ext}" for kind in registry.PLANE_MAPS
+            for ext in ("png", "pdf", "json")]
 
 
 def figure_params(config: Mapping[str, Any]) -> str:
     """What the simulated figures (2, 5, 6, 9-11) depend on besides their tables (JSON)."""
-    from .. import tiles as gt
+    from .. import config as gcfg
+    from .. import provenance as gprov
 
-    return gt.canonical_json(
+    return gprov.canonical_json(
         {
-            "parameters": gt.resolved_parameters(config),
-            "integration": gt.integration_settings(config).to_dict(),
+            "parameters": gcfg.resolved_parameters(config),
+            "integration": gcfg.integration_settings(config).to_dict(),
             "points": config.get("points", {}),
             "sweeps": {k: v.get("fixed", {}) for k, v in config.get("sweeps", {}).items()},
         }

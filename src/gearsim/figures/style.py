@@ -43,7 +43,8 @@ PARAM_LABELS: dict[str, str] = {
     "Fm": r"mean load $F_m$",
     "Fe": r"error amplitude $F_e$",
 }
-PARAM_SYMBOLS: dict[str, str] = {"w": r"$\omega$", "b": r"$b$", "xi": r"$\xi$"}
+PARAM_SYMBOLS: dict[str, str] = {"w": r"$\omega$", "b": r"$b$", "xi": r"$\xi$",
+                                 "eps": r"$\varepsilon$", "Fm": r"$F_m$", "Fe": r"$F_e$"}
 X_LABEL = r"mesh displacement $x$ (= $X_n/b_c$)"
 V_LABEL = r"mesh velocity $\dot x$ (= $dx/d\tau$)"
 TAU_LABEL = r"dimensionless time $\tau$ (= $\omega_n t$)"

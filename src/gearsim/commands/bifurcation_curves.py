@@ -1,0 +1,113 @@
+"""``gearsim bifurcation-curves``: fold, period-doubling and grazing curves over a plane."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..errors import UsageError
+from .simulate_tile import add_config_arguments, config_from_args
+
+NAME = "bifurcation-curves"
+HELP = (
+    "locate the bifurcations along a plane's x axis by continuation (Newton-Floquet) and follow "
+    "the fold, period-doubling and grazing points across the plane's y range (Parquet + figure)"
+)
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plane", required=True, help="plane name in the config (e.g. wb, wxi)")
+    add_config_arguments(p)
+    p.add_argument("--cells", default=None,
+                   help="the plane's cells.parquet: the curves are drawn over its pattern map")
+    p.add_argument("--at", type=float, default=None,
+                   help="y value of the seeding continuation (default: the base parameter "
+                   "value, clipped into the plane's y range)")
+    p.add_argument("--period", "-n", type=int, default=1,
+                   help="period of the orbit at the start of the x range (default 1)")
+    p.add_argument("--step2", type=float, default=None,
+                   help="largest step in y between curve points (default: y range / 20)")
+    p.add_argument("--switch-depth", type=int, default=2,
+                   help="period doublings followed onto the doubled branch")
+    p.add_argument("--kinds", default="fold,period_doubling,grazing",
+                   help="comma-separated kinds to follow")
+    p.add_argument("--out", required=True,
+                   help="curves Parquet (results/orbits/PLANE_curves.parquet); the located "
+                   "points go to *_points.parquet beside it, the figure to *.png")
+
+
+def run(args: argparse.Namespace) -> int:
+    from .. import catalogue
+    from .. import config as gcfg
+    from .. import provenance as gprov
+    from ..bifcurves import bifurcation_points, follow_curves
+    from ..continuation import Continuation, continue_orbit, write_branches
+    from ..orbits import find_periodic_orbit
+
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(f"unknown plane '{args.plane}'; allowed: {', '.join(config['planes'])}")
+    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
+    allowed = ("fold", "period_doubling", "grazing", "neimark_sacker")
+    for k in kinds:
+        if k not in allowed:
+            raise UsageError(f"--kinds: {k!r} is not one of {', '.join(allowed)}")
+    pl = config["planes"][args.plane]
+    xn, yn = pl["x"]["name"], pl["y"]["name"]
+    x0, x1 = float(pl["x"]["min"]), float(pl["x"]["max"])
+    y0, y1 = float(pl["y"]["min"]), float(pl["y"]["max"])
+    base = gcfg.plane_base(config, args.plane)
+    at = float(getattr(base, yn)) if args.at is None else args.at
+    at = min(max(at, y0), y1)
+    step2 = args.step2 if args.step2 is not None else (y1 - y0) / 20
+    if not 0 < step2 <= (y1 - y0):
+        raise UsageError(f"--step2 = {step2} must be in (0, {y1 - y0}]")
+    params = base.with_(**{yn: at, xn: x0})
+    started = catalogue.now_iso()
+    t0 = time.perf_counter()
+    from ..simulate import simulate_cell
+
+    seed = simulate_cell(params).final_state
+    orbit = find_periodic_orbit(params, args.period, seed, grazing=False)
+    cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth, max_points=600)
+    branches = continue_orbit(params, xn, x0, x1, orbit, config=cfg)
+    t_branch = time.perf_counter() - t0
+    points = bifurcation_points(branches)
+    curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds)
+    wall = time.perf_counter() - t0
+    out = Path(args.out)
+    stem = out.with_suffix("")
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, args.plane), kind="curves", name=args.plane, config=config,
+        started=started, finished=catalogue.now_iso(), wall_s=wall, seed_value=at,
+        branch_wall_s=t_branch, curve_wall_s=wall - t_branch, reasons=curves.attrs["reasons"],
+        workers="in-process",
+    )
+    branches.attrs["provenance"] = prov
+    write_branches(branches, Path(f"{stem}_branches.parquet"))
+    points = points.assign(plane=args.plane, name2=yn, value2=at)
+    catalogue.write_parquet(points, Path(f"{stem}_points.parquet"),
+                            {catalogue.PROVENANCE_KEY: prov})
+    curves = curves.assign(plane=args.plane)
+    catalogue.write_parquet(curves, out, {catalogue.PROVENANCE_KEY: prov})
+    import pandas as pd
+
+    from ..figures.style import save_figure
+    from ..orbit_plots import figure_curves
+
+    cells = pd.read_parquet(args.cells) if args.cells else None
+    fig = figure_curves(curves, cells, title=f"plane {args.plane}: bifurcation curves "
+                        f"(continued from {yn} = {at:g})")
+    save_figure(fig, out.with_suffix(".png"))
+    print(json.dumps({"plane": args.plane, "points": len(points), "curves":
+                      int(curves["curve"].nunique()) if len(curves) else 0,
+                      "curve_points": len(curves), "branch_wall_s": t_branch,
+                      "curve_wall_s": wall - t_branch}), file=sys.stderr)
+    for r in curves.attrs["reasons"]:
+        print(f"  {r}", file=sys.stderr)
+    print(f"wrote {out}, {stem}_points.parquet, {stem}_branches.parquet and "
+          f"{out.with_suffix('.png')}", file=sys.stderr)
+    return 0

@@ -1,0 +1,35 @@
+# Coexisting attractors of the planes that set `multistability: {starts, seed}` (issue 11,
+# docs/multistability.md): one job per tile, after the plane's simulated tile (its
+# forward-continuation states seed the finder), into the catalogue's `attractors` table.
+MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
+ATTRACTOR_FILES = [
+    f"results/{plane}/attractors/{tile}.parquet"
+    for plane in MULTISTABLE_PLANES
+    for tile in TILES[plane]
+]
+
+
+rule attractor_tile:
+    input:
+        compiled=COMPILED,
+        config=CONFIG,
+        tile="results/{plane}/tiles/{tile}.parquet",
+    output:
+        "results/{plane}/attractors/{tile}.parquet",
+    log:
+        "logs/{plane}/attractors_{tile}.log",
+    benchmark:
+        "logs/benchmarks/{plane}/attractors_{tile}.tsv"
+    conda:
+        GEARSIM_ENV
+    threads: 2
+    params:
+        config=plane_params,
+        code_version=CODE_VERSION,
+    shell:
+        "gearsim attractor-tile --plane {wildcards.plane} --tile {wildcards.tile} "
+        "--tile-file {input.tile} --configfile {input.config} --workers {threads} "
+        "--out {output} > {log} 2>&1"
+
+
+ALL_TARGETS += ATTRACTOR_FILES
