@@ -285,7 +285,8 @@ def physical_columns(data: Any, gear: GearGeometry,
     Parameter columns ``w``, ``Fm``, ``b`` always give ``speed_rpm``, ``mesh_frequency_Hz``,
     ``torque_Nm``, ``mean_mesh_force_N`` and ``half_backlash_um``: from the column when present,
     otherwise from ``params`` (the set the results were computed with; default the gear's own
-    dimensionless set). ``Fe``, ``xi``, ``eps`` and the result columns (``kmax_peak_mean``,
+    dimensionless set; a sweep's ``value`` counts as the column of its ``parameter``).
+    ``Fe``, ``xi``, ``eps`` and the result columns (``kmax_peak_mean``,
     ``kmin_peak_mean``, ``x_min``, ``x_max``, ``lyapunov``; a trajectory's ``tau``, ``x``,
     ``xdot``, ``mesh_force``, ``frequency``) convert when present. Units and meanings:
     :data:`COLUMNS`. Only the gear's geometry and ``b_c`` enter (not its loads).
@@ -295,10 +296,16 @@ def physical_columns(data: Any, gear: GearGeometry,
         raise TypeError("physical_columns expects a pandas DataFrame or a mapping (one row)")
     base = params if params is not None else gear.to_model_parameters()
     cols = set(data.columns) if frame else set(data)
+    swept = None  # a sweep's frame (gearsim.sweep.orbit_diagram): 'value' of 'parameter'
+    if {"parameter", "value"} <= cols:
+        names = set(data["parameter"]) if frame else {data["parameter"]}
+        if len(names) == 1 and next(iter(names)) not in cols:
+            swept = next(iter(names))
+            cols.add(swept)
 
     def get(name):
         if name in cols:
-            v = data[name]
+            v = data["value" if name == swept else name]
             return v.astype(float) if frame else float(v)
         return float(getattr(base, name))
 
