@@ -68,10 +68,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _context(args, config):
+    from ..config import base_parameters, integration_settings
     from ..figures.data import read_table
     from ..figures.registry import Context
     from ..parameters import ModelParameters
-    from ..tiles import base_parameters, integration_settings
 
     values, _source = base_parameters(config)
     ctx = Context(
