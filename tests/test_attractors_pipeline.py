@@ -18,7 +18,8 @@ def ms_run(tmp_path_factory):
         "planes:\n  wb:\n    multistability: {starts: 6, seed: 3}\n"
     )
     cfg = ("--configfile", "config/tiny.yaml", "config/ms.yaml")
-    smk(wd, "results/catalogue.d/build.sqlite", "--cores", "2", *cfg)
+    smk(wd, "results/catalogue.d/build.sqlite", "results/figures/planes/wb-coexistence.png",
+        "--cores", "2", *cfg)
     return wd, cfg
 
 def test_attractor_tiles_and_catalogue(ms_run):
@@ -72,3 +73,21 @@ def test_bad_multistability_rejected(tmp_path):
     r = smk(wd, "-n", "--configfile", "config/tiny.yaml", "config/bad.yaml", check=False)
     assert r.returncode != 0
     assert "multistability" in (r.stdout + r.stderr)
+
+
+def test_maps_written(ms_run):
+    wd, _ = ms_run
+    for kind in ("coexistence", "forward-basin"):
+        assert (wd / f"results/figures/planes/wb-{kind}.png").stat().st_size > 10_000
+
+
+def test_every_thins_the_attractor_grid():
+    from gearsim.commands.attractor_tile import task_specs
+    from gearsim.tiles import load_config
+
+    cfg = load_config(["config/config.yaml", "config/tiny.yaml"],
+                      {"planes": {"wb": {"multistability": {"starts": 4, "every": 2}}}})
+    cells = [c for s in task_specs(cfg, "wb", 0, None) for c in s["cells"]]
+    # tile 0 = rows j 0..3 of the 8 x 8 plane: rows 0 and 2, columns 0, 2, 4, 6
+    assert sorted((c[0], c[1]) for c in cells) == [(i, j) for i in (0, 2, 4, 6) for j in (0, 2)]
+    assert all(c[4] is None for c in cells)  # no tile file: no forward states
