@@ -353,3 +353,64 @@ def test_catalogue_stays_valid_through_rebuilds(study, tmp_path):
     assert len(reader.counts) > 20
     # the killed build's temporary file was removed by the next build
     assert [p.name for p in build.parent.iterdir()] == ["build.sqlite"]
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only directories")
+def test_read_only_directory_keeps_the_old_catalogue(study, tmp_path, gearsim):
+    d = tmp_path / "ro"
+    d.mkdir()
+    (d / "build.sqlite").write_bytes(b"old")
+    d.chmod(0o555)
+    try:
+        r = gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], "--out",
+                     d / "build.sqlite"], cwd=tmp_path)
+    finally:
+        d.chmod(0o755)
+    _refused(r, ["cannot write it"])
+    assert (d / "build.sqlite").read_bytes() == b"old"
+
+
+def test_unwritable_output_is_one_line(study, tmp_path, gearsim):
+    """The output's directory is a file (as on a full or broken disk, the write fails)."""
+    (tmp_path / "blocker").write_text("a file where a directory should be")
+    pub = tmp_path / "catalogue.sqlite"
+    pub.write_bytes(b"previous")
+    r = gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], "--out",
+                 tmp_path / "blocker/build.sqlite", "--publish", pub], cwd=tmp_path)
+    _refused(r, ["blocker"])
+    assert pub.read_bytes() == b"previous"
+
+
+@pytest.mark.slow
+def test_snakemake_rebuilds_keep_the_catalogue_readable(tiny_run, tmp_path):
+    """The real workflow: a forced rebuild that succeeds and one that fails mid-build (a sweep
+    file damaged after the planes went in), queries on results/catalogue.sqlite throughout."""
+    from workflow_helpers import smk
+
+    wd = tmp_path / "wd"
+    shutil.copytree(tiny_run[0], wd, symlinks=True,
+                    ignore=shutil.ignore_patterns(".snakemake"))
+    pub = wd / "results/catalogue.sqlite"
+    target = "results/catalogue.d/build.sqlite"
+    n_cells = gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0]
+    reader = Reader(pub)
+    reader.start()
+    try:
+        smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml",
+            "--forcerun", "catalogue")
+        assert (wd / target).exists() and os.path.samefile(wd / target, pub)
+        sweep = wd / "results/sweeps/b015.parquet"
+        good = sweep.read_bytes()
+        sweep.write_bytes(good[: len(good) // 2])
+        r = smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml", check=False)
+        assert r.returncode != 0
+        log = (wd / "logs/catalogue.log").read_text()
+        assert "b015.parquet: not a readable Parquet file" in log, log
+        assert not (wd / target).exists()
+        time.sleep(0.3)
+    finally:
+        reader.stop.set()
+        reader.join(10)
+    assert reader.errors == []
+    assert set(reader.counts) == {n_cells} and len(reader.counts) > 20
+    assert gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0] == n_cells
