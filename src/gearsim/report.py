@@ -508,9 +508,10 @@ def to_markdown(rep: Report) -> str:
         elif th is None:
             out.append(f"| {label} | {paper} | not computed | | |")
         else:
+            note = f"; {th.note}" if th.note else ""
             out.append(f"| {label} | {paper} | {_f(th.value)} | {_f(th.last_with)} / "
-                       f"{_f(th.first_without)} ({th.rows} rows) | {_f(th.difference, '+.4f')} |"
-                       + (f" {th.note}" if th.note else ""))
+                       f"{_f(th.first_without)} ({th.rows} rows{note}) | "
+                       f"{_f(th.difference, '+.4f')} |")
     out.append("")
     out += ["## 4. Pattern sequences (Fig 8, Fig 15)", ""]
     for key, e in rep.sequences.items():

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .simulate_tile import Progress, add_config_arguments, config_from_args
 
 NAME = "attractor-tile"
@@ -66,7 +66,9 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
 def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from .. import catalogue, tiles
+    from .. import catalogue
+    from .. import grid as ggrid
+    from .. import provenance as gprov
     from ..attractors import TILE_COLUMNS, cell_group_records
     from ..cluster import describe, map_unordered, open_client
 
@@ -77,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if not config["planes"][args.plane].get("multistability"):
         raise UsageError(f"plane '{args.plane}' has no 'multistability' (starts, seed) set")
-    rows = tiles.tile_rows(config, args.plane, args.tile)
+    rows = ggrid.tile_rows(config, args.plane, args.tile)
     tile_file = Path(args.tile_file or f"results/{args.plane}/tiles/{args.tile}.parquet")
     tile_df = None
     if tile_file.exists():
@@ -115,8 +117,8 @@ def run(args: argparse.Namespace) -> int:
         df[c] = pd.array([None if v is None or v != v else int(v) for v in df[c]], dtype="Int64")
     df = df.sort_values(["j", "i", "attractor"], kind="stable").reset_index(drop=True)
     ms = config["planes"][args.plane]["multistability"]
-    prov = tiles.provenance(
-        tiles.plane_subtree(config, args.plane), kind="attractors", name=args.plane,
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, args.plane), kind="attractors", name=args.plane,
         config=config, tile=args.tile, rows=[rows.start, rows.stop], workers=workers,
         started=started, finished=catalogue.now_iso(), wall_s=wall, cells=total,
         starts=int(ms["starts"]), seed=int(ms.get("seed", 0)), every=int(ms.get("every", 1)),
