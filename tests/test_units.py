@@ -223,6 +223,19 @@ def test_point_with_gear_prints_physical_columns(tmp_path, capsys):
     t = units.physical_columns(ts, g)
     assert t["mesh_force_N"].max() == pytest.approx(row["peak_mesh_force_N"], rel=2e-3)
     assert t["x_um"].max() - t["x_um"].min() == pytest.approx(row["dte_pp_um"], rel=2e-3)
+    # RMS about the mean: between 0 and half the peak-to-peak value (a non-constant motion)
+    rms = units.dte_rms_um(pd.read_parquet(save), g)
+    assert 0.0 < rms < 0.5 * row["dte_pp_um"]
+
+
+def test_dte_rms_of_a_sine_is_amplitude_over_root_two():
+    g = GearGeometry()  # b_c = 10 um
+    tau = np.linspace(0.0, 3 * 2 * np.pi / 0.7, 3 * 128 + 1)  # three periods, both endpoints
+    x = 1.0 + 0.5 * np.sin(0.7 * tau) + 0.2 * np.cos(2.1 * tau)
+    expected = 10.0 * math.sqrt(0.5**2 / 2 + 0.2**2 / 2)
+    frame = pd.DataFrame({"kind": "time_series", "tau": tau, "x": x})
+    assert units.dte_rms_um(frame, g) == pytest.approx(expected, rel=1e-12)
+    assert units.dte_rms_um(x[:-1], g) == pytest.approx(expected, rel=1e-12)
 
 
 def test_pipeline_config_in_physical_units_converts_in_place():

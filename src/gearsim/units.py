@@ -353,6 +353,33 @@ def physical_columns(data: Any, gear: GearGeometry,
     return {**data, **out}
 
 
+def dte_rms_um(trajectory: Any, gear: GearGeometry) -> float:
+    """RMS of the dynamic transmission error about its mean, um.
+
+    ``trajectory``: a frame with ``tau`` and ``x`` (``gearsim point --out``; only its
+    ``time_series`` rows when it has a ``kind`` column), integrated with the trapezoidal rule
+    in ``tau`` (exact for a periodic motion sampled over whole periods); or an array of
+    uniformly spaced ``x`` samples (plain mean). ``x = X_n / b_c``, so the result is
+    ``b_c sqrt(mean((x - mean x)^2))``. The classification does not record it per cell.
+    """
+    import numpy as np
+
+    if _is_frame(trajectory):
+        df = trajectory
+        if "kind" in df.columns:
+            df = df[df["kind"] == "time_series"]
+        tau, x = df["tau"].to_numpy(float), df["x"].to_numpy(float)
+        span = tau[-1] - tau[0]
+        if len(x) < 2 or not span > 0:
+            raise ParameterError("dte_rms_um needs at least two samples of increasing tau")
+        mean = np.trapezoid(x, tau) / span
+        var = np.trapezoid((x - mean) ** 2, tau) / span
+    else:
+        x = np.asarray(trajectory, dtype=float)
+        var = float(np.mean((x - x.mean()) ** 2))
+    return float(np.sqrt(var)) * gear.nominal_length * 1e6
+
+
 def dimensionless_columns(data: Any, gear: GearGeometry) -> dict[str, Any]:
     """The parameters ``w``, ``Fm``, ``Fe``, ``b`` recovered from physical columns (the inverse
     of :func:`physical_columns` for ``speed_rpm``, ``torque_Nm``, ``te_amplitude_um``,
@@ -435,7 +462,8 @@ def physical_line(row: Mapping[str, Any], gear_source: str = "") -> str:
 __all__ = [
     "COLUMNS", "DEFAULT_GEAR", "PHYSICAL_AXES", "axis_factor", "axis_label_values",
     "config_gear", "describe", "dimensionless_axis", "dimensionless_columns",
-    "dimensionless_config", "dimensionless_mapping", "gear_from_mapping", "gear_yaml",
+    "dimensionless_config", "dimensionless_mapping", "dte_rms_um", "gear_from_mapping",
+    "gear_yaml",
     "load_gear", "physical_columns", "physical_line", "range_text", "to_dimensionless",
     "to_physical",
 ]
