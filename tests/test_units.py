@@ -182,6 +182,18 @@ def test_cli_bad_gear_input_exits_2_with_one_line(tmp_path, capsys):
     assert "--omega" in capsys.readouterr().err
 
 
+def test_every_committed_gear_file_loads():
+    files = sorted((ROOT / "config/gears").glob("*.yaml"))
+    assert len(files) >= 2
+    for path in files:
+        p = units.load_gear(path).to_model_parameters()
+        assert 0.0 < p.w <= 2.5 and p.rho_p == pytest.approx(0.4), path.name
+    g = units.load_gear(ROOT / "config/gears/example_m3.yaml")
+    assert g.mesh_frequency_hz == pytest.approx(24 * 12000 / 60)  # 4800 Hz
+    assert g.pitch_radius_p == pytest.approx(0.036)  # 3 mm x 24 / 2
+    assert g.te_phase_deg == GearGeometry().te_phase_deg  # left out: the standard gear's
+
+
 def test_gear_command_prints_the_set_and_the_meaning(tmp_path, capsys):
     assert main(["gear", "--gear", str(STANDARD_GEAR)]) == 0
     out = capsys.readouterr().out
