@@ -75,7 +75,8 @@ def main(argv=None) -> int:
     from synthetic_tiles import write_tile
 
     from gearsim import catalogue as gc
-    from gearsim import tiles as gt
+    from gearsim import config as gcfg
+    from gearsim import grid as ggrid
 
     work = Path(args.workdir or tempfile.mkdtemp(prefix="bench_catalogue_"))
     work.mkdir(parents=True, exist_ok=True)
@@ -85,11 +86,11 @@ def main(argv=None) -> int:
         cfg_file = work / "scale.yaml"
         cfg_file.write_text(yaml.safe_dump({"tile_rows": args.tile_rows,
                                             "planes": {"scale": plane}}))
-        cfg = gt.load_config([ROOT / "config/config.yaml", cfg_file], root=ROOT)
+        cfg = gcfg.load_config([ROOT / "config/config.yaml", cfg_file], root=ROOT)
         load0 = loadavg()
         t0 = time.perf_counter()
         tiles = [write_tile(cfg, "scale", t, work / f"tiles/{t}.parquet")
-                 for t in gt.tile_ids(cfg, "scale")]
+                 for t in ggrid.tile_ids(cfg, "scale")]
         write_s = time.perf_counter() - t0
         tile_bytes = sum(p.stat().st_size for p in tiles)
         print(f"{len(tiles)} tiles, {args.nx * args.ny} cells, {tile_bytes / 1e6:.0f} MB "

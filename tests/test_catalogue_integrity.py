@@ -23,7 +23,8 @@ import yaml
 from synthetic_tiles import tile_frame, write_tile
 
 from gearsim import catalogue as gc
-from gearsim import tiles as gt
+from gearsim import config as gcfg
+from gearsim import grid as ggrid
 from gearsim.commands.catalogue import plane_record
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,8 +74,8 @@ def study(tmp_path_factory):
     cfg_file = d / "study.yaml"
     cfg_file.write_text(yaml.safe_dump(over))
     config_yaml = ROOT / "config/config.yaml"
-    cfg = gt.load_config([config_yaml, ROOT / "config/tiny.yaml", cfg_file], root=ROOT)
-    tiles = {p: [write_tile(cfg, p, t, d / p / f"{t}.parquet") for t in gt.tile_ids(cfg, p)]
+    cfg = gcfg.load_config([config_yaml, ROOT / "config/tiny.yaml", cfg_file], root=ROOT)
+    tiles = {p: [write_tile(cfg, p, t, d / p / f"{t}.parquet") for t in ggrid.tile_ids(cfg, p)]
              for p in ("wb", "wxi")}
     cells = {p: gc.combine_tiles(tiles[p], d / p / "cells.parquet", plane_record(cfg, p))
              for p in ("wb", "wxi")}

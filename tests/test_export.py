@@ -17,6 +17,9 @@ import xarray as xr
 from synthetic_tiles import tile_frame, write_tile
 
 from gearsim import catalogue as gc
+from gearsim import config as gcfg
+from gearsim import grid as ggrid
+from gearsim import provenance as gprov
 from gearsim import tiles as gt
 from gearsim.cli import main
 from gearsim.commands.catalogue import plane_record
@@ -30,11 +33,11 @@ CHAOS = {(1, 0), (4, 3)}  # cells without a period: p, q NULL, dc NULL
 @pytest.fixture(scope="module")
 def db(tmp_path_factory):
     d = tmp_path_factory.mktemp("export")
-    cfg = gt.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"], root=ROOT)
+    cfg = gcfg.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"], root=ROOT)
     cfg["tile_rows"] = 2
     cfg["planes"]["wb"]["x"]["n"], cfg["planes"]["wb"]["y"]["n"] = NX, NY
     tiles = []
-    for t in gt.tile_ids(cfg, "wb"):
+    for t in ggrid.tile_ids(cfg, "wb"):
         df = tile_frame(cfg, "wb", t)
         for i, j in CHAOS:
             k = df.index[(df["i"] == i) & (df["j"] == j)]
@@ -86,7 +89,7 @@ def test_dataset_attributes(db):
     sql = "SELECT config_hash, code_version, integration FROM planes"
     h, code, integ = con.execute(sql).fetchone()
     con.close()
-    assert ds.attrs["config_hash"] == h and ds.attrs["code_version"] == code == gt.code_version()
+    assert ds.attrs["config_hash"] == h and ds.attrs["code_version"] == code == gprov.code_version()
     assert json.loads(ds.attrs["integration"]) == json.loads(integ)
     assert "b" not in json.loads(ds.attrs["parameters"])
 
@@ -164,15 +167,15 @@ def test_exported_variables_are_the_catalogue_cell_columns():
 
 def test_simulated_plane_round_trips_through_netcdf(tmp_path):
     """A real (simulated) 3 x 4 plane: the NetCDF export re-opened equals the catalogue."""
-    cfg = gt.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"], root=ROOT)
+    cfg = gcfg.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"], root=ROOT)
     cfg["tile_rows"] = 2
     cfg["planes"]["wb"]["x"]["n"], cfg["planes"]["wb"]["y"]["n"] = 3, 4
     tiles = []
-    for t in gt.tile_ids(cfg, "wb"):
+    for t in ggrid.tile_ids(cfg, "wb"):
         df = gt.run_tile(cfg, "wb", t)
-        rows = gt.tile_rows(cfg, "wb", t)
-        prov = gt.provenance(gt.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg,
-                             tile=t, rows=[rows.start, rows.stop], cells=len(df))
+        rows = ggrid.tile_rows(cfg, "wb", t)
+        prov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="tile", name="wb",
+                                config=cfg, tile=t, rows=[rows.start, rows.stop], cells=len(df))
         tiles.append(gc.write_parquet(df, tmp_path / f"{t}.parquet", {gc.PROVENANCE_KEY: prov}))
     cells = gc.combine_tiles(tiles, tmp_path / "cells.parquet", plane_record(cfg, "wb"))
     db = tmp_path / "catalogue.sqlite"

@@ -44,7 +44,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import catalogue, tiles
+    from .. import catalogue
+    from .. import config as gcfg
+    from .. import provenance as gprov
     from ..bifcurves import bifurcation_points, follow_curves
     from ..continuation import Continuation, continue_orbit, write_branches
     from ..orbits import find_periodic_orbit
@@ -67,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     if x0 == x1:
         raise UsageError(f"--from and --to are equal ({x0}): empty range")
     y0, y1 = float(pl["y"]["min"]), float(pl["y"]["max"])
-    base = tiles.plane_base(config, args.plane)
+    base = gcfg.plane_base(config, args.plane)
     at = float(getattr(base, yn)) if args.at is None else args.at
     at = min(max(at, y0), y1)
     step2 = args.step2 if args.step2 is not None else (y1 - y0) / 20
@@ -90,8 +92,8 @@ def run(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t0
     out = Path(args.out)
     stem = out.with_suffix("")
-    prov = tiles.provenance(
-        tiles.plane_subtree(config, args.plane), kind="curves", name=args.plane, config=config,
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, args.plane), kind="curves", name=args.plane, config=config,
         started=started, finished=catalogue.now_iso(), wall_s=wall, seed_value=at,
         branch_wall_s=t_branch, curve_wall_s=wall - t_branch, reasons=curves.attrs["reasons"],
         workers="in-process",

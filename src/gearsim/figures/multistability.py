@@ -224,3 +224,100 @@ def register_figures() -> None:
 
 
 register_figures()
+
+
+# ------------------------------------------------------------------------------ plane maps
+def _grid(att: pd.DataFrame, column: str, fill=np.nan):
+    """``(xs, ys, Z)``: cell centres of the computed cells and ``Z[j, i]`` of one row per cell."""
+    xs = np.sort(att["x"].unique())
+    ys = np.sort(att["y"].unique())
+    ix = {v: k for k, v in enumerate(xs)}
+    iy = {v: k for k, v in enumerate(ys)}
+    Z = np.full((len(ys), len(xs)), fill, dtype=float)
+    for x, y, v in zip(att["x"], att["y"], att[column], strict=True):
+        Z[iy[y], ix[x]] = v
+    return xs, ys, Z
+
+
+def _edges(c: np.ndarray) -> np.ndarray:
+    if len(c) == 1:
+        return np.array([c[0] - 0.5, c[0] + 0.5])
+    mid = 0.5 * (c[1:] + c[:-1])
+    return np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+
+
+def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: str | None = None):
+    """(a) number of attractors per cell; (b) the dominant pattern (most starts), hatched where
+    another attractor coexists. ``att``: attractor-tile rows (one per attractor of a cell)."""
+    real = att[(att["attractor"] >= 0) & (att["motion"] != "unsettled")]
+    cells = att.drop_duplicates(["i", "j"])[["i", "j", "x", "y", "n_attractors"]]
+    xs, ys, N = _grid(cells, "n_attractors")
+    dom = real.sort_values("attractor").drop_duplicates(["i", "j"])
+    cats = style.pattern_categories(dom.assign(n=dom["n"].fillna(0)))
+    present = [k for k in style.PATTERN_KEYS if k in set(cats)]
+    index = {k: n for n, k in enumerate(present)}
+    _, _, P = _grid(dom.assign(_c=[index[c] for c in cats]), "_c")
+    fig, axes = plt.subplots(1, 2, figsize=(13.5, 5.2))
+    nmax = int(np.nanmax(N)) if np.isfinite(N).any() else 1
+    cmap = plt.get_cmap("viridis", nmax + 1)
+    m = axes[0].pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(N), cmap=cmap,
+                           vmin=-0.5, vmax=nmax + 0.5, shading="flat", rasterized=True)
+    cb = fig.colorbar(m, ax=axes[0], ticks=range(nmax + 1))
+    cb.set_label("number of coexisting attractors")
+    axes[0].set_title("(a) attractors per cell", fontsize=9, loc="left")
+    if present:
+        pc = ListedColormap([style.PATTERN_COLOURS[k] for k in present])
+        norm = BoundaryNorm(np.arange(-0.5, len(present) + 0.5), pc.N)
+        axes[1].pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(P), cmap=pc, norm=norm,
+                           shading="flat", rasterized=True)  # fmt: skip
+        ex, ey = _edges(xs), _edges(ys)
+        jj, ii = np.nonzero(np.nan_to_num(N) >= 2)
+        if len(ii):
+            from matplotlib.collections import PatchCollection
+            from matplotlib.patches import Rectangle
+
+            rects = [Rectangle((ex[i], ey[j]), ex[i + 1] - ex[i], ey[j + 1] - ey[j])
+                     for i, j in zip(ii, jj, strict=True)]  # fmt: skip
+            axes[1].add_collection(PatchCollection(rects, facecolor="none", edgecolor="black",
+                                                   hatch="////", lw=0.0))  # fmt: skip
+        handles = [Patch(facecolor=style.PATTERN_COLOURS[k], edgecolor="#555555", lw=0.4,
+                         label=style.PATTERN_LABELS[k]) for k in present]
+        handles.append(Patch(facecolor="white", edgecolor="black", hatch="////",
+                             label="another attractor coexists"))
+        axes[1].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                       fontsize=7, frameon=False, title="dominant pattern (most starts)",
+                       title_fontsize=7)  # fmt: skip
+    axes[1].set_title("(b) dominant pattern, hatched where multistable", fontsize=9, loc="left")
+    for ax in axes:
+        ax.set_xlabel(style.param_label(x_name))
+        ax.set_ylabel(style.param_label(y_name))
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
+                         title: str | None = None):
+    """Basin fraction of the attractor the forward continuation chain reaches (the plane's
+    own cell label), per cell; grey where it was reached by no sampled start (fraction 0)."""
+    fw = att[att["found_by"].fillna("").str.contains("forward")]
+    cells = att.drop_duplicates(["i", "j"])[["i", "j", "x", "y"]]
+    merged = cells.merge(fw[["i", "j", "basin_fraction"]], on=["i", "j"], how="left")
+    xs, ys, B = _grid(merged, "basin_fraction")
+    fig, ax = plt.subplots(figsize=(7.8, 5.2))
+    cmap = plt.get_cmap("magma").copy()
+    cmap.set_bad("#bdbdbd")
+    m = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(B), cmap=cmap, vmin=0,
+                      vmax=1, shading="flat", rasterized=True)  # fmt: skip
+    cb = fig.colorbar(m, ax=ax)
+    cb.set_label("basin fraction of the forward-continuation attractor")
+    ax.set_xlabel(style.param_label(x_name))
+    ax.set_ylabel(style.param_label(y_name))
+    low = float(np.nanmean(B < 0.1)) if np.isfinite(B).any() else float("nan")
+    ax.set_title(f"share of cells below 0.1: {low:.3f} (grey: no continuation state)",
+                 fontsize=8, loc="left")  # fmt: skip
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
