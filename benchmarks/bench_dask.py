@@ -136,9 +136,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args(argv)
-    from gearsim import tiles
+    from gearsim.config import load_config
 
-    config = tiles.load_config([ROOT / "config" / "config.yaml"], root=ROOT)
+    config = load_config([ROOT / "config" / "config.yaml"], root=ROOT)
     out = {"plane": "wb", "tile_rows": 16, "results": {}}
     # batched: 16 rows as two groups of 8
     stride = 4 if args.quick else 2

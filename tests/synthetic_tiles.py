@@ -3,8 +3,8 @@
 A tile here has every column of a simulated tile (``gearsim.tiles.cell_records``) with
 deterministic values computed from ``(i, j)``: label ``1/1T`` where ``(i + j)`` is even, else
 ``2/1T`` with ``I = 2``; ``kmax = 1 + i / nx``, ``dc = j / ny``; two Poincare points per cell.
-Its provenance is the real one (:func:`gearsim.tiles.provenance` of the plane's subtree), so only
-the cell values are not simulated.
+Its provenance is the real one (:func:`gearsim.provenance.provenance` of the plane's subtree),
+so only the cell values are not simulated.
 """
 
 from __future__ import annotations
@@ -15,14 +15,15 @@ import numpy as np
 import pandas as pd
 
 from gearsim import catalogue as gc
-from gearsim import tiles as gt
+from gearsim import grid as ggrid
+from gearsim import provenance as gprov
 
 
 def tile_frame(config: dict, plane: str, tile: int) -> pd.DataFrame:
     pl = config["planes"][plane]
     nx, ny = int(pl["x"]["n"]), int(pl["y"]["n"])
-    rows = np.array(gt.tile_rows(config, plane, tile))
-    xs, ys = gt.axis_values(pl["x"]), gt.axis_values(pl["y"])
+    rows = np.array(ggrid.tile_rows(config, plane, tile))
+    xs, ys = ggrid.axis_values(pl["x"]), ggrid.axis_values(pl["y"])
     i = np.tile(np.arange(nx), len(rows))
     j = np.repeat(rows, nx)
     n = len(i)
@@ -74,9 +75,9 @@ def write_tile(config: dict, plane: str, tile: int, path: Path, df: pd.DataFrame
     """Write ``df`` (default: :func:`tile_frame`) with the provenance a tile job records."""
     if df is None:
         df = tile_frame(config, plane, tile)
-    rows = gt.tile_rows(config, plane, tile)
-    prov = gt.provenance(
-        gt.plane_subtree(config, plane), kind="tile", name=plane, config=config, tile=tile,
+    rows = ggrid.tile_rows(config, plane, tile)
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, plane), kind="tile", name=plane, config=config, tile=tile,
         rows=[rows.start, rows.stop], workers="in-process", started=gc.now_iso(),
         finished=gc.now_iso(), wall_s=1.0, cells=len(df),
     )

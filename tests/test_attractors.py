@@ -234,3 +234,42 @@ def test_forward_backward_sweeps_differ_only_inside_fold_band():
     assert len(inside) >= 3
     assert h.differ == pytest.approx(inside)
     assert any("hysteresis band" in line for line in h.lines())
+
+
+def _synthetic_sweeps():
+    """Hand-built fold: forward stays on the DC = 0 branch up to w = 0.67, backward on the
+    DC ~ 0.6 branch down to w = 0.58 (so the band is 0.575 ... 0.675 between the midpoints)."""
+    import pandas as pd
+
+    ws = np.round(np.arange(0.50, 0.751, 0.01), 10)
+    rows = []
+    for d, order in (("forward", ws), ("backward", ws[::-1])):
+        for w in order:
+            upper = w >= 0.68 if d == "forward" else w >= 0.58
+            rows.append({"parameter": "w", "value": float(w), "direction": d,
+                         "label": "1/1T" if upper else "0/1T",
+                         "label_npq": "1-1-0" if upper else "1-0-0", "I": 1 if upper else 0,
+                         "n": 1, "p": 1 if upper else 0, "q": 0, "motion": "periodic",
+                         "dc": 0.6 if upper else 0.0, "kmax": 1.0,
+                         "poincare_x": [1.0 if upper else 0.3], "poincare_v": [0.0]})
+    return pd.DataFrame(rows)
+
+
+def test_hysteresis_of_a_hand_built_fold_and_its_figure(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from gearsim.attractors import hysteresis
+    from gearsim.figures.multistability import figure_hysteresis
+    from gearsim.figures.registry import figures
+
+    h = hysteresis(_synthetic_sweeps())
+    assert h.jump_forward == pytest.approx(0.675) and h.jump_backward == pytest.approx(0.575)
+    assert h.band == pytest.approx((0.575, 0.675))
+    assert h.differ == pytest.approx([0.58, 0.59, 0.60, 0.61, 0.62, 0.63, 0.64, 0.65, 0.66,
+                                      0.67])  # fmt: skip
+    fig, _ = figure_hysteresis(_synthetic_sweeps())
+    fig.savefig(tmp_path / "h.png")
+    assert {18, 19, 20} <= set(figures())
+    with pytest.raises(ParameterError, match="backward"):
+        hysteresis(_synthetic_sweeps().query("direction == 'forward'"))

@@ -12,6 +12,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from gearsim import catalogue as gc
+from gearsim import config as gcfg
+from gearsim import grid as ggrid
+from gearsim import provenance as gprov
 from gearsim import tiles as gt
 from gearsim.commands.catalogue import audit_frame, plane_record
 from gearsim.simulate import CellResult
@@ -23,15 +26,15 @@ ROOT = Path(__file__).resolve().parents[1]
 def small(tmp_path_factory):
     """A 3 x 4 wb plane (2 tiles) simulated in-process with tiny budgets, plus one sweep."""
     d = tmp_path_factory.mktemp("cat")
-    cfg = gt.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"])
+    cfg = gcfg.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"])
     cfg = copy.deepcopy(cfg)
     cfg["planes"]["wb"]["x"]["n"] = 3
     cfg["planes"]["wb"]["y"]["n"] = 4
     cfg["tile_rows"] = 2
     files = []
-    for t in gt.tile_ids(cfg, "wb"):
+    for t in ggrid.tile_ids(cfg, "wb"):
         df = gt.run_tile(cfg, "wb", t)
-        prov = gt.provenance(gt.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg,
+        prov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg,
                              tile=t, started=gc.now_iso(), finished=gc.now_iso(), wall_s=1.0,
                              cells=len(df), workers="in-process")
         files.append(gc.write_parquet(df, d / f"tiles/{t}.parquet", {gc.PROVENANCE_KEY: prov}))
@@ -40,12 +43,13 @@ def small(tmp_path_factory):
     from gearsim.parameters import ModelParameters
 
     sw = sweep_frame(ModelParameters(b=0.15), "w", np.array([0.5, 1.0, 1.5]), "forward",
-                     gt.integration_settings(cfg))
-    sprov = gt.provenance(gt.sweep_subtree(cfg, "b015"), kind="sweep", name="b015", config=cfg)
+                     gcfg.integration_settings(cfg))
+    sprov = gprov.provenance(gprov.sweep_subtree(cfg, "b015"), kind="sweep", name="b015",
+                             config=cfg)
     sweep = gc.write_parquet(sw, d / "sweeps/b015.parquet", {gc.PROVENANCE_KEY: sprov})
     cfg["audit"]["fraction"] = 0.25
     aud = audit_frame(cfg, "wb", pd.read_parquet(cells))
-    aprov = gt.provenance(gt.plane_subtree(cfg, "wb"), kind="audit", name="wb", config=cfg,
+    aprov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="audit", name="wb", config=cfg,
                           audit_seed=1)
     audit = gc.write_parquet(aud, d / "audit.parquet", {gc.PROVENANCE_KEY: aprov})
     db = d / "catalogue.sqlite"
@@ -59,8 +63,8 @@ def test_tile_provenance(small):
     for key in ("config_hash", "code_version", "package_versions", "tangent_seed",
                 "parameters_source", "started", "finished"):
         assert key in prov, key
-    assert prov["config_hash"] == gt.config_hash(gt.plane_subtree(small["cfg"], "wb"))
-    assert prov["code_version"] == gt.code_version()
+    assert prov["config_hash"] == gprov.config_hash(gprov.plane_subtree(small["cfg"], "wb"))
+    assert prov["code_version"] == gprov.code_version()
     assert {"numpy", "numba", "dask", "pyarrow"} <= set(prov["package_versions"])
     assert prov["tile"] == 1
     # no temporary files left behind by the atomic writes
@@ -106,7 +110,7 @@ def test_catalogue_tables(small):
     for col in gc.ROW_COLUMNS:
         assert ("impact" if col == "I" else col) in sql.columns
     run = con.execute("SELECT code_version, tangent_seed, started FROM runs WHERE kind='tile'")
-    assert all(r[0] == gt.code_version() and r[1] and r[2] for r in run)
+    assert all(r[0] == gprov.code_version() and r[1] and r[2] for r in run)
     plane = con.execute("SELECT name, x_name, y_name, x_n, y_n, fixed FROM planes").fetchone()
     assert plane[:5] == ("wb", "w", "b", 3, 4)
     view = con.execute("SELECT COUNT(*) FROM plane_cells WHERE plane='wb'").fetchone()[0]
@@ -165,8 +169,8 @@ def test_catalogue_info_and_integration(small):
     con = sqlite3.connect(small["db"])
     info = {k: json.loads(v) for k, v in con.execute("SELECT key, value FROM catalogue_info")}
     assert info["schema_version"] == 2
-    assert info["code_versions"] == [gt.code_version()]
-    want = gt.integration_settings(small["cfg"]).to_dict()
+    assert info["code_versions"] == [gprov.code_version()]
+    want = gcfg.integration_settings(small["cfg"]).to_dict()
     assert info["integration"] == json.loads(json.dumps(want))
     (plane_int,) = con.execute("SELECT integration FROM planes").fetchone()
     assert json.loads(plane_int) == info["integration"]
@@ -188,7 +192,7 @@ def test_sweep_parameters_are_the_values_used(small):
     assert name == "b015" and fixed == {"b": 0.15}
     assert params["b"] == 0.15
     assert "w" not in params  # the swept parameter is in sweep_points.value
-    base = gt.resolved_parameters(small["cfg"])
+    base = gcfg.resolved_parameters(small["cfg"])
     assert base["b"] != 0.15
     assert {k: v for k, v in params.items() if k != "b"} == {
         k: v for k, v in base.items() if k not in ("b", "w")}

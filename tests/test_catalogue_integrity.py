@@ -23,7 +23,8 @@ import yaml
 from synthetic_tiles import tile_frame, write_tile
 
 from gearsim import catalogue as gc
-from gearsim import tiles as gt
+from gearsim import config as gcfg
+from gearsim import grid as ggrid
 from gearsim.commands.catalogue import plane_record
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,8 +74,8 @@ def study(tmp_path_factory):
     cfg_file = d / "study.yaml"
     cfg_file.write_text(yaml.safe_dump(over))
     config_yaml = ROOT / "config/config.yaml"
-    cfg = gt.load_config([config_yaml, ROOT / "config/tiny.yaml", cfg_file], root=ROOT)
-    tiles = {p: [write_tile(cfg, p, t, d / p / f"{t}.parquet") for t in gt.tile_ids(cfg, p)]
+    cfg = gcfg.load_config([config_yaml, ROOT / "config/tiny.yaml", cfg_file], root=ROOT)
+    tiles = {p: [write_tile(cfg, p, t, d / p / f"{t}.parquet") for t in ggrid.tile_ids(cfg, p)]
              for p in ("wb", "wxi")}
     cells = {p: gc.combine_tiles(tiles[p], d / p / "cells.parquet", plane_record(cfg, p))
              for p in ("wb", "wxi")}
@@ -353,3 +354,49 @@ def test_catalogue_stays_valid_through_rebuilds(study, tmp_path):
     assert len(reader.counts) > 20
     # the killed build's temporary file was removed by the next build
     assert [p.name for p in build.parent.iterdir()] == ["build.sqlite"]
+
+
+def test_unwritable_output_is_one_line(study, tmp_path, gearsim):
+    """The output's directory is a file (as on a full or broken disk, the write fails)."""
+    (tmp_path / "blocker").write_text("a file where a directory should be")
+    pub = tmp_path / "catalogue.sqlite"
+    pub.write_bytes(b"previous")
+    r = gearsim(["catalogue", "build", "--cells", study["cells"]["wb"], "--out",
+                 tmp_path / "blocker/build.sqlite", "--publish", pub], cwd=tmp_path)
+    _refused(r, ["blocker"])
+    assert pub.read_bytes() == b"previous"
+
+
+@pytest.mark.slow
+def test_snakemake_rebuilds_keep_the_catalogue_readable(tiny_run, tmp_path):
+    """The real workflow: a forced rebuild that succeeds and one that fails mid-build (a sweep
+    file damaged after the planes went in), queries on results/catalogue.sqlite throughout."""
+    from workflow_helpers import smk
+
+    wd = tmp_path / "wd"
+    shutil.copytree(tiny_run[0], wd, symlinks=True,
+                    ignore=shutil.ignore_patterns(".snakemake"))
+    pub = wd / "results/catalogue.sqlite"
+    target = "results/catalogue.d/build.sqlite"
+    n_cells = gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0]
+    reader = Reader(pub)
+    reader.start()
+    try:
+        smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml",
+            "--forcerun", "catalogue")
+        assert (wd / target).exists() and os.path.samefile(wd / target, pub)
+        sweep = wd / "results/sweeps/b015.parquet"
+        good = sweep.read_bytes()
+        sweep.write_bytes(good[: len(good) // 2])
+        r = smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml", check=False)
+        assert r.returncode != 0
+        log = (wd / "logs/catalogue.log").read_text()
+        assert "b015.parquet: not a readable Parquet file" in log, log
+        assert not (wd / target).exists()
+        time.sleep(0.3)
+    finally:
+        reader.stop.set()
+        reader.join(10)
+    assert reader.errors == []
+    assert set(reader.counts) == {n_cells} and len(reader.counts) > 20
+    assert gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0] == n_cells

@@ -5,8 +5,11 @@ import subprocess
 import sys
 
 import pyarrow.parquet as pq
+import yaml
 
 from gearsim.cli import main
+from gearsim.parameters import ModelParameters
+from gearsim.simulate import IntegrationSettings
 
 
 def test_point_prints_pattern(capsys):
@@ -36,3 +39,54 @@ def test_bad_input_is_one_line_exit_2():
         assert r.returncode == 2, args
         assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
         assert r.stdout == ""
+
+
+# ----------------------------------------------------------- the study's defaults (issue 13.1)
+def _strict_json(text):
+    def refuse(c):
+        raise ValueError(f"not JSON: {c}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_point_uses_the_study_and_says_so(tmp_path):
+    """From any directory, `gearsim point --omega 0.48` simulates the study's parameters with
+    the study's settings (0/1T, as the pipeline) and prints where they came from."""
+    r = subprocess.run([sys.executable, "-m", "gearsim", "point", "--omega", "0.48"],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    first, second = r.stdout.splitlines()[:2]
+    assert first.startswith("parameters: config/standard_parameters.yaml; integration: rk4 256")
+    assert "pattern=0/1T (1-0-0)" in second
+
+
+def test_point_json_names_source_and_settings(capsys):
+    from gearsim.config import DEFAULT_STANDARD_PARAMETERS, project_root
+    from gearsim.config_io import load_standard_parameters
+
+    assert main(["point", "--omega", "0.48", "--set", "xi=0.07", "--json"]) == 0
+    row = _strict_json(capsys.readouterr().out)
+    assert row["parameters_source"] == "config/standard_parameters.yaml + --set xi=0.07"
+    study = yaml.safe_load((project_root() / "config/config.yaml").read_text())["integration"]
+    assert row["settings"] == study
+    std = load_standard_parameters(project_root() / DEFAULT_STANDARD_PARAMETERS)
+    assert ModelParameters.standard(w=0.48) == ModelParameters.from_mapping({**std, "w": 0.48})
+    assert IntegrationSettings.from_config() == IntegrationSettings(**study)
+
+
+def test_point_configfile_is_merged_over_config_yaml(tmp_path, capsys):
+    f = tmp_path / "mine.yaml"
+    f.write_text("parameters: {xi: 0.09}\nintegration: {steps_per_period: 128}\n")
+    assert main(["point", "--omega", "0.48", "--configfile", str(f), "--json"]) == 0
+    row = _strict_json(capsys.readouterr().out)
+    assert row["parameters_source"] == "config/standard_parameters.yaml + parameters xi=0.09"
+    assert row["settings"]["steps_per_period"] == 128 and row["settings"]["method"] == "rk4"
+    assert row["settings"]["transient_continuation"] == 40  # the rest from config.yaml
+
+
+def test_point_out_records_source_and_settings(tmp_path, capsys):
+    out = tmp_path / "p.parquet"
+    assert main(["point", "-w", "0.48", "--out", str(out)]) == 0
+    meta = pq.read_schema(out).metadata
+    assert meta[b"gearsim.parameters_source"] == b"config/standard_parameters.yaml"
+    assert json.loads(meta[b"gearsim.settings"])["method"] == "rk4"

@@ -14,8 +14,9 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
-from tiny_study import CONFIGS, tiny_study
+from tiny_study import CATALOGUE, CONFIGS, tiny_study
 
+from gearsim.catalogue import open_catalogue
 from gearsim.cli import main
 from gearsim.explorer import (
     MAX_POINTS,
@@ -38,7 +39,8 @@ def page(tmp_path_factory, monkeypatch_module):
     monkeypatch_module.chdir(wd)
     out = wd / "results" / "explorer" / "index.html"
     assert main(["explorer", "--configfile", *CONFIGS, "--plane", "wb", "weps",
-                 "--sweep", "standard", "--out", str(out)]) == 0
+                 "--sweep", "standard", "--catalogue", str(wd / CATALOGUE),
+                 "--out", str(out)]) == 0
     return wd, out
 
 
@@ -84,6 +86,25 @@ def test_page_is_static_and_compact(page):
     assert got.min() >= allx.min() - 1e-12 and got.max() <= allx.max() + 1e-12
 
 
+def _hover(driver, div: str, x: float, y: float, expect: str) -> None:
+    """Move the real mouse over the data point (x, y) of a map; wait for the panel."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    heat = driver.find_element("id", div)
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center'});", heat)
+    px, py, w, h = driver.execute_script(
+        "const gd = arguments[0], xa = gd._fullLayout.xaxis, ya = gd._fullLayout.yaxis;"
+        "return [xa._offset + xa.l2p(arguments[1]), ya._offset + ya.l2p(arguments[2]),"
+        " gd.clientWidth, gd.clientHeight];", heat, x, y)
+    ActionChains(driver).move_to_element_with_offset(
+        heat, int(round(px - w / 2)), int(round(py - h / 2))).perform()
+    panel = driver.find_element("id", "cell")
+    deadline = time.monotonic() + 10
+    while panel.get_attribute("data-cell") != expect:
+        assert time.monotonic() < deadline, f"hover shows {panel.text!r}, not {expect}"
+        time.sleep(0.1)
+
+
 def test_page_in_chromium(page, tmp_path):
     if CHROMIUM is None or DRIVER is None:  # pragma: no cover - CI installs both (.ci/run)
         why = ("chromium and chromium-driver are needed: apt-get install -y chromium "
@@ -112,19 +133,9 @@ def test_page_in_chromium(page, tmp_path):
             time.sleep(0.1)
         errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not errors, errors
-        heat = driver.find_element("id", "map-wb-pattern")
-        x, y, w, h = driver.execute_script(
-            "const gd = arguments[0], xa = gd._fullLayout.xaxis, ya = gd._fullLayout.yaxis;"
-            "return [xa._offset + xa.l2p(arguments[1]), ya._offset + ya.l2p(arguments[2]),"
-            " gd.clientWidth, gd.clientHeight];", heat, float(cell["w"]), float(cell["b"]))
-        ActionChains(driver).move_to_element_with_offset(
-            heat, int(round(x - w / 2)), int(round(y - h / 2))).perform()
-        panel = driver.find_element("id", "cell")
-        deadline = time.monotonic() + 10
-        while panel.get_attribute("data-cell") != f"wb:{cell['i']}:{cell['j']}":
-            assert time.monotonic() < deadline, f"hover shows {panel.text!r}"
-            time.sleep(0.1)
-        text = panel.text
+        _hover(driver, "map-wb-pattern", float(cell["w"]), float(cell["b"]),
+               f"wb:{cell['i']}:{cell['j']}")
+        text = driver.find_element("id", "cell").text
         f32 = lambda v: float(np.float32(v))  # noqa: E731 (the page stores float32)
         assert f"label: {cell['label']}" in text
         assert f"n-p-q: {cell['label_npq'] or '—'}" in text
@@ -132,7 +143,7 @@ def test_page_in_chromium(page, tmp_path):
         assert f"DC: {f32(cell['dc']):.4f}" in text
         assert f"Kmax: {f32(cell['kmax']):.4f}" in text
         assert f"Lyapunov exponent: {f32(cell['lyapunov']):.5f}" in text
-        assert "coexisting attractors" not in text  # no attractors table in this catalogue
+        assert "coexisting attractors" not in text  # multistability is off for wb
         ActionChains(driver).click().perform()
         deadline = time.monotonic() + 10
         while driver.execute_script("return document.getElementById('poincare').dataset.cell"
@@ -152,6 +163,25 @@ def test_page_in_chromium(page, tmp_path):
                     "map-weps-dc", "map-weps-kmax", "sweep-standard"):
             assert driver.execute_script(f"return document.getElementById('{div}').data.length"
                                          ) >= 1, div
+        # a (w, eps) cell with its coexisting attractors from the catalogue's attractors table
+        con = open_catalogue(wd / CATALOGUE)
+        att = pd.read_sql_query(
+            "select a.*, c.i as _i, c.j as _j from attractors a join cells c on a.cell_id = "
+            "c.id join planes p on c.plane_id = p.id where p.name = 'weps' "
+            "order by c.j, c.i, a.attractor", con)
+        con.close()
+        assert len(att), "the tiny run found no attractor"
+        counts = att.groupby(["_i", "_j"]).size().sort_values(ascending=False)
+        (ai, aj), n_att = counts.index[0], int(counts.iloc[0])
+        weps = pd.read_parquet(wd / "results/weps/cells.parquet")
+        wcell = weps[(weps["i"] == ai) & (weps["j"] == aj)].iloc[0]
+        _hover(driver, "map-weps-pattern", float(wcell["w"]), float(wcell["eps"]),
+               f"weps:{ai}:{aj}")
+        text = driver.find_element("id", "cell").text
+        assert f"coexisting attractors: {n_att}" in text, text
+        first = att[(att["_i"] == ai) & (att["_j"] == aj)].iloc[0]
+        assert f"#0 {first['label']}" in text
+        assert f"basin {100 * first['basin_fraction']:.1f} %" in text
         shot = tmp_path / "explorer.png"
         driver.save_screenshot(str(shot))
         print(f"screenshot: {shot}")

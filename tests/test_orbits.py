@@ -263,3 +263,41 @@ def test_refine_cells_flags_disagreement_with_the_simulation():
     assert (out.orbit_shift.iloc[:2] < 1e-6).all()
     assert out.orbit_kind.iloc[2] == "period_doubling" and out.orbit_mu_max.iloc[2] > 1
     assert (out.orbit_ms > 0).all()
+
+
+def test_cli_orbit_json_and_bad_input(capsys):
+    import json
+
+    from gearsim.cli import main
+
+    assert main(["orbit", "--omega", "1.02", "--period", "2", "--set", "model=1dof",
+                 "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    ref = find_periodic_orbit(ONE.with_(w=1.02), 2)
+    assert d["period"] == 2 and d["stable"] is True
+    assert "standard_parameters.yaml" in d["parameters_source"]
+    got = np.array([m["re"] + 1j * m["im"] for m in d["multipliers"]])
+    assert np.allclose(got, ref.multipliers, atol=1e-9)
+    assert all(abs(m["abs"] - abs(m["re"] + 1j * m["im"])) < 1e-12 for m in d["multipliers"])
+    assert abs(d["grazing_margin"] - ref.grazing.smallest) < 1e-9
+    assert main(["orbit", "--omega", "1.02", "--period", "0", "--set", "model=1dof"]) == 2
+    assert "'n'" in capsys.readouterr().err
+
+
+def test_cli_continue_writes_branches_points_and_figure(tmp_path, capsys):
+    import json
+
+    import pandas as pd
+
+    from gearsim.cli import main
+
+    out = tmp_path / "c.parquet"
+    assert main(["continue", "--name", "w", "--from", "0.95", "--to", "1.05", "--period", "1",
+                 "--set", "model=1dof", "--switch-depth", "0", "--out", str(out),
+                 "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [e["event"] for e in d["events"]] == ["period_doubling"]
+    assert abs(d["events"][0]["value"] - 0.9994041849) < 1e-8
+    assert out.is_file() and (tmp_path / "c.png").is_file()
+    assert len(pd.read_parquet(tmp_path / "c_points.parquet")) == 1
+    assert main(["continue", "--name", "w", "--from", "1", "--to", "1", "--period", "1"]) == 2

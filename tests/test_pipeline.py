@@ -15,7 +15,7 @@ import pytest
 import yaml
 from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk, targets
 
-from gearsim import tiles as gt
+from gearsim import config as gcfg
 from gearsim.simulate import simulate_cell
 
 PIPELINE_RULES = {"compile", "simulate_tile", "plane_cells", "audit", "sweep", "points",
@@ -66,9 +66,11 @@ def fresh(tmp_path_factory):
 def test_dry_run_plans_the_expected_jobs(fresh, configs, tiles, sweeps, points):
     out = dry(fresh, *configs, extra=("--quiet", "rules"))
     counts = job_counts(out)
+    # attractor_tile: the default planes set `multistability` (docs/multistability.md)
     assert counts == {"compile": 1, "simulate_tile": tiles, "plane_cells": 2, "audit": 2,
                       "sweep": sweeps, "points": points, "catalogue": 1,
-                      "total": 1 + tiles + 2 + 2 + sweeps + points + 1}, out
+                      "attractor_tile": tiles,
+                      "total": 1 + tiles + 2 + 2 + sweeps + points + 1 + tiles}, out
 
 
 def test_all_target_includes_pipeline_outputs(fresh):
@@ -84,6 +86,7 @@ def test_lint_clean_for_pipeline_rules():
     r = subprocess.run([str(SNAKEMAKE), "--lint", "-s", str(ROOT / "Snakefile")], cwd=ROOT,
                        env=_env(), capture_output=True, text=True, timeout=300)
     out = r.stdout + r.stderr
+    assert r.returncode == 0 and "Lints for" not in out, out  # every rule, not only ours
     for m in re.finditer(r"Lints for (rule (\w+)|snakefile (\S+)):", out):
         rule, snakefile = m.group(2), m.group(3)
         assert rule not in PIPELINE_RULES, out
@@ -141,7 +144,7 @@ def test_cli_rejects_bad_config_in_one_line(tmp_path):
 @pytest.mark.slow
 def test_end_to_end_tiny(tiny_run):
     wd, _, _ = tiny_run
-    cfg = gt.load_config([wd / "config/config.yaml", wd / "config/tiny.yaml"], root=wd)
+    cfg = gcfg.load_config([wd / "config/config.yaml", wd / "config/tiny.yaml"], root=wd)
     con = sqlite3.connect(wd / "results/catalogue.sqlite")
     n_cells = con.execute("SELECT COUNT(*) FROM cells").fetchone()[0]
     grid = sum(p["x"]["n"] * p["y"]["n"] for p in cfg["planes"].values())
@@ -157,12 +160,12 @@ def test_end_to_end_tiny(tiny_run):
     assert src == {"config/standard_parameters.yaml" if sp.exists() else "builtin-defaults"}
     con.close()
     # labels equal simulate_cell at sampled cells, started as the pipeline started them
-    settings = gt.integration_settings(cfg)
+    settings = gcfg.integration_settings(cfg)
     rng = np.random.default_rng(0)
     for plane in ("wb", "wxi"):
         df = pd.read_parquet(wd / f"results/{plane}/cells.parquet")
         assert len(df) == 64 and {"poincare_x", "poincare_v"} <= set(df.columns)
-        base = gt.plane_base(cfg, plane, root=wd)
+        base = gcfg.plane_base(cfg, plane, root=wd)
         pl = cfg["planes"][plane]
         for k in rng.choice(len(df), size=3, replace=False):
             c = df.iloc[k]

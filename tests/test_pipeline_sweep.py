@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gearsim import tiles as gt
+from gearsim import config as gcfg
 from gearsim.commands.sweep import _point_list, sweep_frame
 from gearsim.parameters import ModelParameters
 from gearsim.sweep import orbit_diagram
@@ -18,8 +18,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.parametrize("direction", ["forward", "backward"])
 def test_sweep_frame_is_orbit_diagram_plus_seeds(direction):
-    cfg = gt.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"])
-    st = gt.integration_settings(cfg)
+    cfg = gcfg.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"])
+    st = gcfg.integration_settings(cfg)
     p = ModelParameters(b=0.25)
     vals = np.array([0.6, 1.1, 1.6, 2.1])
     ours = sweep_frame(p, "w", vals, direction, st)

@@ -10,6 +10,9 @@ import numpy as np
 import pytest
 import yaml
 
+from gearsim import config as gcfg
+from gearsim import grid as ggrid
+from gearsim import provenance as gprov
 from gearsim import tiles as gt
 from gearsim.parameters import ModelParameters
 from gearsim.simulate import IntegrationSettings, simulate_cell
@@ -21,7 +24,7 @@ TINY = ROOT / "config/tiny.yaml"
 
 @pytest.fixture(scope="module")
 def tiny():
-    return gt.load_config([DEFAULT, TINY])
+    return gcfg.load_config([DEFAULT, TINY])
 
 
 def _raw():
@@ -29,38 +32,54 @@ def _raw():
 
 
 def _error(config) -> str:
-    with pytest.raises(gt.ConfigError) as exc:
-        gt.validate_schema(config)
-        gt.check_config(config)
+    with pytest.raises(gcfg.ConfigError) as exc:
+        gcfg.validate_schema(config)
+        gcfg.check_config(config)
     return str(exc.value)
 
 
 def test_configs_load():
     for extra in ([], ["quick.yaml"], ["tiny.yaml"]):
-        cfg = gt.load_config([DEFAULT, *(ROOT / "config" / e for e in extra)])
+        cfg = gcfg.load_config([DEFAULT, *(ROOT / "config" / e for e in extra)])
         assert set(cfg["planes"]) == {"wb", "wxi"}
         assert set(cfg["sweeps"]) == {
-            "standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"
+            "standard", "b015", "b025", "b035", "xi005", "xi009", "xi015", "hysteresis"
         }
-    full = gt.load_config(DEFAULT)
+    full = gcfg.load_config(DEFAULT)
     assert full["planes"]["wb"]["x"]["n"] * full["planes"]["wb"]["y"]["n"] == 160_000
     assert full["points"]["fig5"][0] == 0.48 and len(full["points"]["fig5"]) == 12
 
 
 def test_schema_integration_matches_settings():
-    """The schema's integration keys and defaults are IntegrationSettings' fields."""
-    props = gt.load_schema()["properties"]["integration"]["properties"]
-    fields = {f.name: f.default for f in dataclasses.fields(IntegrationSettings)}
-    assert set(props) == set(fields)
-    for name, default in fields.items():
-        assert props[name]["default"] == default, name
+    """The schema's integration keys are IntegrationSettings' fields, and its defaults are the
+    study's (config/config.yaml), so a config file that leaves a key out gets the study's value."""
+    props = gcfg.load_schema()["properties"]["integration"]["properties"]
+    fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
+    assert set(props) == fields
+    study = _raw()["integration"]
+    assert set(study) == fields
+    for name in fields:
+        assert props[name]["default"] == study[name], name
+
+
+def test_schema_defaults_equal_config_yaml():
+    """Every scalar setting config/config.yaml gives equals the schema's default."""
+    schema = gcfg.load_schema()["properties"]
+    raw = _raw()
+    for key in ("standard_parameters", "tile_rows"):
+        assert schema[key]["default"] == raw[key], key
+    for section in ("integration", "cluster", "audit"):
+        for name, value in raw[section].items():
+            assert schema[section]["properties"][name]["default"] == value, f"{section}.{name}"
+    assert raw["parameters"] == {} and schema.get("study", {}).get("default") is None
 
 
 def test_defaults_filled():
     cfg = {"planes": {"p": {"x": {"name": "w", "min": 0.5, "max": 1, "n": 4},
                             "y": {"name": "b", "min": 0, "max": 1, "n": 4}}}}
-    gt.validate_schema(cfg)
-    assert cfg["tile_rows"] == 8 and cfg["integration"]["method"] == "dp5"
+    gcfg.validate_schema(cfg)
+    assert cfg["tile_rows"] == 40 and cfg["integration"]["method"] == "rk4"
+    assert cfg["integration"]["transient_continuation"] == 40 and cfg["study"] is None
     assert cfg["planes"]["p"]["fixed"] == {} and cfg["cluster"]["scheduler_address"] is None
 
 
@@ -99,52 +118,55 @@ def test_new_plane_from_config_only():
                                "y": {"name": "xi", "min": 0.02, "max": 0.1, "n": 3},
                                "fixed": {"w": 1.2}}
     cfg["tile_rows"] = 2
-    cfg = gt.check_config(gt.validate_schema(cfg))
-    assert gt.n_tiles({**cfg, "tile_rows": 2}, "eps_xi") == 2
+    cfg = gcfg.check_config(gcfg.validate_schema(cfg))
+    assert ggrid.n_tiles({**cfg, "tile_rows": 2}, "eps_xi") == 2
     specs = gt.row_specs({**cfg, "tile_rows": 2}, "eps_xi", 1)
     assert [s["j"] for s in specs] == [2]
     assert specs[0]["params"]["w"] == 1.2 and specs[0]["x_name"] == "eps"
 
 
 def test_grid_and_tiles(tiny):
-    xs = gt.axis_values(tiny["planes"]["wb"]["x"])
+    xs = ggrid.axis_values(tiny["planes"]["wb"]["x"])
     assert np.allclose(xs, 0.1 + (np.arange(8) + 0.5) * 0.3)
-    assert gt.tile_ids(tiny, "wb") == [0, 1]
-    assert list(gt.tile_rows(tiny, "wb", 1)) == [4, 5, 6, 7]
+    assert ggrid.tile_ids(tiny, "wb") == [0, 1]
+    assert list(ggrid.tile_rows(tiny, "wb", 1)) == [4, 5, 6, 7]
     cfg = copy.deepcopy(tiny)
     cfg["tile_rows"] = 3
-    assert gt.n_tiles(cfg, "wb") == 3 and list(gt.tile_rows(cfg, "wb", 2)) == [6, 7]
-    with pytest.raises(gt.ConfigError):
-        gt.tile_rows(tiny, "wb", 2)
-    s = gt.sweep_values({"min": 0.1, "max": 2.5, "n": 1201})
+    assert ggrid.n_tiles(cfg, "wb") == 3 and list(ggrid.tile_rows(cfg, "wb", 2)) == [6, 7]
+    with pytest.raises(gcfg.ConfigError):
+        ggrid.tile_rows(tiny, "wb", 2)
+    s = ggrid.sweep_values({"min": 0.1, "max": 2.5, "n": 1201})
     assert s[0] == 0.1 and s[-1] == 2.5 and np.isclose(s[1] - s[0], 0.002)
 
 
-def test_parameters_fall_back_to_builtin_defaults(tiny, tmp_path):
+def test_parameters_builtin_defaults_only_when_asked(tiny, tmp_path):
     cfg = copy.deepcopy(tiny)
     cfg["standard_parameters"] = str(tmp_path / "absent.yaml")
-    values, source = gt.base_parameters(cfg)
+    with pytest.raises(gcfg.ConfigError, match=r"standard_parameters.*absent\.yaml.*not found"):
+        gcfg.base_parameters(cfg)  # a misspelled path is an error, never a silent fallback
+    cfg["standard_parameters"] = None
+    values, source = gcfg.base_parameters(cfg)
     assert source == "builtin-defaults" and values == {}
-    assert gt.resolved_parameters(cfg) == ModelParameters().to_dict()
+    assert gcfg.resolved_parameters(cfg) == ModelParameters().to_dict()
     f = tmp_path / "sp.yaml"
     f.write_text("dimensionless:\n  xi: {value: 0.07, provenance: calibrated}\n")
     cfg["standard_parameters"] = str(f)
     cfg["parameters"] = {"eps": 0.3}
-    values, source = gt.base_parameters(cfg)
-    assert source == str(f) and values == {"xi": 0.07, "eps": 0.3}
-    prov = gt.provenance(gt.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg)
-    assert prov["parameters_source"] == str(f)
+    values, source = gcfg.base_parameters(cfg)
+    assert source == f"{f} + parameters eps=0.3" and values == {"xi": 0.07, "eps": 0.3}
+    prov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg)
+    assert prov["parameters_source"] == f"{f} + parameters eps=0.3"
 
 
 def test_hashes_track_the_plane_subtree(tiny):
-    a = gt.config_hash(gt.plane_subtree(tiny, "wb"))
+    a = gprov.config_hash(gprov.plane_subtree(tiny, "wb"))
     cfg = copy.deepcopy(tiny)
     cfg["planes"]["wxi"]["fixed"] = {"b": 0.5}
-    assert gt.config_hash(gt.plane_subtree(cfg, "wb")) == a
-    assert gt.config_hash(gt.plane_subtree(cfg, "wxi")) != gt.config_hash(
-        gt.plane_subtree(tiny, "wxi")
+    assert gprov.config_hash(gprov.plane_subtree(cfg, "wb")) == a
+    assert gprov.config_hash(gprov.plane_subtree(cfg, "wxi")) != gprov.config_hash(
+        gprov.plane_subtree(tiny, "wxi")
     )
-    assert gt.code_version() == gt.code_version() and len(gt.code_version()) == 16
+    assert gprov.code_version() == gprov.code_version() and len(gprov.code_version()) == 16
 
 
 def test_row_is_a_continuation_chain(tiny):
@@ -154,8 +176,8 @@ def test_row_is_a_continuation_chain(tiny):
     df = gt.run_tile(cfg, "wb", 0, client=None)
     assert len(df) == 4 * 4 and list(df.columns[:8]) == ["plane", "tile", "i", "j", "x", "y",
                                                          "w", "b"]
-    settings = gt.integration_settings(cfg)
-    base = gt.plane_base(cfg, "wb")
+    settings = gcfg.integration_settings(cfg)
+    base = gcfg.plane_base(cfg, "wb")
     row = df[df.j == 2].sort_values("i")
     u0, start = None, 0
     for _, c in row.iterrows():
@@ -179,8 +201,8 @@ def test_rk4_tiles_use_the_batched_kernel(tiny):
     cfg["planes"]["wb"]["x"]["n"] = 5
     df = gt.run_tile(cfg, "wb", 1, client=None)
     assert len(df) == 5 * 4 and list(df["j"].unique()) == [4, 5, 6, 7]
-    settings = gt.integration_settings(cfg)
-    base = gt.plane_base(cfg, "wb")
+    settings = gcfg.integration_settings(cfg)
+    base = gcfg.plane_base(cfg, "wb")
     for j in (4, 7):
         row = df[df.j == j].sort_values("i")
         ref = continuation_chain([base.with_(w=c.w, b=c.b) for c in row.itertuples()],

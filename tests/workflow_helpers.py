@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from gearsim import tiles as gt
+from gearsim import config as gcfg
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).parent / "snakemake"
@@ -40,7 +40,7 @@ def smk(workdir: Path, *args: str, check: bool = True, timeout: float = 900):
 
 def targets(workdir: Path, *configs: str) -> list[str]:
     """This stage's final outputs (other stages' rules are tested by their owners)."""
-    cfg = gt.load_config([workdir / "config/config.yaml", *(workdir / c for c in configs)],
+    cfg = gcfg.load_config([workdir / "config/config.yaml", *(workdir / c for c in configs)],
                          root=workdir)
     out = [f"results/{p}/cells.parquet" for p in cfg["planes"]]
     out += [f"results/sweeps/{s}.parquet" for s in cfg["sweeps"]]

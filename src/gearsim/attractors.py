@@ -26,15 +26,21 @@ Algorithm per cell (all cells and starts of a call advance together as SIMD lane
 2. The other starts advance ``chunk`` periods at a time. After each chunk every start's last
    section points are compared with the attractors found so far (*recurrence*): a start whose
    last ``max(2 n, confirm)`` points follow a period-``n`` attractor's points in phase order,
-   each within ``recur_rtol`` of the attractor's scale, or whose last ``confirm_cloud`` points
-   all fall in the (one-cell dilated) grid occupancy of a non-periodic attractor, is labelled
-   and stops. A start that diverges is recorded as divergent.
+   each within ``recur_rtol`` of the attractor's scale, and themselves repeat after ``n``
+   periods within ``period_rtol`` (the classifier's own period test), or (``early_clouds``
+   only) whose last ``confirm_cloud`` points all fall in the (one-cell dilated) grid occupancy
+   of a non-periodic attractor, is labelled and stops. A start that diverges is recorded as
+   divergent.
    Every ``rescout`` periods the first still unlabelled start of each cell is promoted to a
    scout: its full-length run continues from where it is (so it is exactly its full-length
    run) and its motion joins the list the others are tested against.
 3. Starts still unlabelled after ``transient`` periods continue into measurement and
    classification exactly as their full-length run would (same state, remaining transient 0),
    and their steady motions are merged into the list.
+
+Finally every start's motion (its own full-length one, or the attractor it was labelled onto)
+is merged again in a canonical order (continuation states, then starts by index), so the list
+does not depend on the order in which starts happened to finish.
 
 Merging: starts that did not settle within the budget (status ``unsettled``) form one entry
 per cell (label ``unsettled``, never labelled early). Two steady motions are the same attractor
@@ -250,6 +256,8 @@ class _Known:
     def __init__(self, opts: _Options):
         self.opts = opts
         self.steadies: list[Steady] = []
+        self.own: dict[int, Steady] = {}  # start index -> its full-length steady motion
+        self.ambiguous: list[bool] = []
         self._clouds: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = []
 
     def add(self, s: Steady) -> int:
@@ -263,6 +271,17 @@ class _Known:
             ):
                 return k
         self.steadies.append(s)
+        self.ambiguous.append(False)
+        if s.period > 0:
+            # a period-n and a period-2n motion close together: the cell sits at a period
+            # doubling, where the full-length label depends on how far a slowly decaying
+            # alternation has decayed; no early labelling onto either (their starts run full)
+            for k, t in enumerate(self.steadies[:-1]):
+                if t.period > 0 and max(s.period, t.period) == 2 * min(s.period, t.period):
+                    tx, tv = _tolerances(s, t, self.opts.doubling_rtol)
+                    ps, pt = s.points[-s.period :, :2], t.points[-t.period :, :2]
+                    if _near_all(ps, pt, tx, tv) and _near_all(pt, ps, tx, tv):
+                        self.ambiguous[k] = self.ambiguous[-1] = True
         if s.period > 0 or s.status == "unsettled":
             self._clouds.append(None)  # no cloud: unsettled starts are never labelled early
         else:
@@ -281,12 +300,12 @@ class _Known:
         out = np.full(k, -1, dtype=np.int64)
         # periodic attractors first (a periodic start must never be taken for a cloud)
         for a, s in enumerate(self.steadies):
-            if s.period <= 0:
+            if s.period <= 0 or self.ambiguous[a]:
                 continue
             n = s.period
-            need = min(max(2 * n, o.confirm), L)
-            rows = np.nonzero((out < 0) & (filled >= need))[0]
-            if len(rows) == 0:
+            need = min(max(2 * n, o.confirm), L - n)
+            rows = np.nonzero((out < 0) & (filled >= need + n))[0]
+            if len(rows) == 0 or need < 1:
                 continue
             w = hist[rows, L - need :, :2]  # (r, need, 2)
             pts = s.points[-n:, :2]
@@ -299,8 +318,15 @@ class _Known:
             dmin = np.take_along_axis(d, j[:, :, None], axis=2)[:, :, 0]
             close = np.all(dmin <= 1.0, axis=1)
             phase = np.all((j - j[:, :1] - np.arange(need)[None, :]) % n == 0, axis=1)
-            out[rows[close & phase]] = a
-        for a in range(len(self.steadies)):
+            # the start itself passes the period-n test the classifier would apply (so a
+            # nearby period-2n motion, e.g. just past a period doubling, is not taken for it)
+            prev = hist[rows, L - need - n : L - n, :2]
+            px = o.period_rtol * max(s.scale_x, 1e-9)
+            pv = o.period_rtol * max(s.scale_v, 1e-9)
+            periodic = np.all((np.abs(w[:, :, 0] - prev[:, :, 0]) <= px)
+                              & (np.abs(w[:, :, 1] - prev[:, :, 1]) <= pv), axis=1)  # fmt: skip
+            out[rows[close & phase & periodic]] = a
+        for a in range(len(self.steadies) if o.early_clouds else 0):
             cloud = self._clouds[a]
             if cloud is None:
                 continue
@@ -325,6 +351,9 @@ class _Options:
     cloud_overlap: float = 0.5
     scouts: int = 1
     rescout: int = 24
+    period_rtol: float = 1e-5
+    doubling_rtol: float = 0.05
+    early_clouds: bool = False
 
 
 # ============================================================================ the engine
@@ -346,6 +375,8 @@ def map_attractors(
     cloud_overlap: float = 0.5,
     scouts: int = 1,
     rescout: int = 24,
+    period_rtol: float = 1e-5,
+    early_clouds: bool = False,
 ) -> list[CellAttractors]:
     """Attractors of ``n_cells`` cells of ``system`` from the start states ``starts[c]``.
 
@@ -365,6 +396,16 @@ def map_attractors(
         See the module docstring; ``scouts`` random starts per cell get full-length runs first,
         and every ``rescout`` probed periods (a multiple of ``chunk``; 0: never) the first
         still unlabelled start of each cell gets its full-length run too.
+    period_rtol
+        A start is labelled onto a period-``n`` attractor only when its own last points also
+        repeat after ``n`` periods within ``period_rtol`` of the attractor's scale (the
+        classifier's period test; :class:`GearCells` passes ``settings.period_rtol``).
+    early_clouds
+        Also label starts early onto non-periodic (chaotic, quasi-periodic) attractors by
+        cloud occupancy. Off by default: a torus sampled over a finite window, or a periodic
+        window inside a chaotic band, can take a start that its full-length run classifies
+        otherwise (benchmarks/README.md (g)); with it off, the early labels are exactly the
+        full-length ones on every cell checked.
     """
     if len(starts) != n_cells:
         raise ParameterError("map_attractors: one array of start states per cell expected")
@@ -376,7 +417,7 @@ def map_attractors(
     if isinstance(rescout, bool) or not isinstance(rescout, int) or rescout < 0:
         raise ParameterError(f"setting 'rescout' = {rescout!r} must be an integer >= 0")
     opts = _Options(chunk, confirm, confirm_cloud, recur_rtol, merge_rtol, grid, cloud_overlap,
-                    scouts, rescout)  # fmt: skip
+                    scouts, rescout, period_rtol, 0.05, bool(early_clouds))  # fmt: skip
     known = [_Known(opts) for _ in range(n_cells)]
     starts = [np.atleast_2d(np.asarray(s, dtype=float)) for s in starts]
     K = [len(s) for s in starts]
@@ -384,6 +425,7 @@ def map_attractors(
     is_early = [np.zeros(k, dtype=bool) for k in K]
     periods_run = [np.zeros(k, dtype=np.int64) for k in K]
     cont_labels: list[dict[str, int]] = [{} for _ in range(n_cells)]
+    cont_steady: list[list[tuple[str, Steady]]] = [[] for _ in range(n_cells)]
     cont_found: list[dict[int, set[str]]] = [{} for _ in range(n_cells)]
 
     # 1. continuation states (full-length runs with the continuation transient)
@@ -408,6 +450,7 @@ def map_attractors(
         if cells:
             res = system.steady(np.array(cells), np.array(states), ct, np.array(k0))
             for c, name, s in zip(cells, names, res, strict=True):
+                cont_steady[c].append((name, s))
                 a = known[c].add(s)
                 cont_labels[c][name] = a
                 if a >= 0:
@@ -423,7 +466,23 @@ def map_attractors(
         _run_full(system, known, starts, labels, periods_run, scout, T)
         _probe(system, known, starts, labels, is_early, periods_run, opts, T)
 
-    # 3. basin fractions, canonical order: most starts first, then order of discovery
+    # 3. merge again in a canonical order (continuation states, then starts by index), so the
+    #    list does not depend on which start was run first; then basin fractions, most first
+    for c in range(n_cells):
+        kn = _Known(opts)
+        cont_labels[c], cont_found[c] = {}, {}
+        for name, s in cont_steady[c]:
+            a = kn.add(s)
+            cont_labels[c][name] = a
+            if a >= 0:
+                cont_found[c].setdefault(a, set()).add(name)
+        new = np.full(K[c], -1, dtype=np.int64)
+        for i in range(K[c]):
+            if labels[c][i] >= 0:
+                s = known[c].own.get(i, known[c].steadies[labels[c][i]])
+                new[i] = kn.add(s)
+        labels[c] = new
+        known[c] = kn
     out = []
     for c in range(n_cells):
         steadies = known[c].steadies
@@ -472,6 +531,7 @@ def _run_full(system, known, starts, labels, periods_run, todo, transient, state
     res = system.steady(cells, states, max(left, 0), done)
     for (c, i), s, d in zip(todo, res, done, strict=True):
         labels[c][i] = known[c].add(s)
+        known[c].own[i] = s
         extra = int(s.info.get("periods", 0)) if s.info else 0
         periods_run[c][i] = int(d) + (extra if extra else max(left, 0))
 
@@ -483,7 +543,7 @@ def _probe(system, known, starts, labels, is_early, periods_run, opts: _Options,
         return
     d = starts[todo[0][0]].shape[1]
     n_top = max((s.period for k in known for s in k.steadies), default=1)
-    L = max(opts.confirm_cloud, opts.confirm, 2 * n_top)
+    L = max(opts.confirm_cloud, opts.confirm + n_top, 3 * n_top)
     cells = np.array([c for c, _ in todo])
     states = np.array([starts[c][i] for c, i in todo])
     hist = np.full((len(todo), L, d), np.nan)
@@ -698,6 +758,7 @@ def find_attractors_many(
             if backward is not None and backward[c] is not None:
                 m["backward"] = np.asarray(backward[c], dtype=float)[:10]
             cont.append(m)
+    options.setdefault("period_rtol", system.settings.period_rtol)
     return map_attractors(
         system, len(params_list), st, continuation=cont,
         continuation_transient=system.settings.transient_continuation, early=early, **options,

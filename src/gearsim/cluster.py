@@ -12,8 +12,12 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
+
+from .config import project_root
+from .errors import UsageError
 
 #: Environment every worker gets (inherited by LocalCluster processes).
 WORKER_ENV = {
@@ -24,6 +28,33 @@ WORKER_ENV = {
 }
 
 
+#: Most worker processes a job may start (``--workers``, Snakemake threads).
+MAX_WORKERS = 256
+#: A dask scheduler address: protocol://host:port.
+ADDRESS = re.compile(r"(tcp|tls|inproc|ucx|ws|wss)://[A-Za-z0-9._\-]+(:[0-9]{1,5})?|"
+                     r"(tcp|tls|ws|wss)://\[[0-9A-Fa-f:.]+\](:[0-9]{1,5})?")
+
+
+def check_address(address: str) -> str:
+    """``address`` if it looks like a scheduler address, else one-line UsageError."""
+    if not isinstance(address, str) or not ADDRESS.fullmatch(address):
+        shown = repr(address)[:80]
+        raise UsageError(
+            f"scheduler address {shown} is malformed; expected protocol://host:port, "
+            "e.g. tcp://10.0.0.5:8786"
+        )
+    return address
+
+
+def check_workers(workers: int) -> int:
+    """``workers`` if 1 <= workers <= :data:`MAX_WORKERS`, else one-line UsageError."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or not (
+        1 <= workers <= MAX_WORKERS
+    ):
+        raise UsageError(f"--workers must be in 1..{MAX_WORKERS}, got {workers!r}")
+    return workers
+
+
 #: How long to wait for a configured scheduler before giving up (env GEARSIM_SCHEDULER_TIMEOUT).
 CONNECT_TIMEOUT = os.environ.get("GEARSIM_SCHEDULER_TIMEOUT", "10s")
 
@@ -32,9 +63,7 @@ def _prepare_environment() -> None:
     for k, v in WORKER_ENV.items():
         os.environ.setdefault(k, v)
     if "NUMBA_CACHE_DIR" not in os.environ:
-        from .tiles import _project_root
-
-        os.environ["NUMBA_CACHE_DIR"] = str(_project_root() / ".numba_cache")
+        os.environ["NUMBA_CACHE_DIR"] = str(project_root() / ".numba_cache")
 
 
 @contextlib.contextmanager
@@ -49,24 +78,22 @@ def open_client(workers: int = 1, scheduler_address: str | None = None) -> Itera
         ``tcp://host:port`` of a running ``dask scheduler``; ``None`` = LocalCluster.
     """
     _prepare_environment()
+    # imported here, not at module level: `import distributed` costs ~0.6 s (measured with
+    # python -X importtime) and every `gearsim` command imports this module through tiles
     from distributed import Client, LocalCluster
 
     if scheduler_address:
+        check_address(scheduler_address)
         try:
             client = Client(scheduler_address, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
-            from .cli import UsageError
-
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
             raise UsageError(f"cannot reach dask scheduler {scheduler_address}: {exc}") from None
         try:
             yield client
         finally:
             client.close()
         return
-    if workers < 1:
-        from .cli import UsageError
-
-        raise UsageError(f"--workers must be >= 1, got {workers}")
+    check_workers(workers)
     with (
         LocalCluster(
             n_workers=workers,
@@ -85,7 +112,7 @@ def map_unordered(client, fn: Callable, items: Sequence[Any]) -> Iterator[Any]:
 
     Tasks are submitted with ``pure=False`` so repeated runs are never served from a cache.
     """
-    from distributed import as_completed
+    from distributed import as_completed  # lazy: see open_client
 
     futures = client.map(fn, list(items), pure=False)
     for fut in as_completed(futures):

@@ -1,4 +1,9 @@
-"""Reading the standard-parameter file (the reconstructed Table 1).
+"""Reading YAML safely, and the standard-parameter file (the reconstructed Table 1).
+
+Every YAML file gearsim reads (config files, ``--configfile``, ``--params``, standard parameters)
+goes through :func:`load_yaml`: a file larger than :data:`MAX_YAML_BYTES`, not UTF-8 text, or
+whose aliases would expand to more than :data:`MAX_YAML_NODES` nodes (a "billion laughs" bomb)
+is refused in one line before anything is expanded; no message prints a value of the file.
 
 Format of ``config/standard_parameters.yaml``::
 
@@ -23,16 +28,97 @@ from .parameters import ModelParameters, ParameterError
 
 PROVENANCES = ("paper", "ISO formula", "calibrated", "assumed", "derived")
 
+#: Largest YAML/JSON file read (bytes). The default configuration is about 4 kB.
+MAX_YAML_BYTES = 1_000_000
+#: Largest number of nodes a document may have once its aliases are expanded.
+MAX_YAML_NODES = 200_000
+
+
+def _expanded_size(root: yaml.Node, path: Path) -> int:
+    """Nodes of the document with every alias expanded, without expanding it (memoised over the
+    shared node graph); refuses recursive aliases and stops as soon as the limit is passed."""
+    memo: dict[int, int] = {}
+    active: set[int] = set()
+
+    def size(node: yaml.Node) -> int:
+        key = id(node)
+        if key in memo:
+            return memo[key]
+        if key in active:
+            raise ParameterError(f"{path}: recursive YAML alias (refused)")
+        active.add(key)
+        total = 1
+        if isinstance(node, yaml.SequenceNode):
+            for child in node.value:
+                total += size(child)
+                if total > MAX_YAML_NODES:
+                    break
+        elif isinstance(node, yaml.MappingNode):
+            for k, v in node.value:
+                total += size(k) + size(v)
+                if total > MAX_YAML_NODES:
+                    break
+        active.discard(key)
+        memo[key] = total
+        if total > MAX_YAML_NODES:
+            raise ParameterError(
+                f"{path}: YAML expands to more than {MAX_YAML_NODES} nodes "
+                "(alias bomb or oversized document; refused)"
+            )
+        return total
+
+    return size(root)
+
 
 def load_yaml(path: str | Path) -> Any:
+    """Parse a YAML (or JSON) file with size and alias limits; ParameterError on any problem."""
     path = Path(path)
     if not path.is_file():
-        raise ParameterError(f"file not found: {path}")
+        what = "a directory, not a file" if path.is_dir() else "file not found"
+        raise ParameterError(f"{path}: {what}")
     try:
-        return yaml.safe_load(path.read_text())
+        size = path.stat().st_size
+        if size > MAX_YAML_BYTES:
+            raise ParameterError(
+                f"{path}: {size} bytes is larger than the limit of {MAX_YAML_BYTES} bytes"
+            )
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if b"\x00" in raw:
+        raise ParameterError(f"{path}: binary file, expected YAML or JSON text")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ParameterError(f"{path}: not UTF-8 text, expected YAML or JSON") from None
+    loader = yaml.SafeLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _expanded_size(node, path)
+        return loader.construct_document(node)
     except yaml.YAMLError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else "syntax error"
-        raise ParameterError(f"{path}: not valid YAML ({first})") from None
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or "syntax error"
+        raise ParameterError(f"{path}: not valid YAML ({problem}{where})") from None
+    except RecursionError:
+        raise ParameterError(f"{path}: YAML nested too deeply (refused)") from None
+    finally:
+        loader.dispose()
+
+
+def load_mapping(path: str | Path, what: str = "file") -> dict:
+    """:func:`load_yaml` for files that must hold a mapping (an empty file is ``{}``)."""
+    doc = load_yaml(path)
+    if doc is None:
+        return {}
+    if not isinstance(doc, dict):
+        raise ParameterError(
+            f"{path}: a {what} must be a mapping of keys, got a {type(doc).__name__}"
+        )
+    return doc
 
 
 def load_standard_parameters(path: str | Path) -> dict[str, Any]:
@@ -44,5 +130,8 @@ def load_standard_parameters(path: str | Path) -> dict[str, Any]:
     for name, entry in doc["dimensionless"].items():
         value = entry.get("value") if isinstance(entry, dict) else entry
         values[name] = value
-    ModelParameters.from_mapping(values)  # validates names and ranges
+    try:
+        ModelParameters.from_mapping(values)  # validates names and ranges
+    except ParameterError as exc:
+        raise ParameterError(f"{path}: {exc}") from None
     return values

@@ -1,4 +1,8 @@
-"""Exceptions that the CLI turns into one-line errors with exit status 2."""
+"""Exceptions that the CLI turns into one-line errors with exit status 2.
+
+Library modules raise these (never import :mod:`gearsim.cli`); :func:`gearsim.cli.main` prints
+``gearsim <command>: error: <message>`` and exits with status 2.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +11,10 @@ from .parameters import ParameterError
 
 class UsageError(Exception):
     """Bad user input detected by a subcommand (exit status 2, one line)."""
+
+
+class ConfigError(ParameterError):
+    """The pipeline configuration is invalid; the message names the offending key."""
 
 
 USER_ERRORS = (ParameterError, UsageError)

@@ -97,7 +97,8 @@ def read_attractors(catalogue: str | Path, plane: str, nx: int) -> dict[int, lis
 
     The table is matched to cells through ``cell_id`` (-> ``cells.id``), or ``plane`` /
     ``plane_id`` with ``i`` and ``j``; each attractor is shown as its remaining columns
-    (``name=value``). ``None`` when the catalogue has no such table.
+    (``name=value``). ``None`` when the catalogue has no such table or no attractor of this
+    plane (its ``multistability`` is off).
     """
     from .catalogue import open_catalogue
 
@@ -126,13 +127,42 @@ def read_attractors(catalogue: str | Path, plane: str, nx: int) -> dict[int, lis
             return {}
     finally:
         con.close()
-    hidden = {"id", "cell_id", "plane_id", "plane", "i", "j", "_i", "_j", "run_id"}
+    if not len(df):
+        return None  # multistability off for this plane
+    if "attractor" in df.columns:
+        df = df.sort_values(["_j", "_i", "attractor"])
     out: dict[int, list[str]] = {}
     for rec in df.to_dict("records"):
-        text = ", ".join(f"{k}={_fmt(v)}" for k, v in rec.items()
-                         if k not in hidden and not _blank(v))
-        out.setdefault(int(rec["_j"]) * nx + int(rec["_i"]), []).append(text)
+        out.setdefault(int(rec["_j"]) * nx + int(rec["_i"]), []).append(attractor_line(rec))
     return out
+
+
+_HIDDEN = {"id", "cell_id", "plane_id", "plane", "i", "j", "_i", "_j", "run_id"}
+_SHOWN = ("attractor", "label", "label_npq", "basin_fraction", "dc", "kmax", "lyapunov",
+          "found_by")
+
+
+def attractor_line(rec: Mapping[str, Any]) -> str:
+    """One attractor of a cell in a line: ``#0 1/1T (1-1-0), basin 62.5 %, DC 0.1234, ...``
+    (the ``attractors`` table of :mod:`gearsim.catalogue`; other columns as ``name=value``)."""
+    parts = []
+    if "attractor" in rec and not _blank(rec["attractor"]):
+        parts.append(f"#{int(rec['attractor'])}")
+    if "label" in rec:
+        npq = rec.get("label_npq")
+        parts.append(f"{rec['label']}" + (f" ({npq})" if npq else ""))
+    if not _blank(rec.get("basin_fraction")):
+        parts.append(f"basin {100 * float(rec['basin_fraction']):.1f} %")
+    for key, name, digits in (("dc", "DC", 4), ("kmax", "Kmax", 4), ("lyapunov", "λ", 5)):
+        if not _blank(rec.get(key)):
+            parts.append(f"{name} {float(rec[key]):.{digits}f}")
+    if rec.get("found_by"):
+        parts.append(f"found by {rec['found_by']}")
+    head = " ".join(parts[:2]) + (", " if len(parts) > 2 else "") + ", ".join(parts[2:])
+    rest = [f"{k}={_fmt(v)}" for k, v in rec.items()
+            if k not in _HIDDEN and k not in _SHOWN and k not in (
+                "motion", "impact", "n", "p", "q", "n_starts", "n_early") and not _blank(v)]
+    return head + ("; " + ", ".join(rest) if rest else "")
 
 
 def _blank(v: Any) -> bool:

@@ -184,7 +184,13 @@ def write(ds, out: str | Path, fmt: str) -> Path:
         if fmt == "netcdf":
             ds.to_netcdf(tmp, engine="h5netcdf")
         elif fmt == "zarr":
-            ds.to_zarr(tmp, mode="w", consolidated=True)
+            import warnings
+
+            with warnings.catch_warnings():
+                # consolidated metadata is what xr.open_zarr looks for first (no warning on
+                # opening); zarr 3 notes that it is not yet in the v3 specification
+                warnings.filterwarnings("ignore", message="Consolidated metadata")
+                ds.to_zarr(tmp, mode="w", consolidated=True)
         elif fmt == "csv":
             _table(ds).to_csv(tmp, index=False)
             meta = out.with_name(out.name + ".json")

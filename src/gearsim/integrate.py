@@ -401,6 +401,16 @@ class IntegrationSettings:
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= {lo}")
 
+    @classmethod
+    def from_config(cls, config: Any = None) -> IntegrationSettings:
+        """The study's settings: ``config['integration']`` of a loaded configuration, or with no
+        argument those of ``config/config.yaml`` (:func:`gearsim.config.study_config`: RK4, 256
+        steps per period, a 40-period continuation transient), as the pipeline uses them."""
+        # imported here: gearsim.config builds on this module (the config layer sits above)
+        from .config import integration_settings, study_config
+
+        return integration_settings(study_config() if config is None else config)
+
     def with_(self, **changes: Any) -> IntegrationSettings:
         return replace(self, **changes)
 

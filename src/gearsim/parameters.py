@@ -13,6 +13,7 @@ The dimensional gear description and its conversion live in :mod:`gearsim.geomet
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
@@ -79,6 +80,11 @@ def check_value(name: str, value: Any) -> float:
         )
     v = float(value)
     lo, hi, lo_in, hi_in, meaning = _RANGES[name]
+    if v != 0.0 and abs(v) < sys.float_info.min:
+        raise ParameterError(
+            f"parameter '{name}' ({meaning}) = {value!r} is subnormal; allowed range "
+            f"{_range_text(name)} with |value| >= {sys.float_info.min:g} or 0"
+        )
     ok = math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
     if not ok:
         raise ParameterError(
@@ -139,6 +145,22 @@ class ModelParameters:
     def names(cls) -> tuple[str, ...]:
         """Names of all numeric parameters (what a plane axis or ``--set`` may name)."""
         return tuple(_RANGES)
+
+    @classmethod
+    def standard(cls, config: Any = None, **changes: Any) -> ModelParameters:
+        """The study's standard parameters, as the pipeline simulates them.
+
+        ``config``: a loaded configuration (:func:`gearsim.config.load_config`), or ``None`` for
+        the study's own (``config/config.yaml`` and its ``standard_parameters`` file, resolved by
+        :func:`gearsim.config.study_config`). ``changes`` are applied on top, e.g.
+        ``ModelParameters.standard(w=0.48)``.
+        """
+        # imported here: gearsim.config builds on this module (a module-level import would be a
+        # circle); this is the one place the class reaches up to the study's configuration
+        from .config import study_parameters
+
+        base = study_parameters(config)
+        return base.with_(**changes) if changes else base
 
     @classmethod
     def from_mapping(cls, values: dict[str, Any]) -> ModelParameters:

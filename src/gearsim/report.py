@@ -201,6 +201,7 @@ class Report:
     compared: int = 0  # comparisons with the paper actually made
     thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
     planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
+    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
     exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
 
 
@@ -336,6 +337,12 @@ def analyse(
             rep.misses.append("no upward DC jump in the standard sweep")
     else:
         rep.notes.append("results/sweeps/standard.parquet missing: landmarks not computed")
+
+    hyst = sweeps.get("hysteresis")
+    if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
+        from .attractors import hysteresis
+
+        rep.hysteresis = hysteresis(hyst).lines()
 
     for paper_axes, fn, name, paper in (
         (("w", "b"), double_sided, "b above which no double-sided impact occurs",
@@ -486,6 +493,9 @@ def to_markdown(rep: Report) -> str:
         out.append("")
     else:
         out += ["Not computed (no jump found or standard sweep missing).", ""]
+    if rep.hysteresis:
+        out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
+                *rep.hysteresis, ""]
     out += ["## 3. Thresholds", "", "| threshold | paper | ours | rows (last with / first "
             "without) | difference |", "|---|---|---|---|---|"]
     for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
@@ -498,9 +508,10 @@ def to_markdown(rep: Report) -> str:
         elif th is None:
             out.append(f"| {label} | {paper} | not computed | | |")
         else:
+            note = f"; {th.note}" if th.note else ""
             out.append(f"| {label} | {paper} | {_f(th.value)} | {_f(th.last_with)} / "
-                       f"{_f(th.first_without)} ({th.rows} rows) | {_f(th.difference, '+.4f')} |"
-                       + (f" {th.note}" if th.note else ""))
+                       f"{_f(th.first_without)} ({th.rows} rows{note}) | "
+                       f"{_f(th.difference, '+.4f')} |")
     out.append("")
     out += ["## 4. Pattern sequences (Fig 8, Fig 15)", ""]
     for key, e in rep.sequences.items():

@@ -6,16 +6,18 @@ import json
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
-from gearsim import tiles as gt
+from gearsim import config as gcfg
+from gearsim import grid as ggrid
+from gearsim import provenance as gprov
 
 SCHEMA = Path(workflow.basedir) / "workflow/schemas/config.schema.yaml"
 
 # 1. One clear line naming the bad key (the same check as the gearsim CLI), then Snakemake's
 #    validate(), which fills the schema defaults.
 try:
-    gt.validate_schema(config, gt.load_schema(workflow.basedir))
-    gt.check_config(config)
-except gt.ConfigError as exc:
+    gcfg.validate_schema(config, gcfg.load_schema(workflow.basedir))
+    gcfg.check_config(config)
+except gcfg.ConfigError as exc:
     raise WorkflowError(f"invalid configuration: {exc}") from None
 validate(config, str(SCHEMA))
 
@@ -39,13 +41,13 @@ if workflow.config_settings.config:
     CONFIG_FILES.append(str(_ovr_file))
 CONFIG = ancient(CONFIG_FILES)
 
-# 3. What the jobs depend on. code_version hashes the sources that determine results
-#    (gearsim.tiles.CODE_MODULES, CODE_FUNCTIONS): Snakemake does not see edits to a package.
-CODE_VERSION = gt.code_version()
+# 3. What the jobs depend on. code_version hashes every module that decides results
+#    (gearsim.provenance.code_files): Snakemake does not see edits to a package.
+CODE_VERSION = gprov.code_version()
 PLANES = list(config["planes"])
 SWEEPS = list(config["sweeps"])
 POINT_SETS = list(config["points"])
-TILES = {plane: gt.tile_ids(config, plane) for plane in PLANES}
+TILES = {plane: ggrid.tile_ids(config, plane) for plane in PLANES}
 AUDIT = float(config["audit"]["fraction"]) > 0
 
 
@@ -70,25 +72,25 @@ ALL_TARGETS = []
 # ------------------------------------------------------------------------------ helpers
 def plane_params(wildcards):
     """The plane's config subtree (+ parameters, integration, tile_rows) as canonical JSON."""
-    return gt.canonical_json(gt.plane_subtree(config, wildcards.plane))
+    return gprov.canonical_json(gprov.plane_subtree(config, wildcards.plane))
 
 
 def audit_params(wildcards):
-    return gt.canonical_json(
-        {**gt.plane_subtree(config, wildcards.plane), "audit": config["audit"]}
+    return gprov.canonical_json(
+        {**gprov.plane_subtree(config, wildcards.plane), "audit": config["audit"]}
     )
 
 
 def sweep_params(wildcards):
-    return gt.canonical_json(gt.sweep_subtree(config, wildcards.sweep))
+    return gprov.canonical_json(gprov.sweep_subtree(config, wildcards.sweep))
 
 
 def point_params(wildcards):
-    return gt.canonical_json(
+    return gprov.canonical_json(
         {
             "points": config["points"][wildcards.fig],
-            "parameters": gt.resolved_parameters(config),
-            "integration": gt.integration_settings(config).to_dict(),
+            "parameters": gcfg.resolved_parameters(config),
+            "integration": gcfg.integration_settings(config).to_dict(),
         }
     )
 

@@ -33,3 +33,28 @@ rule attractor_tile:
 
 
 ALL_TARGETS += ATTRACTOR_FILES
+
+
+rule attractor_maps:
+    input:
+        attractors=lambda wc: expand(
+            "results/{plane}/attractors/{tile}.parquet", plane=wc.plane, tile=TILES[wc.plane]
+        ),
+        config=CONFIG,
+    output:
+        "results/figures/planes/{plane}-coexistence.png",
+        "results/figures/planes/{plane}-forward-basin.png",
+    log:
+        "logs/{plane}/attractor_maps.log",
+    conda:
+        GEARSIM_ENV
+    shell:
+        "gearsim attractor-maps --plane {wildcards.plane} --attractors {input.attractors} "
+        "--configfile {input.config} --out-dir results/figures/planes > {log} 2>&1"
+
+
+ALL_TARGETS += expand(
+    "results/figures/planes/{plane}-{kind}.png",
+    plane=MULTISTABLE_PLANES,
+    kind=("coexistence", "forward-basin"),
+)

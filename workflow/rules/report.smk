@@ -14,6 +14,8 @@ rule table1:
         csv="results/table1.csv",
     log:
         "logs/report/table1.log",
+    conda:
+        GEARSIM_ENV
     shell:
         "gearsim table1 --params {input} --md {output.md} --csv {output.csv} > {log} 2>&1"
 
@@ -31,12 +33,14 @@ rule report:
         "results/report.md",
     log:
         "logs/report/report.log",
+    conda:
+        GEARSIM_ENV
     params:
-        calibration=str(CALIBRATION),
+        calibration=lambda wildcards, input: input.calibration or "",
         code_version=CODE_VERSION,
     shell:
         "gearsim report --sweeps results/sweeps --catalogue {input.catalogue} "
-        "--results results --calibration {params.calibration} --configfile {input.config} "
+        "--results results --calibration {params.calibration:q} --configfile {input.config} "
         "--out {output} > {log} 2>&1"
 
 

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .simulate_tile import Progress, add_config_arguments, config_from_args
 
 NAME = "attractor-tile"
@@ -43,10 +43,13 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
     if tile_df is not None:
         for i, j, s in zip(tile_df["i"], tile_df["j"], tile_df["final_state"], strict=True):
             fwd[(int(i), int(j))] = None if s is None else [float(v) for v in s]
+    every = int(ms.get("every", 1))
     cells = [
         (i, r["j"], float(x), float(r["y_value"]), fwd.get((i, r["j"])))
         for r in rows
+        if r["j"] % every == 0
         for i, x in enumerate(r["x_values"])
+        if i % every == 0
     ]
     base = rows[0] if rows else {}
     return [
@@ -63,7 +66,9 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
 def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from .. import catalogue, tiles
+    from .. import catalogue
+    from .. import grid as ggrid
+    from .. import provenance as gprov
     from ..attractors import TILE_COLUMNS, cell_group_records
     from ..cluster import describe, map_unordered, open_client
 
@@ -74,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if not config["planes"][args.plane].get("multistability"):
         raise UsageError(f"plane '{args.plane}' has no 'multistability' (starts, seed) set")
-    rows = tiles.tile_rows(config, args.plane, args.tile)
+    rows = ggrid.tile_rows(config, args.plane, args.tile)
     tile_file = Path(args.tile_file or f"results/{args.plane}/tiles/{args.tile}.parquet")
     tile_df = None
     if tile_file.exists():
@@ -112,11 +117,11 @@ def run(args: argparse.Namespace) -> int:
         df[c] = pd.array([None if v is None or v != v else int(v) for v in df[c]], dtype="Int64")
     df = df.sort_values(["j", "i", "attractor"], kind="stable").reset_index(drop=True)
     ms = config["planes"][args.plane]["multistability"]
-    prov = tiles.provenance(
-        tiles.plane_subtree(config, args.plane), kind="attractors", name=args.plane,
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, args.plane), kind="attractors", name=args.plane,
         config=config, tile=args.tile, rows=[rows.start, rows.stop], workers=workers,
         started=started, finished=catalogue.now_iso(), wall_s=wall, cells=total,
-        starts=int(ms["starts"]), seed=int(ms.get("seed", 0)),
+        starts=int(ms["starts"]), seed=int(ms.get("seed", 0)), every=int(ms.get("every", 1)),
         forward_states=tile_df is not None,
     )  # fmt: skip
     catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 NAME = "calibrate"
 HELP = "fit Fe/Fm, eps, phi_e, xi, friction to the paper's landmarks (differential evolution)"

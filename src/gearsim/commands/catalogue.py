@@ -18,7 +18,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .simulate_tile import add_config_arguments, config_from_args
 
 NAME = "catalogue"
@@ -61,7 +61,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def plane_record(config: dict, plane: str) -> dict:
-    from .. import tiles
+    from .. import config as gcfg
+    from .. import provenance
 
     pl = config["planes"][plane]
     return {
@@ -69,10 +70,10 @@ def plane_record(config: dict, plane: str) -> dict:
         "x": dict(pl["x"]),
         "y": dict(pl["y"]),
         "fixed": dict(pl.get("fixed", {})),
-        "parameters": tiles.plane_base(config, plane).to_dict(),
-        "config_hash": tiles.config_hash(tiles.plane_subtree(config, plane)),
-        "code_version": tiles.code_version(),
-        "integration": tiles.integration_settings(config).to_dict(),
+        "parameters": gcfg.plane_base(config, plane).to_dict(),
+        "config_hash": provenance.config_hash(provenance.plane_subtree(config, plane)),
+        "code_version": provenance.code_version(),
+        "integration": gcfg.integration_settings(config).to_dict(),
     }
 
 
@@ -96,7 +97,7 @@ def audit_frame(config: dict, plane: str, cells, progress=None):
     import numpy as np
     import pandas as pd
 
-    from .. import tiles
+    from .. import config as gcfg
     from ..simulate import simulate_cell
 
     aud = config["audit"]
@@ -106,11 +107,11 @@ def audit_frame(config: dict, plane: str, cells, progress=None):
         k = max(k, 1)
     rng = np.random.default_rng(int(aud["seed"]))
     pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
-    base = tiles.plane_base(config, plane)
+    base = gcfg.plane_base(config, plane)
     pl = config["planes"][plane]
     # the reference is the adaptive DP5 integrator at 100x tighter tolerance, whatever method
     # produced the cells: an independent integrator, not just a finer step of the same one
-    tight = tiles.integration_settings(config).with_(method="dp5").tightened()
+    tight = gcfg.integration_settings(config).with_(method="dp5").tightened()
     index = {
         (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
     }
@@ -171,7 +172,8 @@ def audit_frame(config: dict, plane: str, cells, progress=None):
 def _audit(args) -> int:
     import pandas as pd
 
-    from .. import catalogue, tiles
+    from .. import catalogue, provenance
+    from .. import config as gcfg
     from .simulate_tile import Progress
 
     config = config_from_args(args)
@@ -187,8 +189,8 @@ def _audit(args) -> int:
     progress.close()
     agreement = float(df["agree"].mean()) if len(df) else float("nan")
     threshold = float(config["audit"]["threshold"])
-    subtree = {**tiles.plane_subtree(config, args.plane), "audit": dict(config["audit"])}
-    prov = tiles.provenance(
+    subtree = {**provenance.plane_subtree(config, args.plane), "audit": dict(config["audit"])}
+    prov = provenance.provenance(
         subtree,
         kind="audit",
         name=args.plane,
@@ -200,7 +202,7 @@ def _audit(args) -> int:
         audit_seed=int(config["audit"]["seed"]),
         agreement=agreement,
         threshold=threshold,
-        settings=tiles.integration_settings(config).with_(method="dp5").tightened().to_dict(),
+        settings=gcfg.integration_settings(config).with_(method="dp5").tightened().to_dict(),
         workers="in-process",
     )
     catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})

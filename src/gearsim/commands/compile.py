@@ -19,8 +19,8 @@ def run(args: argparse.Namespace) -> int:
     import os
 
     from ..parameters import ModelParameters
+    from ..provenance import code_version
     from ..simulate import IntegrationSettings, simulate_cell, trajectory
-    from ..tiles import code_version
 
     t0 = time.perf_counter()
     p = ModelParameters(w=1.0)

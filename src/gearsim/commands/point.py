@@ -5,11 +5,22 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 
+from ..config import settings_text
+from ..errors import UsageError
+from ..parameters import ParameterError
 from ..simulate import simulate_cell, trajectory
-from ._common import add_parameter_arguments, parameters_from_args, settings_from_args
+from ._common import (
+    _assignments,
+    add_parameter_arguments,
+    check_output_path,
+    json_safe,
+    parameters_and_source,
+    settings_from_args,
+)
 from .gear import add_gear_arguments, point_parameters
 
 NAME = "point"
@@ -23,8 +34,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     add_parameter_arguments(p)
     add_gear_arguments(p)
-    p.add_argument("--save", metavar="PARQUET", help="write time series, Poincare points, spectrum")
-    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument(
+        "--out",
+        "--save",
+        dest="out",
+        metavar="PARQUET",
+        help="write time series, Poincare points and spectrum to this Parquet file "
+        "(--save is the old spelling)",
+    )
+    p.add_argument(
+        "--json", action="store_true", help="print the result as one JSON object (no NaN)"
+    )
     p.add_argument(
         "--check", action="store_true", help="re-run at tightened tolerance and compare"
     )
@@ -36,7 +56,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    params, gear = point_parameters(args, parameters_from_args)
+    sets = _assignments(args)
+    if "w" in sets and (args.omega is not None or getattr(args, "rpm", None) is not None):
+        flag = "--omega" if args.omega is not None else "--rpm"
+        raise ParameterError(f"--set w={sets['w']:g} and {flag} both set w; give one")
+    out = check_output_path(args.out) if args.out else None
+    sources: list[str] = []
+
+    def from_args(a, **extra):
+        params, source = parameters_and_source(a, **extra)
+        sources.append(source)
+        return params
+
+    params, gear = point_parameters(args, from_args)
+    source = sources[0] if sources else f"gear file {args.gear}"
+    if gear is not None and sets:
+        source += " + --set " + ", ".join(f"{k}={v}" for k, v in sets.items())
     settings = settings_from_args(args)
     t0 = time.perf_counter()
     spectrum = False if args.spectrum is None else (args.spectrum or True)
@@ -44,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
     c = res.classification
     row = res.row()
-    row.update(w=params.w, elapsed_s=elapsed)
+    row.update(w=params.w, elapsed_s=elapsed, parameters_source=source,
+               settings=settings.to_dict())
     if gear is not None:
         from ..units import physical_columns
 
@@ -60,8 +96,9 @@ def run(args: argparse.Namespace) -> int:
         row["spectrum_trace"] = res.spectrum.trace
         row["spectrum_ok"] = res.spectrum.ok()
     if args.json:
-        print(json.dumps(row, default=float))
+        print(json.dumps(json_safe(row), allow_nan=False))
     else:
+        print(f"parameters: {source}; integration: {settings_text(settings)}")
         pattern = f"{c.label} ({c.label_npq})" if c.label_npq else c.label
         line = (
             f"w={params.w:.4f} pattern={pattern} I={c.I} DC={c.dc:.4f} "
@@ -81,12 +118,12 @@ def run(args: argparse.Namespace) -> int:
             from ..units import physical_line
 
             print(physical_line(row, args.gear))
-    if args.save:
-        _save(args.save, params, res, settings)
+    if out is not None:
+        _save(out, params, res, settings, source)
     return 0
 
 
-def _save(path: str, params, res, settings) -> None:
+def _save(path: Path, params, res, settings, source: str) -> None:
     import pandas as pd
     import pyarrow as pa
     import pyarrow.parquet as pq
@@ -115,7 +152,12 @@ def _save(path: str, params, res, settings) -> None:
         "amplitude": np.concatenate([np.zeros(len(ts) + len(tr.section)), spec]),
     })
     meta = {b"gearsim.params": json.dumps(params.to_dict()).encode(),
-            b"gearsim.classification": json.dumps(res.row(), default=float).encode()}
+            b"gearsim.parameters_source": source.encode(),
+            b"gearsim.settings": json.dumps(settings.to_dict()).encode(),
+            b"gearsim.classification": json.dumps(json_safe(res.row())).encode()}
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
-    pq.write_table(table, path)
+    try:
+        pq.write_table(table, path)
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot write ({exc.strerror or exc})") from None
     print(f"saved {path}")

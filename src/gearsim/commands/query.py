@@ -28,7 +28,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 NAME = "query"
 HELP = "run a read-only SELECT on results/catalogue.sqlite and print the result"

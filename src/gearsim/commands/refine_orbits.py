@@ -29,7 +29,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from .. import catalogue, tiles
+    from .. import catalogue
+    from .. import config as gcfg
+    from .. import provenance as gprov
     from ..orbit_cells import refine_cells
     from ..orbits import shooting_settings
     from .simulate_tile import Progress
@@ -45,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     for col in ("i", "j", "x", "y", "n", "status", "label", "final_state"):
         if col not in cells.columns:
             raise UsageError(f"{args.cells}: column '{col}' missing (not a plane's cells.parquet)")
-    base = tiles.plane_base(config, args.plane)
+    base = gcfg.plane_base(config, args.plane)
     pl = config["planes"][args.plane]
     st = shooting_settings(args.rtol)
     started = catalogue.now_iso()
@@ -56,8 +58,8 @@ def run(args: argparse.Namespace) -> int:
                       limit=args.limit)
     progress.close()
     wall = time.perf_counter() - t0
-    prov = tiles.provenance(
-        tiles.plane_subtree(config, args.plane), kind="orbits", name=args.plane, config=config,
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, args.plane), kind="orbits", name=args.plane, config=config,
         started=started, finished=catalogue.now_iso(), wall_s=wall, cells=len(df),
         settings=st.to_dict(), workers="in-process",
     )

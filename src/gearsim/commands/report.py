@@ -24,7 +24,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--results", default="results",
                    help="results directory (<plane>/audit.parquet, fallback <plane>/cells.parquet)")
     p.add_argument("--calibration", default="docs/calibration.json",
-                   help="calibration record (read when the file exists)")
+                   help="calibration record (read when the file exists; '' for none)")
     p.add_argument("--out", default="results/report.md", help="the report (Markdown)")
     add_config_arguments(p)
 
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     if args.configfile or args.config_json:
         planes, sweeps = study_from_config(config_from_args(args))
     rep, text = build_report(sweeps_dir=args.sweeps, catalogue=args.catalogue,
-                             results=args.results, calibration=args.calibration,
+                             results=args.results, calibration=args.calibration or None,
                              planes=planes, sweeps=sweeps)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

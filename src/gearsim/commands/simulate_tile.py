@@ -8,7 +8,12 @@ import sys
 import time
 from pathlib import Path
 
-from ..cli import UsageError
+from .. import catalogue, provenance, tiles
+from ..cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
+from ..config import results_dir, study_config
+from ..errors import UsageError
+from ..grid import tile_rows
+from ._common import check_new_file
 
 NAME = "simulate-tile"
 HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and write its Parquet file"
@@ -22,28 +27,29 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
         nargs="+",
         action="extend",
         default=[],
-        help="pipeline config file(s) (YAML or JSON), merged in order like Snakemake's "
-        "(default: config/config.yaml)",
+        help="study config file(s) (YAML or JSON) merged over config/config.yaml in order, "
+        "like `snakemake --configfile`",
     )
     p.add_argument(
         "--config-json",
         metavar="JSON",
         default=None,
-        help="overrides merged last (what `snakemake --config` set)",
+        help="overrides merged last, like `snakemake --config` (a JSON mapping)",
     )
 
 
 def config_from_args(args: argparse.Namespace) -> dict:
-    from ..tiles import DEFAULT_CONFIG, load_config
-
-    paths = args.configfile or [DEFAULT_CONFIG]
+    """config/config.yaml, then ``--configfile`` files, then ``--config-json`` (Snakemake's
+    order; :func:`gearsim.config.study_config`)."""
     overrides = None
     if args.config_json:
         try:
             overrides = json.loads(args.config_json)
-        except json.JSONDecodeError as exc:
+        except (json.JSONDecodeError, RecursionError) as exc:
             raise UsageError(f"--config-json is not valid JSON ({exc})") from None
-    return load_config(paths, overrides)
+        if not isinstance(overrides, dict):
+            raise UsageError("--config-json must be a JSON mapping of config keys")
+    return study_config(args.configfile, overrides)
 
 
 class Progress:
@@ -81,7 +87,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
     add_config_arguments(p)
-    p.add_argument("--workers", type=int, default=1, help="LocalCluster worker processes")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help=f"LocalCluster worker processes, 1..{MAX_WORKERS} (one thread each)",
+    )
     p.add_argument(
         "--scheduler",
         metavar="ADDRESS",
@@ -94,25 +105,30 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="run the rows in this process (no dask; for debugging)",
     )
     p.add_argument(
-        "--out", default=None, help="output (default results/<plane>/tiles/<tile>.parquet)"
+        "--out",
+        default=None,
+        help="output Parquet file (default <results>/<plane>/tiles/<tile>.parquet)",
     )
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import catalogue, tiles
-    from ..cluster import describe, open_client
-
     config = config_from_args(args)
     if args.plane not in config["planes"]:
         raise UsageError(
             f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
         )
-    rows = tiles.tile_rows(config, args.plane, args.tile)
-    out = Path(args.out or f"results/{args.plane}/tiles/{args.tile}.parquet")
+    rows = tile_rows(config, args.plane, args.tile)
+    out = Path(args.out or results_dir(config) / args.plane / "tiles" / f"{args.tile}.parquet")
+    check_new_file(out)
     nx = int(config["planes"][args.plane]["x"]["n"])
     label = f"{args.plane}/tile {args.tile}"
     progress = Progress(label, nx * len(rows))
     address = args.scheduler or config["cluster"].get("scheduler_address")
+    if not args.no_cluster:
+        if address:
+            check_address(address)
+        else:
+            check_workers(args.workers)
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     banner = f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells"
@@ -128,8 +144,8 @@ def run(args: argparse.Namespace) -> int:
             df = tiles.run_tile(config, args.plane, args.tile, client=client, progress=progress)
     progress.close()
     wall = time.perf_counter() - t0
-    prov = tiles.provenance(
-        tiles.plane_subtree(config, args.plane),
+    prov = provenance.provenance(
+        provenance.plane_subtree(config, args.plane),
         kind="tile",
         name=args.plane,
         config=config,

@@ -4,15 +4,25 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from ..cli import UsageError
+from .. import catalogue
+from ..batch import simulate_rows
+from ..config import base_parameters, integration_settings, resolved_parameters, results_dir
+from ..errors import UsageError
+from ..grid import sweep_values
+from ..parameters import ModelParameters
+from ..provenance import provenance, sweep_subtree
+from ..simulate import simulate_cell, trajectory
+from ..sweep import continuation_chain
+from ..tiles import records_to_frame
+from ._common import check_new_file
 from .simulate_tile import Progress, add_config_arguments, config_from_args
 
 NAME = "sweep"
@@ -24,7 +34,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     what.add_argument("--name", help="sweep name (a key of `sweeps:`)")
     what.add_argument("--points", metavar="FIG", help="point set name (a key of `points:`)")
     add_config_arguments(p)
-    p.add_argument("--out", default=None, help="output Parquet file")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="output Parquet file (default <results>/sweeps/<name>.parquet or "
+        "<results>/points/<set>.parquet)",
+    )
     p.add_argument(
         "--ramp-from",
         type=float,
@@ -48,8 +63,6 @@ def sweep_frame(
 
     ``direction="both"``: the forward rows, then the backward rows (hysteresis in one job).
     """
-    from ..sweep import continuation_chain
-
     if direction == "both":
         return pd.concat(
             [sweep_frame(base, name, values, d, settings, progress)
@@ -70,8 +83,6 @@ def sweep_frame(
             progress(i + 1, len(plist), stamps[-1] - t0)
 
     if settings.method == "rk4":
-        from ..batch import simulate_rows
-
         results = simulate_rows(
             [plist], settings=settings, on_cell=lambda _r, i, res: on_cell(i, res)
         )[0]
@@ -89,8 +100,6 @@ def sweep_frame(
         row["elapsed_s"] = t - prev
         prev = t
         rows.append(row)
-    from ..tiles import records_to_frame
-
     return records_to_frame(rows)
 
 
@@ -104,11 +113,6 @@ def _point_list(spec) -> list[dict[str, float]]:
 
 def points_frame(config, fig: str, args, progress=None) -> pd.DataFrame:
     """Each point twice: reached by a forward ramp in w (as in the sweeps) and from rest."""
-    from ..parameters import ModelParameters
-    from ..simulate import simulate_cell, trajectory
-    from ..sweep import continuation_chain
-    from ..tiles import base_parameters, integration_settings, records_to_frame
-
     values, _ = base_parameters(config)
     settings = integration_settings(config)
     points = _point_list(config["points"][fig])
@@ -161,11 +165,30 @@ def points_frame(config, fig: str, args, progress=None) -> pd.DataFrame:
     return records_to_frame(rows)
 
 
-def run(args: argparse.Namespace) -> int:
-    from .. import catalogue, tiles
-    from ..parameters import ModelParameters
+def _check_recording(args: argparse.Namespace) -> None:
+    checks = (
+        ("--ramp-from", args.ramp_from, 0.0, 100.0, False),
+        ("--ramp-step", args.ramp_step, 0.0, 10.0, False),
+        ("--periods", args.periods, 1, 100_000, True),
+        ("--samples-per-period", args.samples_per_period, 4, 100_000, True),
+    )
+    for flag, v, lo, hi, closed in checks:
+        ok = math.isfinite(v) and (lo <= v if closed else lo < v) and v <= hi
+        if not ok:
+            rng = f"[{lo}, {hi}]" if closed else f"({lo}, {hi}]"
+            raise UsageError(f"{flag}: {v!r} is outside {rng}")
 
+
+def run(args: argparse.Namespace) -> int:
+    _check_recording(args)
     config = config_from_args(args)
+    res = results_dir(config)
+    default = (
+        res / "sweeps" / f"{args.name}.parquet"
+        if args.name
+        else res / "points" / f"{args.points}.parquet"
+    )
+    out = check_new_file(args.out or default)
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     if args.name:
@@ -174,21 +197,20 @@ def run(args: argparse.Namespace) -> int:
                 f"unknown sweep '{args.name}'; configured: {', '.join(config['sweeps']) or 'none'}"
             )
         spec = config["sweeps"][args.name]
-        values, _ = tiles.base_parameters(config)
+        values, _ = base_parameters(config)
         base = ModelParameters.from_mapping({**values, **spec.get("fixed", {})})
-        vals = tiles.sweep_values(spec)
+        vals = sweep_values(spec)
         progress = Progress(f"sweep {args.name}", len(vals))
         df = sweep_frame(
             base,
             spec["name"],
             vals,
             spec.get("direction", "forward"),
-            tiles.integration_settings(config),
+            integration_settings(config),
             progress,
         )
-        subtree = tiles.sweep_subtree(config, args.name)
+        subtree = sweep_subtree(config, args.name)
         kind, name = "sweep", args.name
-        out = Path(args.out or f"results/sweeps/{args.name}.parquet")
     else:
         if args.points not in config["points"]:
             raise UsageError(
@@ -201,8 +223,8 @@ def run(args: argparse.Namespace) -> int:
         df = points_frame(config, args.points, args, progress)
         subtree = {
             "points": config["points"][args.points],
-            "parameters": tiles.resolved_parameters(config),
-            "integration": tiles.integration_settings(config).to_dict(),
+            "parameters": resolved_parameters(config),
+            "integration": integration_settings(config).to_dict(),
             "recording": {
                 "ramp_from": args.ramp_from,
                 "ramp_step": args.ramp_step,
@@ -211,10 +233,9 @@ def run(args: argparse.Namespace) -> int:
             },
         }
         kind, name = "points", args.points
-        out = Path(args.out or f"results/points/{args.points}.parquet")
     progress.close()
     wall = time.perf_counter() - t0
-    prov = tiles.provenance(
+    prov = provenance(
         subtree,
         kind=kind,
         name=name,

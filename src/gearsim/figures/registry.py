@@ -112,7 +112,8 @@ def _sweep_note(df: pd.DataFrame) -> str:
 
 def _grid_note(df: pd.DataFrame) -> str:
     nx, ny = int(df["i"].max()) + 1, int(df["j"].max()) + 1
-    return f"grid {nx} x {ny} cells (paper 400 x 400)"
+    paper = " (paper 400 x 400)" if _axes(df) in (("w", "b"), ("w", "xi")) else ""
+    return f"grid {nx} x {ny} cells{paper}"
 
 
 # ------------------------------------------------------------------------------ builders
@@ -468,12 +469,6 @@ def register(spec: FigureSpec) -> FigureSpec:
     return spec
 
 
-def _register_group(numbers: tuple[int, ...], captions: dict[int, str], inputs: Inputs,
-                    builder, **kw) -> None:
-    for n in numbers:
-        register(FigureSpec(n, captions[n], inputs, builder, group=numbers, **kw))
-
-
 @dataclass(frozen=True)
 class MapSpec:
     """A map drawn for every plane of a study, whatever its two axes
@@ -616,7 +611,7 @@ def build_maps(plane: str, df: pd.DataFrame, kinds: Sequence[str] | None = None
 
 #: modules of other analyses that register figures numbered after 17 (imported by
 #: :func:`figures`; a module missing from this checkout is skipped).
-EXTENSIONS: tuple[str, ...] = ()
+EXTENSIONS: tuple[str, ...] = ("gearsim.figures.multistability",)
 
 
 def figures() -> dict[int, FigureSpec]:

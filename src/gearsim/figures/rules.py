@@ -72,8 +72,8 @@ def report_captions(spec: registry.FigureSpec) -> list[str]:
 
 def caption_params(spec: registry.FigureSpec) -> dict[str, Any]:
     """What ``workflow/report/figure.rst`` renders: number, our line, the paper's caption."""
-    return {"number": spec.number, "caption": spec.caption,
-            "paper_caption": spec.paper_caption}
+    return {"number": spec.number, "caption": spec.caption or spec.paper_caption,
+            "paper_caption": spec.paper_caption, "in_paper": spec.in_paper}
 
 
 def map_outputs(plane: str) -> list[str]:
@@ -85,12 +85,13 @@ def map_outputs(plane: str) -> list[str]:
 
 def figure_params(config: Mapping[str, Any]) -> str:
     """What the simulated figures (2, 5, 6, 9-11) depend on besides their tables (JSON)."""
-    from .. import tiles as gt
+    from .. import config as gcfg
+    from .. import provenance as gprov
 
-    return gt.canonical_json(
+    return gprov.canonical_json(
         {
-            "parameters": gt.resolved_parameters(config),
-            "integration": gt.integration_settings(config).to_dict(),
+            "parameters": gcfg.resolved_parameters(config),
+            "integration": gcfg.integration_settings(config).to_dict(),
             "points": config.get("points", {}),
             "sweeps": {k: v.get("fixed", {}) for k, v in config.get("sweeps", {}).items()},
         }

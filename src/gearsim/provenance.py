@@ -1,0 +1,143 @@
+"""Provenance: canonical JSON, configuration hashes, the code version, package versions.
+
+Every tile, sweep and point set records :func:`provenance` (Parquet key-value metadata, then the
+catalogue's ``runs`` table); the Snakemake rules take :func:`plane_subtree` /
+:func:`sweep_subtree` and :func:`code_version` as params, so a change to either re-runs exactly
+the jobs it affects.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import platform
+from collections.abc import Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from .config import base_parameters, integration_settings, resolved_parameters
+from .simulate import TANGENT_SEED
+
+#: Packages whose versions go into the provenance.
+PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "distributed")
+
+
+def canonical_json(obj: Any) -> str:
+    """JSON with sorted keys and no spaces (the text that is hashed and given to Snakemake)."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=float)
+
+
+def config_hash(obj: Any) -> str:
+    """sha256 (16 hex digits) of the canonical JSON of ``obj``."""
+    return hashlib.sha256(canonical_json(obj).encode()).hexdigest()[:16]
+
+
+#: Modules and packages (paths relative to ``src/gearsim``) that only present results already
+#: computed: figures, the report, the explorer, exports and read-only queries. Every other
+#: ``.py`` file of the package, including ``commands/`` and any module added later, goes into
+#: :func:`code_version`, so a new module decides results until it is listed here.
+PRESENTATION_ONLY = (
+    "figures/",
+    "report.py",
+    "explorer.py",
+    "export.py",
+    "commands/figures.py",
+    "commands/report.py",
+    "commands/explorer.py",
+    "commands/export.py",
+    "commands/query.py",
+    "commands/table1.py",
+)
+
+
+def _package_dir() -> Path:
+    return Path(__file__).resolve().parent
+
+
+def code_files(package: str | Path | None = None) -> list[Path]:
+    """The source files that decide results: every ``*.py`` of the package (sorted by relative
+    path) except :data:`PRESENTATION_ONLY`."""
+    pkg = Path(package) if package is not None else _package_dir()
+    out = []
+    for f in sorted(pkg.rglob("*.py"), key=lambda f: f.relative_to(pkg).as_posix()):
+        rel = f.relative_to(pkg).as_posix()
+        if "__pycache__" in rel or any(
+            rel == ex or (ex.endswith("/") and rel.startswith(ex)) for ex in PRESENTATION_ONLY
+        ):
+            continue
+        out.append(f)
+    return out
+
+
+def code_version(package: str | Path | None = None) -> str:
+    """sha256 (16 hex digits) over the relative path and bytes of every :func:`code_files` file.
+
+    ``package`` is the ``gearsim`` package directory (default: this installation); editing,
+    adding, removing or renaming any result-deciding module changes the hash.
+    """
+    pkg = Path(package) if package is not None else _package_dir()
+    h = hashlib.sha256()
+    for f in code_files(pkg):
+        rel = f.relative_to(pkg).as_posix().encode()
+        data = f.read_bytes()
+        h.update(len(rel).to_bytes(8, "little") + rel)
+        h.update(len(data).to_bytes(8, "little") + data)
+    return h.hexdigest()[:16]
+
+
+def package_versions() -> dict[str, str]:
+    """Versions of Python and of :data:`PACKAGES` (``absent`` when not installed)."""
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:  # pragma: no cover
+            out[name] = "absent"
+    return out
+
+
+def plane_subtree(config: Mapping, plane: str, root: str | Path | None = None) -> dict[str, Any]:
+    """What a plane's tiles depend on (the Snakemake params and the hashed provenance)."""
+    return {
+        "plane": copy.deepcopy(dict(config["planes"][plane])),
+        "parameters": resolved_parameters(config, root),
+        "integration": integration_settings(config).to_dict(),
+        "tile_rows": int(config["tile_rows"]),
+    }
+
+
+def sweep_subtree(config: Mapping, sweep: str, root: str | Path | None = None) -> dict[str, Any]:
+    """What a sweep depends on (its Snakemake params and hashed provenance)."""
+    return {
+        "sweep": copy.deepcopy(dict(config["sweeps"][sweep])),
+        "parameters": resolved_parameters(config, root),
+        "integration": integration_settings(config).to_dict(),
+    }
+
+
+def provenance(
+    subtree: Mapping,
+    *,
+    kind: str,
+    name: str,
+    root: str | Path | None = None,
+    config=None,
+    **extra: Any,
+) -> dict[str, Any]:
+    """Provenance record (goes into Parquet key-value metadata and the catalogue's runs)."""
+    _, source = base_parameters(config, root) if config is not None else ({}, "unknown")
+    rec = {
+        "kind": kind,
+        "name": name,
+        "config_hash": config_hash(subtree),
+        "code_version": code_version(),
+        "package_versions": package_versions(),
+        "tangent_seed": TANGENT_SEED,
+        "parameters_source": source,
+        "subtree": subtree,
+        "host": platform.node(),
+    }
+    rec.update(extra)
+    return rec
