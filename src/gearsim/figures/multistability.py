@@ -160,7 +160,8 @@ def _fig19(ctx):
     spec = ctx.point_specs.get("fig9_11", {"b": 0.15, "w": 0.82})
     fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
     p = ctx.params.with_(**fixed)
-    g = _basins_at(ctx, p, BASIN_N)
+    n = basin_n(ctx)
+    g = _basins_at(ctx, p, n)
     att = g.attractor_table()
     fig = figure_basins(g.frame(), att, title=f"Basins of attraction at w = {p.w:g}, "
                         f"b = {p.b:g} (Figs 9-11's point)")  # fmt: skip
@@ -169,7 +170,7 @@ def _fig19(ctx):
         f"{t}: " + (f"basin {found[t]:.3f}" if t in found else "not found") for t in _PAPER_9_11
     )
     return [Built(19, fig, f"Basins of attraction at the point of Figs 9-11 (w = {p.w:g}, "
-                  f"b = {p.b:g}): {BASIN_N} x {BASIN_N} starts in (x, x') (the finder's start "
+                  f"b = {p.b:g}): {n} x {n} starts in (x, x') (the finder's start "
                   "box widened to hold the attractors), bearings at rest, "
                   "coloured by the attractor reached. The paper's three motions in our model: "
                   f"{which}.",
@@ -190,18 +191,26 @@ def _fig20(ctx):
         w = round(0.5 * (h.band[0] + h.band[1]), 4)
         note = f"hysteresis band {h.band[0]:.4f} <= w <= {h.band[1]:.4f}; drawn at its middle"
     p = ctx.params.with_(w=w)
-    g = _basins_at(ctx, p, BASIN_N)
+    n = basin_n(ctx)
+    g = _basins_at(ctx, p, n)
     att = g.attractor_table()
     fig = figure_basins(g.frame(), att, title=f"Basins of attraction at w = {w:g}, "
                         f"b = {p.b:g} (inside the fold's hysteresis band)")  # fmt: skip
     parts = ", ".join(f"{_pattern_text(r)} {r['basin_fraction']:.3f}" for _, r in att.iterrows())
     return [Built(20, fig, f"Basins of attraction inside the hysteresis band of the fold (w = "
-                  f"{w:g}, standard parameters): {BASIN_N} x {BASIN_N} starts; basin "
+                  f"{w:g}, standard parameters): {n} x {n} starts; basin "
                   f"fractions: {parts}.", [note, "Not in the paper."], ["sweeps/hysteresis"])]
 
 
-#: grid points per axis of the basin pictures (Figs 19, 20)
+#: grid points per axis of the basin pictures (Figs 19, 20) ...
 BASIN_N = 200
+#: ... and in the short test configurations (transient below 100 periods: tiny.yaml)
+BASIN_N_SHORT = 48
+
+
+def basin_n(ctx) -> int:
+    """Grid points per axis of a basin picture for the settings of ``ctx``."""
+    return BASIN_N if ctx.settings.transient >= 100 else BASIN_N_SHORT
 
 
 def register_figures() -> None:
