@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .simulate_tile import add_config_arguments, config_from_args
 
 NAME = "attractor-maps"
