@@ -1,0 +1,83 @@
+"""A study of one's own (issue 13.2): a (w, eps) 30 x 30 plane and a mean-load sweep in a config
+file with `study:`; the workflow runs only its jobs, into studies/<study>/, never touching
+results/ of the paper's study; the same content under another file name re-runs nothing."""
+
+from __future__ import annotations
+
+import sqlite3
+
+import pandas as pd
+import pytest
+import yaml
+from test_pipeline import job_counts
+from workflow_helpers import make_workdir, smk
+
+from gearsim import config as gcfg
+
+STUDY = {
+    "study": "weps",
+    "planes": {"weps": {"x": {"name": "w", "min": 0.1, "max": 2.5, "n": 30},
+                        "y": {"name": "eps", "min": 0.05, "max": 0.6, "n": 30},
+                        "fixed": {"b": 0.3}}},
+    "sweeps": {"load": {"name": "Fm", "min": 0.05, "max": 0.3, "n": 11, "fixed": {"w": 1.02}}},
+    "points": {},
+    "tile_rows": 15,
+    # tiny integration budget (tests only)
+    "integration": {"method": "rk4", "steps_per_period": 64, "transient": 30,
+                    "transient_continuation": 10, "chunk": 16, "max_periods": 32, "n_max": 8},
+    "audit": {"fraction": 0.01, "threshold": 0.0},
+}
+STUDY_RESULTS = "studies/weps/results"
+# targets of a study are named inside its folder (Snakemake runs in studies/<study>/)
+TARGETS = ["results/weps/cells.parquet", "results/sweeps/load.parquet",
+           "results/catalogue.d/build.sqlite"]
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    wd = make_workdir(tmp_path_factory.mktemp("study"))
+    (wd / "config/weps.yaml").write_text(yaml.safe_dump(STUDY))
+    return wd
+
+
+def test_study_config_replaces_the_papers_lists(study):
+    cfg = gcfg.study_config([study / "config/weps.yaml"], root=study)
+    assert list(cfg["planes"]) == ["weps"] and list(cfg["sweeps"]) == ["load"]
+    assert cfg["points"] == {} and cfg["study"] == "weps"
+    assert str(gcfg.results_dir(cfg)) == STUDY_RESULTS
+    # the rest still merges over config/config.yaml
+    assert cfg["integration"]["rtol"] == 1e-9 and cfg["standard_parameters"]
+
+
+def test_study_plans_only_its_own_jobs(study):
+    r = smk(study, "-n", "--quiet", "rules", "--configfile", "config/weps.yaml")
+    counts = job_counts(r.stdout + r.stderr)
+    assert counts["simulate_tile"] == 2 and counts["sweep"] == 1 and counts["plane_cells"] == 1
+    assert "points" not in counts and counts["catalogue"] == 1
+    r = smk(study, "-n", "--configfile", "config/weps.yaml")
+    out = r.stdout + r.stderr
+    for other in ("plane=wb", "plane=wxi", "sweep=standard", "sweep=b015"):
+        assert other not in out
+
+
+@pytest.mark.slow
+def test_study_runs_into_its_own_folder(study):
+    smk(study, "--cores", "2", "--configfile", "config/weps.yaml", *TARGETS, timeout=1800)
+    assert not (study / "results").exists()  # the paper's study is not touched
+    cells = pd.read_parquet(study / f"{STUDY_RESULTS}/weps/cells.parquet")
+    assert len(cells) == 900 and set(cells["i"]) == set(range(30))
+    assert cells["eps"].between(0.05, 0.6).all() and (cells["b"] == 0.3).all()
+    sweep = pd.read_parquet(study / f"{STUDY_RESULTS}/sweeps/load.parquet")
+    assert len(sweep) == 11 and sweep["parameter"].eq("Fm").all()
+    con = sqlite3.connect(study / f"{STUDY_RESULTS}/catalogue.d/build.sqlite")
+    assert [r[0] for r in con.execute("SELECT name FROM planes")] == ["weps"]
+    con.close()
+    assert (study / "studies/weps/logs").is_dir()
+
+
+@pytest.mark.slow
+def test_same_content_under_another_name_reruns_nothing(study):
+    smk(study, "--cores", "2", "--configfile", "config/weps.yaml", *TARGETS, timeout=1800)
+    (study / "config/renamed.yaml").write_text((study / "config/weps.yaml").read_text())
+    r = smk(study, "-n", "--configfile", "config/renamed.yaml", *TARGETS)
+    assert "Nothing to be done" in r.stdout + r.stderr, r.stdout[-3000:]
