@@ -62,7 +62,8 @@ def test_study_plans_only_its_own_jobs(study):
 
 @pytest.mark.slow
 def test_study_runs_into_its_own_folder(study):
-    smk(study, "--cores", "2", "--configfile", "config/weps.yaml", *TARGETS, timeout=1800)
+    # targets first: --configfile takes a list
+    smk(study, *TARGETS, "--cores", "2", "--configfile", "config/weps.yaml", timeout=1800)
     assert not (study / "results").exists()  # the paper's study is not touched
     cells = pd.read_parquet(study / f"{STUDY_RESULTS}/weps/cells.parquet")
     assert len(cells) == 900 and set(cells["i"]) == set(range(30))
@@ -77,7 +78,7 @@ def test_study_runs_into_its_own_folder(study):
 
 @pytest.mark.slow
 def test_same_content_under_another_name_reruns_nothing(study):
-    smk(study, "--cores", "2", "--configfile", "config/weps.yaml", *TARGETS, timeout=1800)
+    smk(study, *TARGETS, "--cores", "2", "--configfile", "config/weps.yaml", timeout=1800)
     (study / "config/renamed.yaml").write_text((study / "config/weps.yaml").read_text())
-    r = smk(study, "-n", "--configfile", "config/renamed.yaml", *TARGETS)
+    r = smk(study, *TARGETS, "-n", "--configfile", "config/renamed.yaml")
     assert "Nothing to be done" in r.stdout + r.stderr, r.stdout[-3000:]

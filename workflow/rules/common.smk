@@ -51,8 +51,10 @@ if not CONFIG_JSON.is_file() or CONFIG_JSON.read_text() != _text:
     _tmp.write_text(_text)
     os.replace(_tmp, CONFIG_JSON)
 CONFIG = ancient(str(CONFIG_JSON))
-# gearsim commands of the jobs resolve config/config.yaml and relative paths here
-os.environ["GEARSIM_STUDY_ROOT"] = str(STUDY_ROOT)
+# gearsim commands of the jobs resolve config/config.yaml and relative paths here (set by the
+# workflow itself, not required from the user; the config JSON alone already gives the same
+# configuration, this keeps relative paths of commands run inside studies/<study>/ right)
+os.environ[gcfg.STUDY_ROOT_ENV] = str(STUDY_ROOT)
 
 # A study of one's own keeps all its outputs (results/, logs/, Snakemake's records) in
 # studies/<study>/, so the paper's results/ is never touched (docs/pipeline.md, "Your own study").
