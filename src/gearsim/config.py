@@ -27,6 +27,7 @@ from .errors import ConfigError
 from .grid import axis_values, sweep_values
 from .parameters import ModelParameters, ParameterError, check_value
 from .simulate import IntegrationSettings
+from .units import dimensionless_config
 
 __all__ = ["ConfigError"]
 
@@ -338,6 +339,12 @@ def load_config(
         if not isinstance(overrides, Mapping):
             raise ConfigError("config overrides must be a mapping of keys")
         merge_study(config, overrides)
+    try:  # axes and values in rpm / N m / um (with a `gear` file) -> dimensionless, in place
+        dimensionless_config(config, root=study_root(root))
+    except ConfigError:
+        raise
+    except ParameterError as exc:
+        raise ConfigError(str(exc)) from None
     validate_schema(config)
     return check_config(config, root=root)
 

@@ -94,9 +94,10 @@ def _expanded_size(root: yaml.Node, path: Path) -> int:
 def load_yaml(path: str | Path) -> Any:
     """Parse a YAML (or JSON) file with size and alias limits; ParameterError on any problem."""
     path = Path(path)
+    if path.is_dir():
+        raise ParameterError(f"{path}: is a directory, not a file")
     if not path.is_file():
-        what = "a directory, not a file" if path.is_dir() else "file not found"
-        raise ParameterError(f"{path}: {what}")
+        raise ParameterError(f"file not found: {path}")
     try:
         size = path.stat().st_size
         if size > MAX_YAML_BYTES:
@@ -159,5 +160,5 @@ def load_standard_parameters(path: str | Path) -> dict[str, Any]:
     try:
         ModelParameters.from_mapping(values)  # validates names and ranges
     except ParameterError as exc:
-        raise ParameterError(f"{path}: {exc}") from None
+        raise ParameterError(f"{path}: {exc}") from None  # which file holds the bad value
     return values

@@ -34,6 +34,8 @@ if STUDY is not None and _resolved["standard_parameters"] is not None:
     _resolved["standard_parameters"] = str(
         gcfg.standard_parameters_path(_resolved, STUDY_ROOT).resolve()
     )
+if STUDY is not None and _resolved.get("gear"):
+    _resolved["gear"] = str((STUDY_ROOT / _resolved["gear"]).resolve())
 config.clear()
 config.update(_resolved)
 validate(config, str(SCHEMA))
@@ -59,6 +61,11 @@ os.environ[gcfg.STUDY_ROOT_ENV] = str(STUDY_ROOT)
 # A study of one's own keeps all its outputs (results/, logs/, Snakemake's records) in
 # studies/<study>/, so the paper's results/ is never touched (docs/pipeline.md, "Your own study").
 if STUDY is not None:
+    if workflow.overwrite_workdir is not None:
+        raise WorkflowError(
+            f"study '{STUDY}' runs in studies/{STUDY}/ of the project directory: run snakemake "
+            "in the project directory without --directory/-d (it would override that folder)"
+        )
 
     workdir: f"studies/{STUDY}"
 
