@@ -86,11 +86,18 @@ def main() -> None:
                 sum(a.steady.status == "ok" for a in ca.attractors) >= 2 for ca in found])),
         }  # fmt: skip
         runs[mode]["_found"] = found
-    same = all(
-        sorted((a.basin_fraction, a.label) for a in x.attractors)
-        == sorted((a.basin_fraction, a.label) for a in y.attractors)
-        for x, y in zip(runs["early"]["_found"], runs["full"]["_found"], strict=True)
-    )
+    differ = []
+    for c, (x, y) in enumerate(zip(runs["early"]["_found"], runs["full"]["_found"],
+                                   strict=True)):  # fmt: skip
+        fx = sorted((a.basin_fraction, a.label, a.steady.info.get("label_npq", ""))
+                    for a in x.attractors)  # fmt: skip
+        fy = sorted((a.basin_fraction, a.label, a.steady.info.get("label_npq", ""))
+                    for a in y.attractors)  # fmt: skip
+        if fx != fy:
+            differ.append({"w": cells[c].w, "b": cells[c].b, "early": fx, "full": fy,
+                           "starts_differing": int(np.sum(x.start_labels != y.start_labels))})
+    same = not differ
+    out["cells_differing"] = differ
     for m in runs.values():
         m.pop("_found")
     out.update(runs)
@@ -112,7 +119,11 @@ def main() -> None:
           f"{100 * runs['early']['labelled_early']:.0f}% labelled early), "
           f"full {runs['full']['cpu_per_start_ms']:.2f} ms/start "
           f"({runs['full']['periods_per_start']:.0f} periods); "
-          f"x{out['speedup_cpu']:.2f}; basins equal: {same}")
+          f"x{out['speedup_cpu']:.2f}; basins equal: {same} "
+          f"({len(cells) - len(differ)}/{len(cells)} cells)")
+    for d in differ:
+        print(f"  differs: w = {d['w']:.4f}, b = {d['b']:.4f}: early {d['early']} / full "
+              f"{d['full']}")
     print(f"projection: 2 x 400 x 400 at {args.starts} starts = {proj / 60:.1f} min on 2 cores "
           f"(target 15); largest n x n per plane in 15 min: {fit}")
     print(f"wrote {path}")

@@ -322,6 +322,16 @@ def test_cli_errors(tmp_path, monkeypatch, capsys):
     assert main(["figures", "--fig", "99", "--outdir", str(tmp_path)]) == 2
     assert main(["figures", "--outdir", str(tmp_path)]) == 2
     assert main(["figures", "--fig", "4", "--sweep", "nofile"]) == 2
+    assert main(["figures", "--map", "dc", "--outdir", str(tmp_path)]) == 2
+    assert "--map KIND needs --maps" in capsys.readouterr().err
+    assert main(["figures", "--maps", "--outdir", str(tmp_path)]) == 2
+    assert "--maps needs at least one --plane" in capsys.readouterr().err
+    plane = tmp_path / "p.parquet"
+    synthetic_plane("eps").to_parquet(plane)
+    assert main(["figures", "--maps", "--map", "nope", "--plane", f"p={plane}",
+                 "--outdir", str(tmp_path / "m")]) == 2
+    assert "unknown plane map 'nope'; allowed: pattern, dc, kmax" in capsys.readouterr().err
+    assert not (tmp_path / "m").exists()  # nothing partial
 
 
 def test_kmax_colour_scale_ignores_a_runaway_cell():

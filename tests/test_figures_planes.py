@@ -35,6 +35,8 @@ def test_maps_of_a_w_eps_plane(study, tmp_path, monkeypatch):
         assert (out / "planes" / f"weps-{kind}.png").stat().st_size > 20_000
     pattern = json.loads((out / "planes" / "weps-pattern.json").read_text())
     assert any("not applicable" in n for n in pattern["notes"])
+    assert "grid 6 x 4 cells" in pattern["notes"] and not any("paper 400" in n for n in
+                                                                pattern["notes"])
     index = (out / "README.md").read_text()
     assert "## Plane weps" in index and "weps-kmax.png" in index
 

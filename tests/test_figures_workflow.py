@@ -62,6 +62,8 @@ def test_a_new_figure_registers_in_one_place():
         assert n not in gfr.built_figures([], ["wxi"], [])
         assert gfr.cli_args(spec) == f"--fig {n} --plane wb=results/wb/cells.parquet"
         assert gfr.rule_name(spec) == f"figure_{n:02d}"
+        assert gfr.caption_params(spec)["in_paper"] is False
+        assert gfr.caption_params(registry.FIGURES[7])["in_paper"] is True
         with pytest.raises(ValueError, match="registered twice"):
             registry.register(registry.FigureSpec(n, "x", registry.Inputs(), lambda c: []))
     finally:

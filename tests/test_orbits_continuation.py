@@ -168,3 +168,40 @@ def test_exact_landmarks_pair_grid_intervals_with_located_points():
     assert not np.isfinite(t.loc["chaos_onset", "exact"])  # no exact point for chaos onset
     lines = report_lines(t.reset_index())
     assert len(lines) == 2 + len(t) and "0.56712345" in "".join(lines)
+
+
+def test_cli_bifurcation_curves_follow_the_period_doubling(tmp_path):
+    import pandas as pd
+    import yaml
+
+    from gearsim.cli import main
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(yaml.safe_dump({
+        "parameters": {"model": "1dof"},
+        "planes": {"wxi": {"x": {"name": "w", "min": 0.95, "max": 1.05, "n": 10},
+                           "y": {"name": "xi", "min": 0.055, "max": 0.067, "n": 4},
+                           "fixed": {}}},
+        "tile_rows": 2,
+    }))
+    out = tmp_path / "wxi_curves.parquet"
+    assert main(["bifurcation-curves", "--plane", "wxi", "--configfile", "config/config.yaml",
+                 str(cfg), "--kinds", "period_doubling", "--switch-depth", "0",
+                 "--step2", "0.004", "--out", str(out)]) == 0
+    cur = pd.read_parquet(out)
+    assert set(cur["kind"]) == {"period_doubling"} and cur["curve"].nunique() == 1
+    assert cur["value2"].min() == pytest.approx(0.055) and cur["value2"].max() == pytest.approx(
+        0.067)
+    # more damping needs a higher frequency to double (the 1 -> 2 boundary leans right)
+    assert np.all(np.diff(cur.sort_values("value2")["value"].to_numpy()) > 0)
+    for _, r in cur.iterrows():
+        mu = np.array(r.mu_re) + 1j * np.array(r.mu_im)
+        assert np.min(np.abs(mu + 1)) < 1e-6
+    # each curve point is what a one-parameter continuation at that xi locates
+    r = cur.iloc[len(cur) // 2]
+    df = continue_orbit(ONE.with_(xi=float(r.value2)), "w", r.value - 0.02, r.value + 0.02, n=1,
+                        config=Continuation(switch_depth=0, grazing=False))
+    pd_w = df.loc[df.event == "period_doubling", "value"].to_numpy()
+    assert len(pd_w) == 1 and abs(pd_w[0] - r.value) < 1e-8
+    assert (tmp_path / "wxi_curves.png").is_file()
+    assert len(pd.read_parquet(tmp_path / "wxi_curves_points.parquet")) >= 1

@@ -66,9 +66,11 @@ def fresh(tmp_path_factory):
 def test_dry_run_plans_the_expected_jobs(fresh, configs, tiles, sweeps, points):
     out = dry(fresh, *configs, extra=("--quiet", "rules"))
     counts = job_counts(out)
+    # attractor_tile: the default planes set `multistability` (docs/multistability.md)
     assert counts == {"compile": 1, "simulate_tile": tiles, "plane_cells": 2, "audit": 2,
                       "sweep": sweeps, "points": points, "catalogue": 1,
-                      "total": 1 + tiles + 2 + 2 + sweeps + points + 1}, out
+                      "attractor_tile": tiles,
+                      "total": 1 + tiles + 2 + 2 + sweeps + points + 1 + tiles}, out
 
 
 def test_all_target_includes_pipeline_outputs(fresh):

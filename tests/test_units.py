@@ -182,6 +182,18 @@ def test_cli_bad_gear_input_exits_2_with_one_line(tmp_path, capsys):
     assert "--omega" in capsys.readouterr().err
 
 
+def test_every_committed_gear_file_loads():
+    files = sorted((ROOT / "config/gears").glob("*.yaml"))
+    assert len(files) >= 2
+    for path in files:
+        p = units.load_gear(path).to_model_parameters()
+        assert 0.0 < p.w <= 2.5 and p.rho_p == pytest.approx(0.4), path.name
+    g = units.load_gear(ROOT / "config/gears/example_m3.yaml")
+    assert g.mesh_frequency_hz == pytest.approx(24 * 12000 / 60)  # 4800 Hz
+    assert g.pitch_radius_p == pytest.approx(0.036)  # 3 mm x 24 / 2
+    assert g.te_phase_deg == GearGeometry().te_phase_deg  # left out: the standard gear's
+
+
 def test_gear_command_prints_the_set_and_the_meaning(tmp_path, capsys):
     assert main(["gear", "--gear", str(STANDARD_GEAR)]) == 0
     out = capsys.readouterr().out
@@ -223,6 +235,19 @@ def test_point_with_gear_prints_physical_columns(tmp_path, capsys):
     t = units.physical_columns(ts, g)
     assert t["mesh_force_N"].max() == pytest.approx(row["peak_mesh_force_N"], rel=2e-3)
     assert t["x_um"].max() - t["x_um"].min() == pytest.approx(row["dte_pp_um"], rel=2e-3)
+    # RMS about the mean: between 0 and half the peak-to-peak value (a non-constant motion)
+    rms = units.dte_rms_um(pd.read_parquet(save), g)
+    assert 0.0 < rms < 0.5 * row["dte_pp_um"]
+
+
+def test_dte_rms_of_a_sine_is_amplitude_over_root_two():
+    g = GearGeometry()  # b_c = 10 um
+    tau = np.linspace(0.0, 3 * 2 * np.pi / 0.7, 3 * 128 + 1)  # three periods, both endpoints
+    x = 1.0 + 0.5 * np.sin(0.7 * tau) + 0.2 * np.cos(2.1 * tau)
+    expected = 10.0 * math.sqrt(0.5**2 / 2 + 0.2**2 / 2)
+    frame = pd.DataFrame({"kind": "time_series", "tau": tau, "x": x})
+    assert units.dte_rms_um(frame, g) == pytest.approx(expected, rel=1e-12)
+    assert units.dte_rms_um(x[:-1], g) == pytest.approx(expected, rel=1e-12)
 
 
 def test_pipeline_config_in_physical_units_converts_in_place():
@@ -251,11 +276,52 @@ def test_pipeline_config_in_physical_units_converts_in_place():
     assert config["parameters"] == {"b": pytest.approx(0.25)}
     assert config["points"]["mine"]["w"] == pytest.approx([6000 * k_rpm, 12000 * k_rpm])
     assert config["points"]["fig5"] == [0.48]
+    label, vals = units.axis_label_values(y, np.array([y["min"], y["max"]]))
+    assert label == "torque_Nm [N m]"
+    np.testing.assert_allclose(vals, [5.0, 30.0], rtol=1e-12)
+    assert units.axis_label_values({"name": "xi", "min": 0, "max": 1}, [0.5]) == ("xi", [0.5])
     before = json.dumps(config, sort_keys=True)
     units.dimensionless_config(config, root=ROOT)  # idempotent
     assert json.dumps(config, sort_keys=True) == before
     with pytest.raises(ParameterError, match="config key 'sweeps.s.name'.*needs a gear file"):
         units.dimensionless_config({"sweeps": {"s": {"name": "torque_Nm", "min": 1, "max": 2,
                                                      "n": 3}}})
-    with pytest.raises(ParameterError, match="config key 'gear': file not found: .*nope.yaml"):
+    with pytest.raises(ParameterError, match=r"config key 'gear'.*nope\.yaml") as exc:
         units.dimensionless_config({"gear": "nope.yaml"}, root=ROOT)
+    assert "file not found" in str(exc.value)
+
+
+def test_torque_sweep_study_example_loads_in_dimensionless_units(tmp_path, capsys):
+    """config/torque_sweep.yaml (the README's example) through the pipeline's config loader."""
+    from gearsim.config import ConfigError, base_parameters, study_config
+
+    config = study_config([ROOT / "config/torque_sweep.yaml"], root=ROOT)
+    assert config["study"] == "torque" and list(config["sweeps"]) == ["torque"]
+    assert config["planes"] == {}
+    sw = config["sweeps"]["torque"]
+    k_t, k_rpm = 1.0 / (0.036 * KM * BC), 2 * math.pi * 18 / 60 / WN
+    assert sw["name"] == "Fm" and sw["physical"]["name"] == "torque_Nm"
+    assert (sw["min"], sw["max"]) == (pytest.approx(2 * k_t, rel=1e-12),
+                                      pytest.approx(40 * k_t, rel=1e-12))
+    assert sw["fixed"] == {"w": pytest.approx(12000 * k_rpm, rel=1e-12)}
+    values, source = base_parameters(config, ROOT)
+    assert source == "gear file config/gears/standard.yaml"
+    assert values == GearGeometry().to_model_parameters().to_dict()
+    # physical units without a gear file, or a bad gear file: one line naming the key
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("study: mine\nsweeps:\n  t: {name: torque_Nm, min: 1, max: 2, n: 3}\n")
+    with pytest.raises(ConfigError, match=r"'sweeps.t.name'.*needs a gear file"):
+        study_config([bad], root=ROOT)
+    bad.write_text(f"study: mine\ngear: {tmp_path / 'g.yaml'}\n")
+    (tmp_path / "g.yaml").write_text("zp: 17\n")
+    with pytest.raises(ConfigError, match=r"config key 'gear'.*'zg' / 'zp'"):
+        study_config([bad], root=ROOT)
+    # a sweep's frame: 'value' is the swept parameter; the rest from the sweep's base set
+    frame = pd.DataFrame({"parameter": ["Fm", "Fm"], "value": [2 * k_t, 40 * k_t],
+                          "kmax_peak_mean": [2.0, 1.1]})
+    base = ModelParameters.from_mapping({**values, **sw["fixed"]})
+    phys = units.physical_columns(frame, GearGeometry(), base)
+    np.testing.assert_allclose(phys["torque_Nm"], [2.0, 40.0], rtol=1e-12)
+    np.testing.assert_allclose(phys["speed_rpm"], [12000.0, 12000.0], rtol=1e-12)
+    np.testing.assert_allclose(phys["peak_mesh_force_N"], [2.0 * 2 / 0.036, 1.1 * 40 / 0.036],
+                               rtol=1e-12)

@@ -27,15 +27,20 @@ Algorithm per cell (all cells and starts of a call advance together as SIMD lane
    section points are compared with the attractors found so far (*recurrence*): a start whose
    last ``max(2 n, confirm)`` points follow a period-``n`` attractor's points in phase order,
    each within ``recur_rtol`` of the attractor's scale, and themselves repeat after ``n``
-   periods within ``period_rtol`` (the classifier's own period test), or whose last
-   ``confirm_cloud`` points all fall in the (one-cell dilated) grid occupancy of a
-   non-periodic attractor, is labelled and stops. A start that diverges is recorded as divergent.
+   periods within ``period_rtol`` (the classifier's own period test), or (``early_clouds``
+   only) whose last ``confirm_cloud`` points all fall in the (one-cell dilated) grid occupancy
+   of a non-periodic attractor, is labelled and stops. A start that diverges is recorded as
+   divergent.
    Every ``rescout`` periods the first still unlabelled start of each cell is promoted to a
    scout: its full-length run continues from where it is (so it is exactly its full-length
    run) and its motion joins the list the others are tested against.
 3. Starts still unlabelled after ``transient`` periods continue into measurement and
    classification exactly as their full-length run would (same state, remaining transient 0),
    and their steady motions are merged into the list.
+
+Finally every start's motion (its own full-length one, or the attractor it was labelled onto)
+is merged again in a canonical order (continuation states, then starts by index), so the list
+does not depend on the order in which starts happened to finish.
 
 Merging: starts that did not settle within the budget (status ``unsettled``) form one entry
 per cell (label ``unsettled``, never labelled early). Two steady motions are the same attractor
@@ -251,6 +256,7 @@ class _Known:
     def __init__(self, opts: _Options):
         self.opts = opts
         self.steadies: list[Steady] = []
+        self.own: dict[int, Steady] = {}  # start index -> its full-length steady motion
         self.ambiguous: list[bool] = []
         self._clouds: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = []
 
@@ -320,7 +326,7 @@ class _Known:
             periodic = np.all((np.abs(w[:, :, 0] - prev[:, :, 0]) <= px)
                               & (np.abs(w[:, :, 1] - prev[:, :, 1]) <= pv), axis=1)  # fmt: skip
             out[rows[close & phase & periodic]] = a
-        for a in range(len(self.steadies)):
+        for a in range(len(self.steadies) if o.early_clouds else 0):
             cloud = self._clouds[a]
             if cloud is None:
                 continue
@@ -347,6 +353,7 @@ class _Options:
     rescout: int = 24
     period_rtol: float = 1e-5
     doubling_rtol: float = 0.05
+    early_clouds: bool = False
 
 
 # ============================================================================ the engine
@@ -369,6 +376,7 @@ def map_attractors(
     scouts: int = 1,
     rescout: int = 24,
     period_rtol: float = 1e-5,
+    early_clouds: bool = False,
 ) -> list[CellAttractors]:
     """Attractors of ``n_cells`` cells of ``system`` from the start states ``starts[c]``.
 
@@ -392,6 +400,12 @@ def map_attractors(
         A start is labelled onto a period-``n`` attractor only when its own last points also
         repeat after ``n`` periods within ``period_rtol`` of the attractor's scale (the
         classifier's period test; :class:`GearCells` passes ``settings.period_rtol``).
+    early_clouds
+        Also label starts early onto non-periodic (chaotic, quasi-periodic) attractors by
+        cloud occupancy. Off by default: a torus sampled over a finite window, or a periodic
+        window inside a chaotic band, can take a start that its full-length run classifies
+        otherwise (benchmarks/README.md (h)); with it off, the early labels are exactly the
+        full-length ones on every cell checked.
     """
     if len(starts) != n_cells:
         raise ParameterError("map_attractors: one array of start states per cell expected")
@@ -403,7 +417,7 @@ def map_attractors(
     if isinstance(rescout, bool) or not isinstance(rescout, int) or rescout < 0:
         raise ParameterError(f"setting 'rescout' = {rescout!r} must be an integer >= 0")
     opts = _Options(chunk, confirm, confirm_cloud, recur_rtol, merge_rtol, grid, cloud_overlap,
-                    scouts, rescout, period_rtol)  # fmt: skip
+                    scouts, rescout, period_rtol, 0.05, bool(early_clouds))  # fmt: skip
     known = [_Known(opts) for _ in range(n_cells)]
     starts = [np.atleast_2d(np.asarray(s, dtype=float)) for s in starts]
     K = [len(s) for s in starts]
@@ -411,6 +425,7 @@ def map_attractors(
     is_early = [np.zeros(k, dtype=bool) for k in K]
     periods_run = [np.zeros(k, dtype=np.int64) for k in K]
     cont_labels: list[dict[str, int]] = [{} for _ in range(n_cells)]
+    cont_steady: list[list[tuple[str, Steady]]] = [[] for _ in range(n_cells)]
     cont_found: list[dict[int, set[str]]] = [{} for _ in range(n_cells)]
 
     # 1. continuation states (full-length runs with the continuation transient)
@@ -435,6 +450,7 @@ def map_attractors(
         if cells:
             res = system.steady(np.array(cells), np.array(states), ct, np.array(k0))
             for c, name, s in zip(cells, names, res, strict=True):
+                cont_steady[c].append((name, s))
                 a = known[c].add(s)
                 cont_labels[c][name] = a
                 if a >= 0:
@@ -450,7 +466,23 @@ def map_attractors(
         _run_full(system, known, starts, labels, periods_run, scout, T)
         _probe(system, known, starts, labels, is_early, periods_run, opts, T)
 
-    # 3. basin fractions, canonical order: most starts first, then order of discovery
+    # 3. merge again in a canonical order (continuation states, then starts by index), so the
+    #    list does not depend on which start was run first; then basin fractions, most first
+    for c in range(n_cells):
+        kn = _Known(opts)
+        cont_labels[c], cont_found[c] = {}, {}
+        for name, s in cont_steady[c]:
+            a = kn.add(s)
+            cont_labels[c][name] = a
+            if a >= 0:
+                cont_found[c].setdefault(a, set()).add(name)
+        new = np.full(K[c], -1, dtype=np.int64)
+        for i in range(K[c]):
+            if labels[c][i] >= 0:
+                s = known[c].own.get(i, known[c].steadies[labels[c][i]])
+                new[i] = kn.add(s)
+        labels[c] = new
+        known[c] = kn
     out = []
     for c in range(n_cells):
         steadies = known[c].steadies
@@ -499,6 +531,7 @@ def _run_full(system, known, starts, labels, periods_run, todo, transient, state
     res = system.steady(cells, states, max(left, 0), done)
     for (c, i), s, d in zip(todo, res, done, strict=True):
         labels[c][i] = known[c].add(s)
+        known[c].own[i] = s
         extra = int(s.info.get("periods", 0)) if s.info else 0
         periods_run[c][i] = int(d) + (extra if extra else max(left, 0))
 

@@ -128,7 +128,7 @@ def follow_curve(
     name = str(point["name"])
     base = dict(config.__dict__) if config else {}
     base.update(switch_depth=0, grazing=(kind == "grazing"), max_points=60,
-                ds=window / 3, ds_max=window / 2)
+                ds=window / 3, ds_max=window / 2, progress=None)
     cfg = Continuation(**base)
     mu = float(getattr(params, name2))
     direction = 1.0 if stop2 > mu else -1.0
@@ -214,6 +214,8 @@ def follow_curves(
             reasons.append(f"curve {cid} ({r['kind']} {r['boundary']} period {r['period']} at "
                            f"{r['name']} = {r['value']:.6f}) towards {name2} = {stop}: "
                            f"{c.attrs['reason']}, {len(c)} points")
+            if config is not None and config.progress is not None:
+                config.progress(reasons[-1])
             parts.append(c if not parts else c.iloc[1:])
         if parts:
             c = pd.concat(parts, ignore_index=True).sort_values("value2", kind="stable")

@@ -27,7 +27,6 @@ from .errors import ConfigError
 from .grid import axis_values, sweep_values
 from .parameters import ModelParameters, ParameterError, check_value
 from .simulate import IntegrationSettings
-from .units import dimensionless_config
 
 __all__ = ["ConfigError"]
 
@@ -177,6 +176,16 @@ def _check_axis(axis: Mapping[str, Any], where: str, *, centres: bool) -> None:
             raise ConfigError(f"config key '{where}': {exc}") from None
 
 
+def _physical_units(config: dict, root: str | Path | None) -> None:
+    """Names in rpm / N m / um (``gear`` file) -> w / Fm / Fe / b, in place (docs/units.md)."""
+    from .units import dimensionless_config
+
+    try:
+        dimensionless_config(config, study_root(root))
+    except ParameterError as exc:
+        raise ConfigError(str(exc)) from None
+
+
 def check_config(config: dict, root: str | Path | None = None) -> dict:
     """Checks beyond the schema; call after :func:`validate_schema`. Returns ``config``.
 
@@ -188,6 +197,7 @@ def check_config(config: dict, root: str | Path | None = None) -> dict:
     study = config.get("study")
     if study is not None:
         _check_name(study, "study")
+    _physical_units(config, root)
     _check_names(config.get("parameters", {}), "parameters")
     base_parameters(config, root)  # the standard-parameter file exists and is valid
     rows = int(config["tile_rows"])
@@ -339,12 +349,6 @@ def load_config(
         if not isinstance(overrides, Mapping):
             raise ConfigError("config overrides must be a mapping of keys")
         merge_study(config, overrides)
-    try:  # axes and values in rpm / N m / um (with a `gear` file) -> dimensionless, in place
-        dimensionless_config(config, root=study_root(root))
-    except ConfigError:
-        raise
-    except ParameterError as exc:
-        raise ConfigError(str(exc)) from None
     validate_schema(config)
     return check_config(config, root=root)
 
@@ -411,7 +415,15 @@ def base_parameters(
     values: dict[str, Any] = {}
     source = "builtin-defaults"
     path = standard_parameters_path(config, root)
-    if path is not None:
+    if config.get("gear"):  # a gear file replaces the standard parameters (docs/units.md)
+        from .units import config_gear
+
+        try:
+            values = config_gear(config, study_root(root)).to_model_parameters().to_dict()
+        except ParameterError as exc:
+            raise ConfigError(str(exc)) from None
+        source = f"gear file {config['gear']}"
+    elif path is not None:
         try:
             values = dict(load_standard_parameters(path))
         except ParameterError as exc:

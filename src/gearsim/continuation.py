@@ -97,6 +97,7 @@ class Continuation:
     grazing: bool = True
     substeps: int = 512
     settings: IntegrationSettings = field(default_factory=lambda: SHOOTING)
+    progress: Any = None  # optional callable(str): a line every 10 branch points
 
 
 class _Problem:
@@ -433,6 +434,9 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
             if kind == KIND_PD:
                 pds.append(ev_pt)
         rows.append(_row(prob, branch, n, new))
+        if cfg.progress is not None and step % 10 == 9:
+            cfg.progress(f"branch {branch} (period {n}): {step + 1} points, {prob.name} = "
+                         f"{new.lam:.6f}, |mu|max = {abs(new.mu[0]):.4f}")
         # merged back into a shorter period (a doubled branch ending at its inverse doubling)
         if n > 1 and branch > 0:
             half = n // 2

@@ -183,6 +183,20 @@ def dimensionless_mapping(values: Mapping[str, Any], gear: GearGeometry | None,
     return out
 
 
+def axis_label_values(spec: Mapping[str, Any], values: Any) -> tuple[str, Any]:
+    """``(label, values)`` to draw an axis converted by :func:`dimensionless_axis` in its
+    physical unit, e.g. ``("torque_Nm [N m]", values in N m)``; a dimensionless axis gives
+    ``(name, values)`` unchanged. Needs no gear: the conversion is proportional, so the factor
+    is ``physical max / max`` (or min when max is 0)."""
+    phys = spec.get("physical")
+    if not isinstance(phys, Mapping):
+        return str(spec.get("name")), values
+    ref = "max" if float(spec.get("max", 0.0)) != 0.0 else "min"
+    factor = float(phys[ref]) / float(spec[ref])
+    return f"{phys['name']} [{phys['unit']}]", values * factor if not isinstance(
+        values, (list, tuple)) else [v * factor for v in values]
+
+
 def config_gear(config: Mapping[str, Any], root: str | Path = ".") -> GearGeometry | None:
     """The gear file named by the pipeline configuration's ``gear`` key (``None`` without)."""
     path = config.get("gear")
@@ -271,7 +285,8 @@ def physical_columns(data: Any, gear: GearGeometry,
     Parameter columns ``w``, ``Fm``, ``b`` always give ``speed_rpm``, ``mesh_frequency_Hz``,
     ``torque_Nm``, ``mean_mesh_force_N`` and ``half_backlash_um``: from the column when present,
     otherwise from ``params`` (the set the results were computed with; default the gear's own
-    dimensionless set). ``Fe``, ``xi``, ``eps`` and the result columns (``kmax_peak_mean``,
+    dimensionless set; a sweep's ``value`` counts as the column of its ``parameter``).
+    ``Fe``, ``xi``, ``eps`` and the result columns (``kmax_peak_mean``,
     ``kmin_peak_mean``, ``x_min``, ``x_max``, ``lyapunov``; a trajectory's ``tau``, ``x``,
     ``xdot``, ``mesh_force``, ``frequency``) convert when present. Units and meanings:
     :data:`COLUMNS`. Only the gear's geometry and ``b_c`` enter (not its loads).
@@ -281,10 +296,16 @@ def physical_columns(data: Any, gear: GearGeometry,
         raise TypeError("physical_columns expects a pandas DataFrame or a mapping (one row)")
     base = params if params is not None else gear.to_model_parameters()
     cols = set(data.columns) if frame else set(data)
+    swept = None  # a sweep's frame (gearsim.sweep.orbit_diagram): 'value' of 'parameter'
+    if {"parameter", "value"} <= cols:
+        names = set(data["parameter"]) if frame else {data["parameter"]}
+        if len(names) == 1 and next(iter(names)) not in cols:
+            swept = next(iter(names))
+            cols.add(swept)
 
     def get(name):
         if name in cols:
-            v = data[name]
+            v = data["value" if name == swept else name]
             return v.astype(float) if frame else float(v)
         return float(getattr(base, name))
 
@@ -330,6 +351,33 @@ def physical_columns(data: Any, gear: GearGeometry,
             result[name] = values
         return result
     return {**data, **out}
+
+
+def dte_rms_um(trajectory: Any, gear: GearGeometry) -> float:
+    """RMS of the dynamic transmission error about its mean, um.
+
+    ``trajectory``: a frame with ``tau`` and ``x`` (``gearsim point --out``; only its
+    ``time_series`` rows when it has a ``kind`` column), integrated with the trapezoidal rule
+    in ``tau`` (exact for a periodic motion sampled over whole periods); or an array of
+    uniformly spaced ``x`` samples (plain mean). ``x = X_n / b_c``, so the result is
+    ``b_c sqrt(mean((x - mean x)^2))``. The classification does not record it per cell.
+    """
+    import numpy as np
+
+    if _is_frame(trajectory):
+        df = trajectory
+        if "kind" in df.columns:
+            df = df[df["kind"] == "time_series"]
+        tau, x = df["tau"].to_numpy(float), df["x"].to_numpy(float)
+        span = tau[-1] - tau[0]
+        if len(x) < 2 or not span > 0:
+            raise ParameterError("dte_rms_um needs at least two samples of increasing tau")
+        mean = np.trapezoid(x, tau) / span
+        var = np.trapezoid((x - mean) ** 2, tau) / span
+    else:
+        x = np.asarray(trajectory, dtype=float)
+        var = float(np.mean((x - x.mean()) ** 2))
+    return float(np.sqrt(var)) * gear.nominal_length * 1e6
 
 
 def dimensionless_columns(data: Any, gear: GearGeometry) -> dict[str, Any]:
@@ -412,8 +460,10 @@ def physical_line(row: Mapping[str, Any], gear_source: str = "") -> str:
 
 
 __all__ = [
-    "COLUMNS", "DEFAULT_GEAR", "PHYSICAL_AXES", "axis_factor", "config_gear", "describe",
-    "dimensionless_axis", "dimensionless_columns", "dimensionless_config",
-    "dimensionless_mapping", "gear_from_mapping", "gear_yaml", "load_gear", "physical_columns",
-    "physical_line", "range_text", "to_dimensionless", "to_physical",
+    "COLUMNS", "DEFAULT_GEAR", "PHYSICAL_AXES", "axis_factor", "axis_label_values",
+    "config_gear", "describe", "dimensionless_axis", "dimensionless_columns",
+    "dimensionless_config", "dimensionless_mapping", "dte_rms_um", "gear_from_mapping",
+    "gear_yaml",
+    "load_gear", "physical_columns", "physical_line", "range_text", "to_dimensionless",
+    "to_physical",
 ]

@@ -2,6 +2,10 @@
 # docs/multistability.md): one job per tile, after the plane's simulated tile (its
 # forward-continuation states seed the finder), into the catalogue's `attractors` table.
 MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
+# the finder's source decides the attractor tiles too (CODE_VERSION covers the simulation)
+import gearsim.attractors as _ga
+
+ATTRACTOR_CODE = hashlib.sha256(Path(_ga.__file__).read_bytes()).hexdigest()[:16]
 ATTRACTOR_FILES = [
     f"results/{plane}/attractors/{tile}.parquet"
     for plane in MULTISTABLE_PLANES
@@ -26,6 +30,7 @@ rule attractor_tile:
     params:
         config=plane_params,
         code_version=CODE_VERSION,
+        attractor_code=ATTRACTOR_CODE,
     shell:
         "gearsim attractor-tile --plane {wildcards.plane} --tile {wildcards.tile} "
         "--tile-file {input.tile} --configfile {input.config} --workers {threads} "
@@ -33,3 +38,28 @@ rule attractor_tile:
 
 
 ALL_TARGETS += ATTRACTOR_FILES
+
+
+rule attractor_maps:
+    input:
+        attractors=lambda wc: expand(
+            "results/{plane}/attractors/{tile}.parquet", plane=wc.plane, tile=TILES[wc.plane]
+        ),
+        config=CONFIG,
+    output:
+        "results/figures/planes/{plane}-coexistence.png",
+        "results/figures/planes/{plane}-forward-basin.png",
+    log:
+        "logs/{plane}/attractor_maps.log",
+    conda:
+        GEARSIM_ENV
+    shell:
+        "gearsim attractor-maps --plane {wildcards.plane} --attractors {input.attractors} "
+        "--configfile {input.config} --out-dir results/figures/planes > {log} 2>&1"
+
+
+ALL_TARGETS += expand(
+    "results/figures/planes/{plane}-{kind}.png",
+    plane=MULTISTABLE_PLANES,
+    kind=("coexistence", "forward-basin"),
+)

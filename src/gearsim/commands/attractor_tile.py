@@ -43,10 +43,13 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
     if tile_df is not None:
         for i, j, s in zip(tile_df["i"], tile_df["j"], tile_df["final_state"], strict=True):
             fwd[(int(i), int(j))] = None if s is None else [float(v) for v in s]
+    every = int(ms.get("every", 1))
     cells = [
         (i, r["j"], float(x), float(r["y_value"]), fwd.get((i, r["j"])))
         for r in rows
+        if r["j"] % every == 0
         for i, x in enumerate(r["x_values"])
+        if i % every == 0
     ]
     base = rows[0] if rows else {}
     return [
@@ -118,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         gprov.plane_subtree(config, args.plane), kind="attractors", name=args.plane,
         config=config, tile=args.tile, rows=[rows.start, rows.stop], workers=workers,
         started=started, finished=catalogue.now_iso(), wall_s=wall, cells=total,
-        starts=int(ms["starts"]), seed=int(ms.get("seed", 0)),
+        starts=int(ms["starts"]), seed=int(ms.get("seed", 0)), every=int(ms.get("every", 1)),
         forward_states=tile_df is not None,
     )  # fmt: skip
     catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})

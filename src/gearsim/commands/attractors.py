@@ -31,7 +31,8 @@ def add_multistability_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def load_point(args: argparse.Namespace):
-    """Parameters and settings of a multistability command (RK4, the production path)."""
+    """Parameters and settings of a multistability command: the standard parameters and the
+    study's integration settings (RK4, the production path) with ``--transient``."""
     from ..orbits import orbit_parameters
     from ..parameters import ParameterError
     from ..simulate import IntegrationSettings
@@ -39,7 +40,9 @@ def load_point(args: argparse.Namespace):
     if args.transient < 0:
         raise ParameterError(f"--transient = {args.transient} must be an integer >= 0")
     params, source = orbit_parameters(args.params, args.set, w=args.omega)
-    settings = IntegrationSettings(method="rk4", transient=int(args.transient))
+    # the study's settings (config/config.yaml: RK4, 256 steps per period), this transient
+    settings = IntegrationSettings.from_config().with_(method="rk4",
+                                                       transient=int(args.transient))
     return params, source, settings
 
 

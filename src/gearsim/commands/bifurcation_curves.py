@@ -26,6 +26,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--at", type=float, default=None,
                    help="y value of the seeding continuation (default: the base parameter "
                    "value, clipped into the plane's y range)")
+    p.add_argument("--from", dest="start", type=float, default=None,
+                   help="start of the seeding continuation along x (default: the plane's x min)")
+    p.add_argument("--to", dest="stop", type=float, default=None,
+                   help="end of the seeding continuation along x (default: the plane's x max)")
     p.add_argument("--period", "-n", type=int, default=1,
                    help="period of the orbit at the start of the x range (default 1)")
     p.add_argument("--step2", type=float, default=None,
@@ -58,6 +62,12 @@ def run(args: argparse.Namespace) -> int:
     pl = config["planes"][args.plane]
     xn, yn = pl["x"]["name"], pl["y"]["name"]
     x0, x1 = float(pl["x"]["min"]), float(pl["x"]["max"])
+    if args.start is not None:
+        x0 = args.start
+    if args.stop is not None:
+        x1 = args.stop
+    if x0 == x1:
+        raise UsageError(f"--from and --to are equal ({x0}): empty range")
     y0, y1 = float(pl["y"]["min"]), float(pl["y"]["max"])
     base = gcfg.plane_base(config, args.plane)
     at = float(getattr(base, yn)) if args.at is None else args.at
@@ -72,11 +82,13 @@ def run(args: argparse.Namespace) -> int:
 
     seed = simulate_cell(params).final_state
     orbit = find_periodic_orbit(params, args.period, seed, grazing=False)
-    cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth, max_points=600)
+    cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth, max_points=600,
+                       progress=_log)
     branches = continue_orbit(params, xn, x0, x1, orbit, config=cfg)
     t_branch = time.perf_counter() - t0
     points = bifurcation_points(branches)
-    curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds)
+    curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds,
+                           config=Continuation(progress=_log))
     wall = time.perf_counter() - t0
     out = Path(args.out)
     stem = out.with_suffix("")
@@ -111,3 +123,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out}, {stem}_points.parquet, {stem}_branches.parquet and "
           f"{out.with_suffix('.png')}", file=sys.stderr)
     return 0
+
+
+def _log(line: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {line}", file=sys.stderr, flush=True)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -60,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     n = args.period if args.period is not None else max(sim.classification.n, 1)
     orbit = find_periodic_orbit(params, n, sim.final_state, st, grazing=False)
     cfg = Continuation(ds=args.ds, ds_max=args.ds_max, max_points=args.max_points,
-                       switch_depth=args.switch_depth, settings=st)
+                       switch_depth=args.switch_depth, settings=st, progress=_log)
     df = continue_orbit(params, args.name, args.start, args.stop, orbit, config=cfg)
     elapsed = time.perf_counter() - t0
     out = Path(args.out or
@@ -118,3 +119,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out}, {points_path} and {fig_path}"
           + (f" and {landmarks_path}" if landmarks_path else ""))
     return 0
+
+
+def _log(line: str) -> None:
+    print(f"[{time.strftime('%H:%M:%S')}] {line}", file=sys.stderr, flush=True)

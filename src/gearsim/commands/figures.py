@@ -124,10 +124,10 @@ def run(args: argparse.Namespace) -> int:
     numbers = list(dict.fromkeys(args.fig))
     if args.all:
         numbers = list(table)
-    if not numbers and not args.index and not args.maps:
-        raise UsageError("nothing to do: give --fig N, --all, --maps or --index")
     if args.map and not args.maps:
         raise UsageError("--map KIND needs --maps")
+    if not numbers and not args.index and not args.maps:
+        raise UsageError("nothing to do: give --fig N, --all, --maps or --index")
     if args.maps and not args.plane:
         raise UsageError("--maps needs at least one --plane NAME=PATH")
     if numbers or args.maps:

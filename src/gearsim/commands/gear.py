@@ -60,8 +60,9 @@ def run(args: argparse.Namespace) -> int:
         params = ModelParameters.from_mapping(values)
     if args.yaml:
         shown = gear if params is None else GearGeometry.from_dimensionless(params, gear)
-        what = (f"back-computed from {args.params or 'the gear set'} "
-                f"{' '.join(args.set)} on {source}" if params is not None else source)
+        sets = f" with {' '.join(args.set)}" if args.set else ""
+        what = (f"back-computed from {args.params or 'the gear set'}{sets} on {source}"
+                if params is not None else source)
         print(gear_yaml(shown, description=f"gearsim gear: {what}".strip()), end="")
         return 0
     head = f"gear: {source}"

@@ -112,7 +112,8 @@ def _sweep_note(df: pd.DataFrame) -> str:
 
 def _grid_note(df: pd.DataFrame) -> str:
     nx, ny = int(df["i"].max()) + 1, int(df["j"].max()) + 1
-    return f"grid {nx} x {ny} cells (paper 400 x 400)"
+    paper = " (paper 400 x 400)" if _axes(df) in (("w", "b"), ("w", "xi")) else ""
+    return f"grid {nx} x {ny} cells{paper}"
 
 
 # ------------------------------------------------------------------------------ builders

@@ -72,8 +72,8 @@ def report_captions(spec: registry.FigureSpec) -> list[str]:
 
 def caption_params(spec: registry.FigureSpec) -> dict[str, Any]:
     """What ``workflow/report/figure.rst`` renders: number, our line, the paper's caption."""
-    return {"number": spec.number, "caption": spec.caption,
-            "paper_caption": spec.paper_caption}
+    return {"number": spec.number, "caption": spec.caption or spec.paper_caption,
+            "paper_caption": spec.paper_caption, "in_paper": spec.in_paper}
 
 
 def map_outputs(plane: str) -> list[str]:
