@@ -2,8 +2,8 @@
 
 ``simulate_cell`` runs a transient (its last ``tangent_lead`` periods with the tangent vector),
 then measures in chunks of mesh periods and stops as soon as a period ``n <= n_max`` is
-established and confirmed, or when the budget ``max_periods`` is spent (then chaos / quasi-periodic / unsettled is
-decided by the Lyapunov exponent).
+established and confirmed, or when the budget ``max_periods`` is spent (then chaos,
+quasi-periodic or unsettled is decided by the Lyapunov exponent).
 """
 
 from __future__ import annotations
@@ -60,20 +60,21 @@ class CellResult:
         return c
 
 
-def result_columns() -> dict[str, type]:
-    """Name -> Python type of every column of :meth:`CellResult.row`, in order.
+def result_columns() -> dict[str, tuple[type, bool]]:
+    """Name -> (Python type, optional) of every column of :meth:`CellResult.row`, in order.
 
     Derived from the fields of :class:`~gearsim.classify.Classification` (a new field there is a
-    new column everywhere that builds tables from this), plus ``kmax``, ``periods``, ``steps``.
-    Optional fields (``p``, ``q``) have their base type.
+    new column in the tiles and the catalogue), plus ``kmax``, ``periods``, ``steps``. Floats are
+    optional (NaN is stored as NULL), as are the fields typed ``X | None`` (``p``, ``q``).
     """
     hints = typing.get_type_hints(Classification)
-    cols: dict[str, type] = {}
+    cols: dict[str, tuple[type, bool]] = {}
     for f in fields(Classification):
         t = hints[f.name]
         args = [a for a in typing.get_args(t) if a is not type(None)]
-        cols[f.name] = args[0] if args else t
-    cols.update(kmax=float, periods=int, steps=int)
+        base = args[0] if args else t
+        cols[f.name] = (base, bool(args) or base is float)
+    cols.update(kmax=(float, True), periods=(int, False), steps=(int, False))
     return cols
 
 
