@@ -152,7 +152,8 @@ def test_end_to_end_tiny(tiny_run):
     per_plane = dict(con.execute(
         "SELECT p.name, COUNT(*) FROM cells c JOIN planes p ON p.id = c.plane_id GROUP BY p.name"))
     assert per_plane == {"wb": 64, "wxi": 64}
-    assert con.execute("SELECT COUNT(*) FROM sweep_points").fetchone()[0] == 7 * 6
+    # 7 one-way sweeps of 6 values and the hysteresis sweep both ways
+    assert con.execute("SELECT COUNT(*) FROM sweep_points").fetchone()[0] == 7 * 6 + 2 * 6
     assert con.execute("SELECT COUNT(*) FROM runs WHERE kind='tile'").fetchone()[0] == 4
     assert con.execute("SELECT COUNT(*) FROM audits").fetchone()[0] >= 2
     src = {r[0] for r in con.execute("SELECT DISTINCT parameters_source FROM runs")}

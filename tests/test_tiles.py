@@ -142,7 +142,7 @@ def test_grid_and_tiles(tiny):
 def test_parameters_builtin_defaults_only_when_asked(tiny, tmp_path):
     cfg = copy.deepcopy(tiny)
     cfg["standard_parameters"] = str(tmp_path / "absent.yaml")
-    with pytest.raises(gcfg.ConfigError, match=r"standard_parameters.*absent\.yaml.*not found"):
+    with pytest.raises(gcfg.ConfigError, match=r"standard_parameters.*not found.*absent\.yaml"):
         gcfg.base_parameters(cfg)  # a misspelled path is an error, never a silent fallback
     cfg["standard_parameters"] = None
     values, source = gcfg.base_parameters(cfg)

@@ -404,7 +404,7 @@ def map_attractors(
         Also label starts early onto non-periodic (chaotic, quasi-periodic) attractors by
         cloud occupancy. Off by default: a torus sampled over a finite window, or a periodic
         window inside a chaotic band, can take a start that its full-length run classifies
-        otherwise (benchmarks/README.md (g)); with it off, the early labels are exactly the
+        otherwise (benchmarks/README.md (h)); with it off, the early labels are exactly the
         full-length ones on every cell checked.
     """
     if len(starts) != n_cells:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import math
+import os
 import re
 import sys
 from collections.abc import Iterable, Mapping
@@ -47,6 +48,8 @@ INTEGRATION_LIMITS = {
 }
 #: Smallest positive normal float: smaller non-zero values (subnormals) are refused.
 SMALLEST_NORMAL = sys.float_info.min
+#: Environment variable naming the study directory of workflow jobs (see :func:`study_root`).
+STUDY_ROOT_ENV = "GEARSIM_STUDY_ROOT"
 #: What a study file replaces instead of merging (:func:`merge_study`).
 STUDY_KEYS = ("planes", "sweeps", "points")
 #: Names a plane may not take (they are directories of results/ used by other outputs).
@@ -351,10 +354,14 @@ def load_config(
 
 
 def study_root(root: str | Path | None = None) -> Path:
-    """The directory a study runs in: ``root``; else the working directory when it holds
-    ``config/config.yaml`` (Snakemake's working directory); else the source checkout."""
+    """The directory a study runs in: ``root``; else ``$GEARSIM_STUDY_ROOT`` (set by the
+    workflow for its jobs); else the working directory when it holds ``config/config.yaml``
+    (Snakemake's working directory); else the source checkout."""
     if root is not None:
         return Path(root)
+    env = os.environ.get(STUDY_ROOT_ENV)
+    if env:
+        return Path(env)
     cwd = Path.cwd()
     if (cwd / DEFAULT_CONFIG).is_file():
         return cwd

@@ -19,6 +19,8 @@ Each entry carries its provenance: ``paper``, ``ISO formula``, ``calibrated`` or
 
 from __future__ import annotations
 
+import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +34,25 @@ PROVENANCES = ("paper", "ISO formula", "calibrated", "assumed", "derived")
 MAX_YAML_BYTES = 1_000_000
 #: Largest number of nodes a document may have once its aliases are expanded.
 MAX_YAML_NODES = 200_000
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader that also reads YAML 1.2 / JSON floats without a dot (``1e-12``) as numbers
+    (PyYAML's YAML 1.1 resolver would read them as strings)."""
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+][0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
 
 
 def _expanded_size(root: yaml.Node, path: Path) -> int:
@@ -73,9 +94,10 @@ def _expanded_size(root: yaml.Node, path: Path) -> int:
 def load_yaml(path: str | Path) -> Any:
     """Parse a YAML (or JSON) file with size and alias limits; ParameterError on any problem."""
     path = Path(path)
+    if path.is_dir():
+        raise ParameterError(f"{path}: is a directory, not a file")
     if not path.is_file():
-        what = "a directory, not a file" if path.is_dir() else "file not found"
-        raise ParameterError(f"{path}: {what}")
+        raise ParameterError(f"file not found: {path}")
     try:
         size = path.stat().st_size
         if size > MAX_YAML_BYTES:
@@ -91,7 +113,12 @@ def load_yaml(path: str | Path) -> Any:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise ParameterError(f"{path}: not UTF-8 text, expected YAML or JSON") from None
-    loader = yaml.SafeLoader(text)
+    if path.suffix.lower() == ".json":
+        try:
+            return json.loads(text)
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise ParameterError(f"{path}: not valid JSON ({exc})") from None
+    loader = _Loader(text)
     try:
         node = loader.get_single_node()
         if node is None:
@@ -133,5 +160,5 @@ def load_standard_parameters(path: str | Path) -> dict[str, Any]:
     try:
         ModelParameters.from_mapping(values)  # validates names and ranges
     except ParameterError as exc:
-        raise ParameterError(f"{path}: {exc}") from None
+        raise ParameterError(f"{path}: {exc}") from None  # which file holds the bad value
     return values

@@ -1,7 +1,6 @@
 # Config validation, tile list, shared helpers. Everything here runs once when the workflow is
 # parsed, before any job starts.
-import hashlib
-import json
+import os
 
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
@@ -12,34 +11,64 @@ from gearsim import provenance as gprov
 
 SCHEMA = Path(workflow.basedir) / "workflow/schemas/config.schema.yaml"
 
-# 1. One clear line naming the bad key (the same check as the gearsim CLI), then Snakemake's
-#    validate(), which fills the schema defaults.
-try:
-    gcfg.validate_schema(config, gcfg.load_schema(workflow.basedir))
-    gcfg.check_config(config)
-except gcfg.ConfigError as exc:
-    raise WorkflowError(f"invalid configuration: {exc}") from None
-validate(config, str(SCHEMA))
-
-# 2. How the CLI sees the same config: the config files in Snakemake's merge order, then the
-#    `--config` overrides (saved to a content-addressed file). Rules take them as ancient()
-#    inputs: the CLI reads them, but editing one plane in config.yaml must not re-run every job
-#    (the params below decide what re-runs).
-
-_cli_files = [str(f) for f in workflow.config_settings.configfiles]
-_own_files = [str(f) for f in workflow.configfiles if str(f) not in _cli_files]
+# 1. The study's configuration, resolved as the gearsim CLI resolves it
+#    (gearsim.config.study_config): the config files in Snakemake's order, then the `--config`
+#    overrides, merged by gearsim.config.merge_study (a file that names a `study` brings its own
+#    planes, sweeps and points instead of adding them to the paper's), validated with one clear
+#    line naming a bad key, schema defaults filled. It replaces Snakemake's own merge.
+STUDY_ROOT = Path.cwd().resolve()
+_cli_files = [Path(f).resolve() for f in workflow.config_settings.configfiles]
+_own_files = [Path(f).resolve() for f in workflow.configfiles]
+_own_files = [f for f in _own_files if f not in _cli_files]
 if getattr(workflow.config_settings, "replace_workflow_config", False):
     _own_files = []
-CONFIG_FILES = _own_files + _cli_files
-if workflow.config_settings.config:
-    _ovr = json.dumps(workflow.config_settings.config, sort_keys=True)
-    _digest = hashlib.sha256(_ovr.encode()).hexdigest()[:16]
-    _ovr_file = Path(".snakemake/gearsim", f"overrides-{_digest}.json")
-    if not _ovr_file.exists():
-        _ovr_file.parent.mkdir(parents=True, exist_ok=True)
-        _ovr_file.write_text(_ovr)
-    CONFIG_FILES.append(str(_ovr_file))
-CONFIG = ancient(CONFIG_FILES)
+try:
+    _resolved = gcfg.load_config(
+        _own_files + _cli_files, workflow.config_settings.config or None, root=STUDY_ROOT
+    )
+except gcfg.ConfigError as exc:
+    raise WorkflowError(f"invalid configuration: {exc}") from None
+STUDY = _resolved["study"]
+if STUDY is not None and _resolved["standard_parameters"] is not None:
+    # a study runs in studies/<study>/ (below): its file paths stay those of this directory
+    _resolved["standard_parameters"] = str(
+        gcfg.standard_parameters_path(_resolved, STUDY_ROOT).resolve()
+    )
+if STUDY is not None and _resolved.get("gear"):
+    _resolved["gear"] = str((STUDY_ROOT / _resolved["gear"]).resolve())
+config.clear()
+config.update(_resolved)
+validate(config, str(SCHEMA))
+
+# 2. How the jobs see the same config: one JSON file per study, rewritten only when its content
+#    changes, passed with --configfile (merged over config/config.yaml it gives the same
+#    config). Rules take it as an ancient() input: its name never changes (the same content
+#    under another file name re-runs nothing) and its time never matters (the params below
+#    decide what re-runs: editing one plane re-runs only that plane).
+CONFIG_JSON = STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY or "default") / "config.json"
+_text = gprov.canonical_json(config)
+if not CONFIG_JSON.is_file() or CONFIG_JSON.read_text() != _text:
+    CONFIG_JSON.parent.mkdir(parents=True, exist_ok=True)
+    _tmp = CONFIG_JSON.with_name(f"config.json.{os.getpid()}.tmp")
+    _tmp.write_text(_text)
+    os.replace(_tmp, CONFIG_JSON)
+CONFIG = ancient(str(CONFIG_JSON))
+# gearsim commands of the jobs resolve config/config.yaml and relative paths here (set by the
+# workflow itself, not required from the user; the config JSON alone already gives the same
+# configuration, this keeps relative paths of commands run inside studies/<study>/ right)
+os.environ[gcfg.STUDY_ROOT_ENV] = str(STUDY_ROOT)
+
+# A study of one's own keeps all its outputs (results/, logs/, Snakemake's records) in
+# studies/<study>/, so the paper's results/ is never touched (docs/pipeline.md, "Your own study").
+if STUDY is not None:
+    if workflow.overwrite_workdir is not None:
+        raise WorkflowError(
+            f"study '{STUDY}' runs in studies/{STUDY}/ of the project directory: run snakemake "
+            "in the project directory without --directory/-d (it would override that folder)"
+        )
+
+    workdir: f"studies/{STUDY}"
+
 
 # 3. What the jobs depend on. code_version hashes every module that decides results
 #    (gearsim.provenance.code_files): Snakemake does not see edits to a package.

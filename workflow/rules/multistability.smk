@@ -2,6 +2,10 @@
 # docs/multistability.md): one job per tile, after the plane's simulated tile (its
 # forward-continuation states seed the finder), into the catalogue's `attractors` table.
 MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
+# the finder's source decides the attractor tiles too (CODE_VERSION covers the simulation)
+import gearsim.attractors as _ga
+
+ATTRACTOR_CODE = hashlib.sha256(Path(_ga.__file__).read_bytes()).hexdigest()[:16]
 ATTRACTOR_FILES = [
     f"results/{plane}/attractors/{tile}.parquet"
     for plane in MULTISTABLE_PLANES
@@ -26,6 +30,7 @@ rule attractor_tile:
     params:
         config=plane_params,
         code_version=CODE_VERSION,
+        attractor_code=ATTRACTOR_CODE,
     shell:
         "gearsim attractor-tile --plane {wildcards.plane} --tile {wildcards.tile} "
         "--tile-file {input.tile} --configfile {input.config} --workers {threads} "

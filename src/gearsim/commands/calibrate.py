@@ -27,21 +27,26 @@ HELP = "fit Fe/Fm, eps, phi_e, xi, friction to the paper's landmarks (differenti
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stage", choices=("search", "verify", "both", "standard"), default="both",
                    help="standard: write --standard-out from --out's result (or MODEL.md's set)")
-    p.add_argument("--standard-out", default="config/standard_parameters.yaml")
+    p.add_argument("--standard-out", default="config/standard_parameters.yaml",
+                   help="standard-parameter file written by --stage standard")
     p.add_argument("--bearing-ratio", type=float, default=100.0,
                    help="bearing stiffness over mesh stiffness K_ij / Km (stage standard)")
     p.add_argument("--bearing-xi", type=float, default=0.03,
                    help="pinion bearing damping ratio (stage standard)")
     p.add_argument("--out", default="docs/calibration.json", help="result JSON")
     p.add_argument("--log-dir", default="results/calibration", help="per-evaluation logs")
-    p.add_argument("--seed", type=int, default=20251122)
-    p.add_argument("--popsize", type=int, default=6)
-    p.add_argument("--maxiter", type=int, default=40)
+    p.add_argument("--seed", type=int, default=20251122,
+                   help="random seed of the differential evolution")
+    p.add_argument("--popsize", type=int, default=6,
+                   help="differential evolution population size (per parameter)")
+    p.add_argument("--maxiter", type=int, default=40,
+                   help="differential evolution generations")
     p.add_argument("--workers", type=int, default=1, help="processes for the DE map (<= 2 here)")
     p.add_argument("--time-budget", type=float, default=3000.0, help="seconds for the search")
     p.add_argument("--dw", type=float, default=0.01, help="w step of the search grid")
     p.add_argument("--verify-dw", type=float, default=0.004, help="w step of the verification")
-    p.add_argument("--verify-model", choices=("6dof", "1dof"), default="6dof")
+    p.add_argument("--verify-model", choices=("6dof", "1dof"), default="6dof",
+                   help="model the verification stage simulates")
     p.add_argument("--params", help="standard-parameter YAML to verify (stage verify)")
     p.add_argument("--box", choices=("wide", "narrow"), default="narrow",
                    help="search bounds (gearsim.calibrate.BOXES)")

@@ -53,7 +53,8 @@ def markdown(df: pd.DataFrame, title: str = "Table 1 (reconstructed)") -> str:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--params", default="config/standard_parameters.yaml")
+    p.add_argument("--params", default="config/standard_parameters.yaml",
+                   help="standard-parameter file to tabulate")
     p.add_argument("--md", default="results/table1.md", help="Markdown output")
     p.add_argument("--csv", default="results/table1.csv", help="CSV output")
 

@@ -160,7 +160,8 @@ def _fig19(ctx):
     spec = ctx.point_specs.get("fig9_11", {"b": 0.15, "w": 0.82})
     fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
     p = ctx.params.with_(**fixed)
-    g = _basins_at(ctx, p, BASIN_N)
+    n = basin_n(ctx)
+    g = _basins_at(ctx, p, n)
     att = g.attractor_table()
     fig = figure_basins(g.frame(), att, title=f"Basins of attraction at w = {p.w:g}, "
                         f"b = {p.b:g} (Figs 9-11's point)")  # fmt: skip
@@ -169,7 +170,7 @@ def _fig19(ctx):
         f"{t}: " + (f"basin {found[t]:.3f}" if t in found else "not found") for t in _PAPER_9_11
     )
     return [Built(19, fig, f"Basins of attraction at the point of Figs 9-11 (w = {p.w:g}, "
-                  f"b = {p.b:g}): {BASIN_N} x {BASIN_N} starts in (x, x') (the finder's start "
+                  f"b = {p.b:g}): {n} x {n} starts in (x, x') (the finder's start "
                   "box widened to hold the attractors), bearings at rest, "
                   "coloured by the attractor reached. The paper's three motions in our model: "
                   f"{which}.",
@@ -190,18 +191,26 @@ def _fig20(ctx):
         w = round(0.5 * (h.band[0] + h.band[1]), 4)
         note = f"hysteresis band {h.band[0]:.4f} <= w <= {h.band[1]:.4f}; drawn at its middle"
     p = ctx.params.with_(w=w)
-    g = _basins_at(ctx, p, BASIN_N)
+    n = basin_n(ctx)
+    g = _basins_at(ctx, p, n)
     att = g.attractor_table()
     fig = figure_basins(g.frame(), att, title=f"Basins of attraction at w = {w:g}, "
                         f"b = {p.b:g} (inside the fold's hysteresis band)")  # fmt: skip
     parts = ", ".join(f"{_pattern_text(r)} {r['basin_fraction']:.3f}" for _, r in att.iterrows())
     return [Built(20, fig, f"Basins of attraction inside the hysteresis band of the fold (w = "
-                  f"{w:g}, standard parameters): {BASIN_N} x {BASIN_N} starts; basin "
+                  f"{w:g}, standard parameters): {n} x {n} starts; basin "
                   f"fractions: {parts}.", [note, "Not in the paper."], ["sweeps/hysteresis"])]
 
 
-#: grid points per axis of the basin pictures (Figs 19, 20)
+#: grid points per axis of the basin pictures (Figs 19, 20) ...
 BASIN_N = 200
+#: ... and in the short test configurations (transient below 100 periods: tiny.yaml)
+BASIN_N_SHORT = 48
+
+
+def basin_n(ctx) -> int:
+    """Grid points per axis of a basin picture for the settings of ``ctx``."""
+    return BASIN_N if ctx.settings.transient >= 100 else BASIN_N_SHORT
 
 
 def register_figures() -> None:
@@ -239,14 +248,20 @@ def _grid(att: pd.DataFrame, column: str, fill=np.nan):
     return xs, ys, Z
 
 
-def _edges(c: np.ndarray) -> np.ndarray:
+def _edges(c: np.ndarray, lim: tuple[float, float] | None = None) -> np.ndarray:
+    """Cell edges around centres ``c`` (midpoints), clipped to the plane's axis range."""
     if len(c) == 1:
-        return np.array([c[0] - 0.5, c[0] + 0.5])
-    mid = 0.5 * (c[1:] + c[:-1])
-    return np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+        e = np.array([c[0] - 0.5, c[0] + 0.5])
+    else:
+        mid = 0.5 * (c[1:] + c[:-1])
+        e = np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+    if lim is not None:
+        e = np.clip(e, lim[0], lim[1])
+    return e
 
 
-def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: str | None = None):
+def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: str | None = None,
+                       xlim=None, ylim=None):
     """(a) number of attractors per cell; (b) the dominant pattern (most starts), hatched where
     another attractor coexists. ``att``: attractor-tile rows (one per attractor of a cell)."""
     real = att[(att["attractor"] >= 0) & (att["motion"] != "unsettled")]
@@ -260,7 +275,8 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
     fig, axes = plt.subplots(1, 2, figsize=(13.5, 5.2))
     nmax = int(np.nanmax(N)) if np.isfinite(N).any() else 1
     cmap = plt.get_cmap("viridis", nmax + 1)
-    m = axes[0].pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(N), cmap=cmap,
+    ex, ey = _edges(xs, xlim), _edges(ys, ylim)
+    m = axes[0].pcolormesh(ex, ey, np.ma.masked_invalid(N), cmap=cmap,
                            vmin=-0.5, vmax=nmax + 0.5, shading="flat", rasterized=True)
     cb = fig.colorbar(m, ax=axes[0], ticks=range(nmax + 1))
     cb.set_label("number of coexisting attractors")
@@ -268,9 +284,8 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
     if present:
         pc = ListedColormap([style.PATTERN_COLOURS[k] for k in present])
         norm = BoundaryNorm(np.arange(-0.5, len(present) + 0.5), pc.N)
-        axes[1].pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(P), cmap=pc, norm=norm,
+        axes[1].pcolormesh(ex, ey, np.ma.masked_invalid(P), cmap=pc, norm=norm,
                            shading="flat", rasterized=True)  # fmt: skip
-        ex, ey = _edges(xs), _edges(ys)
         jj, ii = np.nonzero(np.nan_to_num(N) >= 2)
         if len(ii):
             from matplotlib.collections import PatchCollection
@@ -284,6 +299,9 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
                          label=style.PATTERN_LABELS[k]) for k in present]
         handles.append(Patch(facecolor="white", edgecolor="black", hatch="////",
                              label="another attractor coexists"))
+        if np.any(np.nan_to_num(N, nan=1) == 0):
+            handles.append(Patch(facecolor="white", edgecolor="#555555", lw=0.4,
+                                 label="no settled attractor (all starts unsettled/diverged)"))
         axes[1].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                        fontsize=7, frameon=False, title="dominant pattern (most starts)",
                        title_fontsize=7)  # fmt: skip
@@ -298,7 +316,7 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
 
 
 def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
-                         title: str | None = None):
+                         title: str | None = None, xlim=None, ylim=None):
     """Basin fraction of the attractor the forward continuation chain reaches (the plane's
     own cell label), per cell; grey where it was reached by no sampled start (fraction 0)."""
     fw = att[att["found_by"].fillna("").str.contains("forward")]
@@ -308,8 +326,8 @@ def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
     fig, ax = plt.subplots(figsize=(7.8, 5.2))
     cmap = plt.get_cmap("magma").copy()
     cmap.set_bad("#bdbdbd")
-    m = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(B), cmap=cmap, vmin=0,
-                      vmax=1, shading="flat", rasterized=True)  # fmt: skip
+    m = ax.pcolormesh(_edges(xs, xlim), _edges(ys, ylim), np.ma.masked_invalid(B), cmap=cmap,
+                      vmin=0, vmax=1, shading="flat", rasterized=True)  # fmt: skip
     cb = fig.colorbar(m, ax=ax)
     cb.set_label("basin fraction of the forward-continuation attractor")
     ax.set_xlabel(style.param_label(x_name))
