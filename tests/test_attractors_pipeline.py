@@ -87,7 +87,7 @@ def test_maps_written(ms_run):
 
 def test_every_thins_the_attractor_grid():
     from gearsim.commands.attractor_tile import task_specs
-    from gearsim.tiles import load_config
+    from gearsim.config import load_config
 
     cfg = load_config(["config/config.yaml", "config/tiny.yaml"],
                       {"planes": {"wb": {"multistability": {"starts": 4, "every": 2}}}})
