@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .simulate_tile import add_config_arguments, config_from_args
 
 NAME = "attractor-maps"
@@ -47,10 +47,12 @@ def run(args: argparse.Namespace) -> int:
             f"{ms.get('every', 1)})")  # fmt: skip
     out = Path(args.out_dir)
     xn, yn = pl["x"]["name"], pl["y"]["name"]
-    files = save_figure(figure_coexistence(att, xn, yn, title="Coexisting attractors; " + note),
+    lims = {"xlim": (pl["x"]["min"], pl["x"]["max"]), "ylim": (pl["y"]["min"], pl["y"]["max"])}
+    files = save_figure(figure_coexistence(att, xn, yn, title="Coexisting attractors; " + note,
+                                           **lims),
                         out / f"{args.plane}-coexistence.png")  # fmt: skip
     files += save_figure(figure_forward_basin(att, xn, yn, title="Basin of the continuation "
-                                              "attractor; " + note),
+                                              "attractor; " + note, **lims),
                          out / f"{args.plane}-forward-basin.png")  # fmt: skip
     print(f"wrote {', '.join(str(f) for f in files)}", file=sys.stderr)
     return 0

@@ -248,14 +248,20 @@ def _grid(att: pd.DataFrame, column: str, fill=np.nan):
     return xs, ys, Z
 
 
-def _edges(c: np.ndarray) -> np.ndarray:
+def _edges(c: np.ndarray, lim: tuple[float, float] | None = None) -> np.ndarray:
+    """Cell edges around centres ``c`` (midpoints), clipped to the plane's axis range."""
     if len(c) == 1:
-        return np.array([c[0] - 0.5, c[0] + 0.5])
-    mid = 0.5 * (c[1:] + c[:-1])
-    return np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+        e = np.array([c[0] - 0.5, c[0] + 0.5])
+    else:
+        mid = 0.5 * (c[1:] + c[:-1])
+        e = np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+    if lim is not None:
+        e = np.clip(e, lim[0], lim[1])
+    return e
 
 
-def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: str | None = None):
+def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: str | None = None,
+                       xlim=None, ylim=None):
     """(a) number of attractors per cell; (b) the dominant pattern (most starts), hatched where
     another attractor coexists. ``att``: attractor-tile rows (one per attractor of a cell)."""
     real = att[(att["attractor"] >= 0) & (att["motion"] != "unsettled")]
@@ -269,7 +275,8 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
     fig, axes = plt.subplots(1, 2, figsize=(13.5, 5.2))
     nmax = int(np.nanmax(N)) if np.isfinite(N).any() else 1
     cmap = plt.get_cmap("viridis", nmax + 1)
-    m = axes[0].pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(N), cmap=cmap,
+    ex, ey = _edges(xs, xlim), _edges(ys, ylim)
+    m = axes[0].pcolormesh(ex, ey, np.ma.masked_invalid(N), cmap=cmap,
                            vmin=-0.5, vmax=nmax + 0.5, shading="flat", rasterized=True)
     cb = fig.colorbar(m, ax=axes[0], ticks=range(nmax + 1))
     cb.set_label("number of coexisting attractors")
@@ -277,9 +284,8 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
     if present:
         pc = ListedColormap([style.PATTERN_COLOURS[k] for k in present])
         norm = BoundaryNorm(np.arange(-0.5, len(present) + 0.5), pc.N)
-        axes[1].pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(P), cmap=pc, norm=norm,
+        axes[1].pcolormesh(ex, ey, np.ma.masked_invalid(P), cmap=pc, norm=norm,
                            shading="flat", rasterized=True)  # fmt: skip
-        ex, ey = _edges(xs), _edges(ys)
         jj, ii = np.nonzero(np.nan_to_num(N) >= 2)
         if len(ii):
             from matplotlib.collections import PatchCollection
@@ -293,6 +299,9 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
                          label=style.PATTERN_LABELS[k]) for k in present]
         handles.append(Patch(facecolor="white", edgecolor="black", hatch="////",
                              label="another attractor coexists"))
+        if np.any(np.nan_to_num(N, nan=1) == 0):
+            handles.append(Patch(facecolor="white", edgecolor="#555555", lw=0.4,
+                                 label="no settled attractor (all starts unsettled/diverged)"))
         axes[1].legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                        fontsize=7, frameon=False, title="dominant pattern (most starts)",
                        title_fontsize=7)  # fmt: skip
@@ -307,7 +316,7 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
 
 
 def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
-                         title: str | None = None):
+                         title: str | None = None, xlim=None, ylim=None):
     """Basin fraction of the attractor the forward continuation chain reaches (the plane's
     own cell label), per cell; grey where it was reached by no sampled start (fraction 0)."""
     fw = att[att["found_by"].fillna("").str.contains("forward")]
@@ -317,8 +326,8 @@ def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
     fig, ax = plt.subplots(figsize=(7.8, 5.2))
     cmap = plt.get_cmap("magma").copy()
     cmap.set_bad("#bdbdbd")
-    m = ax.pcolormesh(_edges(xs), _edges(ys), np.ma.masked_invalid(B), cmap=cmap, vmin=0,
-                      vmax=1, shading="flat", rasterized=True)  # fmt: skip
+    m = ax.pcolormesh(_edges(xs, xlim), _edges(ys, ylim), np.ma.masked_invalid(B), cmap=cmap,
+                      vmin=0, vmax=1, shading="flat", rasterized=True)  # fmt: skip
     cb = fig.colorbar(m, ax=ax)
     cb.set_label("basin fraction of the forward-continuation attractor")
     ax.set_xlabel(style.param_label(x_name))
