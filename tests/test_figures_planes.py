@@ -92,7 +92,8 @@ def test_report_rule_declares_what_it_reads(tmp_path):
     inputs = block.split("input:", 1)[1].split("\n", 1)[0]
     for f in ("results/catalogue.d/build.sqlite", "results/sweeps/b015.parquet",
               "results/wb/audit.parquet", "results/wxi/audit.parquet",
-              "results/wb/cells.parquet", "docs/calibration.json", "config/tiny.yaml"):
+              "results/wb/cells.parquet", "docs/calibration.json",
+              ".snakemake/gearsim/default/config.json"):  # the resolved config the jobs read
         assert f in inputs, (f, inputs)
     assert "--configfile" in r.stdout
 

@@ -207,6 +207,8 @@ def test_editing_one_plane_reruns_only_its_tiles(tiny_run):
         assert planned == {
             "results/wxi/tiles/0.parquet", "results/wxi/tiles/1.parquet",
             "results/wxi/cells.parquet", "results/wxi/audit.parquet",
+            # the plane's coexisting-attractor tiles (multistability) depend on it too
+            "results/wxi/attractors/0.parquet", "results/wxi/attractors/1.parquet",
             "results/catalogue.d/build.sqlite",
         }, out
         # editing one sweep re-runs that sweep (and the catalogue) only
