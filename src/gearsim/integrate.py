@@ -275,28 +275,19 @@ def integrate_periods(
             for s in range(substeps):
                 t_target = T if s == substeps - 1 else (s + 1) * T / substeps
                 th = 0.5 * T
-                if friction and t < th - 1e-14 * T and th < t_target:
+                while status == STATUS_OK and t < t_target:
                     # the friction direction flips at T/2: steps never straddle it
-                    mode[MODE_FRICTION] = 1
+                    stop = th if (friction and t < th - 1e-14 * T and th < t_target) else t_target
+                    lam = 1 if (not friction or t < th * (1.0 - 1e-12)) else -1
+                    if lam != mode[MODE_FRICTION]:
+                        mode[MODE_FRICTION] = lam
+                        acc[ACC_K1] = 0.0  # the FSAL stage saw the old direction
                     status = advance_interval(
-                        METHOD_DP5, t, th, y, pl, mode, gaps, active, n, nerr, tangent, ks,
+                        METHOD_DP5, t, stop, y, pl, mode, gaps, active, n, nerr, tangent, ks,
                         ytmp, ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code,
                         t_abs0,
                     )
-                    t = th
-                    acc[ACC_K1] = 0.0  # the FSAL stage saw the old direction
-                    if status != STATUS_OK:
-                        break
-                lam = 1 if (not friction or t < th * (1.0 - 1e-12)) else -1
-                if lam != mode[MODE_FRICTION]:
-                    mode[MODE_FRICTION] = lam
-                    acc[ACC_K1] = 0.0
-                status = advance_interval(
-                    METHOD_DP5, t, t_target, y, pl, mode, gaps, active, n, nerr, tangent, ks,
-                    ytmp, ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code,
-                    t_abs0,
-                )
-                t = t_target
+                    t = stop
                 if status != STATUS_OK:
                     break
                 if row < traj_rows:
