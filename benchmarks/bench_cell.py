@@ -38,6 +38,7 @@ from gearsim.model import static_state  # noqa: E402
 from gearsim.parameters import ModelParameters  # noqa: E402
 from gearsim.simulate import (  # noqa: E402
     IntegrationSettings,
+    initial_tangent,
     run_periods,
     simulate_cell,
 )
@@ -67,7 +68,7 @@ def timed_cell(params, u0, st, start_period):
     r = run_periods(params, y, transient, st, start_period=k, parray=p)
     y, k, h = r.state, k + r.periods_done, r.h_last
     t1 = c()
-    yt = np.concatenate([y, batch.initial_tangent()])
+    yt = np.concatenate([y, initial_tangent(params)])
     parts, measured, n, t_cls = [], 0, 0, 0.0
     while measured < st.max_periods:
         m = min(st.chunk, st.max_periods - measured)
@@ -165,7 +166,7 @@ def kernel_period_cost(st, lanes=8):
     """CPU seconds per period of one 8-lane kernel call, with and without the tangent vector."""
     cells = [ModelParameters(w=float(w), b=0.3) for w in np.linspace(0.6, 2.4, lanes)]
     y0 = np.array(
-        [np.concatenate([static_state(p.to_array()), batch.initial_tangent()]) for p in cells]
+        [np.concatenate([static_state(p.to_array()), initial_tangent(p)]) for p in cells]
     )
     out = {}
     for tangent in (False, True):

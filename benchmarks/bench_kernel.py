@@ -28,7 +28,8 @@ from gearsim import batch  # noqa: E402
 from gearsim.integrate import METHODS, integrate_periods  # noqa: E402
 from gearsim.model import static_state  # noqa: E402
 from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import IntegrationSettings, run_periods  # noqa: E402
+from gearsim.simulate import IntegrationSettings, initial_tangent, run_periods  # noqa: E402
+from gearsim.steps import phase_tables, rk4_steps_per_period  # noqa: E402
 
 
 def cells(n: int) -> list[ModelParameters]:
@@ -41,7 +42,7 @@ def start_states(cs, periods=100):
     out = []
     for p in cs:
         r = run_periods(p, static_state(p.to_array()), periods, st)
-        out.append(np.concatenate([r.state, batch.initial_tangent()]))
+        out.append(np.concatenate([r.state, initial_tangent(p)]))
     return np.array(out)
 
 
@@ -59,10 +60,12 @@ def scalar(cs, y0, method, tangent, periods):
             sec = np.zeros((m, 10))
             ints = [np.zeros(m, dtype=np.int64) for _ in range(2)]
             fl = [np.zeros(m) for _ in range(6)]
+            n_rk = rk4_steps_per_period(p, st)
             out = integrate_periods(
                 yy, 100, p.to_array(), METHODS[method], st.rtol, st.atol, st.hmax,
-                st.steps_per_period, m, 1, tangent, 0.0, sec, *ints, *fl,
-                np.zeros((0, 10)), np.zeros(0), np.zeros(0, dtype=np.int64),
+                n_rk, m, 1, tangent, 0.0, sec, *ints, *fl,
+                np.zeros((0, 10)), np.zeros(0), np.zeros(0, dtype=np.int64), 1e6,
+                *phase_tables(n_rk),
             )  # fmt: skip
             steps[0] += out[4]
 

@@ -32,7 +32,7 @@ from gearsim import batch  # noqa: E402
 from gearsim.classify import PeriodSummaries, classify_motion, estimate_period  # noqa: E402
 from gearsim.model import static_state  # noqa: E402
 from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import IntegrationSettings, simulate_cell  # noqa: E402
+from gearsim.simulate import IntegrationSettings, initial_tangent, simulate_cell  # noqa: E402
 
 RTOL, ATOL = 1e-8, 1e-10
 
@@ -135,7 +135,7 @@ def ivp_cell(p, st):
     y = static_state(p.to_array())
     _, y, nfev = ivp_periods(p, y, 0, st.transient, False)
     k = st.transient
-    yt = np.concatenate([y, batch.initial_tangent()])
+    yt = np.concatenate([y, initial_tangent(p)])
     parts, measured, n = [], 0, 0
     while measured < st.max_periods:
         m = min(st.chunk, st.max_periods - measured)

@@ -664,9 +664,9 @@ class GearCells:
             key = (steps_per_period(p, self.settings), p.model,
                    p.var_ratio_order if p.var_ratio != 0.0 else None)  # fmt: skip
             groups.setdefault(key, []).append(r)
-        t0 = initial_tangent()
         for (_, model, _), rows in groups.items():
             plist = [self.params[cells[r]] for r in rows]
+            t0 = initial_tangent(plist[0])  # on the states this group's model evolves
             if model != "6dof":
                 for r, p in zip(rows, plist, strict=True):
                     self._advance_scalar(r, p, states, n_periods, start_periods, secs, finals,

@@ -49,6 +49,7 @@ from sqlalchemy.exc import DBAPIError as SQLAlchemyDBAPIError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
 from .integrity import CatalogueError, _one_line
+from .simulate import result_columns
 
 __all__ = ["CatalogueError", "build_catalogue", "combine_tiles", "open_catalogue", "publish"]
 
@@ -268,58 +269,25 @@ class Plane(Base):
     integration: Mapped[dict] = mapped_column(JSON)  # IntegrationSettings fields
 
 
-class _CellColumns:
-    """Every column of ``CellResult.row()``; ``I`` is stored as ``impact`` (SQL names are
-    case-insensitive and ``i`` is the grid index)."""
-
-    motion: Mapped[str] = mapped_column(String(16))
-    status: Mapped[str] = mapped_column(String(16))
-    impact: Mapped[int] = mapped_column(Integer)  # I: 0, 1, -1, 2, -2
-    n: Mapped[int] = mapped_column(Integer)
-    p: Mapped[int | None] = mapped_column(Integer)
-    q: Mapped[int | None] = mapped_column(Integer)
-    label: Mapped[str] = mapped_column(String(32))
-    label_npq: Mapped[str] = mapped_column(String(32))
-    dc: Mapped[float | None] = mapped_column(Float)
-    kmax: Mapped[float | None] = mapped_column(Float)
-    kmax_peak_mean: Mapped[float | None] = mapped_column(Float)
-    kmax_peak_static: Mapped[float | None] = mapped_column(Float)
-    kmax_section_mean: Mapped[float | None] = mapped_column(Float)
-    kmax_section_static: Mapped[float | None] = mapped_column(Float)
-    kmin_peak_mean: Mapped[float | None] = mapped_column(Float)
-    lyapunov: Mapped[float | None] = mapped_column(Float)
-    x_min: Mapped[float | None] = mapped_column(Float)
-    x_max: Mapped[float | None] = mapped_column(Float)
-    converged: Mapped[bool] = mapped_column(Boolean)
-    window_periods: Mapped[int] = mapped_column(Integer)
-    periods: Mapped[int] = mapped_column(Integer)
-    steps: Mapped[int] = mapped_column(Integer)
+_SQL_TYPES = {str: lambda: String(32), int: Integer, float: Float, bool: Boolean}
 
 
-ROW_COLUMNS = (
-    "motion",
-    "status",
-    "I",
-    "n",
-    "p",
-    "q",
-    "label",
-    "label_npq",
-    "dc",
-    "kmax",
-    "kmax_peak_mean",
-    "kmax_peak_static",
-    "kmax_section_mean",
-    "kmax_section_static",
-    "kmin_peak_mean",
-    "lyapunov",
-    "x_min",
-    "x_max",
-    "converged",
-    "window_periods",
-    "periods",
-    "steps",
-)
+def _cell_columns() -> dict[str, Any]:
+    """SQL columns of ``CellResult.row()`` (:func:`gearsim.simulate.result_columns`).
+
+    ``I`` is stored as ``impact`` (SQL names are case-insensitive and ``i`` is the grid index).
+    """
+    return {
+        ("impact" if name == "I" else name): mapped_column(_SQL_TYPES[typ](), nullable=optional)
+        for name, (typ, optional) in result_columns().items()
+    }
+
+
+#: Every column of ``CellResult.row()``, derived from the fields of ``Classification``: a new
+#: field there is a new column of ``cells`` and ``sweep_points`` with no edit here.
+_CellColumns = type("_CellColumns", (), {"__doc__": _cell_columns.__doc__, **_cell_columns()})
+
+ROW_COLUMNS = tuple(result_columns())
 
 
 class Cell(_CellColumns, Base):
@@ -619,20 +587,8 @@ _CELL_INSERT_COLUMNS = (
     "elapsed_s",
     *("impact" if c == "I" else c for c in ROW_COLUMNS),
 )
-_FLOAT_COLUMNS = {
-    "x",
-    "y",
-    "elapsed_s",
-    "dc",
-    "kmax",
-    "kmax_peak_mean",
-    "kmax_peak_static",
-    "kmax_section_mean",
-    "kmax_section_static",
-    "kmin_peak_mean",
-    "lyapunov",
-    "x_min",
-    "x_max",
+_FLOAT_COLUMNS = {"x", "y", "elapsed_s"} | {
+    name for name, (typ, _) in result_columns().items() if typ is float
 }
 
 

@@ -34,6 +34,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 KMAX_READINGS = {
     "kmax_peak_mean": "max over the steady motion of F / Fm",
@@ -73,16 +74,12 @@ class PeriodSummaries:
         return PeriodSummaries(*(np.concatenate([getattr(p, f) for p in parts]) for f in names))
 
 
-def estimate_period(
-    section_x: np.ndarray,
-    section_v: np.ndarray,
-    scale: float,
-    w: float,
-    n_max: int = 64,
-    period_rtol: float = 1e-5,
-    min_confirm: int = 16,
-) -> int:
+@njit(cache=True, nogil=True)
+def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, min_confirm=16):
     """Smallest period ``n`` (in mesh periods) of the section sequence, or 0 if none ``<= n_max``.
+
+    Compiled (the one period test: the scalar driver, the batched driver and every diagnostic
+    call it).
 
     Parameters
     ----------
@@ -101,15 +98,21 @@ def estimate_period(
         window = max(2 * n, min_confirm)
         if window + n > m:
             return 0
-        dx = np.abs(section_x[m - window :] - section_x[m - window - n : m - n])
-        dv = np.abs(section_v[m - window :] - section_v[m - window - n : m - n])
-        if dx.max() <= tol_x and dv.max() <= tol_v:
+        ok = True
+        for i in range(m - window, m):
+            dx = abs(section_x[i] - section_x[i - n])
+            dv = abs(section_v[i] - section_v[i - n])
+            if not (dx <= tol_x and dv <= tol_v):  # NaN fails the test
+                ok = False
+                break
+        if ok:
             if n > 1 and _spread_decays(section_x, m, window, n, tol_x):
                 return 0  # a decaying transient mimics period n: integrate on
             return n
     return 0
 
 
+@njit(cache=True, nogil=True)
 def _spread_decays(section_x, m, window, n, tol_x):
     """True if the spread of the n section points shrinks over the window.
 

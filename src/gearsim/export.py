@@ -26,14 +26,16 @@ import numpy as np
 
 from .columns import PARAMETERS, RESULT
 from .integrity import CatalogueError
+from .simulate import result_columns
 
 FORMATS = ("netcdf", "zarr", "csv", "parquet")
 #: cell columns exported, in catalogue spelling (``I`` is ``impact``; the order of
 #: ``CellResult.row()``), and the wall time per cell
-VARIABLES = (*RESULT, "elapsed_s")
-_TEXT = {"motion", "status", "label", "label_npq"}
-_NULLABLE_INT = {"p", "q"}
-_INT = {"impact", "n", "window_periods", "periods", "steps"}
+_COLUMNS = {("impact" if n == "I" else n): t for n, t in result_columns().items()}
+VARIABLES = (*_COLUMNS, "elapsed_s")
+_TEXT = {n for n, (t, _) in _COLUMNS.items() if t is str}
+_NULLABLE_INT = {n for n, (t, opt) in _COLUMNS.items() if t is int and opt}
+_INT = {n for n, (t, opt) in _COLUMNS.items() if t is int and not opt}
 
 
 def _plane(con, plane: str) -> dict[str, Any]:

@@ -1,208 +1,168 @@
-"""Compiled integrators with contact-switch location and exact Poincare-section landing.
+"""The scalar integrator: mesh periods with located contact switches and exact section landing.
 
-Two methods share one event-handling core (no Python in the inner loop):
+Two methods on the one field (:mod:`gearsim.model`) and the one event layer
+(:mod:`gearsim.events`), no Python in the inner loop:
 
-* ``METHOD_DP5``: adaptive Dormand-Prince 5(4) (FSAL), RMS error norm over the physical states
+* ``METHOD_DP5``: adaptive Dormand-Prince 5(4) (FSAL), RMS error norm over the evolved states
   with ``atol + rtol * max(|y_old|, |y_new|)``, step factor ``0.9 err^(-1/5)`` clipped to
-  [0.2, 5], absolute cap ``hmax``.
-* ``METHOD_RK4``: classical fixed-step RK4 with ``N`` equal steps per mesh period (so every
-  section time is a grid point); ``N = max(steps_per_period, ceil(T / hmax))`` keeps the step
-  below the stability limit of the stiff bearing modes at low ``w``.
+  [0.2, 5], absolute cap ``hmax``. Every output interval is one :func:`events.advance_interval`.
+* ``METHOD_RK4``: classical fixed-step RK4 with ``N`` equal steps per mesh period
+  (:func:`gearsim.steps.rk4_steps_per_period`), phases from the tables of
+  :func:`gearsim.steps.phase_tables`. A grid step that :func:`gearsim.steps.grid_step_flag` flags
+  (a region change, a watched velocity sign change, the divergence bound) is redone by the event
+  layer. This is the batched kernel's algorithm for one lane, so the two give bit-identical
+  section points (tests/test_batch.py).
 
-Contact switches. Each dead zone is frozen in its region for a whole step (the field stays
-smooth, so the step keeps its order). After a step, every switching channel (mesh ``x = +/-b``;
-bearing ``u = +/-b_j`` when the clearance is non-zero) is checked: a change of region, or an
-interior excursion across the boundary predicted by the cubic Hermite interpolant of ``(x, x')``
-(a grazing contact inside the step), triggers location. The crossing time is found by a
-safeguarded Newton-bisection iteration in which each trial is a real step of the same method from
-the step start, to ``|g| <= 1e-12 (1 + gap)``; the state lands on the switch, the region
-changes, and the remainder of the interval is integrated in the new region.
-
-Sections. Integration runs period by period (``T = 2 pi / w``), each period split into
-``substeps`` equal output intervals whose ends are landed on exactly; per period the kernel
-records the section state, impact counts, disengaged time, force and displacement extremes and
-the growth of the tangent vector (largest Lyapunov exponent).
+Sections. Integration runs period by period (``T = 2 pi / w``, time measured within the period so
+the mesh phase is exact late in long chains), each period split into ``substeps`` equal output
+intervals whose ends are landed on exactly; per period the kernel records the section state, impact
+counts, disengaged time, force and displacement extremes and the log growth of the tangent vector
+(renormalised every period; the largest Lyapunov exponent).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, dataclass, replace
+from typing import Any
 
 import numpy as np
 from numba import njit
 
+from .classify import PeriodSummaries
+from .events import (
+    ACC_FMAX,
+    ACC_FMIN,
+    ACC_H,
+    ACC_K1,
+    ACC_TD,
+    ACC_XMAX,
+    ACC_XMIN,
+    CNT_EV,
+    CNT_NB,
+    CNT_NF,
+    CNT_STEPS,
+    N_ACC,
+    N_CNT,
+    STATUS_DIVERGED,
+    STATUS_OK,
+    STATUS_STEP_COLLAPSE,
+    advance_interval,
+    channels,
+)
 from .model import (
     MODE_FRICTION,
     N_MODE,
     N_STATE,
     N_SWITCH,
-    P_B,
+    P_ACT,
     P_DOF6,
-    P_EPS,
-    P_GAMMA,
-    P_T0,
+    P_GAM,
     P_W,
-    P_XI,
-    SWITCH_COORD,
-    SWITCH_GAP,
-    dead_zone,
-    region_of,
-    rhs,
+    field_params,
+    mesh_force,
+    mode_tuple,
+    set_period,
+    variable_ratio,
+)
+from .parameters import ModelParameters, ParameterError
+from .steps import (
+    FASTMATH,
+    METHOD_DP5,
+    METHOD_RK4,
+    METHODS,
+    grid_step_flag,
+    phase_tables,
+    rk4_state,
+    rk4_steps_per_period,
+    rk4_tangent,
 )
 
-METHOD_DP5 = 0
-METHOD_RK4 = 1
-METHODS = {"dp5": METHOD_DP5, "rk4": METHOD_RK4}
+__all__ = [
+    "METHODS",
+    "METHOD_DP5",
+    "METHOD_RK4",
+    "STATUS_OK",
+    "STATUS_DIVERGED",
+    "STATUS_STEP_COLLAPSE",
+    "STATUS_NAMES",
+    "integrate_periods",
+    "IntegrationSettings",
+    "Run",
+    "run_periods",
+    "start_period_accumulators",
+    "end_period_tangent",
+]
 
-STATUS_OK = 0
-STATUS_DIVERGED = 1
-STATUS_STEP_COLLAPSE = 2
 STATUS_NAMES = {STATUS_OK: "ok", STATUS_DIVERGED: "diverged", STATUS_STEP_COLLAPSE: "diverged"}
 
 
-# Dormand-Prince 5(4) tableau
-_A21 = 1.0 / 5.0
-_A31, _A32 = 3.0 / 40.0, 9.0 / 40.0
-_A41, _A42, _A43 = 44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0
-_A51, _A52, _A53, _A54 = 19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0
-_A61, _A62, _A63, _A64, _A65 = (
-    9017.0 / 3168.0,
-    -355.0 / 33.0,
-    46732.0 / 5247.0,
-    49.0 / 176.0,
-    -5103.0 / 18656.0,
-)
-_B1, _B3, _B4, _B5, _B6 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0
-_E1, _E3, _E4, _E5, _E6, _E7 = (
-    71.0 / 57600.0,
-    -71.0 / 16695.0,
-    71.0 / 1920.0,
-    -17253.0 / 339200.0,
-    22.0 / 525.0,
-    -1.0 / 40.0,
-)
-_C2, _C3, _C4, _C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0
+@njit(cache=True, nogil=True, inline="always")
+def start_period_accumulators(y, P, r0, acc, cnt):
+    """Reset the per-period accumulators at a period start (``cos(w tau) = 1`` there)."""
+    f0 = mesh_force(1.0, y[0], y[1], P, r0, abs(r0))
+    acc[ACC_TD] = 0.0
+    acc[ACC_FMAX] = f0
+    acc[ACC_FMIN] = f0
+    acc[ACC_XMAX] = y[0]
+    acc[ACC_XMIN] = y[0]
+    cnt[CNT_NF] = 0
+    cnt[CNT_NB] = 0
 
 
-@njit(cache=True, nogil=True)
-def _rk4_step(t, y, h, p, mode, n, tangent, ks, ytmp, yout):
-    k1 = ks[0]
-    k2 = ks[1]
-    k3 = ks[2]
-    k4 = ks[3]
-    rhs(t, y, p, mode, k1, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + 0.5 * h * k1[i]
-    rhs(t + 0.5 * h, ytmp, p, mode, k2, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + 0.5 * h * k2[i]
-    rhs(t + 0.5 * h, ytmp, p, mode, k3, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + h * k3[i]
-    rhs(t + h, ytmp, p, mode, k4, tangent)
-    for i in range(n):
-        yout[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+@njit(cache=True, nogil=True, inline="always")
+def end_period_tangent(z):
+    """Log growth of the tangent vector ``z`` over the period; renormalises ``z`` in place."""
+    nrm = 0.0
+    for i in range(z.shape[0]):
+        nrm += z[i] * z[i]
+    nrm = math.sqrt(nrm)
+    if nrm > 0.0 and nrm == nrm:
+        for i in range(z.shape[0]):
+            z[i] /= nrm
+        return math.log(nrm)
     return 0.0
 
 
-@njit(cache=True, nogil=True)
-def _dp5_step(t, y, h, p, mode, n, nerr, tangent, ks, ytmp, yout, rtol, atol, k1_valid):
-    """One DP5 step; returns the RMS error norm. ``ks[0]`` must hold g(t, y) if ``k1_valid``."""
-    k1 = ks[0]
-    k2 = ks[1]
-    k3 = ks[2]
-    k4 = ks[3]
-    k5 = ks[4]
-    k6 = ks[5]
-    k7 = ks[6]
-    if not k1_valid:
-        rhs(t, y, p, mode, k1, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + h * _A21 * k1[i]
-    rhs(t + _C2 * h, ytmp, p, mode, k2, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + h * (_A31 * k1[i] + _A32 * k2[i])
-    rhs(t + _C3 * h, ytmp, p, mode, k3, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + h * (_A41 * k1[i] + _A42 * k2[i] + _A43 * k3[i])
-    rhs(t + _C4 * h, ytmp, p, mode, k4, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + h * (_A51 * k1[i] + _A52 * k2[i] + _A53 * k3[i] + _A54 * k4[i])
-    rhs(t + _C5 * h, ytmp, p, mode, k5, tangent)
-    for i in range(n):
-        ytmp[i] = y[i] + h * (
-            _A61 * k1[i] + _A62 * k2[i] + _A63 * k3[i] + _A64 * k4[i] + _A65 * k5[i]
-        )
-    rhs(t + h, ytmp, p, mode, k6, tangent)
-    for i in range(n):
-        yout[i] = y[i] + h * (
-            _B1 * k1[i] + _B3 * k3[i] + _B4 * k4[i] + _B5 * k5[i] + _B6 * k6[i]
-        )
-    rhs(t + h, yout, p, mode, k7, tangent)
-    acc = 0.0
-    for i in range(nerr):
-        e = h * (
-            _E1 * k1[i] + _E3 * k3[i] + _E4 * k4[i] + _E5 * k5[i] + _E6 * k6[i] + _E7 * k7[i]
-        )
-        sc = atol + rtol * max(abs(y[i]), abs(yout[i]))
-        acc += (e / sc) ** 2
-    return math.sqrt(acc / nerr)
+@njit(cache=True, nogil=True, fastmath=FASTMATH)
+def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, bearings, bound, acc):
+    """The vector kernel's grid step for one cell; returns True if the event layer must redo it.
+
+    Same arithmetic as ``batch._lane_step`` (both inline :func:`rk4_state`, :func:`rk4_tangent`
+    and :func:`grid_step_flag`): an unflagged step is stored with its accumulators.
+    """
+    i2 = 2 * j
+    P = field_params(p, 0, 1)
+    M = mode_tuple(mode)
+    lam = LAM[j]
+    ys = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9])
+    vA = variable_ratio(p, CV[i2], SV[i2])
+    vM = variable_ratio(p, CV[i2 + 1], SV[i2 + 1])
+    vB = variable_ratio(p, CV[i2 + 2], SV[i2 + 2])
+    yn = rk4_state(ys, h, C[i2], S[i2], vA, C[i2 + 1], S[i2 + 1], vM, C[i2 + 2], S[i2 + 2], vB,
+                   lam, P, M)
+    A = (p[P_ACT], p[P_ACT + 1], p[P_ACT + 2], p[P_ACT + 3])
+    if grid_step_flag(ys, yn, P, M, A, bound, bearings):
+        return True
+    if tangent:
+        z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
+        zn = rk4_tangent(z, h, C[i2], C[i2 + 1], C[i2 + 2], lam, P, M)
+        for i in range(N_STATE):
+            y[10 + i] = zn[i]
+    for i in range(N_STATE):
+        y[i] = yn[i]
+    r0 = M[0]
+    if r0 == 0.0:
+        acc[ACC_TD] += h
+    fl = mesh_force(C[i2 + 2], yn[0], yn[1], P, r0, M[1])
+    acc[ACC_FMAX] = max(acc[ACC_FMAX], fl)
+    acc[ACC_FMIN] = min(acc[ACC_FMIN], fl)
+    acc[ACC_XMAX] = max(acc[ACC_XMAX], yn[0])
+    acc[ACC_XMIN] = min(acc[ACC_XMIN], yn[0])
+    return False
 
 
-@njit(cache=True, nogil=True)
-def _step(method, t, y, h, p, mode, n, nerr, tangent, ks, ytmp, yout, rtol, atol, k1_valid):
-    if method == METHOD_RK4:
-        return _rk4_step(t, y, h, p, mode, n, tangent, ks, ytmp, yout)
-    return _dp5_step(t, y, h, p, mode, n, nerr, tangent, ks, ytmp, yout, rtol, atol, k1_valid)
-
-
-@njit(cache=True, nogil=True)
-def _hermite(x0, v0, x1, v1, h, s):
-    """Cubic Hermite interpolant of x on [0, h] at fraction s in [0, 1]."""
-    s2 = s * s
-    s3 = s2 * s
-    return (
-        (2 * s3 - 3 * s2 + 1) * x0
-        + (s3 - 2 * s2 + s) * h * v0
-        + (-2 * s3 + 3 * s2) * x1
-        + (s3 - s2) * h * v1
-    )
-
-
-@njit(cache=True, nogil=True)
-def _hermite_extremum(x0, v0, x1, v1, h):
-    """Fraction s in (0, 1) where the Hermite cubic has zero slope (v0, v1 of opposite sign)."""
-    # derivative / h: a s^2 + b s + c
-    a = 6 * x0 / h + 3 * v0 - 6 * x1 / h + 3 * v1
-    b = -6 * x0 / h - 4 * v0 + 6 * x1 / h - 2 * v1
-    c = v0
-    if abs(a) < 1e-300:
-        if b == 0.0:
-            return -1.0
-        s = -c / b
-        return s if 0.0 < s < 1.0 else -1.0
-    disc = b * b - 4 * a * c
-    if disc < 0.0:
-        return -1.0
-    sq = math.sqrt(disc)
-    s1 = (-b - sq) / (2 * a)
-    s2 = (-b + sq) / (2 * a)
-    best = -1.0
-    if 0.0 < s1 < 1.0:
-        best = s1
-    if 0.0 < s2 < 1.0 and (best < 0.0 or s2 < best):
-        best = s2
-    return best
-
-
-@njit(cache=True, nogil=True)
-def _mesh_force_local(t, x, v, p, region):
-    return (1.0 + p[P_EPS] * math.cos(p[P_W] * t)) * dead_zone(x, p[P_B], region) + 2.0 * p[
-        P_XI
-    ] * v
-
-
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FASTMATH)
 def integrate_periods(
     y0,
     k0,
@@ -211,7 +171,7 @@ def integrate_periods(
     rtol,
     atol,
     hmax,
-    steps_per_period,
+    n_rk,
     n_periods,
     substeps,
     tangent,
@@ -228,28 +188,35 @@ def integrate_periods(
     traj,
     ev_t,
     ev_code,
-    bound=1.0e6,
+    bound,
+    C,
+    S,
+    LAM,
+    CV,
+    SV,
 ):
     """Integrate ``n_periods`` mesh periods starting at ``tau = k0 T`` from state ``y0``.
 
     ``y0`` has 10 entries (20 with ``tangent``: state then tangent vector) and is updated in
-    place to the final state. Per period ``k`` the kernel writes ``sec[k]`` (state at the start
-    of the period), ``nface[k]``/``nback[k]`` (entries into face / back contact), ``tdis[k]``
-    (time inside the backlash), ``fmax``/``fmin`` (mesh force extremes), ``xmax``/``xmin`` and
-    ``lyap[k]`` (log growth of the tangent vector, renormalised each period). If ``traj`` has
-    rows, it receives the state at every output point (``substeps`` per period, plus the start).
-    Switch events go to ``ev_t``/``ev_code`` (code = 4 * channel + new region + 1) up to their
-    capacity. A state component beyond ``bound`` (or NaN) stops the run with status 1.
+    place to the final state. ``p`` is the packed parameter vector (a private copy is used).
+    ``n_rk`` is the RK4 steps per period (a multiple of ``substeps``; ``C, S, LAM, CV, SV`` its
+    phase tables); DP5 ignores them. Per period ``k`` the kernel writes ``sec[k]`` (state at the
+    start of the period), ``nface[k]``/``nback[k]`` (entries into face / back contact),
+    ``tdis[k]`` (time inside the backlash), ``fmax``/``fmin`` (mesh force extremes),
+    ``xmax``/``xmin`` and ``lyap[k]`` (log growth of the tangent vector, renormalised each
+    period). If ``traj`` has rows, it receives the state at every output point (``substeps`` per
+    period, plus the start). Switch events go to ``ev_t``/``ev_code`` (code = 4 * channel + new
+    region + 1) up to their capacity. A state component beyond ``bound`` (or NaN) stops the run
+    with status 1.
 
     Returns ``(status, periods_done, n_events, h_last, n_steps)``.
     """
     n = 20 if tangent else 10
-    pl = p.copy()  # local copy: pl[P_T0] carries the absolute start time of the current period
-    dof6 = p[P_DOF6] != 0.0
-    nerr = 10 if dof6 else 2
+    pl = p.copy()  # the per-period slots (variable-ratio phase) are written here
+    nerr = N_STATE if p[P_DOF6] != 0.0 else 2
     w = p[P_W]
     T = 2.0 * math.pi / w
-    half_break = p[P_GAMMA] != 0.0
+    friction = p[P_GAM] != 0.0
     y = np.zeros(20)
     for i in range(n):
         y[i] = y0[i]
@@ -261,277 +228,266 @@ def integrate_periods(
     mode[MODE_FRICTION] = 1
     gaps = np.zeros(N_SWITCH)
     active = np.zeros(N_SWITCH, dtype=np.bool_)
-    for c in range(N_SWITCH):
-        gaps[c] = p[SWITCH_GAP[c]]
-        active[c] = c == 0 or (dof6 and gaps[c] > 0.0)
-        # a channel without gap is linear: region +1 gives f(u, 0) = u on both sides
-        mode[c] = region_of(y[SWITCH_COORD[c]], gaps[c]) if active[c] else 1
-    n_rk = max(steps_per_period, int(math.ceil(T / hmax)))
-    n_rk = substeps * int(math.ceil(n_rk / substeps))
+    channels(p, mode, y, gaps, active, True)
+    bearings = False
+    for c in range(1, N_SWITCH):
+        bearings = bearings or active[c]
+    acc = np.zeros(N_ACC)
+    cnt = np.zeros(N_CNT, dtype=np.int64)
+    acc[ACC_H] = h_init if h_init > 0.0 else min(hmax, T / 64.0)
     h_rk = T / n_rk
-    h = h_init if h_init > 0.0 else min(hmax, T / 64.0)
-    h_min = 1e-12 * T
-    n_ev = 0
-    n_steps = 0
-    k1_valid = False
-    status = 0
+    per_out = n_rk // substeps
+    status = STATUS_OK
     traj_rows = traj.shape[0]
     row = 0
     periods_done = 0
     for k in range(n_periods):
-        # Time runs relative to the period start: the mesh phase w t is then exact (cos(w k T + s)
-        # = cos(s)) and step sizes keep full resolution late in a long chain, where absolute
-        # times ~1e5 would leave switch landings below the float spacing and stall. Terms that
-        # are not T-periodic (variable ratio) read the offset from pl[P_T0].
         t_abs0 = (k0 + k) * T
-        pl[P_T0] = t_abs0
-        t_start = 0.0
+        set_period(pl, k0 + k)
         for i in range(N_STATE):
             sec[k, i] = y[i]
         if k == 0 and row < traj_rows:
             for i in range(N_STATE):
                 traj[row, i] = y[i]
             row += 1
-        nf = 0
-        nb = 0
-        td = 0.0
-        f0 = _mesh_force_local(t_start, y[0], y[1], p, mode[0])
-        fmx = f0
-        fmn = f0
-        xmx = y[0]
-        xmn = y[0]
-        t = t_start
-        for s in range(substeps):
-            if s == substeps - 1:
-                t_target = T
-            else:
-                t_target = t_start + (s + 1) * T / substeps
-            while t < t_target:
-                stop = t_target
-                if half_break:
-                    th = t_start + 0.5 * T
-                    if t < th - 1e-14 * T and th < stop:
-                        stop = th
-                if half_break:
-                    # the friction direction of this step (steps never straddle T/2); a flip
-                    # invalidates the FSAL stage, which was evaluated with the old direction
-                    lam = 1 if t - t_start < 0.5 * T * (1.0 - 1e-12) else -1
-                    if lam != mode[MODE_FRICTION]:
-                        mode[MODE_FRICTION] = lam
-                        k1_valid = False
-                if method == METHOD_RK4:
-                    # next grid point of the fixed-step mesh
-                    j = int(math.floor((t - t_start) / h_rk + 1e-9)) + 1
-                    tg = t_start + j * h_rk
-                    if tg > stop:
-                        tg = stop
-                    hh = tg - t
-                    if hh <= 1e-14 * T:
-                        t = tg
-                        continue
-                else:
-                    hh = min(h, hmax, stop - t)
-                    if stop - t - hh < 1e-9 * hh:
-                        hh = stop - t
-                err = _step(
-                    method, t, y, hh, pl, mode, n, nerr, tangent, ks, ytmp, ynew, rtol, atol,
-                    k1_valid,
+        start_period_accumulators(y, field_params(pl, 0, 1), float(mode[0]), acc, cnt)
+        if method == METHOD_RK4:
+            for j in range(n_rk):
+                mode[MODE_FRICTION] = int(LAM[j])
+                cnt[CNT_STEPS] += 1
+                if _rk4_grid_interval(j, h_rk, y, pl, mode, tangent, C, S, LAM, CV, SV,
+                                      bearings, bound, acc):
+                    t_end = T if j == n_rk - 1 else (j + 1) * h_rk
+                    cnt[CNT_STEPS] -= 1  # the event layer counts its own steps
+                    status = advance_interval(
+                        METHOD_RK4, j * h_rk, t_end, y, pl, mode, gaps, active, n, nerr,
+                        tangent, ks, ytmp, ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt,
+                        ev_t, ev_code, t_abs0,
+                    )
+                    if status != STATUS_OK:
+                        break
+                if row < traj_rows and (j + 1) % per_out == 0:
+                    for i in range(N_STATE):
+                        traj[row, i] = y[i]
+                    row += 1
+        else:
+            t = 0.0
+            for s in range(substeps):
+                t_target = T if s == substeps - 1 else (s + 1) * T / substeps
+                th = 0.5 * T
+                if friction and t < th - 1e-14 * T and th < t_target:
+                    # the friction direction flips at T/2: steps never straddle it
+                    mode[MODE_FRICTION] = 1
+                    status = advance_interval(
+                        METHOD_DP5, t, th, y, pl, mode, gaps, active, n, nerr, tangent, ks,
+                        ytmp, ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code,
+                        t_abs0,
+                    )
+                    t = th
+                    acc[ACC_K1] = 0.0  # the FSAL stage saw the old direction
+                    if status != STATUS_OK:
+                        break
+                lam = 1 if (not friction or t < th * (1.0 - 1e-12)) else -1
+                if lam != mode[MODE_FRICTION]:
+                    mode[MODE_FRICTION] = lam
+                    acc[ACC_K1] = 0.0
+                status = advance_interval(
+                    METHOD_DP5, t, t_target, y, pl, mode, gaps, active, n, nerr, tangent, ks,
+                    ytmp, ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code,
+                    t_abs0,
                 )
-                n_steps += 1
-                if method == METHOD_DP5:
-                    if not (err <= 1.0):
-                        if err != err:  # NaN
-                            status = 1
-                            break
-                        h = hh * max(0.2, 0.9 * err ** -0.2)
-                        k1_valid = True  # k1 is still g(t, y)
-                        if h < h_min:
-                            status = 2
-                            break
-                        continue
-                # ---- accepted step of size hh: look for switches inside it
-                first_c = -1
-                first_s = 2.0
-                graze = False
-                for c in range(N_SWITCH):
-                    if not active[c]:
-                        continue
-                    ci = SWITCH_COORD[c]
-                    gap = gaps[c]
-                    r_new = region_of(ynew[ci], gap)
-                    x0 = y[ci]
-                    v0 = y[ci + 1]
-                    x1 = ynew[ci]
-                    v1 = ynew[ci + 1]
-                    s_est = -1.0
-                    if r_new != mode[c]:
-                        # boundary crossed first, in the direction of motion
-                        if r_new > mode[c]:
-                            bnd = -gap if mode[c] == -1 else gap
-                        else:
-                            bnd = gap if mode[c] == 1 else -gap
-                        # bisection on the Hermite cubic for a starting fraction
-                        lo = 0.0
-                        hi = 1.0
-                        pre_pos = r_new < mode[c]  # sign of x - bnd before the crossing
-                        for _ in range(30):
-                            mid = 0.5 * (lo + hi)
-                            gm = _hermite(x0, v0, x1, v1, hh, mid) - bnd
-                            if (gm > 0.0) == pre_pos:
-                                lo = mid
-                            else:
-                                hi = mid
-                        s_est = 0.5 * (lo + hi)
-                    elif v0 * v1 < 0.0:
-                        se = _hermite_extremum(x0, v0, x1, v1, hh)
-                        if se > 0.0:
-                            xe = _hermite(x0, v0, x1, v1, hh, se)
-                            if region_of(xe, gap) != mode[c]:
-                                s_est = se  # possible grazing excursion: verified below
-                    if s_est >= 0.0 and s_est < first_s:
-                        first_s = s_est
-                        first_c = c
-                        graze = r_new == mode[c]
-                if first_c >= 0:
-                    c = first_c
-                    ci = SWITCH_COORD[c]
-                    gap = gaps[c]
-                    x0 = y[ci]
-                    lo_t = 0.0
-                    hi_t = hh
-                    if graze:
-                        # verify the excursion with a real step to the predicted extremum
-                        te = first_s * hh
-                        _step(method, t, y, te, pl, mode, n, nerr, tangent, ks, ytmp, ytry,
-                              rtol, atol, False)
-                        n_steps += 1
-                        r_e = region_of(ytry[ci], gap)
-                        if r_e == mode[c]:
-                            first_c = -1  # no real contact change: keep the step
-                        else:
-                            hi_t = te
-                            first_s = 0.5 * te / hh
-                if first_c >= 0:
-                    r_far = region_of(ytry[ci], gap) if graze else region_of(ynew[ci], gap)
-                    if r_far > mode[c]:
-                        bnd = -gap if mode[c] == -1 else gap
-                        new_region = 0 if mode[c] == -1 else 1
-                    else:
-                        bnd = gap if mode[c] == 1 else -gap
-                        new_region = 0 if mode[c] == 1 else -1
-                    if gap == 0.0:
-                        new_region = r_far
-                    pre_pos = r_far < mode[c]  # sign of x - bnd on the side we leave
-                    th = first_s * hh
-                    for _ in range(60):
-                        _step(method, t, y, th, pl, mode, n, nerr, tangent, ks, ytmp, ytry,
-                              rtol, atol, False)
-                        n_steps += 1
-                        g = ytry[ci] - bnd
-                        if abs(g) <= 1e-12 * (1.0 + gap):
-                            break
-                        if (g > 0.0) == pre_pos:
-                            lo_t = th
-                        else:
-                            hi_t = th
-                        vel = ytry[ci + 1]
-                        tn = th - g / vel if vel != 0.0 else -1.0
-                        if not (lo_t < tn < hi_t):
-                            tn = 0.5 * (lo_t + hi_t)
-                        th = tn
-                        if hi_t - lo_t < 1e-15 * T:
-                            break
-                    # land on the switch (old region up to here)
-                    t_new = t + th
-                    if mode[0] == 0:
-                        td += th
-                    for i in range(n):
-                        y[i] = ytry[i]
-                    t = t_new
-                    if c == 0:
-                        if new_region == 1:
-                            nf += 1
-                        elif new_region == -1:
-                            nb += 1
-                    if n_ev < ev_t.shape[0]:
-                        ev_t[n_ev] = t_abs0 + t
-                        ev_code[n_ev] = 4 * c + new_region + 1
-                    n_ev += 1
-                    mode[c] = new_region
-                    k1_valid = False
-                    fl = _mesh_force_local(t, y[0], y[1], p, mode[0])
-                    fmx = max(fmx, fl)
-                    fmn = min(fmn, fl)
-                    xmx = max(xmx, y[0])
-                    xmn = min(xmn, y[0])
-                    continue
-                # ---- no switch: accept the whole step
-                if mode[0] == 0:
-                    td += hh
-                v0 = y[1]
-                v1 = ynew[1]
-                if v0 * v1 < 0.0:
-                    se = _hermite_extremum(y[0], v0, ynew[0], v1, hh)
-                    if se > 0.0:
-                        xe = _hermite(y[0], v0, ynew[0], v1, hh, se)
-                        xmx = max(xmx, xe)
-                        xmn = min(xmn, xe)
-                        fe = (1.0 + p[P_EPS] * math.cos(w * (t + se * hh))) * dead_zone(
-                            xe, gaps[0], mode[0]
-                        )
-                        fmx = max(fmx, fe)
-                        fmn = min(fmn, fe)
-                for i in range(n):
-                    y[i] = ynew[i]
-                    ks[0, i] = ks[6, i]
-                t = t + hh
-                if t > stop or stop - t < 1e-12 * T:
-                    t = stop
-                k1_valid = method == METHOD_DP5
-                fl = _mesh_force_local(t, y[0], y[1], p, mode[0])
-                fmx = max(fmx, fl)
-                fmn = min(fmn, fl)
-                xmx = max(xmx, y[0])
-                xmn = min(xmn, y[0])
-                bad = False
-                for i in range(N_STATE):
-                    if not (abs(y[i]) < bound):
-                        bad = True
-                if bad:
-                    status = 1
+                t = t_target
+                if status != STATUS_OK:
                     break
-                if method == METHOD_DP5:
-                    fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
-                    h = hh * fac
-            if status != 0:
-                break
-            if row < traj_rows:
-                for i in range(N_STATE):
-                    traj[row, i] = y[i]
-                row += 1
-            # re-check the frozen regions against the state on the section (guards drift)
-            t = t_target
-        if status != 0:
+                if row < traj_rows:
+                    for i in range(N_STATE):
+                        traj[row, i] = y[i]
+                    row += 1
+            if friction and mode[MODE_FRICTION] != 1:
+                mode[MODE_FRICTION] = 1
+                acc[ACC_K1] = 0.0
+        if status != STATUS_OK:
             break
-        nface[k] = nf
-        nback[k] = nb
-        tdis[k] = td
-        fmax[k] = fmx
-        fmin[k] = fmn
-        xmax[k] = xmx
-        xmin[k] = xmn
+        nface[k] = cnt[CNT_NF]
+        nback[k] = cnt[CNT_NB]
+        tdis[k] = acc[ACC_TD]
+        fmax[k] = acc[ACC_FMAX]
+        fmin[k] = acc[ACC_FMIN]
+        xmax[k] = acc[ACC_XMAX]
+        xmin[k] = acc[ACC_XMIN]
         if tangent:
-            nrm = 0.0
-            for i in range(10, 20):
-                nrm += y[i] * y[i]
-            nrm = math.sqrt(nrm)
-            if nrm > 0.0 and nrm == nrm:
-                lyap[k] = math.log(nrm)
-                for i in range(10, 20):
-                    y[i] /= nrm
-            else:
-                lyap[k] = 0.0
+            lyap[k] = end_period_tangent(y[10:20])
         periods_done = k + 1
     for i in range(n):
         y0[i] = y[i]
-    return status, periods_done, n_ev, h, n_steps
+    return status, periods_done, cnt[CNT_EV], acc[ACC_H], cnt[CNT_STEPS]
+
+
+@dataclass(frozen=True)
+class IntegrationSettings:
+    """Numerical settings of a cell simulation (all times in mesh periods unless stated).
+
+    method
+        ``"dp5"`` adaptive Dormand-Prince 5(4) or ``"rk4"`` fixed step.
+    rtol, atol
+        DP5 tolerances (RMS norm over the physical states).
+    hmax
+        Absolute step cap in dimensionless time (stiff bearing modes at low ``w``).
+    steps_per_period
+        RK4 steps per mesh period (raised to ``ceil(T / hmax)`` when needed).
+    transient
+        Periods integrated before measuring, starting from the static state / ``u0``.
+    transient_continuation
+        Periods of transient when a continuation start ``u0`` is given.
+    chunk
+        Periods per measuring chunk; the period is tested after each chunk.
+    max_periods
+        Budget of measured periods.
+    n_max, period_rtol
+        Largest period looked for, relative tolerance of the period test.
+    lyap_threshold
+        Lyapunov exponents above it (per unit tau) mean chaos, within +/- it quasi-periodic.
+    divergence_bound
+        A state component beyond it (or NaN) ends the cell with status ``diverged``.
+    tangent_lead
+        Periods at the end of the transient during which the tangent vector already runs, so
+        that it is aligned with the most unstable direction when measuring starts (a fresh
+        random vector overestimates the largest exponent by ~log(transient growth) / window).
+    """
+
+    method: str = "dp5"
+    rtol: float = 1e-9
+    atol: float = 1e-12
+    hmax: float = 0.2
+    steps_per_period: int = 256
+    transient: int = 150
+    transient_continuation: int = 16
+    chunk: int = 24
+    max_periods: int = 256
+    n_max: int = 64
+    period_rtol: float = 1e-5
+    lyap_threshold: float = 0.005
+    divergence_bound: float = 1.0e6
+    tangent_lead: int = 24
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ParameterError(
+                f"setting 'method' = {self.method!r}; allowed: {', '.join(METHODS)}"
+            )
+        positive = {
+            "rtol": (0, 1),
+            "atol": (0, 1),
+            "hmax": (0, 100),
+            "period_rtol": (0, 1),
+            "lyap_threshold": (0, 10),
+            "divergence_bound": (0, 1e300),
+        }
+        for name, (lo, hi) in positive.items():
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo < v < hi):
+                raise ParameterError(f"setting '{name}' = {v!r} must be in ({lo}, {hi})")
+        integers = {
+            "steps_per_period": 4,
+            "transient": 0,
+            "transient_continuation": 0,
+            "chunk": 4,
+            "max_periods": 8,
+            "n_max": 1,
+            "tangent_lead": 0,
+        }
+        for name, lo in integers.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= {lo}")
+
+    @classmethod
+    def from_config(cls, config: Any = None) -> IntegrationSettings:
+        """The study's settings: ``config['integration']`` of a loaded configuration, or with no
+        argument those of ``config/config.yaml`` (:func:`gearsim.config.study_config`: RK4, 256
+        steps per period, a 40-period continuation transient), as the pipeline uses them."""
+        # imported here: gearsim.config builds on this module (the config layer sits above)
+        from .config import integration_settings, study_config
+
+        return integration_settings(study_config() if config is None else config)
+
+    def with_(self, **changes: Any) -> IntegrationSettings:
+        return replace(self, **changes)
+
+    def tightened(self) -> IntegrationSettings:
+        """Settings for convergence checks: 100x tighter DP5 tolerance, half the RK4 step."""
+        return replace(
+            self,
+            rtol=self.rtol / 100,
+            atol=self.atol / 100,
+            steps_per_period=self.steps_per_period * 2,
+            hmax=self.hmax / 2,
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class Run:
+    """Raw output of :func:`run_periods`."""
+
+    summaries: PeriodSummaries
+    state: np.ndarray  # final state (10, or 20 with tangent)
+    status: int
+    periods_done: int
+    events_t: np.ndarray
+    events_code: np.ndarray
+    n_events: int
+    h_last: float
+    n_steps: int
+    trajectory: np.ndarray | None
+
+
+def run_periods(
+    params: ModelParameters,
+    y0: np.ndarray,
+    n_periods: int,
+    settings: IntegrationSettings,
+    *,
+    start_period: int = 0,
+    tangent: bool = False,
+    substeps: int = 1,
+    record: bool = False,
+    event_capacity: int = 0,
+    h_init: float = 0.0,
+    parray: np.ndarray | None = None,
+) -> Run:
+    """Integrate ``n_periods`` mesh periods from ``y0`` (unchanged) at ``tau = start_period T``."""
+    p = params.to_array() if parray is None else parray
+    y = np.zeros(20)
+    y[: len(y0)] = y0
+    m = n_periods
+    sec = np.zeros((m, N_STATE))
+    ints = [np.zeros(m, dtype=np.int64) for _ in range(2)]
+    floats = [np.zeros(m) for _ in range(6)]
+    traj = np.zeros((m * substeps + 1 if record else 0, N_STATE))
+    ev_t = np.zeros(event_capacity)
+    ev_c = np.zeros(event_capacity, dtype=np.int64)
+    n_rk = rk4_steps_per_period(params, settings, substeps)
+    nu = params.var_ratio_order if params.var_ratio != 0.0 else 0.0
+    status, done, n_ev, h_last, n_steps = integrate_periods(
+        y, start_period, p, METHODS[settings.method], settings.rtol, settings.atol,
+        settings.hmax, n_rk, m, substeps, tangent, h_init, sec, ints[0], ints[1], *floats, traj,
+        ev_t, ev_c, settings.divergence_bound, *phase_tables(n_rk, nu),
+    )
+    s = PeriodSummaries(sec, ints[0], ints[1], *floats)
+    if done < m:
+        s = PeriodSummaries(*(getattr(s, f)[:done] for f in PeriodSummaries.__dataclass_fields__))
+    return Run(
+        summaries=s,
+        state=y[: 20 if tangent else 10].copy(),
+        status=int(status),
+        periods_done=int(done),
+        events_t=ev_t[: min(n_ev, event_capacity)],
+        events_code=ev_c[: min(n_ev, event_capacity)],
+        n_events=int(n_ev),
+        h_last=float(h_last),
+        n_steps=int(n_steps),
+        trajectory=traj if record else None,
+    )

@@ -1,6 +1,12 @@
-"""Dimensionless equations of motion of the curve-face gear pair (Numba kernels, nothing else).
+"""Dimensionless equations of motion of the curve-face gear pair: the one vector field.
 
-State vector ``y`` (length 10; 20 when the tangent vector of the variational equations rides along):
+Everything that evaluates the equations (the scalar DP5/RK4 integrators, the batched SIMD kernel,
+the tangent vector of the Lyapunov exponent, the monodromy matrix of periodic orbits, every
+diagnostic) calls :func:`field_state` / :func:`field_tangent` here. They are
+``inline="always"`` Numba functions on tuples, so the batched kernel inlines them into its vector
+loop and keeps its FMA code, and a scalar caller pays no call overhead.
+
+State vector ``y`` (length 10; the tangent vector ``z`` has the same layout):
 
 ====  =========================================================
 0, 1  mesh displacement ``x = X_n / b_c`` and its rate ``x'``
@@ -10,7 +16,7 @@ State vector ``y`` (length 10; 20 when the tangent vector of the variational equ
 8, 9  gear bearing displacement ``u_gz`` (Z) and rate
 ====  =========================================================
 
-Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``)::
+Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``, ``tau = w_n t``)::
 
     F     = (1 + eps cos(w tau)) f(x, b) + 2 xi x'                 mesh force / (Km b_c)
     u_pj'' = -2 xi_pj u_pj' - kappa_pj f(u_pj, b_pj) - rho_p F d_j   j = y, z
@@ -21,13 +27,21 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``)::
 
 ``f(x, b)`` is the dead zone (x - b above b, 0 inside, x + b below -b);
 ``lambda = sign(sin(w tau))`` is the friction direction (it flips at the pitch point, mid
-mesh cycle). With ``P_DOF6 = 0`` the bearings are rigid and the single-DOF form
-``x'' + 2 xi x' + (1 + eps cos w tau) f(x, b) = ...`` remains.
+mesh cycle). The single-DOF model is the same field with the bearing couplings packed as zero
+(``rho = kappa = xi_brg = 0``, no clearance channels): ``x'' + 2 xi x' + (1 + eps cos w tau)
+f(x, b) = ...`` remains, the bearing states are frozen, and the tangent vector and the DP5 error
+norm act on ``(x, x')`` only (:data:`N_EVOLVED`).
 
-Piecewise-smooth handling: every dead zone is evaluated in a *frozen region* (``mode``) chosen at
-the start of a step; the integrator locates the switching surfaces and changes ``mode`` there.
-Because ``f`` is continuous, the vector field is continuous across every switch: the saltation
-matrix of the variational equations is the identity, so the tangent vector needs no jump.
+Piecewise-smooth handling: every dead zone is evaluated in a *frozen region* (``M``) chosen at
+the start of a step; the event layer (:mod:`gearsim.events`) locates the switching surfaces and
+changes the region there. Because ``f`` is continuous, the vector field is continuous across every
+switch: the saltation matrix of the variational equations is the identity, so the tangent vector
+needs no jump.
+
+Adding a nonlinearity: edit :func:`field_state` (the force law) and :func:`field_tangent` (its
+Jacobian-vector product) and, if it needs a parameter, add a slot to the packed layout below and
+fill it in :func:`pack_parameters`. Both integrators, the batched kernel and every variational
+computation see the change.
 """
 
 from __future__ import annotations
@@ -37,32 +51,44 @@ import math
 import numpy as np
 from numba import njit
 
-# ---- layout of the packed parameter vector (see ModelParameters.to_array) ----
-P_W = 0
-P_FM = 1
-P_FE = 2
-P_EPS = 3
-P_XI = 4
-P_B = 5
-P_PHI_E = 6
-P_GAMMA = 7
-P_ALPHA = 8
-P_VR_AMP = 9
-P_VR_ORDER = 10
-P_RHO_P = 11
-P_RHO_G = 12
-P_DOF6 = 13
-P_KAPPA = 14  # 4 entries: py, pz, gy, gz
-P_XI_BRG = 18  # 4 entries
-P_B_BRG = 22  # 4 entries
-# derived entries, precomputed once so the right-hand side needs only cos/sin of the mesh phase
-P_COS_ALPHA = 26
-P_SIN_ALPHA = 27
-P_COS_PHI_E = 28
-P_SIN_PHI_E = 29
-# absolute time of t = 0 for terms that are not T-periodic (set by the integrator per period)
-P_T0 = 30
-N_PARAMS = 31
+# ---- the packed parameter vector (one packer: pack_parameters; one layout for every path) ----
+# The first N_FIELD entries are the field's parameters, in the order of the tuple ``P`` that
+# field_state / field_tangent unpack (derived values precomputed: no work in the inner loop).
+P_EPS = 0  # stiffness fluctuation eps
+P_XI2 = 1  # 2 xi (mesh damping)
+P_B = 2  # half backlash b
+P_FM = 3  # mean load Fm
+P_FEW2 = 4  # error forcing amplitude Fe w^2
+P_CPHI = 5  # cos(phi_e)
+P_SPHI = 6  # sin(phi_e)
+P_GAM = 7  # friction factor gamma
+P_CA = 8  # cos(alpha)
+P_SA = 9  # sin(alpha)
+P_RPCA = 10  # rho_p cos(alpha)  (0 in the single-DOF model)
+P_RPSA = 11  # rho_p sin(alpha)
+P_RGCA = 12  # rho_g cos(alpha)
+P_RGSA = 13  # rho_g sin(alpha)
+P_KAP = 14  # 4 entries: kappa py, pz, gy, gz (0 in the single-DOF model)
+P_ZB = 18  # 4 entries: 2 xi_brg
+P_GAP = 22  # 4 entries: bearing half clearances
+N_FIELD = 26
+# further entries read by the integrators (not by the field)
+P_W = 26  # mesh frequency w
+P_VRA = 27  # variable-ratio amplitude A_vr w^2
+P_VR_ORDER = 28  # variable-ratio order nu
+P_DOF6 = 29  # 1.0: 6-DOF model, 0.0: single-DOF
+P_ACT = 30  # 4 entries: bearing switching channel active (1.0) or linear (0.0)
+# per mesh period, set by the integrator: A w^2 sin / cos(2 pi nu K) for period K, so that the
+# variable-ratio forcing is A w^2 sin(nu w (K T + t)) = VRS cos(nu w t) + VRC sin(nu w t)
+P_VRS = 34
+P_VRC = 35
+# kept for static_state and diagnostics
+P_ALPHA = 36
+P_RHO_P = 37
+P_RHO_G = 38
+P_XI = 39
+P_FE = 40
+N_PARAMS = 41
 
 N_STATE = 10
 N_SWITCH = 5  # switching channels: mesh, then the four bearing coordinates
@@ -71,7 +97,74 @@ N_MODE = 6
 
 # the coordinate each switching channel watches, and the parameter holding its half gap
 SWITCH_COORD = np.array([0, 2, 4, 6, 8], dtype=np.int64)
-SWITCH_GAP = np.array([P_B, P_B_BRG, P_B_BRG + 1, P_B_BRG + 2, P_B_BRG + 3], dtype=np.int64)
+SWITCH_GAP = np.array([P_B, P_GAP, P_GAP + 1, P_GAP + 2, P_GAP + 3], dtype=np.int64)
+BEARINGS = ("py", "pz", "gy", "gz")
+
+
+def pack_parameters(params) -> np.ndarray:
+    """The float64 vector every kernel reads (layout: the ``P_*`` constants above).
+
+    ``params`` is a :class:`gearsim.parameters.ModelParameters`. The single-DOF model packs its
+    bearing couplings as zero, so the one field gives the rigid-bearing equations.
+    """
+    p = np.zeros(N_PARAMS)
+    w = params.w
+    dof6 = params.model == "6dof"
+    ca, sa = math.cos(params.alpha), math.sin(params.alpha)
+    p[P_EPS] = params.eps
+    p[P_XI2] = 2.0 * params.xi
+    p[P_B] = params.b
+    p[P_FM] = params.Fm
+    p[P_FEW2] = params.Fe * w * w
+    p[P_CPHI] = math.cos(params.phi_e)
+    p[P_SPHI] = math.sin(params.phi_e)
+    p[P_GAM] = params.friction
+    p[P_CA] = ca
+    p[P_SA] = sa
+    if dof6:
+        p[P_RPCA] = params.rho_p * ca
+        p[P_RPSA] = params.rho_p * sa
+        p[P_RGCA] = params.rho_g * ca
+        p[P_RGSA] = params.rho_g * sa
+        for k, name in enumerate(BEARINGS):
+            p[P_KAP + k] = getattr(params, f"kappa_{name}")
+            p[P_ZB + k] = 2.0 * getattr(params, f"xi_{name}")
+            gap = getattr(params, f"b_{name}")
+            p[P_GAP + k] = gap
+            p[P_ACT + k] = 1.0 if gap > 0.0 else 0.0
+    p[P_W] = w
+    p[P_VRA] = params.var_ratio * w * w
+    p[P_VR_ORDER] = params.var_ratio_order
+    p[P_DOF6] = 1.0 if dof6 else 0.0
+    p[P_ALPHA] = params.alpha
+    p[P_RHO_P] = params.rho_p
+    p[P_RHO_G] = params.rho_g
+    p[P_XI] = params.xi
+    p[P_FE] = params.Fe
+    return p
+
+
+def n_evolved(p: np.ndarray) -> int:
+    """Number of leading states the model evolves: 10 (6-DOF) or 2 (single-DOF: x, x')."""
+    return N_STATE if p[P_DOF6] != 0.0 else 2
+
+
+@njit(cache=True, nogil=True, inline="always")
+def field_params(buf, base, stride):
+    """The field's parameter tuple ``P`` read from ``buf[base + i * stride]``, i < N_FIELD.
+
+    ``stride`` is 1 for a packed vector and the lane count for the batched kernel's blocks.
+    """
+    s = stride
+    return (
+        buf[base], buf[base + s], buf[base + 2 * s], buf[base + 3 * s], buf[base + 4 * s],
+        buf[base + 5 * s], buf[base + 6 * s], buf[base + 7 * s], buf[base + 8 * s],
+        buf[base + 9 * s], buf[base + 10 * s], buf[base + 11 * s], buf[base + 12 * s],
+        buf[base + 13 * s], buf[base + 14 * s], buf[base + 15 * s], buf[base + 16 * s],
+        buf[base + 17 * s], buf[base + 18 * s], buf[base + 19 * s], buf[base + 20 * s],
+        buf[base + 21 * s], buf[base + 22 * s], buf[base + 23 * s], buf[base + 24 * s],
+        buf[base + 25 * s],
+    )  # fmt: skip
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -94,132 +187,123 @@ def region_of(x, gap):
     return 0
 
 
+@njit(cache=True, nogil=True, inline="always")
+def mode_tuple(mode):
+    """Frozen regions ``M = (r0, |r0|, rb0..rb3, |rb0|..|rb3|)`` (floats) from ``mode[0:5]``."""
+    return (
+        float(mode[0]), float(abs(mode[0])),
+        float(mode[1]), float(mode[2]), float(mode[3]), float(mode[4]),
+        float(abs(mode[1])), float(abs(mode[2])), float(abs(mode[3])), float(abs(mode[4])),
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True, inline="always")
+def mesh_force(c, x, v, P, r0, s0):
+    """Mesh force ``F = (1 + eps c) f(x, b) + 2 xi x'`` (units of Km b_c), ``c = cos(w tau)``.
+
+    ``r0`` is the frozen mesh region and ``s0 = |r0|`` (so ``f = s0 x - r0 b``).
+    """
+    return (1.0 + P[P_EPS] * c) * (s0 * x - r0 * P[P_B]) + P[P_XI2] * v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def field_state(c, s, lam, vr, y, P, M):
+    """Right-hand side of the state with frozen regions: a 10-tuple ``dy/dtau``.
+
+    ``c, s`` = cos, sin of the mesh phase ``w tau``; ``lam`` the friction direction (+/-1);
+    ``vr`` the variable-ratio forcing ``A w^2 sin(nu w tau)``; ``y`` the state (10-tuple);
+    ``P`` the field parameters (:func:`field_params`); ``M`` the frozen regions
+    (:func:`mode_tuple`).
+    """
+    (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3) = P  # fmt: skip
+    (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
+    F = (1.0 + eps * c) * (s0 * y[0] - r0 * b) + xi2 * y[1]
+    drive = fm + few2 * (c * cphi - s * sphi) + vr
+    a_py = -z0 * y[3] - k0 * (sb0 * y[2] - rb0 * g0) - rpca * F
+    a_pz = -z1 * y[5] - k1 * (sb1 * y[4] - rb1 * g1) - rpsa * F
+    a_gy = -z2 * y[7] - k2 * (sb2 * y[6] - rb2 * g2) + rgca * F
+    a_gz = -z3 * y[9] - k3 * (sb3 * y[8] - rb3 * g3) + rgsa * F
+    acc = drive - F * (1.0 + gam * lam) + (a_py - a_gy) * ca + (a_pz - a_gz) * sa
+    return (y[1], acc, y[3], a_py, y[5], a_pz, y[7], a_gy, y[9], a_gz)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def field_tangent(c, lam, z, P, M):
+    """Jacobian-vector product ``J z`` of the same frozen (piecewise-linear) field: a 10-tuple.
+
+    The Jacobian of the region's field; exact across switches (continuous field, identity
+    saltation matrix).
+    """
+    (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3) = P  # fmt: skip
+    (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
+    dF = (1.0 + eps * c) * s0 * z[0] + xi2 * z[1]
+    d_py = -z0 * z[3] - k0 * sb0 * z[2] - rpca * dF
+    d_pz = -z1 * z[5] - k1 * sb1 * z[4] - rpsa * dF
+    d_gy = -z2 * z[7] - k2 * sb2 * z[6] + rgca * dF
+    d_gz = -z3 * z[9] - k3 * sb3 * z[8] + rgsa * dF
+    dacc = -dF * (1.0 + gam * lam) + (d_py - d_gy) * ca + (d_pz - d_gz) * sa
+    return (z[1], dacc, z[3], d_py, z[5], d_pz, z[7], d_gy, z[9], d_gz)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def variable_ratio(p, c_nu, s_nu):
+    """Variable-ratio forcing from ``cos``/``sin`` of ``nu w t`` within the current period."""
+    return p[P_VRS] * c_nu + p[P_VRC] * s_nu
+
+
 @njit(cache=True, nogil=True)
-def mesh_force(t, x, v, p, region):
-    """Dimensionless mesh force ``F = (1 + eps cos(w t)) f(x, b) + 2 xi x'`` (units of Km b_c)."""
-    return (1.0 + p[P_EPS] * math.cos(p[P_W] * t)) * dead_zone(x, p[P_B], region) + 2.0 * p[
-        P_XI
-    ] * v
+def period_forcing(vra, nu, k):
+    """Variable-ratio phase of period ``k``: ``(A w^2 sin(2 pi nu k), A w^2 cos(2 pi nu k))``."""
+    if vra != 0.0:
+        a = 2.0 * math.pi * ((nu * k) % 1.0)
+        return vra * math.sin(a), vra * math.cos(a)
+    return 0.0, 0.0
+
+
+@njit(cache=True, nogil=True)
+def set_period(p, k):
+    """Set the per-period slots of ``p`` for absolute period ``k`` (variable-ratio phase)."""
+    p[P_VRS], p[P_VRC] = period_forcing(p[P_VRA], p[P_VR_ORDER], k)
 
 
 @njit(cache=True, nogil=True)
 def rhs(t, y, p, mode, dy, tangent):
-    """Right-hand side ``dy = g(t, y)`` with every dead zone frozen in ``mode``.
+    """Array form of the field: ``dy = g(t, y)`` with every dead zone frozen in ``mode``.
 
-    ``t`` is measured from ``p[P_T0]`` (the integrator passes time within the mesh period and the
-    period's absolute start in ``p[P_T0]``; with ``p[P_T0] = 0`` it is absolute time).
-
-    ``mode[0:5]`` are the regions (-1, 0, +1) of the mesh and bearing dead zones, ``mode[5]`` the
-    friction direction ``lambda = sign(sin(w tau))`` on the current step.
-
-    If ``tangent`` is true, ``y[10:20]`` is a tangent vector and ``dy[10:20]`` receives the
-    Jacobian-vector product of the same frozen (piecewise-linear) field.
+    ``t`` is the time within the current mesh period (the integrator sets the period's slots
+    with :func:`set_period`); ``mode[0:5]`` are the regions (-1, 0, +1) of the mesh and bearing
+    dead zones, ``mode[5]`` the friction direction on the current step. If ``tangent`` is true,
+    ``y[10:20]`` is a tangent vector and ``dy[10:20]`` receives ``J z``.
     """
     w = p[P_W]
     ph = w * t
     c = math.cos(ph)
-    sn = math.sin(ph)
-    stiff = 1.0 + p[P_EPS] * c
-    xi = p[P_XI]
-    x = y[0]
-    v = y[1]
-    F = stiff * dead_zone(x, p[P_B], mode[0]) + 2.0 * xi * v
-    fric = 1.0
-    if p[P_GAMMA] != 0.0:
-        # lambda = sign(sin(w tau)) is frozen per step like the dead zones: the integrator lands
-        # on the half-period times where it flips, so a step never straddles the jump and a
-        # stage exactly on it cannot pick the wrong side through rounding of w tau
-        fric = 1.0 + p[P_GAMMA] * mode[MODE_FRICTION]
-    # cos(ph + phi_e) by the addition theorem (phi_e's cos/sin are precomputed)
-    drive = p[P_FM] + p[P_FE] * w * w * (c * p[P_COS_PHI_E] - sn * p[P_SIN_PHI_E])
-    if p[P_VR_AMP] != 0.0:
-        drive += p[P_VR_AMP] * w * w * math.sin(p[P_VR_ORDER] * w * (t + p[P_T0]))
-    acc = drive - F * fric
-    dy[0] = v
-    s_mesh = 1.0 if mode[0] != 0 else 0.0
-    if p[P_DOF6] != 0.0:
-        ca = p[P_COS_ALPHA]
-        sa = p[P_SIN_ALPHA]
-        rp = p[P_RHO_P]
-        rg = p[P_RHO_G]
-        a_py = (
-            -2.0 * p[P_XI_BRG] * y[3]
-            - p[P_KAPPA] * dead_zone(y[2], p[P_B_BRG], mode[1])
-            - rp * F * ca
-        )
-        a_pz = (
-            -2.0 * p[P_XI_BRG + 1] * y[5]
-            - p[P_KAPPA + 1] * dead_zone(y[4], p[P_B_BRG + 1], mode[2])
-            - rp * F * sa
-        )
-        a_gy = (
-            -2.0 * p[P_XI_BRG + 2] * y[7]
-            - p[P_KAPPA + 2] * dead_zone(y[6], p[P_B_BRG + 2], mode[3])
-            + rg * F * ca
-        )
-        a_gz = (
-            -2.0 * p[P_XI_BRG + 3] * y[9]
-            - p[P_KAPPA + 3] * dead_zone(y[8], p[P_B_BRG + 3], mode[4])
-            + rg * F * sa
-        )
-        acc += (a_py - a_gy) * ca + (a_pz - a_gz) * sa
-        dy[1] = acc
-        dy[2] = y[3]
-        dy[3] = a_py
-        dy[4] = y[5]
-        dy[5] = a_pz
-        dy[6] = y[7]
-        dy[7] = a_gy
-        dy[8] = y[9]
-        dy[9] = a_gz
-        if tangent:
-            dF = stiff * s_mesh * y[10] + 2.0 * xi * y[11]
-            d_py = (
-                -2.0 * p[P_XI_BRG] * y[13]
-                - p[P_KAPPA] * (1.0 if mode[1] != 0 else 0.0) * y[12]
-                - rp * dF * ca
-            )
-            d_pz = (
-                -2.0 * p[P_XI_BRG + 1] * y[15]
-                - p[P_KAPPA + 1] * (1.0 if mode[2] != 0 else 0.0) * y[14]
-                - rp * dF * sa
-            )
-            d_gy = (
-                -2.0 * p[P_XI_BRG + 2] * y[17]
-                - p[P_KAPPA + 2] * (1.0 if mode[3] != 0 else 0.0) * y[16]
-                + rg * dF * ca
-            )
-            d_gz = (
-                -2.0 * p[P_XI_BRG + 3] * y[19]
-                - p[P_KAPPA + 3] * (1.0 if mode[4] != 0 else 0.0) * y[18]
-                + rg * dF * sa
-            )
-            dy[10] = y[11]
-            dy[11] = -dF * fric + (d_py - d_gy) * ca + (d_pz - d_gz) * sa
-            dy[12] = y[13]
-            dy[13] = d_py
-            dy[14] = y[15]
-            dy[15] = d_pz
-            dy[16] = y[17]
-            dy[17] = d_gy
-            dy[18] = y[19]
-            dy[19] = d_gz
-    else:
-        dy[1] = acc
-        for k in range(2, 10):
-            dy[k] = 0.0
-        if tangent:
-            dF = stiff * s_mesh * y[10] + 2.0 * xi * y[11]
-            dy[10] = y[11]
-            dy[11] = -dF * fric
-            for k in range(12, 20):
-                dy[k] = 0.0
+    s = math.sin(ph)
+    vr = 0.0
+    if p[P_VRA] != 0.0:
+        pn = p[P_VR_ORDER] * ph
+        vr = variable_ratio(p, math.cos(pn), math.sin(pn))
+    P = field_params(p, 0, 1)
+    M = mode_tuple(mode)
+    lam = float(mode[MODE_FRICTION])
+    ys = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9])
+    d = field_state(c, s, lam, vr, ys, P, M)
+    for i in range(N_STATE):
+        dy[i] = d[i]
+    if tangent:
+        z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
+        dz = field_tangent(c, lam, z, P, M)
+        for i in range(N_STATE):
+            dy[10 + i] = dz[i]
 
 
 def static_state(params_array: np.ndarray) -> np.ndarray:
     """Static equilibrium under the mean load alone (a default initial condition).
 
-    Mesh: ``f(x, b) = Fm`` so ``x = b + Fm``; bearings: ``kappa f(u) = -/+ rho Fm d_j``.
+    Mesh: ``f(x, b) = Fm`` so ``x = b + Fm``; bearings: ``kappa f(u) = -/+ rho Fm d_j``
+    (at rest, zero in the single-DOF model).
     """
     p = params_array
     y = np.zeros(N_STATE)
@@ -230,7 +314,19 @@ def static_state(params_array: np.ndarray) -> np.ndarray:
         loads = (-p[P_RHO_P] * fm * ca, -p[P_RHO_P] * fm * sa, p[P_RHO_G] * fm * ca,
                  p[P_RHO_G] * fm * sa)
         for k in range(4):
-            u = loads[k] / p[P_KAPPA + k]
-            gap = p[P_B_BRG + k]
+            u = loads[k] / p[P_KAP + k]
+            gap = p[P_GAP + k]
             y[2 + 2 * k] = u + math.copysign(gap, u) if u != 0.0 else 0.0
     return y
+
+
+def project_tangent(v: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """A unit tangent vector on the states the model evolves (frozen states get zero).
+
+    In the single-DOF model the bearing states are frozen; a tangent component there would
+    never decay and would pull the Lyapunov estimate to zero.
+    """
+    out = np.array(v, dtype=float)
+    out[n_evolved(p):] = 0.0
+    nrm = np.linalg.norm(out)
+    return out / nrm if nrm > 0 else out

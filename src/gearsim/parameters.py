@@ -205,28 +205,5 @@ class ModelParameters:
         return 2.0 * math.pi / self.w
 
     def to_array(self) -> np.ndarray:
-        """Pack into the float64 vector the Numba kernels read (layout in :mod:`gearsim.model`)."""
-        p = np.zeros(_m.N_PARAMS)
-        p[_m.P_W] = self.w
-        p[_m.P_FM] = self.Fm
-        p[_m.P_FE] = self.Fe
-        p[_m.P_EPS] = self.eps
-        p[_m.P_XI] = self.xi
-        p[_m.P_B] = self.b
-        p[_m.P_PHI_E] = self.phi_e
-        p[_m.P_GAMMA] = self.friction
-        p[_m.P_ALPHA] = self.alpha
-        p[_m.P_VR_AMP] = self.var_ratio
-        p[_m.P_VR_ORDER] = self.var_ratio_order
-        p[_m.P_RHO_P] = self.rho_p
-        p[_m.P_RHO_G] = self.rho_g
-        p[_m.P_DOF6] = 1.0 if self.model == "6dof" else 0.0
-        p[_m.P_COS_ALPHA] = math.cos(self.alpha)
-        p[_m.P_SIN_ALPHA] = math.sin(self.alpha)
-        p[_m.P_COS_PHI_E] = math.cos(self.phi_e)
-        p[_m.P_SIN_PHI_E] = math.sin(self.phi_e)
-        for k, name in enumerate(("py", "pz", "gy", "gz")):
-            p[_m.P_KAPPA + k] = getattr(self, f"kappa_{name}")
-            p[_m.P_XI_BRG + k] = getattr(self, f"xi_{name}")
-            p[_m.P_B_BRG + k] = getattr(self, f"b_{name}")
-        return p
+        """The float64 vector the Numba kernels read (:func:`gearsim.model.pack_parameters`)."""
+        return _m.pack_parameters(self)

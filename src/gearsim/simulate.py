@@ -1,209 +1,41 @@
 """Drivers: integrate a cell to its steady motion and classify it; record trajectories.
 
-``simulate_cell`` runs a transient without the tangent vector, then measures in chunks of mesh
-periods (tangent vector on) and stops as soon as a period ``n <= n_max`` is established and
-confirmed, or when the budget ``max_periods`` is spent (then chaos / quasi-periodic / unsettled is
-decided by the Lyapunov exponent).
+``simulate_cell`` runs a transient (its last ``tangent_lead`` periods with the tangent vector),
+then measures in chunks of mesh periods and stops as soon as a period ``n <= n_max`` is
+established and confirmed, or when the budget ``max_periods`` is spent (then chaos,
+quasi-periodic or unsettled is decided by the Lyapunov exponent).
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import asdict, dataclass, field, replace
+import typing
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
 from .classify import Classification, PeriodSummaries, classify_motion, estimate_period
-from .integrate import METHODS, STATUS_OK, integrate_periods
-from .model import N_STATE, static_state
+from .integrate import STATUS_OK, IntegrationSettings, Run, run_periods
+from .model import N_STATE, pack_parameters, project_tangent, static_state
 from .parameters import ModelParameters, ParameterError
+from .variational import Spectrum, lyapunov_spectrum
+
+__all__ = [
+    "TANGENT_SEED",
+    "IntegrationSettings",
+    "Run",
+    "run_periods",
+    "CellResult",
+    "result_columns",
+    "simulate_cell",
+    "finish_cell",
+    "diverged_result",
+    "initial_tangent",
+    "Trajectory",
+    "trajectory",
+]
 
 TANGENT_SEED = 20251022  # fixed seed of the initial tangent vector (recorded in provenance)
-
-
-@dataclass(frozen=True)
-class IntegrationSettings:
-    """Numerical settings of a cell simulation (all times in mesh periods unless stated).
-
-    method
-        ``"dp5"`` adaptive Dormand-Prince 5(4) or ``"rk4"`` fixed step.
-    rtol, atol
-        DP5 tolerances (RMS norm over the physical states).
-    hmax
-        Absolute step cap in dimensionless time (stiff bearing modes at low ``w``).
-    steps_per_period
-        RK4 steps per mesh period (raised to ``ceil(T / hmax)`` when needed).
-    transient
-        Periods integrated before measuring, starting from the static state / ``u0``.
-    transient_continuation
-        Periods of transient when a continuation start ``u0`` is given.
-    chunk
-        Periods per measuring chunk; the period is tested after each chunk.
-    max_periods
-        Budget of measured periods.
-    n_max, period_rtol
-        Largest period looked for, relative tolerance of the period test.
-    lyap_threshold
-        Lyapunov exponents above it (per unit tau) mean chaos, within +/- it quasi-periodic.
-    divergence_bound
-        A state component beyond it (or NaN) ends the cell with status ``diverged``.
-    """
-
-    method: str = "dp5"
-    rtol: float = 1e-9
-    atol: float = 1e-12
-    hmax: float = 0.2
-    steps_per_period: int = 256
-    transient: int = 150
-    transient_continuation: int = 16
-    chunk: int = 24
-    max_periods: int = 256
-    n_max: int = 64
-    period_rtol: float = 1e-5
-    lyap_threshold: float = 0.005
-    divergence_bound: float = 1.0e6
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ParameterError(
-                f"setting 'method' = {self.method!r}; allowed: {', '.join(METHODS)}"
-            )
-        positive = {
-            "rtol": (0, 1),
-            "atol": (0, 1),
-            "hmax": (0, 100),
-            "period_rtol": (0, 1),
-            "lyap_threshold": (0, 10),
-            "divergence_bound": (0, 1e300),
-        }
-        for name, (lo, hi) in positive.items():
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and lo < v < hi):
-                raise ParameterError(f"setting '{name}' = {v!r} must be in ({lo}, {hi})")
-        integers = {
-            "steps_per_period": 4,
-            "transient": 0,
-            "transient_continuation": 0,
-            "chunk": 4,
-            "max_periods": 8,
-            "n_max": 1,
-        }
-        for name, lo in integers.items():
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-                raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= {lo}")
-
-    @classmethod
-    def from_config(cls, config: Any = None) -> IntegrationSettings:
-        """The study's settings: ``config['integration']`` of a loaded configuration, or with no
-        argument those of ``config/config.yaml`` (:func:`gearsim.config.study_config`: RK4, 256
-        steps per period, a 40-period continuation transient), as the pipeline uses them."""
-        # imported here: gearsim.config builds on this module (pipe session's addition)
-        from .config import integration_settings, study_config
-
-        return integration_settings(study_config() if config is None else config)
-
-    def with_(self, **changes: Any) -> IntegrationSettings:
-        return replace(self, **changes)
-
-    def tightened(self) -> IntegrationSettings:
-        """Settings for convergence checks: 100x tighter DP5 tolerance, half the RK4 step."""
-        return replace(
-            self,
-            rtol=self.rtol / 100,
-            atol=self.atol / 100,
-            steps_per_period=self.steps_per_period * 2,
-            hmax=self.hmax / 2,
-        )
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-@dataclass
-class Run:
-    """Raw output of :func:`run_periods`."""
-
-    summaries: PeriodSummaries
-    state: np.ndarray  # final state (10, or 20 with tangent)
-    status: int
-    periods_done: int
-    events_t: np.ndarray
-    events_code: np.ndarray
-    n_events: int
-    h_last: float
-    n_steps: int
-    trajectory: np.ndarray | None
-
-
-def run_periods(
-    params: ModelParameters,
-    y0: np.ndarray,
-    n_periods: int,
-    settings: IntegrationSettings,
-    *,
-    start_period: int = 0,
-    tangent: bool = False,
-    substeps: int = 1,
-    record: bool = False,
-    event_capacity: int = 0,
-    h_init: float = 0.0,
-    parray: np.ndarray | None = None,
-) -> Run:
-    """Integrate ``n_periods`` mesh periods from ``y0`` (unchanged) at ``tau = start_period T``."""
-    p = params.to_array() if parray is None else parray
-    y = np.zeros(20)
-    y[: len(y0)] = y0
-    m = n_periods
-    sec = np.zeros((m, N_STATE))
-    ints = [np.zeros(m, dtype=np.int64) for _ in range(2)]
-    floats = [np.zeros(m) for _ in range(6)]
-    traj = np.zeros((m * substeps + 1 if record else 0, N_STATE))
-    ev_t = np.zeros(event_capacity)
-    ev_c = np.zeros(event_capacity, dtype=np.int64)
-    status, done, n_ev, h_last, n_steps = integrate_periods(
-        y,
-        start_period,
-        p,
-        METHODS[settings.method],
-        settings.rtol,
-        settings.atol,
-        settings.hmax,
-        settings.steps_per_period,
-        m,
-        substeps,
-        tangent,
-        h_init,
-        sec,
-        ints[0],
-        ints[1],
-        floats[0],
-        floats[1],
-        floats[2],
-        floats[3],
-        floats[4],
-        floats[5],
-        traj,
-        ev_t,
-        ev_c,
-        settings.divergence_bound,
-    )
-    s = PeriodSummaries(sec, ints[0], ints[1], *floats)
-    if done < m:
-        s = PeriodSummaries(*(getattr(s, f)[:done] for f in PeriodSummaries.__dataclass_fields__))
-    return Run(
-        summaries=s,
-        state=y[: 20 if tangent else 10].copy(),
-        status=int(status),
-        periods_done=int(done),
-        events_t=ev_t[: min(n_ev, event_capacity)],
-        events_code=ev_c[: min(n_ev, event_capacity)],
-        n_events=int(n_ev),
-        h_last=float(h_last),
-        n_steps=int(n_steps),
-        trajectory=traj if record else None,
-    )
 
 
 @dataclass
@@ -217,9 +49,10 @@ class CellResult:
     periods: int  # mesh periods integrated in all
     steps: int  # integrator steps taken
     params: ModelParameters = field(repr=False)
+    spectrum: Spectrum | None = field(default=None, repr=False)  # with simulate_cell(spectrum=)
 
     def row(self) -> dict[str, Any]:
-        """Flat record for tables (the catalogue's cell columns)."""
+        """Flat record for tables (the catalogue's cell columns: :func:`result_columns`)."""
         c = asdict(self.classification)
         c["kmax"] = self.classification.kmax
         c["periods"] = self.periods
@@ -227,9 +60,74 @@ class CellResult:
         return c
 
 
-def _initial_tangent() -> np.ndarray:
+def result_columns() -> dict[str, tuple[type, bool]]:
+    """Name -> (Python type, optional) of every column of :meth:`CellResult.row`, in order.
+
+    Derived from the fields of :class:`~gearsim.classify.Classification` (a new field there is a
+    new column in the tiles and the catalogue), plus ``kmax``, ``periods``, ``steps``. Floats are
+    optional (NaN is stored as NULL), as are the fields typed ``X | None`` (``p``, ``q``).
+    """
+    hints = typing.get_type_hints(Classification)
+    cols: dict[str, tuple[type, bool]] = {}
+    for f in fields(Classification):
+        t = hints[f.name]
+        args = [a for a in typing.get_args(t) if a is not type(None)]
+        base = args[0] if args else t
+        cols[f.name] = (base, bool(args) or base is float)
+    cols.update(kmax=(float, True), periods=(int, False), steps=(int, False))
+    return cols
+
+
+def initial_tangent(params: ModelParameters) -> np.ndarray:
+    """The fixed (seeded) initial tangent vector, on the states the model evolves.
+
+    In the single-DOF model the bearing states are frozen: their tangent components are zero, so
+    the Lyapunov exponent measures the mesh mode (a frozen component would never decay and pull
+    the estimate to zero).
+    """
     v = np.random.default_rng(TANGENT_SEED).standard_normal(N_STATE)
-    return v / np.linalg.norm(v)
+    return project_tangent(v / np.linalg.norm(v), pack_parameters(params))
+
+
+def diverged_result(params: ModelParameters, k: int, steps: int) -> CellResult:
+    """The record of a cell whose integration diverged (or collapsed its step)."""
+    nan = float("nan")
+    values = {f.name: nan for f in fields(Classification)}
+    values.update(motion="diverged", status="diverged", I=0, n=0, p=None, q=None,
+                  label="diverged", label_npq="", converged=False, window_periods=0)
+    final = static_state(pack_parameters(params))
+    return CellResult(Classification(**values), final, 0, np.zeros((0, N_STATE)), k, steps,
+                      params)
+
+
+def finish_cell(
+    params: ModelParameters,
+    summaries: PeriodSummaries,
+    n: int,
+    st: IntegrationSettings,
+    final_state: np.ndarray,
+    k: int,
+    start_period: int,
+    steps: int,
+) -> CellResult:
+    """Classify the measured periods of a cell (period ``n``, 0 if none) into its result.
+
+    Whole motion periods only are analysed; the early part of a long measurement is dropped.
+    The one tail of :func:`simulate_cell` and of the batched driver.
+    """
+    if n > 0:
+        keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
+        window = summaries.tail(keep)
+    else:
+        window = summaries
+    cls = classify_motion(
+        window, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
+        Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold,
+    )  # fmt: skip
+    n_keep = n if n > 0 else min(len(window), 2 * st.n_max)
+    poincare = window.section[-n_keep:].copy()
+    return CellResult(cls, np.asarray(final_state, dtype=float)[:N_STATE].copy(), k, poincare,
+                      k - start_period, steps, params)
 
 
 def simulate_cell(
@@ -240,6 +138,7 @@ def simulate_cell(
     transient: int | None = None,
     samples: int | None = None,
     start_period: int = 0,
+    spectrum: bool | int = False,
 ) -> CellResult:
     """Integrate one parameter cell to its steady motion and classify it.
 
@@ -255,6 +154,10 @@ def simulate_cell(
         ``max_periods``.
     start_period
         Absolute period index of ``u0`` (matters only for the slow variable-ratio forcing).
+    spectrum
+        Also compute all Lyapunov exponents (:func:`gearsim.variational.lyapunov_spectrum`) on
+        the steady motion: ``True`` over ``max(200, analysed window)`` periods, an integer over
+        that many periods. Stored in ``CellResult.spectrum`` (sum checked against the trace).
     """
     st = settings or IntegrationSettings()
     if transient is None:
@@ -268,11 +171,17 @@ def simulate_cell(
     steps = 0
     h = 0.0
     status = STATUS_OK
-    if transient > 0:
-        r = run_periods(params, y, transient, st, start_period=k, parray=p)
+    lead = min(st.tangent_lead, transient)
+    if transient - lead > 0:
+        r = run_periods(params, y, transient - lead, st, start_period=k, parray=p)
         y, k, steps, h, status = r.state, k + r.periods_done, r.n_steps, r.h_last, r.status
     parts: list[PeriodSummaries] = []
-    yt = np.concatenate([y, _initial_tangent()])
+    yt = np.concatenate([y, initial_tangent(params)])
+    if lead > 0 and status == STATUS_OK:
+        # the tangent vector aligns during the end of the transient (not recorded)
+        r = run_periods(params, yt, lead, st, start_period=k, tangent=True, h_init=h, parray=p)
+        yt, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
+        steps += r.n_steps
     n = 0
     measured = 0
     while status == STATUS_OK and measured < max_periods:
@@ -293,36 +202,14 @@ def simulate_cell(
             break
     summaries = PeriodSummaries.concat(parts) if parts else None
     if status != STATUS_OK or summaries is None or len(summaries) == 0:
-        cls = Classification(
-            motion="diverged", status="diverged", I=0, n=0, p=None, q=None, label="diverged",
-            label_npq="", dc=float("nan"), kmax_peak_mean=float("nan"),
-            kmax_peak_static=float("nan"), kmax_section_mean=float("nan"),
-            kmax_section_static=float("nan"), kmin_peak_mean=float("nan"),
-            lyapunov=float("nan"), x_min=float("nan"), x_max=float("nan"), converged=False,
-            window_periods=0,
-        )
-        final = static_state(p)
-        return CellResult(cls, final, 0, np.zeros((0, N_STATE)), k, steps, params)
-    if n > 0:
-        # analyse whole motion periods only; drop the early part of the measurement when long
-        keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
-        window = summaries.tail(keep)
-    else:
-        window = summaries
-    cls = classify_motion(
-        window,
-        w=params.w,
-        b=params.b,
-        eps=params.eps,
-        xi=params.xi,
-        Fm=params.Fm,
-        Fe=params.Fe,
-        n=n,
-        lyap_threshold=st.lyap_threshold,
-    )
-    n_keep = n if n > 0 else min(len(window), 2 * st.n_max)
-    poincare = window.section[-n_keep:].copy()
-    return CellResult(cls, yt[:N_STATE].copy(), k, poincare, k - start_period, steps, params)
+        return diverged_result(params, k, steps)
+    res = finish_cell(params, summaries, n, st, yt, k, start_period, steps)
+    if spectrum:
+        periods = (max(200, res.classification.window_periods) if spectrum is True
+                   else int(spectrum))
+        res.spectrum = lyapunov_spectrum(params, res.final_state, periods, st,
+                                         start_period=res.final_period)
+    return res
 
 
 @dataclass

@@ -48,6 +48,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--check", action="store_true", help="re-run at tightened tolerance and compare"
     )
+    p.add_argument(
+        "--spectrum", nargs="?", type=int, const=0, default=None, metavar="PERIODS",
+        help="also compute all Lyapunov exponents (QR of a tangent basis) over PERIODS mesh "
+        "periods (default: max(200, analysed window)); the sum is checked against the trace",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -69,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
         source += " + --set " + ", ".join(f"{k}={v}" for k, v in sets.items())
     settings = settings_from_args(args)
     t0 = time.perf_counter()
-    res = simulate_cell(params, settings=settings)
+    spectrum = False if args.spectrum is None else (args.spectrum or True)
+    res = simulate_cell(params, settings=settings, spectrum=spectrum)
     elapsed = time.perf_counter() - t0
     c = res.classification
     row = res.row()
@@ -84,6 +90,11 @@ def run(args: argparse.Namespace) -> int:
         row["tight_label"] = tight.label
         row["tight_npq"] = tight.label_npq
         row["classification_stable"] = tight.label == c.label and tight.label_npq == c.label_npq
+    if res.spectrum is not None:
+        row["spectrum"] = [float(v) for v in res.spectrum.exponents]
+        row["spectrum_sum"] = float(res.spectrum.exponents.sum())
+        row["spectrum_trace"] = res.spectrum.trace
+        row["spectrum_ok"] = res.spectrum.ok()
     if args.json:
         print(json.dumps(json_safe(row), allow_nan=False))
     else:
@@ -98,6 +109,11 @@ def run(args: argparse.Namespace) -> int:
         if args.check:
             line += f" tight={row['tight_label']} stable={row['classification_stable']}"
         print(line)
+        if res.spectrum is not None:
+            sp = res.spectrum
+            print("spectrum (per unit tau): " + " ".join(f"{v:+.5f}" for v in sp.exponents)
+                  + f"  sum={sp.exponents.sum():+.5f} trace={sp.trace:+.5f} "
+                  + ("ok" if sp.ok() else "SUM DOES NOT MATCH THE TRACE"))
         if gear is not None:
             from ..units import physical_line
 

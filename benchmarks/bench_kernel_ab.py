@@ -1,0 +1,131 @@
+"""Batched kernel before and after the one-source refactor, side by side in one run.
+
+The old kernel is the package as of a git revision (default ``ef892c4``, the last commit before
+issue 10), exported with ``git archive`` into a temporary directory; the new one is this
+checkout's ``src``. Each version runs in its own interpreter (own Numba cache, warmed first) on the
+same cells, alternating old / new for several rounds so that both see the same machine load.
+Reported: batched RK4 cell-steps per second per core (CPU time), with and without the tangent
+vector, and the new/old ratio (target: >= 0.95).
+
+Usage: python benchmarks/bench_kernel_ab.py [--rev ef892c4] [--rounds 3] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from _common import loadavg, save
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Runs inside each version's interpreter: prints one JSON line of timings.
+WORKER = r"""
+import json, sys, time
+import numpy as np
+from gearsim import batch
+from gearsim.model import static_state
+from gearsim.parameters import ModelParameters
+from gearsim.simulate import IntegrationSettings, run_periods
+try:
+    from gearsim.simulate import initial_tangent as _it
+    tangent0 = lambda p: _it(p)
+except ImportError:
+    tangent0 = lambda p: batch.initial_tangent()
+n, periods, repeats = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+ws = np.linspace(0.6, 2.4, n)
+cs = [ModelParameters(w=float(w), b=(0.15, 0.3, 1.0)[i % 3]) for i, w in enumerate(ws)]
+st = IntegrationSettings(method="rk4")
+y0 = []
+for p in cs:
+    r = run_periods(p, static_state(p.to_array()), 100, st)
+    y0.append(np.concatenate([r.state, tangent0(p)]))
+y0 = np.array(y0)
+lanes = batch.Lanes(n, periods)
+N = 256
+out = {}
+for tangent in (False, True):
+    def setup():
+        lanes.ist[:] = 0
+        lanes.ist[batch._POS] = 0
+        lanes.ist[batch._K] = 100
+        for l, p in enumerate(cs):
+            lanes.load_params(l, p, N)
+            lanes.load_state(l, y0[l])
+    setup()
+    lanes.run(N, 1, 0.0, 1e6, tangent)  # compile / load the cache
+    cpu = []
+    for _ in range(repeats):
+        setup()  # lane set-up (Python) is not the kernel: outside the timing
+        c0 = time.process_time()
+        lanes.run(N, periods, 0.0, 1e6, tangent)
+        cpu.append(time.process_time() - c0)
+        steps = int(lanes.ist[batch._STEPS, :n].sum())
+    grid = n * periods * N
+    out["tangent" if tangent else "state"] = {
+        "cpu_median_s": sorted(cpu)[len(cpu) // 2], "cpu_min_s": min(cpu),
+        "cell_steps": grid, "steps_with_fixups": steps,
+        "cell_steps_per_s_cpu": grid / sorted(cpu)[len(cpu) // 2],
+    }
+print(json.dumps(out))
+"""
+
+
+def export(rev: str, dest: Path) -> Path:
+    """``git archive`` of ``src`` at ``rev`` into ``dest``; returns the src directory."""
+    dest.mkdir(parents=True, exist_ok=True)
+    tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "src"], check=True,
+                         capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(dest)], input=tar, check=True)
+    return dest / "src"
+
+
+def run_version(src: Path, cache: Path, n: int, periods: int, repeats: int) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache),
+               NUMBA_NUM_THREADS="1")
+    res = subprocess.run([sys.executable, "-c", WORKER, str(n), str(periods), str(repeats)],
+                         env=env, check=True, capture_output=True, text=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rev", default="ef892c4", help="git revision of the old kernel")
+    ap.add_argument("--rounds", type=int, default=3, help="alternating old/new rounds")
+    ap.add_argument("--quick", action="store_true", help="fewer periods")
+    args = ap.parse_args(argv)
+    n, periods, repeats = 32, (40 if args.quick else 200), 5
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        versions = {"old": export(args.rev, tmp / "old"), "new": ROOT / "src"}
+        caches = {"old": tmp / "cache_old", "new": tmp / "cache_new"}
+        rounds: dict[str, list[dict]] = {"old": [], "new": []}
+        for r in range(args.rounds):
+            for name in ("old", "new"):
+                res = run_version(versions[name], caches[name], n, periods, repeats)
+                rounds[name].append(res)
+                print(f"round {r} {name}: state {res['state']['cell_steps_per_s_cpu'] / 1e6:.2f}"
+                      f" M/s, tangent {res['tangent']['cell_steps_per_s_cpu'] / 1e6:.2f} M/s"
+                      f"  load {loadavg()}", flush=True)
+    summary = {}
+    for kind in ("state", "tangent"):
+        med = {v: statistics.median(x[kind]["cell_steps_per_s_cpu"] for x in rounds[v])
+               for v in ("old", "new")}
+        summary[kind] = {"old_cell_steps_per_s": med["old"], "new_cell_steps_per_s": med["new"],
+                         "new_over_old": med["new"] / med["old"]}
+        print(f"{kind:8s} old {med['old'] / 1e6:.2f} M/s  new {med['new'] / 1e6:.2f} M/s  "
+              f"ratio {med['new'] / med['old']:.3f}")
+    path = save("kernel_ab", {"rev_old": args.rev, "lanes": n, "periods": periods,
+                              "rounds": rounds, "summary": summary})
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
