@@ -90,6 +90,7 @@ __all__ = [
     "IntegrationSettings",
     "Run",
     "run_periods",
+    "steps_lower_bound",
     "start_period_accumulators",
     "end_period_tangent",
 ]
@@ -340,6 +341,10 @@ class IntegrationSettings:
         Lyapunov exponents above it (per unit tau) mean chaos, within +/- it quasi-periodic.
     divergence_bound
         A state component beyond it (or NaN) ends the cell with status ``diverged``.
+    max_steps
+        Budget of integrator steps per cell: a cell that needs more (e.g. ``w -> 0``, where the
+        step cap ``hmax`` makes a period cost ``T / hmax`` steps) ends with status ``budget``
+        and the run goes on.
     tangent_lead
         Periods at the end of the transient during which the tangent vector already runs, so
         that it is aligned with the most unstable direction when measuring starts (a fresh
@@ -360,6 +365,7 @@ class IntegrationSettings:
     lyap_threshold: float = 0.005
     divergence_bound: float = 1.0e6
     tangent_lead: int = 24
+    max_steps: int = 5_000_000
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -386,6 +392,7 @@ class IntegrationSettings:
             "max_periods": 8,
             "n_max": 1,
             "tangent_lead": 0,
+            "max_steps": 1000,
         }
         for name, lo in integers.items():
             v = getattr(self, name)
@@ -482,3 +489,13 @@ def run_periods(
         n_steps=int(n_steps),
         trajectory=traj if record else None,
     )
+
+
+def steps_lower_bound(params: ModelParameters, settings: IntegrationSettings,
+                      periods: int) -> int:
+    """Fewest steps ``periods`` mesh periods can take (RK4: its grid; DP5: the step cap)."""
+    if settings.method == "rk4":
+        per = rk4_steps_per_period(params, settings)
+    else:
+        per = int(math.ceil(params.mesh_period / settings.hmax))
+    return per * int(periods)
