@@ -60,3 +60,36 @@ def test_orbit_diagram_directions():
     assert list(fw.value) == sorted(vals) and list(bw.value) == sorted(vals, reverse=True)
     assert {"label", "label_npq", "dc", "kmax", "poincare_x"} <= set(fw.columns)
     assert all(len(px) == n for px, n in zip(fw.poincare_x, fw.n, strict=True))
+
+
+def test_step_budget_ends_a_cell_and_the_chain_goes_on():
+    """w -> 0: a period costs T / hmax steps; over the budget the cell is 'budget', at once."""
+    import time
+
+    from gearsim.batch import simulate_rows
+    from gearsim.sweep import continuation_chain
+
+    st = IntegrationSettings(method="rk4", max_steps=200_000)
+    cells = [ModelParameters(w=0.8), ModelParameters(w=1e-4), ModelParameters(w=0.9)]
+    t0 = time.perf_counter()
+    scalar = continuation_chain(cells, settings=st)
+    batched = simulate_rows([cells], settings=st)[0]
+    assert time.perf_counter() - t0 < 120  # not the ~2e7 steps per period of w = 1e-4
+    for res in (scalar, batched):
+        assert [r.classification.status for r in res] == ["ok", "budget", "ok"]
+        assert res[1].classification.label == "budget"
+        assert res[1].classification.motion == "unsettled"
+        assert res[1].steps == 0
+    # after a budget cell the chain restarts from rest, as after a diverged one
+    fresh = simulate_cell(cells[2], settings=st)
+    assert scalar[2].classification.label == fresh.classification.label
+    np.testing.assert_array_equal(batched[2].poincare, scalar[2].poincare)
+
+
+def test_step_budget_during_measurement():
+    """A cell still aperiodic when its steps exceed the budget stops at the next chunk."""
+    p = ModelParameters(w=1.45, b=1.0)  # chaotic: measures until max_periods without a budget
+    st = IntegrationSettings(method="rk4", max_steps=30_000, transient=60)
+    r = simulate_cell(p, settings=st)
+    assert r.classification.status == "budget"
+    assert 30_000 < r.steps < 30_000 + 25 * 256 * 2

@@ -54,7 +54,7 @@ from .events import (
     advance_interval,
     channels,
 )
-from .integrate import end_period_tangent
+from .integrate import end_period_tangent, steps_lower_bound
 from .model import (
     MODE_FRICTION,
     N_MODE,
@@ -80,6 +80,7 @@ from .simulate import (
     diverged_result,
     finish_cell,
     initial_tangent,
+    seeds_continuation,
 )
 from .steps import (
     FASTMATH,
@@ -550,6 +551,7 @@ def run_periods_batched(
 # ============================================================================ the driver
 _TRANSIENT = 0
 _LEAD = 2  # end of the transient with the tangent vector on (simulate_cell's tangent_lead)
+_BUDGET = 3  # the cell needs more steps than IntegrationSettings.max_steps: not integrated
 _MEASURE = 1
 
 
@@ -711,7 +713,10 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                 _finish(c, diverged_result(c.cells[c.i], c.k, c.steps), lanes, st,
                         continuation, on_cell)
             elif c.left == 0:
-                if c.phase == _TRANSIENT:
+                if c.phase == _BUDGET:
+                    _finish(c, diverged_result(c.cells[c.i], c.k, 0, status="budget"), lanes,
+                            st, continuation, on_cell)
+                elif c.phase == _TRANSIENT:
                     _begin_lead(c, lanes, st)
                 elif c.phase == _LEAD:
                     _begin_measure(c, lanes, st)
@@ -729,11 +734,16 @@ def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     if y.shape != (N_STATE,) or not np.all(np.isfinite(y)):
         raise ParameterError("initial state 'u0' must be 10 finite numbers")
     transient = st.transient if ch.start is None else st.transient_continuation
+    ch.k = ch.period
+    ch.steps = 0
+    if steps_lower_bound(params, st, transient + min(st.chunk, st.max_periods)) > st.max_steps:
+        # finished by the driver with status 'budget' (no phase tables of its huge grid)
+        ch.phase, ch.left, ch.N, ch.nu = _BUDGET, 0, int(st.steps_per_period), None
+        lanes.set(ch.lane, _H, 0.0)
+        return
     ch.N = steps_per_period(params, st)
     ch.h = params.mesh_period / ch.N
     ch.nu = params.var_ratio_order if params.var_ratio != 0.0 else None
-    ch.k = ch.period
-    ch.steps = 0
     ch.measured = 0
     lanes.load_params(ch.lane, params, ch.N)
     ch.tangent0 = initial_tangent(params)
@@ -776,6 +786,9 @@ def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_
         y = lanes.state(ch.lane, N_STATE)
         res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps)
         _finish(ch, res, lanes, st, continuation, on_cell)
+    elif ch.steps > st.max_steps:
+        res = diverged_result(params, ch.k, ch.steps, status="budget")
+        _finish(ch, res, lanes, st, continuation, on_cell)
     else:
         lanes.reset_modes(ch.lane)
         ch.left = min(st.chunk, st.max_periods - ch.measured)
@@ -785,7 +798,7 @@ def _finish(ch: _Chain, res: CellResult, lanes: Lanes, st, continuation, on_cell
     ch.results.append(res)
     if on_cell is not None:
         on_cell(ch.index, ch.i, res)
-    if continuation and res.classification.status != "diverged":
+    if continuation and seeds_continuation(res):
         ch.start, ch.period = res.final_state, res.final_period
     else:
         ch.start, ch.period = ch.u0, 0

@@ -387,13 +387,10 @@ class CellAttractor(Base):
     __table_args__ = (UniqueConstraint("cell_id", "attractor"), Index(None, "label"))
 
 
-class BifurcationPoint(Base):
-    """A bifurcation located by continuation (gearsim.continuation; docs/orbits.md)."""
+class _LocatedBifurcation:
+    """Columns of a located bifurcation: its kind, the orbit's period, the parameter value(s),
+    the section point and the Floquet multipliers there."""
 
-    __tablename__ = "bifurcation_points"
-    id: Mapped[int] = mapped_column(primary_key=True)
-    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
-    plane: Mapped[str] = mapped_column(String(64), index=True)
     kind: Mapped[str] = mapped_column(String(32))
     period: Mapped[int] = mapped_column(Integer)
     boundary: Mapped[str] = mapped_column(String(32))
@@ -408,7 +405,16 @@ class BifurcationPoint(Base):
     stable: Mapped[bool] = mapped_column(Boolean)
 
 
-class BifurcationCurve(Base):
+class BifurcationPoint(_LocatedBifurcation, Base):
+    """A bifurcation located by continuation (gearsim.continuation; docs/orbits.md)."""
+
+    __tablename__ = "bifurcation_points"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+
+
+class BifurcationCurve(_LocatedBifurcation, Base):
     """A point of a two-parameter bifurcation curve (gearsim.bifcurves; docs/orbits.md)."""
 
     __tablename__ = "bifurcation_curves"
@@ -416,18 +422,6 @@ class BifurcationCurve(Base):
     run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
     plane: Mapped[str] = mapped_column(String(64), index=True)
     curve: Mapped[int] = mapped_column(Integer)
-    kind: Mapped[str] = mapped_column(String(32))
-    period: Mapped[int] = mapped_column(Integer)
-    boundary: Mapped[str] = mapped_column(String(32))
-    name: Mapped[str] = mapped_column(String(32))
-    value: Mapped[float] = mapped_column(Float)
-    name2: Mapped[str] = mapped_column(String(32))
-    value2: Mapped[float] = mapped_column(Float)
-    x: Mapped[float] = mapped_column(Float)
-    v: Mapped[float] = mapped_column(Float)
-    mu_max: Mapped[float] = mapped_column(Float)
-    multipliers: Mapped[list] = mapped_column(JSON)
-    stable: Mapped[bool] = mapped_column(Boolean)
 
 
 class CellOrbit(Base):

@@ -90,6 +90,7 @@ __all__ = [
     "IntegrationSettings",
     "Run",
     "run_periods",
+    "steps_lower_bound",
     "start_period_accumulators",
     "end_period_tangent",
 ]
@@ -275,28 +276,19 @@ def integrate_periods(
             for s in range(substeps):
                 t_target = T if s == substeps - 1 else (s + 1) * T / substeps
                 th = 0.5 * T
-                if friction and t < th - 1e-14 * T and th < t_target:
+                while status == STATUS_OK and t < t_target:
                     # the friction direction flips at T/2: steps never straddle it
-                    mode[MODE_FRICTION] = 1
+                    stop = th if (friction and t < th - 1e-14 * T and th < t_target) else t_target
+                    lam = 1 if (not friction or t < th * (1.0 - 1e-12)) else -1
+                    if lam != mode[MODE_FRICTION]:
+                        mode[MODE_FRICTION] = lam
+                        acc[ACC_K1] = 0.0  # the FSAL stage saw the old direction
                     status = advance_interval(
-                        METHOD_DP5, t, th, y, pl, mode, gaps, active, n, nerr, tangent, ks,
+                        METHOD_DP5, t, stop, y, pl, mode, gaps, active, n, nerr, tangent, ks,
                         ytmp, ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code,
                         t_abs0,
                     )
-                    t = th
-                    acc[ACC_K1] = 0.0  # the FSAL stage saw the old direction
-                    if status != STATUS_OK:
-                        break
-                lam = 1 if (not friction or t < th * (1.0 - 1e-12)) else -1
-                if lam != mode[MODE_FRICTION]:
-                    mode[MODE_FRICTION] = lam
-                    acc[ACC_K1] = 0.0
-                status = advance_interval(
-                    METHOD_DP5, t, t_target, y, pl, mode, gaps, active, n, nerr, tangent, ks,
-                    ytmp, ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code,
-                    t_abs0,
-                )
-                t = t_target
+                    t = stop
                 if status != STATUS_OK:
                     break
                 if row < traj_rows:
@@ -349,6 +341,10 @@ class IntegrationSettings:
         Lyapunov exponents above it (per unit tau) mean chaos, within +/- it quasi-periodic.
     divergence_bound
         A state component beyond it (or NaN) ends the cell with status ``diverged``.
+    max_steps
+        Budget of integrator steps per cell: a cell that needs more (e.g. ``w -> 0``, where the
+        step cap ``hmax`` makes a period cost ``T / hmax`` steps) ends with status ``budget``
+        and the run goes on.
     tangent_lead
         Periods at the end of the transient during which the tangent vector already runs, so
         that it is aligned with the most unstable direction when measuring starts (a fresh
@@ -369,6 +365,7 @@ class IntegrationSettings:
     lyap_threshold: float = 0.005
     divergence_bound: float = 1.0e6
     tangent_lead: int = 24
+    max_steps: int = 5_000_000
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -395,6 +392,7 @@ class IntegrationSettings:
             "max_periods": 8,
             "n_max": 1,
             "tangent_lead": 0,
+            "max_steps": 1000,
         }
         for name, lo in integers.items():
             v = getattr(self, name)
@@ -491,3 +489,13 @@ def run_periods(
         n_steps=int(n_steps),
         trajectory=traj if record else None,
     )
+
+
+def steps_lower_bound(params: ModelParameters, settings: IntegrationSettings,
+                      periods: int) -> int:
+    """Fewest steps ``periods`` mesh periods can take (RK4: its grid; DP5: the step cap)."""
+    if settings.method == "rk4":
+        per = rk4_steps_per_period(params, settings)
+    else:
+        per = int(math.ceil(params.mesh_period / settings.hmax))
+    return per * int(periods)

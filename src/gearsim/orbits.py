@@ -32,9 +32,19 @@ from typing import Any
 import numpy as np
 
 from .integrate import STATUS_OK
-from .model import MODE_FRICTION, N_MODE, N_STATE, N_SWITCH, SWITCH_COORD, SWITCH_GAP, rhs
+from .model import (
+    MODE_FRICTION,
+    N_MODE,
+    N_STATE,
+    N_SWITCH,
+    SWITCH_COORD,
+    SWITCH_GAP,
+    n_evolved,
+    rhs,
+)
 from .parameters import ModelParameters, ParameterError
 from .simulate import IntegrationSettings, run_periods
+from .variational import monodromy
 
 #: integrator settings for shooting: DP5 at tight tolerance (map noise ~1e-13). The kernel's
 #: error norm covers the state only; in the 6-DOF model the tangent excites the fast bearing
@@ -58,7 +68,7 @@ class OrbitError(RuntimeError):
 
 def free_states(params: ModelParameters) -> np.ndarray:
     """Indices of the states the model evolves: ``(x, x')`` (1-DOF) or all ten (6-DOF)."""
-    return np.arange(2) if params.model == "1dof" else np.arange(N_STATE)
+    return np.arange(n_evolved(params.to_array()))
 
 
 def _check_params(params: ModelParameters) -> None:
@@ -82,32 +92,20 @@ def section_map(
 
     Returns ``(y_n, M)``: ``y_n`` the full 10-state after ``n`` mesh periods from ``tau = 0``,
     ``M`` the ``d x d`` matrix ``d y_n / d y_0`` restricted to :func:`free_states`.
+    The monodromy is the one variational computation, :func:`gearsim.variational.monodromy`.
     Raises :class:`OrbitError` if the integration diverges.
     """
     p = params.to_array() if parray is None else parray
     y0 = np.asarray(y0, dtype=float)[:N_STATE]
-    dims = free_states(params)
     if not jacobian:
         r = run_periods(params, y0, n, settings, parray=p)
         if r.status != STATUS_OK:
             raise OrbitError(f"integration diverged from {y0[:2]} at w = {params.w}")
         return r.state[:N_STATE].copy(), None
-    d = len(dims)
-    M = np.zeros((d, d))
-    yn = None
-    yt = np.zeros(2 * N_STATE)
-    yt[:N_STATE] = y0
-    for j, col in enumerate(dims):
-        yt[N_STATE:] = 0.0
-        yt[N_STATE + col] = 1.0
-        r = run_periods(params, yt, n, settings, tangent=True, parray=p)
-        if r.status != STATUS_OK:
-            raise OrbitError(f"integration diverged from {y0[:2]} at w = {params.w}")
-        growth = math.exp(float(np.sum(r.summaries.lyap)))
-        M[:, j] = r.state[N_STATE + dims] * growth
-        if yn is None:
-            yn = r.state[:N_STATE].copy()
-    return yn, M
+    yn, M, status = monodromy(params, y0, n, settings)
+    if status != STATUS_OK:
+        raise OrbitError(f"integration diverged from {y0[:2]} at w = {params.w}")
+    return yn.copy(), M
 
 
 def multiplier_kind(mu: complex) -> str:

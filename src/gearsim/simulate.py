@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from .classify import Classification, PeriodSummaries, classify_motion, estimate_period
-from .integrate import STATUS_OK, IntegrationSettings, Run, run_periods
+from .integrate import STATUS_OK, IntegrationSettings, Run, run_periods, steps_lower_bound
 from .model import N_STATE, pack_parameters, project_tangent, static_state
 from .parameters import ModelParameters, ParameterError
 from .variational import Spectrum, lyapunov_spectrum
@@ -30,6 +30,7 @@ __all__ = [
     "simulate_cell",
     "finish_cell",
     "diverged_result",
+    "seeds_continuation",
     "initial_tangent",
     "Trajectory",
     "trajectory",
@@ -89,15 +90,27 @@ def initial_tangent(params: ModelParameters) -> np.ndarray:
     return project_tangent(v / np.linalg.norm(v), pack_parameters(params))
 
 
-def diverged_result(params: ModelParameters, k: int, steps: int) -> CellResult:
-    """The record of a cell whose integration diverged (or collapsed its step)."""
+def diverged_result(params: ModelParameters, k: int, steps: int,
+                    status: str = "diverged") -> CellResult:
+    """The record of a cell that did not reach a steady motion.
+
+    ``status`` ``"diverged"`` (the state left the divergence bound, or the step collapsed) or
+    ``"budget"`` (the cell needs more than ``IntegrationSettings.max_steps`` steps; its motion
+    is ``unsettled``).
+    """
     nan = float("nan")
     values = {f.name: nan for f in fields(Classification)}
-    values.update(motion="diverged", status="diverged", I=0, n=0, p=None, q=None,
-                  label="diverged", label_npq="", converged=False, window_periods=0)
+    values.update(motion="diverged" if status == "diverged" else "unsettled", status=status,
+                  I=0, n=0, p=None, q=None, label=status, label_npq="", converged=False,
+                  window_periods=0)
     final = static_state(pack_parameters(params))
     return CellResult(Classification(**values), final, 0, np.zeros((0, N_STATE)), k, steps,
                       params)
+
+
+def seeds_continuation(res: CellResult) -> bool:
+    """Whether a cell's final state may start the next cell of a continuation chain."""
+    return res.classification.status not in ("diverged", "budget")
 
 
 def finish_cell(
@@ -171,6 +184,8 @@ def simulate_cell(
     steps = 0
     h = 0.0
     status = STATUS_OK
+    if steps_lower_bound(params, st, transient + min(st.chunk, max_periods)) > st.max_steps:
+        return diverged_result(params, k, 0, status="budget")
     lead = min(st.tangent_lead, transient)
     if transient - lead > 0:
         r = run_periods(params, y, transient - lead, st, start_period=k, parray=p)
@@ -200,6 +215,8 @@ def simulate_cell(
         )
         if n > 0:
             break
+        if steps > st.max_steps:
+            return diverged_result(params, k, steps, status="budget")
     summaries = PeriodSummaries.concat(parts) if parts else None
     if status != STATUS_OK or summaries is None or len(summaries) == 0:
         return diverged_result(params, k, steps)

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from .parameters import ModelParameters, ParameterError
-from .simulate import CellResult, IntegrationSettings, simulate_cell
+from .simulate import CellResult, IntegrationSettings, seeds_continuation, simulate_cell
 
 
 def continuation_chain(
@@ -22,7 +22,8 @@ def continuation_chain(
 ) -> list[CellResult]:
     """Simulate cells in order, each starting from the previous steady state when ``continuation``.
 
-    A cell that diverged does not seed the next one (it restarts from the static state).
+    A cell that diverged or ran out of its step budget does not seed the next one (it restarts
+    from the static state).
     """
     results: list[CellResult] = []
     start = u0
@@ -34,7 +35,7 @@ def continuation_chain(
         results.append(res)
         if on_cell is not None:
             on_cell(idx, res)
-        if continuation and res.classification.status != "diverged":
+        if continuation and seeds_continuation(res):
             start, period = res.final_state, res.final_period
         else:
             start, period = u0, 0
