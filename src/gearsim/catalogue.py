@@ -730,18 +730,23 @@ def _insert_sweep(session: Session, f: Path, counts: dict) -> None:
     counts["sweep_points"] += len(rows)
 
 
-def _insert_audit(session: Session, f: Path, counts: dict) -> None:
-    from sqlalchemy import select
-
+def _file_run(session: Session, f: Path, what: str, counts: dict):
+    """The provenance of a result file, its ``runs`` row (added and flushed) and its table."""
     from .integrity import read_footer
 
-    _, kv = read_footer(f, "audit file")
+    _, kv = read_footer(f, what)
     prov = {**json.loads(kv.get(PROVENANCE_KEY, b"{}")), "file": str(f)}
     run = Run(**_run_row(prov))
     session.add(run)
     session.flush()
     counts["runs"] += 1
-    df = pd.read_parquet(f)
+    return prov, run, pd.read_parquet(f)
+
+
+def _insert_audit(session: Session, f: Path, counts: dict) -> None:
+    from sqlalchemy import select
+
+    prov, run, df = _file_run(session, f, "audit file", counts)
     q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == prov.get("name"))
     planes = set(df["plane"]) if len(df) else set()
     cell_ids = {}
@@ -833,15 +838,7 @@ def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
     """Insert a bifurcation points / curves file or a refine-orbits file (by its columns)."""
     from sqlalchemy import select
 
-    from .integrity import read_footer
-
-    _, kv = read_footer(f, "orbit file")
-    prov = {**json.loads(kv.get(PROVENANCE_KEY, b"{}")), "file": str(f)}
-    run = Run(**_run_row(prov))
-    session.add(run)
-    session.flush()
-    counts["runs"] += 1
-    df = pd.read_parquet(f)
+    prov, run, df = _file_run(session, f, "orbit file", counts)
     if "orbit_flag" in df.columns:
         cell_ids = {}
         for name in set(df["plane"]):
