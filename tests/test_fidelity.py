@@ -125,3 +125,23 @@ def test_sobol_population_seeded_in_bounds_with_start():
     assert p1.shape == (16, 2)
     assert list(p1[0]) == [0.5, 5.0]  # start clipped into the box
     assert (p1[:, 0] >= 0).all() and (p1[:, 0] <= 1).all()
+
+
+def test_form_table_and_report_lines_show_every_target():
+    from gearsim.fidelity import form_report_lines, form_table_lines
+
+    m = perfect()
+    m.landmark_source = {pl.key: "exact" for pl in PAPER_LANDMARKS}
+    m.landmark_source["chaos_onset"] = "grid"
+    m.landmarks["period_one"] = None
+    rec = {"J": score(m)[0], "measured": m.to_dict(), "text": "hand-built"}
+    lines = form_table_lines({"hand": rec, "skipped": {"skipped": "needs te_damping"}})
+    assert len(lines) == 5
+    cells = [c.strip() for c in lines[3].strip("|").split("|")]
+    assert len(cells) == 2 + len(TARGETS)
+    assert cells[0] == "hand" and cells[2] == "0.5690"
+    assert "1.3960g" in cells  # the grid-read chaos onset is marked
+    assert "miss" in cells  # the missing landmark
+    assert cells[-1] == "1-1-1/2-2-1/4-4-2"
+    rep = form_report_lines({"records": {"hand": rec}, "adopted": "hand", "decision": "why"})
+    assert any("Adopted: **hand**" in x for x in rep)

@@ -148,6 +148,7 @@ class Measured:
     sequences: dict[str, list[str]] = field(default_factory=dict)
     coexist: list[str] | None = None
     gated: bool = False
+    kmax: dict[str, Any] = field(default_factory=dict)  # Kmax readings at the jump (exact level)
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
 
@@ -225,18 +226,23 @@ class FidelitySettings:
         return asdict(self)
 
 
-def sweep(params: ModelParameters, grid: np.ndarray, settings, *, continuation: bool = True
-          ) -> pd.DataFrame:
+def sweep(params: ModelParameters, grid: np.ndarray, settings, *, continuation: bool = True,
+          w_factor: float = 1.0) -> pd.DataFrame:
     """Forward w sweep (``continuation``: each cell starts from the previous steady state;
     otherwise every cell starts from the same static state, the paper's fixed-start method).
-    Like :func:`gearsim.sweep.orbit_diagram`, plus each cell's final section state."""
+    Like :func:`gearsim.sweep.orbit_diagram`, plus each cell's final section state.
+
+    ``w_factor``: the frequency-scale mapping (``r = w_c / w_n`` when the paper's axis is the
+    coupled mesh mode, :func:`gearsim.parameters.mesh_mode_ratio`): ``grid`` is the paper's axis,
+    the cells are simulated at ``w = r * grid`` (column ``w_sim``), ``value`` is the axis value."""
     from .sweep import continuation_chain
 
-    plist = [params.with_(w=float(v)) for v in grid]
+    plist = [params.with_(w=float(v) * w_factor) for v in grid]
     res = continuation_chain(plist, settings=settings, continuation=continuation)
     rows = []
     for v, r in zip(grid, res, strict=True):
-        row = {"parameter": "w", "value": float(v), "direction": "forward"}
+        row = {"parameter": "w", "value": float(v), "direction": "forward",
+               "w_sim": float(v) * w_factor}
         row.update(r.row())
         row["final_state"] = np.asarray(r.final_state, dtype=float)
         rows.append(row)
@@ -294,7 +300,8 @@ def _npq_n(npq: Any) -> int | None:
 
 
 def locate_exact(params: ModelParameters, df: pd.DataFrame, row: Mapping[str, Any], *,
-                 pad: float = 0.02, max_points: int = 120) -> tuple[float, str]:
+                 pad: float = 0.02, max_points: int = 120, w_factor: float = 1.0
+                 ) -> tuple[float, str]:
     """Continuation-located point of one grid landmark (``row`` of :func:`find_landmarks`).
 
     The orbit of the flanking cell (``lo`` for grazing, jump and period doubling, ``hi`` for an
@@ -319,8 +326,8 @@ def locate_exact(params: ModelParameters, df: pd.DataFrame, row: Mapping[str, An
         n = int(n_col) if n_col and np.isfinite(n_col) and n_col > 0 else None
     if n is None or n > 16:
         return grid_value, "grid"
-    start = float(df["value"].iloc[idx])
-    stop = float(row["hi"]) + pad if side == "lo" else float(row["lo"]) - pad
+    start = float(df["value"].iloc[idx]) * w_factor
+    stop = (float(row["hi"]) + pad if side == "lo" else float(row["lo"]) - pad) * w_factor
     cfg = Continuation(ds=0.004, ds_max=0.01, switch_depth=0, max_points=max_points)
     try:
         p0 = params.with_(w=start)
@@ -334,8 +341,9 @@ def locate_exact(params: ModelParameters, df: pd.DataFrame, row: Mapping[str, An
     ev = ev[(ev["value"] >= lo) & (ev["value"] <= hi)]
     if not len(ev):
         return grid_value, "grid"
-    k = int(np.argmin(np.abs(ev["value"].to_numpy() - grid_value)))
-    return float(ev["value"].iloc[k]), "exact"
+    vals = ev["value"].to_numpy() / w_factor
+    k = int(np.argmin(np.abs(vals - grid_value)))
+    return float(vals[k]), "exact"
 
 
 # ---------------------------------------------------------------------------- the measurement
@@ -347,7 +355,7 @@ def _landmark_part(m: Measured) -> float:
 
 
 def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), *,
-            continuation: bool = True, b_star: float | None = None,
+            continuation: bool = True, b_star: float | None = None, w_factor: float = 1.0,
             log: Callable[[str], None] | None = None) -> Measured:
     """Measure every target for ``params`` (any model form: the form is in ``params``; the
     sweep method is ``continuation``). ``params`` are at the search scale: ``b = st.b0`` above
@@ -361,7 +369,8 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
     m = Measured()
     integ = st.integration()
     p = params
-    df = sweep(p, st.grid(), integ, continuation=continuation)
+    wf = w_factor
+    df = sweep(p, st.grid(), integ, continuation=continuation, w_factor=wf)
     lms = find_landmarks(df)
     matched = match_paper(lms)
     for r in matched.itertuples():
@@ -378,9 +387,14 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
             i = by_value.get(round(float(r.ours), 9))
             if i is None:
                 continue
-            v, src = locate_exact(p, df, lms.iloc[i].to_dict())
+            v, src = locate_exact(p, df, lms.iloc[i].to_dict(), w_factor=wf)
             m.landmarks[r.key] = v
             m.landmark_source[r.key] = src
+    if st.exact:
+        try:
+            m.kmax = kmax_at_jump(p, df, st)
+        except Exception as exc:  # noqa: BLE001 - recorded, not fatal
+            m.notes.append(f"Kmax readings failed: {exc!r}")
     # DC after the jump, gap
     jump = lms[lms["kind"] == "jump"]
     if len(jump):
@@ -414,7 +428,7 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
             q = p.with_(b=val / scale)
         else:
             q = p.with_(xi=val)
-        d = sweep(q, seq_grid, integ, continuation=continuation)
+        d = sweep(q, seq_grid, integ, continuation=continuation, w_factor=wf)
         m.sequences[key] = pattern_sequence(d)
         if name == "xi":
             sub[val] = has_subharmonics(d[d["value"] >= st.xi_w_min])
@@ -422,14 +436,15 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
     lo, hi = (0.09, 0.15) if sub.get(0.09, True) and not sub.get(0.15, True) else (None, None)
     if lo is None and sub.get(0.15, False):
         lo, hi = 0.15, 0.3
-        if has_subharmonics(sweep(p.with_(xi=hi), xi_grid, integ, continuation=continuation)):
+        if has_subharmonics(sweep(p.with_(xi=hi), xi_grid, integ, continuation=continuation,
+                                  w_factor=wf)):
             lo = hi = None
             m.notes.append("subharmonics at xi = 0.3: threshold above the bracket")
     if lo is not None:
         for _ in range(st.xi_bisect):
             mid = 0.5 * (lo + hi)
             if has_subharmonics(sweep(p.with_(xi=mid), xi_grid, integ,
-                                      continuation=continuation)):
+                                      continuation=continuation, w_factor=wf)):
                 lo = mid
             else:
                 hi = mid
@@ -438,7 +453,7 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
     if np.isfinite(scale):
         from .attractors import find_attractors
 
-        q = p.with_(b=COEXIST_POINT["b"] / scale, w=COEXIST_POINT["w"])
+        q = p.with_(b=COEXIST_POINT["b"] / scale, w=COEXIST_POINT["w"] * wf)
         ca = find_attractors(q, starts=st.attractor_starts, seed=0)
         m.coexist = sorted({str(a.steady.info.get("label_npq") or a.label)
                             for a in ca.attractors if a.steady.status != "unsettled"})
@@ -446,3 +461,192 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
     if log:
         log(f"measured in {m.seconds:.1f} s")
     return m
+
+
+# ============================================================================ Kmax readings
+#: the paper's Kmax at the jump (Sect 3.1) and Fig 17's range at the jump for small xi
+PAPER_KMAX_JUMP = 1.311
+PAPER_KMAX_FIG17 = (1.8, 2.1)
+
+KMAX_READINGS_TEXT = {
+    "peak_mesh_over_Fm": "peak mesh force F over the mean load Fm",
+    "peak_mesh_over_Fm_Few2": "peak F over Fm + Fe w^2 (mean load + inertial error load)",
+    "peak_mesh_over_Fm_Fe": "peak F over Fm + Fe (mean load + stiffness-path error load Km Em)",
+    "mean_period_peak_over_Fm": "mean of the per-period peaks of F over Fm",
+    "mean_period_peak_over_Fm_Few2": "mean of the per-period peaks of F over Fm + Fe w^2",
+    "peak_elastic_over_Fm": "peak elastic mesh force (1 + eps cos) f(x) over Fm (no damper)",
+    "peak_pair_over_Fm": "peak tooth-pair load k_s f(x) over its static value (deflection "
+                         "ratio: a pair's load follows the deflection, not the mesh stiffness)",
+    "peak_pair_over_Fm_Few2": "peak deflection f(x) over (Fm + Fe w^2)",
+    "peak_over_rms": "peak F over the RMS of F",
+    "section_mesh_over_Fm": "largest once-per-period (Poincare section) value of F over Fm",
+}
+
+
+def kmax_readings(params: ModelParameters, u0: np.ndarray | None, *, periods: int = 32,
+                  samples: int = 512, transient: int = 64, settings=None) -> dict[str, float]:
+    """Every candidate Kmax reading of the steady motion at ``params`` (started from ``u0``).
+
+    The mesh force ``F`` is the trajectory's (:func:`gearsim.simulate.trajectory`), the elastic
+    part and the deflection ``f(x)`` are read from the recorded states; ``samples`` points per
+    mesh period (the peak of a smooth 1T motion is resolved to ~(pi/samples)^2 / 2 ~ 2e-5).
+    """
+    from .simulate import trajectory
+
+    tr = trajectory(params, u0, periods=periods, samples_per_period=samples,
+                    transient=transient, settings=settings)
+    x = tr.state[:, 0]
+    f = np.where(x > params.b, x - params.b, np.where(x < -params.b, x + params.b, 0.0))
+    c = np.cos(params.w * tr.tau)
+    elastic = (1.0 + params.eps * c) * f
+    F = np.asarray(tr.mesh_force)
+    Fm, few2, fe = params.Fm, params.Fe * params.w**2, params.Fe
+    per = F[:-1].reshape(periods, samples)
+    peaks = per.max(axis=1)
+    sec = F[::samples]
+    return {
+        "peak_mesh_over_Fm": float(F.max() / Fm),
+        "peak_mesh_over_Fm_Few2": float(F.max() / (Fm + few2)),
+        "peak_mesh_over_Fm_Fe": float(F.max() / (Fm + fe)),
+        "mean_period_peak_over_Fm": float(peaks.mean() / Fm),
+        "mean_period_peak_over_Fm_Few2": float(peaks.mean() / (Fm + few2)),
+        "peak_elastic_over_Fm": float(elastic.max() / Fm),
+        "peak_pair_over_Fm": float(f.max() / Fm),
+        "peak_pair_over_Fm_Few2": float(f.max() / (Fm + few2)),
+        "peak_over_rms": float(F.max() / math.sqrt(float(np.mean(F**2)))),
+        "section_mesh_over_Fm": float(sec.max() / Fm),
+        "dc_sampled": float(np.mean(f[:-1] == 0.0)),
+    }
+
+
+def kmax_at_jump(params: ModelParameters, df: pd.DataFrame, st: FidelitySettings
+                 ) -> dict[str, Any]:
+    """Kmax readings on both sides of the first jump of a sweep (``df`` from :func:`sweep`)."""
+    lms = find_landmarks(df)
+    jump = lms[lms["kind"] == "jump"]
+    if not len(jump):
+        return {}
+    j = jump.iloc[0]
+    out: dict[str, Any] = {}
+    for side in ("lo", "hi"):
+        i = int(j[f"i_{side}"])
+        w = float(df["w_sim"].iloc[i]) if "w_sim" in df else float(df["value"].iloc[i])
+        r = kmax_readings(params.with_(w=w), np.asarray(df["final_state"].iloc[i]),
+                          settings=st.integration())
+        out[side] = {"w": w, "dc": float(df["dc"].iloc[i]), **r}
+    return out
+
+
+# ============================================================================ side-by-side table
+#: short column heads of the targets
+SHORT_HEAD = {
+    "grazing_1": "G 1-0-0>1-1-0", "jump": "jump", "pd_1_2": "PD 1>2", "grazing_2": "G 2-2-0>2-1-0",
+    "pd_2_4": "PD 2>4", "grazing_4": "G 4-2-0>4-3-0", "pd_4_8": "PD >8-6-0",
+    "chaos_onset": "chaos", "ipd_chaos_8": "chaos>8", "ipd_8_4": "8>4", "ipd_4_2": "4>2",
+    "period_one": "2>1", "b_threshold": "b*", "xi_threshold": "xi*", "dc_jump": "DC jump",
+    "gap": "gap", "seq_b015": "seq b0.15", "seq_xi005": "seq xi0.05", "seq_xi009": "seq xi0.09",
+    "seq_xi015": "seq xi0.15", "coexist": "Figs 9-11",
+}
+
+
+def target_values(m: Mapping[str, Any]) -> dict[str, str]:
+    """Formatted value of every target from a :meth:`Measured.to_dict` record."""
+    out: dict[str, str] = {}
+    for pl in PAPER_LANDMARKS:
+        v = m["landmarks"].get(pl.key)
+        src = m.get("landmark_source", {}).get(pl.key, "grid")
+        out[pl.key] = "miss" if v is None else f"{v:.4f}" + ("" if src == "exact" else "g")
+    fmt = {"b_threshold": ".4f", "xi_threshold": ".4f", "dc_jump": ".3f", "gap": ".4f"}
+    for k, f in fmt.items():
+        v = m.get(k)
+        out[k] = "-" if v is None or not np.isfinite(v) else format(v, f)
+    for k, paper in PAPER_SEQUENCES.items():
+        ours = m.get("sequences", {}).get(k)
+        out[f"seq_{k}"] = "-" if ours is None else f"d={sequence_distance(paper, ours)}"
+    co = m.get("coexist")
+    out["coexist"] = "-" if co is None else ("/".join(co) if co else "none")
+    return out
+
+
+def form_table_lines(forms: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Markdown: one row per model form (every target's value, the cost J), the paper on top.
+
+    ``forms``: ``{name: record}`` with ``J``, ``measured`` (:meth:`Measured.to_dict`), ``text``.
+    Landmark values are exact (continuation) unless marked ``g`` (grid read); sequences show
+    the distance to the paper's sequence (0 = same); Figs 9-11 the motions found there.
+    """
+    keys = list(TARGET_KEYS)
+    head = "| form | J | " + " | ".join(SHORT_HEAD[k] for k in keys) + " |"
+    sep = "|---" * (len(keys) + 2) + "|"
+    paper = {t.key: (f"{t.paper:g}" if isinstance(t.paper, float) else "d=0") for t in TARGETS}
+    paper["pd_4_8"] = "1.37-1.384"
+    paper["coexist"] = "/".join(PAPER_COEXIST)
+    lines = [head, sep, "| paper | 0 | " + " | ".join(paper[k] for k in keys) + " |"]
+    for name, rec in forms.items():
+        m = rec.get("measured")
+        if not m:
+            lines.append(f"| {name} | {rec.get('skipped', 'failed')} |" + " |" * len(keys))
+            continue
+        v = target_values(m)
+        lines.append(f"| {name} | {rec['J']:.3f} | " + " | ".join(v[k] for k in keys) + " |")
+    return lines
+
+
+def compact_record(rec: Mapping[str, Any]) -> dict[str, Any]:
+    """The part of a :func:`gearsim.fidelity_fit.fit_form` record kept in docs/calibration.json."""
+    keep = ("form", "text", "fixed", "continuation", "seed", "budget", "code_version", "wall_s",
+            "best", "J", "terms", "measured", "b_star_bisection", "skipped")
+    out = {k: rec[k] for k in keep if k in rec}
+    if "de" in rec:
+        out["de"] = {k: rec["de"][k] for k in ("J", "nfev", "nit", "stopped_by_time", "wall_s",
+                                               "cpu_s_main") if k in rec["de"]}
+    if "start" in rec:
+        out["start"] = {"J": rec["start"]["J"], "measured": rec["start"]["measured"]}
+    return out
+
+
+def kmax_lines(kmax: Mapping[str, Any]) -> list[str]:
+    """Markdown: every Kmax reading before and after the jump against the paper's values."""
+    if not kmax or "hi" not in kmax:
+        return ["Kmax readings: not computed (no jump found)."]
+    lo, hi = kmax["lo"], kmax["hi"]
+    lines = [f"Kmax readings at the jump (w = {lo['w']:.3f} -> {hi['w']:.3f}, DC {lo['dc']:.3f} "
+             f"-> {hi['dc']:.3f}); paper: {PAPER_KMAX_JUMP} at the jump (Sect 3.1), "
+             f"{PAPER_KMAX_FIG17[0]}-{PAPER_KMAX_FIG17[1]} in Fig 17 at the jump for small xi.",
+             "", "| reading | before | after | after - 1.311 | in 1.8-2.1 |",
+             "|---|---|---|---|---|"]
+    for k, text in KMAX_READINGS_TEXT.items():
+        if k not in hi:
+            continue
+        a = hi[k]
+        inside = "yes" if PAPER_KMAX_FIG17[0] <= a <= PAPER_KMAX_FIG17[1] else "no"
+        lines.append(f"| {text} | {lo[k]:.3f} | {a:.3f} | {a - PAPER_KMAX_JUMP:+.3f} | {inside} |")
+    return lines
+
+
+def form_report_lines(forms: Mapping[str, Any]) -> list[str]:
+    """The report's model-form section from docs/calibration.json's ``forms`` entry."""
+    recs = forms.get("records", {})
+    if not recs:
+        return []
+    out = ["## Model forms (issue 15): one objective, the same search for every form", "",
+           "J = RMS error in tolerances over 21 targets (landmarks 0.02 in w, b* and xi* 0.01, "
+           "DC 0.03, gap 0.02, one pattern per sequence, one motion at Figs 9-11; capped at 10). "
+           "Landmark values are exact (continuation) unless marked g (grid read). "
+           "Details: docs/calibration.md, docs/calibration.json (`forms`).", "",
+           *form_table_lines(recs), ""]
+    budget = {n: r.get("budget") for n, r in recs.items() if r.get("budget")}
+    if budget:
+        b0 = next(iter(budget.values()))
+        seeds = {r.get("seed") for r in recs.values() if "seed" in r}
+        out += [f"Search per form: differential evolution, population {b0['population']}, "
+                f"{b0['generations']} generations, seed {', '.join(str(s) for s in seeds)}; "
+                f"refinement: best {b0['refine_top']} re-measured exact, Nelder-Mead "
+                f"{b0['refine_fev']} exact evaluations.", ""]
+    if forms.get("adopted"):
+        out += [f"Adopted: **{forms['adopted']}**. {forms.get('decision', '')}", ""]
+    k = forms.get("kmax_form")
+    if k and recs.get(k, {}).get("measured", {}).get("kmax"):
+        out += [f"Form {k}: " + kmax_lines(recs[k]["measured"]["kmax"])[0], "",
+                *kmax_lines(recs[k]["measured"]["kmax"])[2:], ""]
+    return out

@@ -67,6 +67,7 @@ class Form:
     extra: tuple[Free, ...] = ()
     continuation: bool = True
     requires: tuple[str, ...] = ()  # ModelParameters names the form needs (forms' option keys)
+    freq_scale: str = "mesh"  # or "coupled": the paper's w is over the coupled mesh mode
 
     @property
     def free(self) -> tuple[Free, ...]:
@@ -74,7 +75,20 @@ class Form:
 
     def available(self) -> bool:
         names = set(ModelParameters.names())
+        if self.freq_scale == "coupled":
+            from . import parameters
+
+            if not hasattr(parameters, "mesh_mode_ratio"):
+                return False
         return all(r in names for r in self.requires)
+
+    def w_factor(self, params: ModelParameters) -> float:
+        """``r`` of the frequency-scale mapping (1 on the mesh scale)."""
+        if self.freq_scale != "coupled":
+            return 1.0
+        from .parameters import mesh_mode_ratio
+
+        return float(mesh_mode_ratio(params))
 
 
 def _forms() -> dict[str, Form]:
@@ -84,6 +98,33 @@ def _forms() -> dict[str, Form]:
              "sweep", {"model": "1dof"}),
         Form("fixed_start", "today's equations; the paper's sweep method: every w starts from "
              "the same static state (no continuation)", {"model": "1dof"}, continuation=False),
+        Form("bearings_6dof", "today's mesh equations with the 6-DOF bearings as the paper "
+             "describes them: pinion and gear masses from the geometry (rho_p 0.4, rho_g 0.1), "
+             "bearing stiffness K/Km and radial clearance free, bearing damping 0.03",
+             {"model": "6dof"},
+             extra=(Free("kappa_ratio", 20.0, 200.0, 100.0, "bearing stiffness K_brg / Km"),
+                    Free("b_brg", 0.0, 0.2, 0.0, "bearing half clearance / b_c (search scale)"))),
+        Form("te_rate", "transmission error through the stiffness path, K(t) f(x - e) + "
+             "C (x' - s e'): the damper follows the fraction s = te_damping of the TE rate (s = 1 "
+             "is today's inertial load Fe w^2 exactly, s = 0 the damper on x' alone; mixtures "
+             "between)", {"model": "1dof"},
+             extra=(Free("te_damping", 0.0, 1.0, 1.0, "fraction of the TE rate the damper sees"),),
+             requires=("te_damping",)),
+        Form("contact_damping", "mesh damping acting only in contact (none in the backlash)",
+             {"model": "1dof", "mesh_damping_contact": 1.0},
+             requires=("mesh_damping_contact",)),
+        Form("friction_arm", "friction with the time-varying arm L_p of Eq 9 (sawtooth over the "
+             "mesh period) instead of its mean; its half range free",
+             {"model": "1dof"},
+             extra=(Free("friction_arm_var", 0.0, 1.5, 0.5,
+                         "a: half range of L_p over its mean (0.38-1.24 from the geometry)"),),
+             requires=("friction_arm_var",)),
+        Form("coupled_scale", "the 6-DOF bearing form with the paper's w read over the coupled "
+             "mesh-mode frequency w_c (bearing compliance in series): simulated at w = r w_paper, "
+             "r = w_c / w_n", {"model": "6dof"},
+             extra=(Free("kappa_ratio", 20.0, 200.0, 100.0, "bearing stiffness K_brg / Km"),
+                    Free("b_brg", 0.0, 0.2, 0.0, "bearing half clearance / b_c (search scale)")),
+             freq_scale="coupled"),
     ]
     return {x.name: x for x in f}
 
@@ -129,7 +170,8 @@ class FormObjective:
     def evaluate(self, x: np.ndarray) -> tuple[float, Measured | None, dict[str, float]]:
         try:
             p = params_from_vector(x, self.form, Fm=self.st.Fm, b=self.st.b0)
-            m = measure(p, self.st, continuation=self.form.continuation)
+            m = measure(p, self.st, continuation=self.form.continuation,
+                        w_factor=self.form.w_factor(p))
             J, terms = score(m)
             rec = {"x": [float(v) for v in x], "J": J, "terms": terms, "measured": m.to_dict()}
         except Exception as exc:  # noqa: BLE001 - a failed evaluation is a bad point
@@ -220,13 +262,14 @@ B_GRID = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400
 
 
 def backlash_bisection(p: ModelParameters, st: FidelitySettings, *, continuation: bool = True,
-                       tol: float = 0.002) -> float:
+                       tol: float = 0.002, w_factor: float = 1.0) -> float:
     """Smallest ``b`` above which no sweep over :data:`B_GRID` (with the form's sweep method)
     shows a double-sided impact; NaN if the sweep at ``st.b0`` already has one."""
     from .fidelity import sweep
 
     def double(b: float) -> bool:
-        df = sweep(p.with_(b=b), B_GRID, st.integration(), continuation=continuation)
+        df = sweep(p.with_(b=b), B_GRID, st.integration(), continuation=continuation,
+                   w_factor=w_factor)
         q = df["q"].fillna(0).astype(int)
         return bool(((df["I"] == 2) | (df["I"] == -1) | (q > 0)).any())
 
@@ -249,12 +292,13 @@ def final_measure(form: Form, x: Sequence[float], st: FidelitySettings
     :func:`gearsim.fidelity.measure` with exact landmarks."""
     p = params_from_vector(x, form, Fm=st.Fm, b=st.b0)
     try:
-        b_star = backlash_bisection(p, st, continuation=form.continuation)
+        b_star = backlash_bisection(p, st, continuation=form.continuation,
+                                    w_factor=form.w_factor(p))
     except Exception:  # noqa: BLE001
         b_star = math.nan
     try:
         m = measure(p, st, continuation=form.continuation,
-                    b_star=b_star if math.isfinite(b_star) else None)
+                    b_star=b_star if math.isfinite(b_star) else None, w_factor=form.w_factor(p))
         J, terms = score(m)
     except Exception:  # noqa: BLE001
         return 1e3, None, {}, b_star

@@ -25,7 +25,8 @@ HELP = "fit Fe/Fm, eps, phi_e, xi, friction to the paper's landmarks (differenti
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--stage", choices=("search", "verify", "both", "standard", "forms"),
+    p.add_argument("--stage", choices=("search", "verify", "both", "standard", "forms",
+                                        "forms-table"),
                    default="both",
                    help="standard: write --standard-out from --out's result (or MODEL.md's set)")
     p.add_argument("--standard-out", default="config/standard_parameters.yaml",
@@ -62,6 +63,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="stage forms: Nelder-Mead evaluations of the exact objective")
     p.add_argument("--forms-dir", default="results/calibration/forms",
                    help="stage forms: one JSON per form and the evaluation logs")
+    p.add_argument("--adopt", default=None,
+                   help="stage forms-table: the form adopted as the standard set")
+    p.add_argument("--decision", default="", help="stage forms-table: why (one paragraph)")
 
 
 def _search(args) -> dict:
@@ -244,6 +248,31 @@ def _forms(args) -> int:
     return 0
 
 
+def _forms_table(args) -> int:
+    """Collect the per-form records into --out (key ``forms``) and print the table."""
+    from ..fidelity import compact_record, form_report_lines
+    from ..fidelity_fit import FORMS
+
+    d = Path(args.forms_dir)
+    recs = {}
+    for name in [s.strip() for s in args.forms.split(",") if s.strip()]:
+        f = d / f"{name}.json"
+        if not f.is_file():
+            raise UsageError(f"--forms: no record {f} (run --stage forms first)")
+        recs[name] = compact_record(json.loads(f.read_text()))
+    if args.adopt is not None and args.adopt not in recs:
+        raise UsageError(f"--adopt {args.adopt!r} is not among --forms {', '.join(recs)}")
+    out = Path(args.out)
+    record = json.loads(out.read_text()) if out.is_file() else {}
+    record["forms"] = {"records": recs, "adopted": args.adopt, "decision": args.decision,
+                       "kmax_form": args.adopt or next(iter(recs)),
+                       "known_forms": {n: f.text for n, f in FORMS.items()}}
+    out.write_text(json.dumps(record, indent=1, default=float))
+    print("\n".join(form_report_lines(record["forms"])))
+    print(f"wrote {out}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     if args.stage == "standard":
         from ..calibrate import write_standard_parameters
@@ -259,6 +288,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--workers must be >= 1")
     if args.stage == "forms":
         return _forms(args)
+    if args.stage == "forms-table":
+        return _forms_table(args)
     out = Path(args.out)
     record: dict = json.loads(out.read_text()) if out.is_file() else {}
     if args.stage in ("search", "both"):
