@@ -375,3 +375,30 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
     log(f"[{form.name}] refined exact J = {J:.4f} (start {J_start:.4f}); "
         f"{time.time() - t0:.0f} s")
     return rec
+
+
+# ============================================================================ evidence
+def best_per_target(log_dir: str | Path) -> dict[str, dict[str, Any]]:
+    """For every target: the smallest error any logged evaluation of any form reached, with
+    that evaluation's form, level (coarse grid read / exact), J and how many evaluations
+    measured the target. Evidence for a miss: no tested form got closer within its search."""
+    from .fidelity import Measured, target_errors
+
+    best: dict[str, dict[str, Any]] = {}
+    for f in sorted(Path(log_dir).glob("*.jsonl")):
+        form, level = f.name.split(".")[0].rsplit("-", 1)
+        for line in f.read_text().splitlines():
+            rec = json.loads(line)
+            md = rec.get("measured")
+            if not md:
+                continue
+            m = Measured(**{k: v for k, v in md.items() if k in Measured.__dataclass_fields__})
+            for k, e in target_errors(m).items():
+                if not np.isfinite(e):
+                    continue
+                b = best.setdefault(k, {"n": 0})
+                b["n"] += 1
+                if "error" not in b or abs(e) < abs(b["error"]):
+                    b.update(error=float(e), form=form, level=level, J=float(rec["J"]),
+                             x=rec["x"])
+    return best
