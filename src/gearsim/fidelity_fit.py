@@ -402,3 +402,18 @@ def best_per_target(log_dir: str | Path) -> dict[str, dict[str, Any]]:
                     b.update(error=float(e), form=form, level=level, J=float(rec["J"]),
                              x=rec["x"])
     return best
+
+
+def kmax_for(form: Form, x: Sequence[float], st: FidelitySettings | None = None, *,
+             w_lo: float = 0.3, w_hi: float = 1.0, dw: float = 0.002) -> dict[str, Any]:
+    """Kmax readings on both sides of the jump of ``form`` at ``x``, the jump resolved on a
+    fine forward sweep (``dw``) with the form's sweep method (the readings are ratios: the
+    scale does not enter)."""
+    from .fidelity import kmax_at_jump, sweep
+
+    st = st or FidelitySettings(exact=True)
+    p = params_from_vector(x, form, Fm=st.Fm, b=st.b0)
+    grid = np.arange(w_lo, w_hi + 1e-12, dw)
+    df = sweep(p, grid, st.integration(), continuation=form.continuation,
+               w_factor=form.w_factor(p))
+    return kmax_at_jump(p, df, st)
