@@ -41,6 +41,7 @@ def input_paths(spec: registry.FigureSpec) -> dict[str, list[str]]:
         "sweeps": [f"results/sweeps/{s}.parquet" for s in i.sweeps],
         "planes": [f"results/{p}/cells.parquet" for p in i.planes],
         "points": [f"results/points/{p}.parquet" for p in i.points],
+        "orbits": [f"results/orbits/{o}.parquet" for o in i.orbits],
     }
 
 
@@ -52,6 +53,7 @@ def cli_args(spec: registry.FigureSpec) -> str:
     args += [f"--sweep {n}={p}" for n, p in zip(i.sweeps, paths["sweeps"], strict=True)]
     args += [f"--plane {n}={p}" for n, p in zip(i.planes, paths["planes"], strict=True)]
     args += [f"--points {n}={p}" for n, p in zip(i.points, paths["points"], strict=True)]
+    args += [f"--orbits {n}={p}" for n, p in zip(i.orbits, paths["orbits"], strict=True)]
     return " ".join(args)
 
 
