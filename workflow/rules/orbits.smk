@@ -1,6 +1,6 @@
 # Periodic orbits (docs/orbits.md).
 #
-# In the default run (`all`):
+# In the default run (`all`), unless config `orbits: {continuation: false, curves: false}`:
 #  * standard_continuation: the continuation of the standard sweep's parameter set along w
 #    (Newton-Floquet, branch switching at period doublings): the exact landmarks of the report,
 #    Fig 4's unstable branches and exact marks, Fig 23; ~2-3 CPU-minutes.
@@ -12,10 +12,16 @@
 #   snakemake --cores 2 results/wb/orbits.parquet
 
 
+from gearsim.bifcurves import pipeline_orbit_tables
 from gearsim.exact_landmarks import sweep_set_arguments
 
-ORBITS_STANDARD = "standard" in SWEEPS
-ORBIT_CURVES = {plane: f"results/orbits/{plane}_curves.parquet" for plane in PLANES}
+ORBIT_TABLES = pipeline_orbit_tables(config)  # config `orbits: {continuation, curves}`
+ORBITS_STANDARD = "standard" in ORBIT_TABLES
+ORBIT_CURVES = {
+    plane: f"results/orbits/{plane}_curves.parquet"
+    for plane in PLANES
+    if f"{plane}_curves" in ORBIT_TABLES
+}
 
 
 rule refine_orbits:
@@ -96,7 +102,7 @@ rule bifurcation_curves:
 # what the catalogue loads (bifurcation_points, bifurcation_curves) and the report reads
 ORBIT_CATALOGUE_FILES = [
     f
-    for plane in PLANES
+    for plane in ORBIT_CURVES
     for f in (f"results/orbits/{plane}_curves_points.parquet", ORBIT_CURVES[plane])
 ]
 ORBIT_REPORT_INPUTS = (

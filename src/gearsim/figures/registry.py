@@ -425,9 +425,11 @@ class Inputs:
     points: tuple[str, ...] = ()
     config_points: tuple[str, ...] = ()
     # continuation tables ``results/orbits/NAME.parquet`` (workflow/rules/orbits.smk):
-    # "standard" (made when the sweep "standard" is configured; its located points are
-    # read from standard_points.parquet beside it) and "<plane>_curves" (one per plane)
+    # "standard" (its located points are read from standard_points.parquet beside it) and
+    # "<plane>_curves" (one per plane); ``optional_orbits`` are passed when the pipeline makes
+    # them (config ``orbits:``), the figure is drawn without them otherwise
     orbits: tuple[str, ...] = ()
+    optional_orbits: tuple[str, ...] = ()
 
     def tables(self) -> dict[str, tuple[str, ...]]:
         """``{"sweeps": names, "planes": names, "points": names, "orbits": names}``."""
@@ -435,8 +437,12 @@ class Inputs:
                 "orbits": self.orbits}
 
 
-def orbit_available(name: str, sweeps, planes) -> bool:
-    """Whether the pipeline makes the continuation table ``name`` for this config."""
+def orbit_available(name: str, sweeps, planes, orbits=None) -> bool:
+    """Whether the pipeline makes the continuation table ``name``: listed in ``orbits``
+    (:func:`gearsim.bifcurves.pipeline_orbit_tables`), or when that is not given, its sweep or
+    plane is configured."""
+    if orbits is not None:
+        return name in orbits
     if name.endswith("_curves"):
         return name[: -len("_curves")] in planes
     return name in sweeps
@@ -473,12 +479,13 @@ class FigureSpec:
     def lead(self) -> int:
         return self.members[0]
 
-    def available(self, sweeps, planes, points) -> bool:
-        """True when every input is configured (names of the config's sweeps, planes, points)."""
+    def available(self, sweeps, planes, points, orbits=None) -> bool:
+        """True when every input is configured (names of the config's sweeps, planes, points;
+        ``orbits``: the continuation tables the pipeline makes)."""
         i = self.inputs
         return (all(s in sweeps for s in i.sweeps) and all(p in planes for p in i.planes)
                 and all(q in points for q in (*i.points, *i.config_points))
-                and all(orbit_available(o, sweeps, planes) for o in i.orbits))
+                and all(orbit_available(o, sweeps, planes, orbits) for o in i.orbits))
 
 
 FIGURES: dict[int, FigureSpec] = {}
@@ -531,7 +538,8 @@ register(FigureSpec(3, "(Caption lost in our copy; the text: schematic diagram o
                     "a(i, j).)", Inputs(planes=("wb",)), _fig3,
                     caption="The co-simulation grid: a coarse view of the (w, b) plane."))
 register(FigureSpec(4, "(a) Bifurcation diagram of mesh displacement; (b) I: DC diagram; (c) "
-                    "Kmax diagram.", Inputs(sweeps=("standard",), orbits=("standard",)), _fig4,
+                    "Kmax diagram.", Inputs(sweeps=("standard",), optional_orbits=("standard",)),
+                    _fig4,
                     caption="Standard forward sweep in w: Poincare points, I:DC and Kmax."))
 register(FigureSpec(5, "Superpositions of the phase diagram and Poincaré mapping of the gear "
                     "pair: (a) ω = 0.48 1-0-0, (b) ω = 0.569 grazing, (c) ω = 0.86 1-1-0, (d) "
