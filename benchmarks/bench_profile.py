@@ -19,7 +19,7 @@ Effective rate = cell-steps of the cells (their ``steps`` column: grid steps plu
 layer's trial steps) / CPU seconds of the whole stage. The ratio effective / kernel is issue 16's
 "pipeline at the kernel's rate" target (>= 0.8).
 
-Usage: python benchmarks/bench_profile.py [--plane wb] [--tile 5] [--rows 20] [--name profile]
+Usage: python benchmarks/bench_profile.py [--plane wb] [--j0 240] [--rows 24] [--name profile]
 """
 
 from __future__ import annotations
@@ -137,12 +137,14 @@ def kernel_rate(tangent: bool, periods: int = 20, repeats: int = 3) -> float:
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--plane", default="wb")
-    ap.add_argument("--tile", type=int, default=5)
-    ap.add_argument("--rows", type=int, default=20)
+    ap.add_argument("--j0", type=int, default=240, help="first plane row (a multiple of --rows)")
+    ap.add_argument("--rows", type=int, default=24, help="rows (one worker's lanes)")
     ap.add_argument("--cells", type=int, default=64, help="cells of the attractor task")
     ap.add_argument("--name", default="profile")
     args = ap.parse_args(argv)
     config = study_config([])
+    config["tile_rows"] = args.rows  # one worker's share as a tile
+    args.tile = args.j0 // args.rows
     batch.warm_up()
     out = {"plane": args.plane, "tile": args.tile, "rows": args.rows, "load_start": loadavg()}
     k_state, k_tan = kernel_rate(False), kernel_rate(True)
@@ -196,6 +198,8 @@ def main(argv=None):
         print(f"  {k:34s} {v:8.3f} s  {100 * v / cpu:5.1f} %")
 
     # ---- attractor task: the first task of the tile whose rows were simulated above
+    from scipy.stats import qmc  # noqa: F401  (the Sobol starts' import, ~0.5 s once per worker)
+
     from gearsim.commands.attractor_tile import task_specs
 
     T_CPU.clear()
