@@ -436,6 +436,10 @@ def to_markdown(rep: Report) -> str:
                     f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
                     f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
                     "docs/calibration.md.", ""]
+    if rep.calibration and rep.calibration.get("forms"):
+        from .fidelity import form_report_lines
+
+        out += form_report_lines(rep.calibration["forms"])
     out += _audit_lines(rep.audit)
     out += ["## 1. Landmarks of the standard sweep", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
