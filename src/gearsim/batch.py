@@ -516,11 +516,16 @@ def run_periods_batched(
     settings: IntegrationSettings | None = None,
     *,
     start_periods: Sequence[int] | None = None,
+    tangent: bool = True,
 ) -> tuple[list[PeriodSummaries], np.ndarray, np.ndarray, np.ndarray]:
     """Integrate every cell ``n_periods`` periods from ``states`` (rows of 20: state, tangent).
 
-    The batched counterpart of ``simulate.run_periods(..., tangent=True)`` with RK4 (all cells
-    must have the same steps per period). Returns ``(summaries, final_states, status, steps)``.
+    The batched counterpart of ``simulate.run_periods(..., tangent=tangent)`` with RK4 (all
+    cells must have the same steps per period). Returns ``(summaries, final_states, status,
+    steps)``. With ``tangent=False`` the tangent rows are not integrated (the summaries'
+    ``lyap`` and the final tangent are then meaningless); the state, section points and event
+    records are bit-identical to ``tangent=True`` (the event layer decides on the state only;
+    tests/test_attractors.py).
     """
     st = settings or IntegrationSettings(method="rk4")
     n = len(params_list)
@@ -540,7 +545,7 @@ def run_periods_batched(
         lanes.ist[_ST, l] = 0
         lanes.ist[_POS, l] = 0
         lanes.ist[_K, l] = ks[l]
-    lanes.run(N, n_periods, nu, getattr(st, "divergence_bound", 1.0e6))
+    lanes.run(N, n_periods, nu, getattr(st, "divergence_bound", 1.0e6), bool(tangent))
     out = []
     for l in range(n):
         out.append(lanes.summaries(l, int(lanes.ist[_DONE, l])))
@@ -676,6 +681,8 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
         _begin_cell(ch, lanes, st)
     active = [ch for ch in chains if not ch.finished]
     while active:
+        if len(active) <= (lanes.n_blocks - 1) * LANES:
+            lanes = _compact(lanes, active)
         # lanes whose cell has the step grid (N, nu) of the least advanced chain take part
         lead = min(active, key=lambda c: (c.i, c.k))
         N, nu = lead.N, lead.nu
@@ -723,6 +730,25 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                 else:
                     _decide(c, lanes, st, continuation, on_cell)
         active = [ch for ch in chains if not ch.finished]
+
+
+def _compact(lanes: Lanes, chains: list[_Chain]) -> Lanes:
+    """Move the lanes of the unfinished ``chains`` into as few SIMD blocks as they need.
+
+    Finished chains leave frozen lanes behind that the vector step still computes (a block
+    costs the same with 1 or 8 lanes taking part); the remaining lanes are copied, with their
+    records, into a new :class:`Lanes` (lanes are independent: results are unchanged).
+    """
+    new = Lanes(len(chains), lanes.sec.shape[1])
+    old = np.array([c.lane for c in chains], dtype=np.int64)
+    idx = np.arange(len(chains))
+    new.view[idx // LANES, :, idx % LANES] = lanes.view[old // LANES, :, old % LANES]
+    new.ist[:, idx] = lanes.ist[:, old]
+    for a in ("sec", "nface", "nback", "fout"):
+        getattr(new, a)[idx] = getattr(lanes, a)[old]
+    for c, l in zip(chains, idx, strict=True):
+        c.lane = int(l)
+    return new
 
 
 def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:

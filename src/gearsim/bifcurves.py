@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from .continuation import Continuation, continue_orbit
-from .orbits import OrbitError, find_periodic_orbit
+from .orbits import OrbitError, find_periodic_orbit, section_map
 from .parameters import ModelParameters, ParameterError
 
 CURVE_COLUMNS = (
@@ -100,6 +100,200 @@ def _relocate(
     return None
 
 
+def _pd_test(M: np.ndarray) -> float | None:
+    """``mu + 1`` of the real multiplier nearest -1 (None without a real one)."""
+    mu = np.linalg.eigvals(M)
+    real = mu[np.abs(mu.imag) <= 1e-9 * np.maximum(np.abs(mu), 1.0)].real
+    if not len(real):
+        return None
+    return float(real[np.argmin(np.abs(real + 1.0))] + 1.0)
+
+
+def _relocate_secant(
+    params: ModelParameters, kind: str, boundary: str, n: int, name: str, w_pred: float,
+    y_pred: np.ndarray, window: float, cfg: Continuation, *, wtol: float = 1e-10,
+    max_eval: int = 14,
+) -> tuple[dict[str, Any], np.ndarray] | None:
+    """Locate a period doubling or grazing of the period-``n`` orbit near ``w_pred`` directly.
+
+    The test function along ``name`` at fixed other parameters — ``mu + 1`` of the real
+    multiplier nearest -1 (period doubling), the signed distance of the turning point to the
+    ``boundary`` (grazing) — is a scalar function of ``w`` once the orbit is corrected by Newton
+    at each trial (warm-started by extrapolating the section state of the last two trials). Its
+    zero is found by the secant method, safeguarded by bisection once bracketed and by the
+    trust window (steps of at most ``window``, ``|w - w_pred| <= 3 window``); converged when
+    the ``w`` step is below ``wtol``.
+    Returns None when it fails (the caller then falls back to the windowed continuation).
+    One trial costs one or two monodromy matrices (plus one dense run for grazing), against
+    the ~20 corrected orbits of a windowed continuation with Brent location.
+    """
+    from .orbits import grazing_margin, newton_orbit
+
+    settings = cfg.settings
+    dims = np.arange(len(y_pred))
+    evals: list[tuple[float, float, np.ndarray, np.ndarray]] = []  # (w, f, y, M)
+
+    def f_at(w: float, guess: np.ndarray):
+        try:
+            pw = params.with_(**{name: w})
+            y, _yn, M, _r, _it = newton_orbit(pw, n, guess, settings, max_iter=8)
+        except (OrbitError, ParameterError, np.linalg.LinAlgError):
+            return None
+        if n > 1:  # the orbit must not have collapsed to a divisor of its period
+            yh, _ = section_map(pw, y, n // 2, settings, jacobian=False)
+            if float(np.max(np.abs(yh[:2] - y[:2]))) < 1e-7 * (1.0 + abs(y[0])):
+                return None
+        if kind == "period_doubling":
+            f = _pd_test(M)
+        else:
+            g = grazing_margin(pw, y, n, settings, substeps=cfg.substeps).signed
+            f = g.get(boundary)
+        if f is None or not math.isfinite(f):
+            return None
+        return y, M, float(f)
+
+    w_a = w_pred
+    r = f_at(w_a, y_pred)
+    if r is None:
+        return None
+    evals.append((w_a, r[2], r[0], r[1]))
+    w_b = w_pred + min(0.1 * window, 1e-3)
+    lo = hi = None  # bracket
+    for _ in range(max_eval):
+        wa, fa, ya, _ = evals[-1]
+        if len(evals) >= 2:
+            wp, fp, yp, _ = evals[-2]
+            w_b = wa - fa * (wa - wp) / (fa - fp) if fa != fp else wa + 0.5 * (wa - wp)
+            if lo is not None and not (min(lo[0], hi[0]) < w_b < max(lo[0], hi[0])):
+                w_b = 0.5 * (lo[0] + hi[0])
+            w_b = min(max(w_b, wa - window), wa + window)
+            if abs(w_b - w_pred) > 3.0 * window:
+                return None
+            guess = ya.copy()
+            if wa != wp:
+                guess[dims] = ya + (w_b - wa) / (wa - wp) * (ya - yp)
+        else:
+            guess = ya.copy()
+        r = f_at(w_b, guess)
+        if r is None:
+            return None
+        evals.append((w_b, r[2], r[0], r[1]))
+        if fa * r[2] <= 0.0:
+            lo, hi = (wa, fa), (w_b, r[2])
+        elif lo is not None:
+            if (lo[1] < 0) == (r[2] < 0):
+                lo = (w_b, r[2])
+            else:
+                hi = (w_b, r[2])
+        if abs(w_b - wa) < wtol or r[2] == 0.0:
+            break
+    else:
+        return None
+    w, f, y, M = evals[-1]
+    ok = abs(f) < (1e-6 if kind == "period_doubling" else 1e-7)
+    if not ok:
+        return None
+    mu = np.linalg.eigvals(M).astype(complex)
+    mu = mu[np.argsort(-np.abs(mu), kind="stable")]
+    row = {"value": w, "x": float(y[0]), "v": float(y[1]), "mu_max": float(abs(mu[0])),
+           "mu_re": [float(m.real) for m in mu], "mu_im": [float(m.imag) for m in mu],
+           "stable": bool(abs(mu[0]) < 1.0), "evals": len(evals)}
+    return row, y
+
+
+def _relocate_fold(
+    params: ModelParameters, n: int, name: str, w_pred: float, y_pred: np.ndarray,
+    window: float, cfg: Continuation, *, stol: float = 1e-10, max_eval: int = 14,
+) -> tuple[dict[str, Any], np.ndarray] | None:
+    """Locate the fold of the period-``n`` branch near ``(w_pred, y_pred)`` directly.
+
+    At a fold ``w`` is not a parameter of the branch, but the coordinate ``s = v . y`` along the
+    critical eigenvector ``v`` (multiplier +1) is: at fixed ``s`` the orbit and its ``w`` are
+    one corrector solve (``G = 0``, ``v . y = s``; :meth:`_Problem.correct`), and the fold is
+    the zero of the ``w`` component of the branch tangent (null vector of ``[M - I,
+    dG/dw]``, oriented along ``v``). That scalar function of ``s`` is smooth through the fold;
+    its zero is found by the secant method (bisection once bracketed), each trial started from
+    the extrapolated state. Returns None on failure (the caller falls back to the windowed
+    continuation). The located point has a multiplier +1 to 1e-4, as in the continuation.
+    """
+    from .continuation import _Problem
+
+    prob = _Problem(params.with_(**{name: w_pred}), name, n, cfg)
+    dims = prob.dims
+    d = prob.d
+    try:
+        _G, M0, _dGdl = prob.evaluate(y_pred, w_pred)
+    except (OrbitError, ParameterError):
+        return None
+    mu, vecs = np.linalg.eig(M0)
+    k = int(np.argmin(np.abs(mu - 1.0)))
+    if abs(mu[k].imag) > 1e-6 * max(abs(mu[k]), 1.0):
+        return None
+    v = np.real(vecs[:, k])
+    v /= np.linalg.norm(v)
+    normal = np.concatenate([v, [0.0]])
+    s0 = float(v @ y_pred[dims])
+    evals: list[tuple[float, float, np.ndarray, float, np.ndarray]] = []  # (s, f, y, w, M)
+
+    def f_at(sv: float, y_guess: np.ndarray, w_guess: float):
+        yg = y_guess.copy()
+        yg[dims] = yg[dims] + (sv - float(v @ yg[dims])) * v
+        anchor = np.concatenate([yg[dims], [w_guess]])
+        try:
+            y, w, M, dGdl = prob.correct(yg, w_guess, normal, anchor, max_step=5.0 * window)
+            t = prob.tangent(M, dGdl, normal)
+        except (OrbitError, ParameterError, np.linalg.LinAlgError):
+            return None
+        return y, w, M, float(t[d])
+
+    r = f_at(s0, y_pred, w_pred)
+    if r is None:
+        return None
+    evals.append((s0, r[3], r[0], r[1], r[2]))
+    s_b = s0 + 1e-3
+    lo = hi = None
+    for _ in range(max_eval):
+        sa, fa, ya, wa, _ = evals[-1]
+        yg, wg = ya, wa
+        if len(evals) >= 2:
+            sp, fp, yp, wp, _ = evals[-2]
+            s_b = sa - fa * (sa - sp) / (fa - fp) if fa != fp else sa + 0.5 * (sa - sp)
+            if lo is not None and not (min(lo[0], hi[0]) < s_b < max(lo[0], hi[0])):
+                s_b = 0.5 * (lo[0] + hi[0])
+            s_b = min(max(s_b, sa - 0.05), sa + 0.05)
+            if abs(s_b - s0) > 0.2:
+                return None
+            if sa != sp:
+                f = (s_b - sa) / (sa - sp)
+                yg = ya.copy()
+                yg[dims] = ya[dims] + f * (ya[dims] - yp[dims])
+                wg = wa + f * (wa - wp)
+        r = f_at(s_b, yg, wg)
+        if r is None:
+            return None
+        evals.append((s_b, r[3], r[0], r[1], r[2]))
+        if fa * r[3] <= 0.0:
+            lo, hi = (sa, fa), (s_b, r[3])
+        elif lo is not None:
+            if (lo[1] < 0) == (r[3] < 0):
+                lo = (s_b, r[3])
+            else:
+                hi = (s_b, r[3])
+        if abs(s_b - sa) < stol or r[3] == 0.0:
+            break
+    else:
+        return None
+    _s, _f, y, w, M = evals[-1]
+    mu = np.linalg.eigvals(M).astype(complex)
+    if float(np.min(np.abs(mu - 1.0))) > 1e-4 or abs(w - w_pred) > 3.0 * window:
+        return None
+    mu = mu[np.argsort(-np.abs(mu), kind="stable")]
+    row = {"value": w, "x": float(y[0]), "v": float(y[1]), "mu_max": float(abs(mu[0])),
+           "mu_re": [float(m.real) for m in mu], "mu_im": [float(m.imag) for m in mu],
+           "stable": bool(abs(mu[0]) < 1.0), "evals": len(evals)}
+    return row, y
+
+
 def follow_curve(
     params: ModelParameters,
     point: pd.Series | dict[str, Any],
@@ -111,6 +305,7 @@ def follow_curve(
     window: float = 0.01,
     config: Continuation | None = None,
     max_points: int = 200,
+    method: str = "secant",
 ) -> pd.DataFrame:
     """Follow one located bifurcation point in ``name2`` from its value in ``params`` to ``stop2``.
 
@@ -135,6 +330,7 @@ def follow_curve(
     h = abs(step2)
     h_min = step_min if step_min is not None else h / 16
     pts: list[dict[str, Any]] = []
+    stats = {"secant": 0, "secant_failed": 0, "window": 0}
 
     def add(mu_v, r):
         pts.append({
@@ -167,10 +363,19 @@ def follow_curve(
             reason = f"{name2} = {mu_new} outside its range"
             break
         found = None
-        for win in (window, 2 * window):
-            found = _relocate(pnew, kind, boundary, n, name, w_pred, y_pred, win, cfg)
-            if found is not None:
-                break
+        if method == "secant" and kind in ("period_doubling", "grazing", "fold"):
+            if kind == "fold":
+                found = _relocate_fold(pnew, n, name, w_pred, y_pred, window, cfg)
+            else:
+                found = _relocate_secant(pnew, kind, boundary, n, name, w_pred, y_pred,
+                                         window, cfg)
+            stats["secant" if found is not None else "secant_failed"] += 1
+        if found is None:
+            for win in (window, 2 * window):
+                found = _relocate(pnew, kind, boundary, n, name, w_pred, y_pred, win, cfg)
+                if found is not None:
+                    stats["window"] += 1
+                    break
         if found is None:
             h *= 0.5
             if h < h_min:
@@ -184,7 +389,13 @@ def follow_curve(
         h = min(abs(step2), h * 1.5)
     df = pd.DataFrame(pts, columns=[c for c in CURVE_COLUMNS if c != "curve"])
     df.attrs["reason"] = reason
+    df.attrs["relocations"] = stats
     return df
+
+
+def _follow_task(args: tuple) -> pd.DataFrame:
+    params, point, name2, stop, kw = args
+    return follow_curve(params, point, name2, stop, **kw)
 
 
 def follow_curves(
@@ -197,33 +408,81 @@ def follow_curves(
     kinds: Sequence[str] = ("fold", "period_doubling", "grazing"),
     window: float = 0.01,
     config: Continuation | None = None,
+    workers: int = 1,
+    method: str = "secant",
 ) -> pd.DataFrame:
-    """Follow every point of ``kinds`` both ways in ``name2`` across ``range2 = (lo, hi)``."""
+    """Follow every point of ``kinds`` both ways in ``name2`` across ``range2 = (lo, hi)``.
+
+    ``workers > 1`` runs the curve halves (one point, one direction each) in that many
+    processes; the result does not depend on ``workers`` (each half is computed alone).
+    """
     t0 = time.perf_counter()
-    curves = []
-    reasons = []
-    cid = 0
+    tasks = []
     for _, r in points.iterrows():
         if r["kind"] not in kinds:
             continue
-        parts = []
         for stop in (range2[0], range2[1]):
             if math.isclose(stop, getattr(params, name2)):
                 continue
-            c = follow_curve(params, r, name2, stop, step2=step2, window=window, config=config)
-            reasons.append(f"curve {cid} ({r['kind']} {r['boundary']} period {r['period']} at "
-                           f"{r['name']} = {r['value']:.6f}) towards {name2} = {stop}: "
-                           f"{c.attrs['reason']}, {len(c)} points")
-            if config is not None and config.progress is not None:
-                config.progress(reasons[-1])
-            parts.append(c if not parts else c.iloc[1:])
+            cfg = config
+            if config is not None and workers > 1:
+                cfg = Continuation(**{**config.__dict__, "progress": None})
+            tasks.append((params, r.to_dict(), name2, stop,
+                          dict(step2=step2, window=window, config=cfg, method=method)))
+    if workers > 1 and len(tasks) > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        ctx = mp.get_context("fork")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as ex:
+            halves = list(ex.map(_follow_task, tasks))
+    else:
+        halves = [_follow_task(t) for t in tasks]
+    curves = []
+    reasons = []
+    relocations = {"secant": 0, "secant_failed": 0, "window": 0}
+    cid = -1
+    key = None
+    parts: list[pd.DataFrame] = []
+
+    def flush():
         if parts:
             c = pd.concat(parts, ignore_index=True).sort_values("value2", kind="stable")
             c.insert(0, "curve", cid)
             curves.append(c)
+
+    for (_, r, _, stop, _), c in zip(tasks, halves, strict=True):
+        k = (r["kind"], r["boundary"], r["period"], r["value"])
+        if k != key:
+            flush()
+            parts = []
+            key = k
             cid += 1
+        reasons.append(f"curve {cid} ({r['kind']} {r['boundary']} period {r['period']} at "
+                       f"{r['name']} = {r['value']:.6f}) towards {name2} = {stop}: "
+                       f"{c.attrs['reason']}, {len(c)} points")
+        for kk, vv in c.attrs.get("relocations", {}).items():
+            relocations[kk] = relocations.get(kk, 0) + vv
+        if config is not None and config.progress is not None:
+            config.progress(reasons[-1])
+        parts.append(c if not parts else c.iloc[1:])
+    flush()
     out = (pd.concat(curves, ignore_index=True) if curves
            else pd.DataFrame(columns=list(CURVE_COLUMNS)))
     out.attrs.update(params=params.to_dict(), name2=name2, range2=list(range2), reasons=reasons,
-                     wall_s=time.perf_counter() - t0)
+                     wall_s=time.perf_counter() - t0, workers=workers, method=method,
+                     relocations=relocations)
+    return out
+
+
+def pipeline_orbit_tables(config) -> list[str]:
+    """The continuation tables the pipeline makes for a config (workflow/rules/orbits.smk):
+    ``standard`` (config ``orbits.continuation`` and a sweep named ``standard``) and
+    ``<plane>_curves`` for every plane (``orbits.curves``)."""
+    opts = dict(config.get("orbits") or {})
+    out = []
+    if opts.get("continuation", True) and "standard" in (config.get("sweeps") or {}):
+        out.append("standard")
+    if opts.get("curves", True):
+        out += [f"{plane}_curves" for plane in (config.get("planes") or {})]
     return out

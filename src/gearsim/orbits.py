@@ -53,6 +53,11 @@ from .variational import monodromy
 #: the single-DOF model.
 SHOOTING = IntegrationSettings(method="dp5", rtol=1e-12, atol=1e-14, hmax=0.2)
 
+#: the monodromy's DP5 error norm includes the tangent vector (6-DOF model; the kernel's
+#: ``tangent_error`` option, used by this shooting path only): the tangent then is as accurate
+#: as the state instead of ~6e4 rtol (docs/orbits.md, "Tolerance")
+TANGENT_ERROR = True
+
 #: multiplier kinds (the bifurcation a multiplier leaving the unit circle causes)
 KIND_FOLD = "fold"
 KIND_PD = "period_doubling"
@@ -102,7 +107,7 @@ def section_map(
         if r.status != STATUS_OK:
             raise OrbitError(f"integration diverged from {y0[:2]} at w = {params.w}")
         return r.state[:N_STATE].copy(), None
-    yn, M, status = monodromy(params, y0, n, settings)
+    yn, M, status = monodromy(params, y0, n, settings, tangent_error=TANGENT_ERROR)
     if status != STATUS_OK:
         raise OrbitError(f"integration diverged from {y0[:2]} at w = {params.w}")
     return yn.copy(), M
