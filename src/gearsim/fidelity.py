@@ -646,7 +646,9 @@ def form_report_lines(forms: Mapping[str, Any]) -> list[str]:
     if forms.get("adopted"):
         out += [f"Adopted: **{forms['adopted']}**. {forms.get('decision', '')}", ""]
     k = forms.get("kmax_form")
-    if k and recs.get(k, {}).get("measured", {}).get("kmax"):
-        out += [f"Form {k}: " + kmax_lines(recs[k]["measured"]["kmax"])[0], "",
-                *kmax_lines(recs[k]["measured"]["kmax"])[2:], ""]
+    km = forms.get("kmax") or recs.get(k, {}).get("measured", {}).get("kmax")
+    if k and km:
+        kl = kmax_lines(km)
+        out += [f"Form {k}, its best set (jump resolved on a 0.002 grid): " + kl[0], "",
+                *kl[2:], ""]
     return out

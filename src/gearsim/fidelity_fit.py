@@ -375,3 +375,45 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
     log(f"[{form.name}] refined exact J = {J:.4f} (start {J_start:.4f}); "
         f"{time.time() - t0:.0f} s")
     return rec
+
+
+# ============================================================================ evidence
+def best_per_target(log_dir: str | Path) -> dict[str, dict[str, Any]]:
+    """For every target: the smallest error any logged evaluation of any form reached, with
+    that evaluation's form, level (coarse grid read / exact), J and how many evaluations
+    measured the target. Evidence for a miss: no tested form got closer within its search."""
+    from .fidelity import Measured, target_errors
+
+    best: dict[str, dict[str, Any]] = {}
+    for f in sorted(Path(log_dir).glob("*.jsonl")):
+        form, level = f.name.split(".")[0].rsplit("-", 1)
+        for line in f.read_text().splitlines():
+            rec = json.loads(line)
+            md = rec.get("measured")
+            if not md:
+                continue
+            m = Measured(**{k: v for k, v in md.items() if k in Measured.__dataclass_fields__})
+            for k, e in target_errors(m).items():
+                if not np.isfinite(e):
+                    continue
+                b = best.setdefault(k, {"n": 0})
+                b["n"] += 1
+                if "error" not in b or abs(e) < abs(b["error"]):
+                    b.update(error=float(e), form=form, level=level, J=float(rec["J"]),
+                             x=rec["x"])
+    return best
+
+
+def kmax_for(form: Form, x: Sequence[float], st: FidelitySettings | None = None, *,
+             w_lo: float = 0.3, w_hi: float = 1.0, dw: float = 0.002) -> dict[str, Any]:
+    """Kmax readings on both sides of the jump of ``form`` at ``x``, the jump resolved on a
+    fine forward sweep (``dw``) with the form's sweep method (the readings are ratios: the
+    scale does not enter)."""
+    from .fidelity import kmax_at_jump, sweep
+
+    st = st or FidelitySettings(exact=True)
+    p = params_from_vector(x, form, Fm=st.Fm, b=st.b0)
+    grid = np.arange(w_lo, w_hi + 1e-12, dw)
+    df = sweep(p, grid, st.integration(), continuation=form.continuation,
+               w_factor=form.w_factor(p))
+    return kmax_at_jump(p, df, st)

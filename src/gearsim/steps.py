@@ -37,6 +37,9 @@ from .model import (
 METHOD_DP5 = 0
 METHOD_RK4 = 1
 METHODS = {"dp5": METHOD_DP5, "rk4": METHOD_RK4}
+# DP5 with the tangent vector in the error norm (kernel code only, not a settings method:
+# run_periods(..., tangent=True, tangent_error=True), the shooting path of gearsim.orbits)
+METHOD_DP5_TANGENT = 2
 
 # FMA contraction only (no reassociation; NaN/inf semantics kept): the same flag on every RK4
 # path, so the scalar and the batched kernels round identically.

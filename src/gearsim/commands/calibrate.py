@@ -264,8 +264,18 @@ def _forms_table(args) -> int:
         raise UsageError(f"--adopt {args.adopt!r} is not among --forms {', '.join(recs)}")
     out = Path(args.out)
     record = json.loads(out.read_text()) if out.is_file() else {}
+    kform = args.adopt or next(iter(recs))
+    best = recs[kform].get("best") or {}
+    kmax = {}
+    if best:
+        from ..fidelity_fit import kmax_for
+
+        form = FORMS[kform]
+        kmax = kmax_for(form, [best[f.name] for f in form.free])
+        kmax["form"] = kform
+        kmax["x"] = best
     record["forms"] = {"records": recs, "adopted": args.adopt, "decision": args.decision,
-                       "kmax_form": args.adopt or next(iter(recs)),
+                       "kmax_form": kform, "kmax": kmax,
                        "known_forms": {n: f.text for n, f in FORMS.items()}}
     out.write_text(json.dumps(record, indent=1, default=float))
     print("\n".join(form_report_lines(record["forms"])))
