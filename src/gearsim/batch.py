@@ -223,31 +223,18 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-                bearings):
-    """One RK4 step (state and tangent) of the LANES lanes of block ``bi``.
+                tangent, bearings):
+    """One RK4 step (the state, and the tangent vector if ``tangent``) of block ``bi``'s lanes.
 
     The loop over the lanes is straight-line code and vectorises (check: ``inspect_asm()``).
-    Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes are left
-    untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
+    ``tangent`` must be a literal at the call site (one compiled loop without the tangent code
+    for the transients). Unflagged lanes are updated in place (state, tangent, accumulators);
+    flagged lanes are left untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
     """
     o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
     for q in range(LANES):
         _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-                   True, bearings)
-    anyf = False
-    for q in range(LANES):
-        anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
-    return anyf
-
-
-@njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam,
-                      bound, bearings):
-    """:func:`_block_step` without the tangent vector (transients)."""
-    o = (bi & 0xFFFFFF) * BLOCK
-    for q in range(LANES):
-        _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-                   False, bearings)
+                   tangent, bearings)
     anyf = False
     for q in range(LANES):
         anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
@@ -391,10 +378,10 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fou
                 o = bi * BLOCK
                 if tangent:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, bound, bearings)
+                                       cvB, svB, lam, bound, True, bearings)
                 else:
-                    anyf = _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB,
-                                             sB, cvB, svB, lam, bound, bearings)
+                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
+                                       cvB, svB, lam, bound, False, bearings)
                 if anyf:
                     for q in range(L):
                         if blk[o + _FLAG * L + q] != 0.0:
