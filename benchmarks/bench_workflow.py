@@ -130,6 +130,56 @@ def cmd_run(args) -> None:
     print(f"{args.name}: rc={rc} wall {t1 - t0:.0f} s in {d}")
 
 
+def rule_times(log: Path) -> dict:
+    """Per rule: jobs and the sum of job wall seconds, from a Snakemake log (its time stamps)."""
+    import re
+    from datetime import datetime
+
+    stamp = re.compile(r"^\[(\w{3} \w{3} +\d+ \d\d:\d\d:\d\d \d{4})\]$")
+    now, start, rule_of, out = None, {}, {}, {}
+    pending = None
+    for line in log.read_text().splitlines():
+        m = stamp.match(line.strip())
+        if m:
+            now = datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y").timestamp()
+            continue
+        t = line.strip()
+        if t.startswith(("rule ", "localrule ")) and t.endswith(":"):
+            pending = t.split()[1].rstrip(":")
+        elif t.startswith("jobid:") and pending:
+            jid = t.split()[1]
+            start[jid], rule_of[jid] = now, pending
+            pending = None
+        elif t.startswith("Finished jobid:"):
+            jid = t.split()[2]
+            if jid in start:
+                r = out.setdefault(rule_of[jid], {"jobs": 0, "wall_s": 0.0})
+                r["jobs"] += 1
+                r["wall_s"] += now - start[jid]
+    return out
+
+
+def cmd_rules(args) -> None:
+    """Per-rule job seconds of a finished run directory (Snakemake log + benchmark files)."""
+    d = Path(args.dir)
+    logs = sorted((d / ".snakemake" / "log").glob("*.snakemake.log"))
+    if not logs:
+        raise SystemExit(f"no Snakemake log in {d}/.snakemake/log")
+    rules = rule_times(logs[-1])
+    cpu: dict[str, float] = {}
+    for k, v in job_table(d).items():
+        name = Path(k).stem.rsplit("_", 1)[0] if "_" in Path(k).stem else Path(k).stem
+        cpu[name] = cpu.get(name, 0.0) + (v["cpu_time_s"] if v["cpu_time_s"] == v["cpu_time_s"]
+                                          else 0.0)  # fmt: skip
+    print(f"{'rule':24s} {'jobs':>5s} {'job wall s':>11s}")
+    for r, v in sorted(rules.items(), key=lambda kv: -kv[1]["wall_s"]):
+        print(f"{r:24s} {v['jobs']:5d} {v['wall_s']:11.0f}")
+    print("benchmark-file CPU seconds (jobs with a `benchmark:`):",
+          {k: round(v) for k, v in sorted(cpu.items())})  # fmt: skip
+    if args.json:
+        Path(args.json).write_text(json.dumps({"rules": rules, "cpu_s": cpu}, indent=1) + "\n")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -147,8 +197,11 @@ def main(argv=None):
     c.add_argument("--integration", required=True)
     c.add_argument("--load", default="")
     c.add_argument("--notes", default="")
+    q = sub.add_parser("rules")
+    q.add_argument("dir")
+    q.add_argument("--json", default=None)
     args = ap.parse_args(argv)
-    {"run": cmd_run, "collect": cmd_collect}[args.cmd](args)
+    {"run": cmd_run, "collect": cmd_collect, "rules": cmd_rules}[args.cmd](args)
 
 
 if __name__ == "__main__":

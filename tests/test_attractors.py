@@ -273,3 +273,24 @@ def test_hysteresis_of_a_hand_built_fold_and_its_figure(tmp_path):
     assert {18, 19, 20} <= set(figures())
     with pytest.raises(ParameterError, match="backward"):
         hysteresis(_synthetic_sweeps().query("direction == 'forward'"))
+
+
+def test_probing_without_tangent_gives_the_same_states_bit_for_bit():
+    """The attractor probes run without the tangent vector (issue 16): the event layer decides
+    on the state only, so section points, contact counts and final states are identical."""
+    from gearsim.batch import initial_tangent, run_periods_batched
+    from gearsim.model import static_state
+
+    cells = [ModelParameters(w=w, b=b) for w, b in ((0.6, 0.15), (1.02, 0.15), (1.37, 0.15),
+                                                     (1.53, 0.15), (1.1, 0.0), (2.0, 1.0))]
+    cells += [ModelParameters(w=0.9, b=0.2, b_py=0.05, b_gz=0.05, friction=0.02)]
+    st = IntegrationSettings(method="rk4")
+    y = np.array([np.concatenate([static_state(p.to_array()), initial_tangent(p)])
+                  for p in cells])  # fmt: skip
+    a = run_periods_batched(cells, y, 30, st, tangent=True)
+    b = run_periods_batched(cells, y, 30, st, tangent=False)
+    for sa, sb in zip(a[0], b[0], strict=True):
+        for name in ("section", "nface", "nback", "tdis", "fmax", "fmin", "xmax", "xmin"):
+            assert np.array_equal(getattr(sa, name), getattr(sb, name)), name
+    assert np.array_equal(a[1][:, :10], b[1][:, :10])
+    assert np.array_equal(a[2], b[2]) and np.array_equal(a[3], b[3])

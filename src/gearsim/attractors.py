@@ -674,9 +674,12 @@ class GearCells:
                 continue
             y = np.hstack([np.asarray(states, dtype=float)[rows, :N_STATE],
                            np.repeat(t0[None, :], len(rows), axis=0)])  # fmt: skip
+            # probing needs the section points only (the tangent is restarted by every
+            # full-length run): no tangent vector (same states, bit for bit)
             summ, fin, status, _ = run_periods_batched(
                 plist, y, n_periods, self.settings, start_periods=[int(start_periods[r])
-                                                                   for r in rows]
+                                                                   for r in rows],
+                tangent=False,
             )  # fmt: skip
             for q, r in enumerate(rows):
                 s = summ[q].section

@@ -255,7 +255,7 @@ def _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, 
 
 
 # ============================================================================ flagged lanes
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
     """Redo grid step ``j`` of lane ``q`` with the event layer (the scalar integrator's call).
 
@@ -516,11 +516,16 @@ def run_periods_batched(
     settings: IntegrationSettings | None = None,
     *,
     start_periods: Sequence[int] | None = None,
+    tangent: bool = True,
 ) -> tuple[list[PeriodSummaries], np.ndarray, np.ndarray, np.ndarray]:
     """Integrate every cell ``n_periods`` periods from ``states`` (rows of 20: state, tangent).
 
-    The batched counterpart of ``simulate.run_periods(..., tangent=True)`` with RK4 (all cells
-    must have the same steps per period). Returns ``(summaries, final_states, status, steps)``.
+    The batched counterpart of ``simulate.run_periods(..., tangent=tangent)`` with RK4 (all
+    cells must have the same steps per period). Returns ``(summaries, final_states, status,
+    steps)``. With ``tangent=False`` the tangent rows are not integrated (the summaries'
+    ``lyap`` and the final tangent are then meaningless); the state, section points and event
+    records are bit-identical to ``tangent=True`` (the event layer decides on the state only;
+    tests/test_attractors.py).
     """
     st = settings or IntegrationSettings(method="rk4")
     n = len(params_list)
@@ -540,7 +545,7 @@ def run_periods_batched(
         lanes.ist[_ST, l] = 0
         lanes.ist[_POS, l] = 0
         lanes.ist[_K, l] = ks[l]
-    lanes.run(N, n_periods, nu, getattr(st, "divergence_bound", 1.0e6))
+    lanes.run(N, n_periods, nu, getattr(st, "divergence_bound", 1.0e6), bool(tangent))
     out = []
     for l in range(n):
         out.append(lanes.summaries(l, int(lanes.ist[_DONE, l])))
@@ -660,10 +665,36 @@ def simulate_cells(
 
     ``u0``: one start state for all cells, one per cell (None = static state), or None.
     E.g. an audit that restarts sampled plane cells from their left neighbours' final states.
+
+    Cells are run in groups of one step grid (steps per period, variable-ratio order): a kernel
+    call advances the lanes of one grid and computes every block of its lanes, so a few cells of
+    another grid (small ``w``: ``ceil(T / hmax)`` steps) in the same lanes would cost a call
+    over all blocks for one lane. Cells are independent: the grouping changes no result.
     """
-    res = simulate_rows([[p] for p in params_list], settings=settings, continuation=False, u0=u0,
-                        start_periods=start_periods)
-    return [r[0] for r in res]
+    params_list = list(params_list)
+    n = len(params_list)
+    if u0 is None or (isinstance(u0, np.ndarray) and u0.ndim == 1):
+        u0s = [u0] * n
+    else:
+        u0s = list(u0)
+        if len(u0s) != n:
+            raise ParameterError("u0: one start state per row expected")
+    ks = [0] * n if start_periods is None else [int(k) for k in start_periods]
+    if len(ks) != n:
+        raise ParameterError("start_periods: one start period per row expected")
+    st = settings or IntegrationSettings()
+    groups: dict[tuple, list[int]] = {}
+    for k, p in enumerate(params_list):
+        key = (steps_per_period(p, st), p.var_ratio_order if p.var_ratio != 0.0 else None)
+        groups.setdefault(key, []).append(k)
+    out: list[CellResult | None] = [None] * n
+    for idx in groups.values():
+        res = simulate_rows([[params_list[k]] for k in idx], settings=settings,
+                            continuation=False, u0=[u0s[k] for k in idx],
+                            start_periods=[ks[k] for k in idx])  # fmt: skip
+        for k, r in zip(idx, res, strict=True):
+            out[k] = r[0]
+    return out  # type: ignore[return-value]
 
 
 def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, continuation: bool,
@@ -676,6 +707,8 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
         _begin_cell(ch, lanes, st)
     active = [ch for ch in chains if not ch.finished]
     while active:
+        if len(active) <= (lanes.n_blocks - 1) * LANES:
+            lanes = _compact(lanes, active)
         # lanes whose cell has the step grid (N, nu) of the least advanced chain take part
         lead = min(active, key=lambda c: (c.i, c.k))
         N, nu = lead.N, lead.nu
@@ -723,6 +756,25 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                 else:
                     _decide(c, lanes, st, continuation, on_cell)
         active = [ch for ch in chains if not ch.finished]
+
+
+def _compact(lanes: Lanes, chains: list[_Chain]) -> Lanes:
+    """Move the lanes of the unfinished ``chains`` into as few SIMD blocks as they need.
+
+    Finished chains leave frozen lanes behind that the vector step still computes (a block
+    costs the same with 1 or 8 lanes taking part); the remaining lanes are copied, with their
+    records, into a new :class:`Lanes` (lanes are independent: results are unchanged).
+    """
+    new = Lanes(len(chains), lanes.sec.shape[1])
+    old = np.array([c.lane for c in chains], dtype=np.int64)
+    idx = np.arange(len(chains))
+    new.view[idx // LANES, :, idx % LANES] = lanes.view[old // LANES, :, old % LANES]
+    new.ist[:, idx] = lanes.ist[:, old]
+    for a in ("sec", "nface", "nback", "fout"):
+        getattr(new, a)[idx] = getattr(lanes, a)[old]
+    for c, l in zip(chains, idx, strict=True):
+        c.lane = int(l)
+    return new
 
 
 def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:

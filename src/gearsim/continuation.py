@@ -343,7 +343,6 @@ def continue_orbit(
         raise ParameterError(f"continuation range of '{name}' is empty: from = to = {start}")
     rows: list[dict[str, Any]] = []
     reasons: list[str] = []
-    queue: list[tuple[int, int, _Point | None, np.ndarray | None, int]] = []
     prob = _Problem(p0, name, n, cfg)
     G, M, dGdl = prob.evaluate(orbit.state, start)
     direction = 1.0 if stop > start else -1.0
@@ -351,21 +350,44 @@ def continue_orbit(
     if first.tangent[-1] * direction < 0:
         first.tangent = -first.tangent
     lo, hi = min(start, stop), max(start, stop)
-    queue.append((0, n, first, None, 0))
+    # jobs: continue a branch ("run"), or switch onto the doubled branch at a period doubling
+    # ("switch"). The doublings of one branch form a group; a doubled branch that ends at
+    # another doubling of its group (a period-2n bubble joining two doublings) makes the switch
+    # there redundant.
+    jobs: list[dict[str, Any]] = [dict(kind="run", branch=0, n=n, pt=first, origins=[],
+                                       own=-1, group=None, depth=0)]
+    reached: dict[int, set[int]] = {}
     next_branch = 1
-    while queue:
-        branch, nb, pt, _unused, depth = queue.pop(0)
+    while jobs:
+        job = jobs.pop(0)
+        nb = job["n"]
+        if job["kind"] == "switch":
+            pd_pt = job["pt"]
+            if job["own"] in reached[job["group"]]:
+                reasons.append(f"no switch at {name} = {pd_pt.lam:.8f}: the doubled branch of "
+                               "another doubling ends there")
+                continue
+            sw = _switch(_Problem(p0, name, nb // 2, cfg), pd_pt, cfg)
+            if sw is None:
+                reasons.append(f"branch switch at {name} = {pd_pt.lam:.8f} failed")
+                continue
+            jobs.insert(0, dict(job, kind="run", branch=next_branch, pt=sw))
+            next_branch += 1
+            continue
+        branch, depth = job["branch"], job["depth"]
         bprob = _Problem(p0, name, nb, cfg)
-        reason, new = _run_branch(bprob, branch, pt, lo, hi, rows, cfg)
+        reason, new, hit = _run_branch(bprob, branch, job["pt"], lo, hi, rows, cfg,
+                                       origins=job["origins"], own=job["own"])
         reasons.append(f"branch {branch} (period {nb}): {reason}")
-        if depth < cfg.switch_depth:
-            for pd_pt in new:
-                sw = _switch(bprob, pd_pt, cfg)
-                if sw is None:
-                    reasons.append(f"branch switch at {name} = {pd_pt.lam:.8f} failed")
-                    continue
-                queue.append((next_branch, 2 * nb, sw, None, depth + 1))
-                next_branch += 1
+        if hit is not None and job["group"] is not None:
+            reached[job["group"]].add(hit)
+        if depth < cfg.switch_depth and new:
+            gid = len(reached)
+            reached[gid] = set()
+            origins = [_orbit_points(bprob, q) for q in new]
+            for k, pd_pt in enumerate(new):
+                jobs.append(dict(kind="switch", n=2 * nb, pt=pd_pt, origins=origins, own=k,
+                                 group=gid, depth=depth + 1))
     df = pd.DataFrame(rows, columns=list(COLUMNS))
     df.attrs.update(
         params=p0.to_dict(), name=name, start=start, stop=stop, reasons=reasons,
@@ -401,12 +423,46 @@ def _switch(prob: _Problem, pd_pt: _Point, cfg: Continuation) -> _Point | None:
     return None
 
 
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Euclidean distance of point ``p`` to the segment ``[a, b]``."""
+    ab = b - a
+    L2 = float(ab @ ab)
+    s = 0.0 if L2 == 0.0 else min(max(float((p - a) @ ab) / L2, 0.0), 1.0)
+    return float(np.linalg.norm(p - (a + s * ab)))
+
+
+def _orbit_points(prob: _Problem, pt: _Point) -> np.ndarray:
+    """The ``n`` section points of the orbit at ``pt`` as ``(y_free, lam)`` rows."""
+    from .simulate import run_periods
+
+    r = run_periods(prob.params(pt.lam), pt.y, prob.n, prob.cfg.settings)
+    sec = np.asarray(r.summaries.section, dtype=float)[:, : len(pt.y)]
+    return np.column_stack([sec[:, prob.dims], np.full(len(sec), pt.lam)])
+
+
 def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float,
-                rows: list[dict[str, Any]], cfg: Continuation) -> tuple[str, list[_Point]]:
-    """Continue one branch; append rows; return (stop reason, located period doublings)."""
+                rows: list[dict[str, Any]], cfg: Continuation,
+                origins: list[np.ndarray] | None = None,
+                own: int = -1) -> tuple[str, list[_Point], int | None]:
+    """Continue one branch; append rows; return (stop reason, located period doublings, index
+    of the origin it ended at).
+
+    A closed branch ends where it returns through a doubling point of its parent (``origins``:
+    per doubling, the parent orbit's section points as ``(y, lam)`` rows; ``own`` the one it
+    was switched at) or through its own first point: a doubled branch joining two doublings
+    (a bubble), or coming back through its own doubling (it then continues as the same orbit
+    shifted by ``n/2`` periods), and an isola would otherwise be traced round and round until
+    ``max_points``.
+    """
     n = prob.n
     d = prob.d
     pt = first
+    origins = list(origins or [])
+    targets = [(k, o) for k, pts in enumerate(origins) for o in np.atleast_2d(pts)]
+    if own < 0:
+        targets.append((-1, np.concatenate([first.y[prob.dims], [first.lam]])))
+    home = [o for k, o in targets if k == own or k < 0]  # where the branch starts
+    far = 0.0
     rows.append(_row(prob, branch, n, pt))
     ds = cfg.ds
     pds: list[_Point] = []
@@ -425,8 +481,24 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
                 break
             ds *= 0.5
             if ds < cfg.ds_min:
-                return f"step size below {cfg.ds_min} at {prob.name} = {pt.lam:.8g}", pds
+                return (f"step size below {cfg.ds_min} at {prob.name} = {pt.lam:.8g}", pds,
+                        None)
         new = prob.point(yy, lam, M, dGdl, pt.tangent)
+        # closed branch: it passes through a doubling point (a pitchfork of P^n, where the
+        # fold test changes sign without a fold); the interval is not tested, the point not kept
+        u_new = np.concatenate([new.y[prob.dims], [new.lam]])
+        seg = float(np.linalg.norm(u_new - u))
+        for k, o in targets:
+            if k == own or k < 0:  # its own start: only after it has gone away
+                if far <= 4.0 * max(seg, cfg.ds):
+                    continue
+            if _segment_distance(o, u, u_new) < 0.1 * seg:
+                what = "its start" if k < 0 else ("its own doubling" if k == own else
+                                                  "another doubling of its parent")
+                return (f"closed: returned through {what} at {prob.name} = {new.lam:.8g}",
+                        pds, (k if k >= 0 else None))
+        if home:
+            far = max(far, min(float(np.linalg.norm(u_new - o)) for o in home))
         # the first interval of a switched branch starts on a branch point: skip its tests
         events = [] if (step == 0 and branch > 0) else _events(prob, pt, new, n)
         for ev_pt, kind, bnd in sorted(events, key=lambda e: abs(e[0].lam - pt.lam)):
@@ -442,12 +514,16 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
             half = n // 2
             yn, _ = section_map(prob.params(new.lam), new.y, half, cfg.settings, jacobian=False)
             if float(np.max(np.abs(yn[prob.dims] - new.y[prob.dims]))) < 1e-7:
-                return f"merged into period {half} at {prob.name} = {new.lam:.8g}", pds
+                # turned onto its parent at a doubling: which one (the nearest)
+                near = [(float(np.linalg.norm(u_new - o)), k) for k, o in targets if k >= 0]
+                hit = min(near)[1] if near and min(near)[0] < 4.0 * cfg.ds_max else None
+                return (f"merged into period {half} at {prob.name} = {new.lam:.8g}", pds,
+                        hit)
         pt = new
         if not (lo - 1e-12 <= pt.lam <= hi + 1e-12):
-            return f"left [{lo}, {hi}] at {prob.name} = {pt.lam:.8g}", pds
+            return f"left [{lo}, {hi}] at {prob.name} = {pt.lam:.8g}", pds, None
         ds = min(cfg.ds_max, ds * 1.3)
-    return f"{cfg.max_points} points", pds
+    return f"{cfg.max_points} points", pds, None
 
 
 def _events(prob: _Problem, a: _Point, b: _Point, n: int) -> list[tuple[_Point, str, str]]:

@@ -32,6 +32,20 @@ COLUMNS = (
 )
 
 
+def orbit_period(key: str) -> int:
+    """Period of the orbit whose bifurcation a paper landmark is, from its key (0: any).
+
+    ``pd_1_2`` and ``ipd_4_2``: the doubling of the smaller period's orbit; ``ipd_chaos_8``:
+    of the 8T orbit; ``grazing_2``: of the 2T orbit; ``period_one`` and ``jump``: of the 1T
+    orbit."""
+    import re
+
+    if key in ("period_one", "jump"):
+        return 1
+    nums = [int(v) for v in re.findall(r"\d+", key)]
+    return min(nums) if nums else 0
+
+
 def exact_landmarks(points: pd.DataFrame, sweep: pd.DataFrame | None = None,
                     grid: pd.DataFrame | None = None, *, slack: float | None = None
                     ) -> pd.DataFrame:
@@ -45,8 +59,10 @@ def exact_landmarks(points: pd.DataFrame, sweep: pd.DataFrame | None = None,
     sweep
         The sweep table (for :func:`gearsim.landmarks.find_landmarks`), or ``grid`` directly.
     slack
-        How far outside the grid interval ``[lo, hi]`` an exact point may lie and still be
-        paired (default: one grid spacing of the sweep).
+        How far outside the grid interval ``[lo, hi]`` an exact point of the landmark's kind
+        and orbit period (:func:`orbit_period`) may lie and still be paired (default: 3 grid
+        spacings of the sweep, at least 0.05: the simulated labels lag a doubling by up to
+        ~0.03 in w, docs/orbits.md).
 
     ``inside`` says whether the exact point lies in the grid interval where the labels change.
     """
@@ -58,9 +74,9 @@ def exact_landmarks(points: pd.DataFrame, sweep: pd.DataFrame | None = None,
     if slack is None:
         if sweep is not None and len(sweep) > 1:
             v = np.sort(sweep["value"].to_numpy())
-            slack = float(np.median(np.diff(v)))
+            slack = max(3.0 * float(np.median(np.diff(v))), 0.05)
         else:
-            slack = 0.0
+            slack = 0.05
     rows = []
     used: set[int] = set()
     for _, m in matched.iterrows():
@@ -71,6 +87,9 @@ def exact_landmarks(points: pd.DataFrame, sweep: pd.DataFrame | None = None,
         kinds = PAIRS.get(m["kind"], ())
         if m["found"] and kinds:
             cand = points[points["kind"].isin(kinds)]
+            period = orbit_period(str(m["key"]))
+            if period and "period" in cand.columns:
+                cand = cand[cand["period"] == period]
             cand = cand[(cand["value"] >= m["lo"] - slack) & (cand["value"] <= m["hi"] + slack)]
             cand = cand[[i not in used for i in cand.index]]
             if len(cand):
@@ -88,9 +107,9 @@ def exact_landmarks(points: pd.DataFrame, sweep: pd.DataFrame | None = None,
 def report_lines(table: pd.DataFrame) -> list[str]:
     """Markdown table lines for the reproduction report."""
     lines = [
-        "| landmark | paper | grid (interval) | exact (continuation) | kind, period "
-        "| in interval |",
-        "|---|---|---|---|---|---|",
+        "| landmark | paper | grid (interval) | exact (continuation) | exact - grid "
+        "| exact - paper | kind, period | in interval |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for _, r in table.iterrows():
         grid = ("missing" if not np.isfinite(r["grid"])
@@ -98,5 +117,20 @@ def report_lines(table: pd.DataFrame) -> list[str]:
         ex = "-" if not np.isfinite(r["exact"]) else f"{r['exact']:.8f}"
         kp = f"{r['exact_kind']}, {r['exact_period']}T" if r["exact_kind"] else "-"
         inside = "-" if not r["exact_kind"] else ("yes" if r["inside"] else "no")
-        lines.append(f"| {r['text']} | {r['paper']:.3f} | {grid} | {ex} | {kp} | {inside} |")
+        d_grid = ("-" if not (np.isfinite(r["exact"]) and np.isfinite(r["grid"]))
+                  else f"{r['exact'] - r['grid']:+.4f}")
+        d_paper = "-" if not np.isfinite(r["exact"]) else f"{r['exact'] - r['paper']:+.4f}"
+        lines.append(f"| {r['text']} | {r['paper']:.3f} | {grid} | {ex} | {d_grid} | {d_paper} "
+                     f"| {kp} | {inside} |")
     return lines
+
+
+def sweep_set_arguments(config, sweep: str) -> str:
+    """``--set name=value ...`` of a configured sweep's parameter set (the study's resolved
+    parameters and the sweep's ``fixed``): the continuation of workflow/rules/orbits.smk runs
+    on exactly the sweep's parameters."""
+    from .config import resolved_parameters
+
+    values = {**resolved_parameters(config), **(config["sweeps"][sweep].get("fixed") or {})}
+    return " ".join(f"--set {k}={v!r}" if k != "model" else f"--set model={v}"
+                    for k, v in values.items())

@@ -69,6 +69,7 @@ from .parameters import ModelParameters, ParameterError
 from .steps import (
     FASTMATH,
     METHOD_DP5,
+    METHOD_DP5_TANGENT,
     METHOD_RK4,
     METHODS,
     grid_step_flag,
@@ -215,6 +216,10 @@ def integrate_periods(
     n = 20 if tangent else 10
     pl = p.copy()  # the per-period slots (variable-ratio phase) are written here
     nerr = N_STATE if p[P_DOF6] != 0.0 else 2
+    if method == METHOD_DP5_TANGENT:  # DP5 with the tangent in the error norm (shooting only)
+        method = METHOD_DP5
+        if tangent and p[P_DOF6] != 0.0:
+            nerr = 2 * N_STATE
     w = p[P_W]
     T = 2.0 * math.pi / w
     friction = p[P_GAM] != 0.0
@@ -455,8 +460,13 @@ def run_periods(
     event_capacity: int = 0,
     h_init: float = 0.0,
     parray: np.ndarray | None = None,
+    tangent_error: bool = False,
 ) -> Run:
-    """Integrate ``n_periods`` mesh periods from ``y0`` (unchanged) at ``tau = start_period T``."""
+    """Integrate ``n_periods`` mesh periods from ``y0`` (unchanged) at ``tau = start_period T``.
+
+    ``tangent_error`` (DP5 with ``tangent`` only): the tangent vector enters the error norm
+    too (6-DOF model), so the variational solution is as accurate as the state (the shooting
+    path, :mod:`gearsim.orbits`; measured cells do not use it)."""
     p = params.to_array() if parray is None else parray
     y = np.zeros(20)
     y[: len(y0)] = y0
@@ -469,8 +479,11 @@ def run_periods(
     ev_c = np.zeros(event_capacity, dtype=np.int64)
     n_rk = rk4_steps_per_period(params, settings, substeps)
     nu = params.var_ratio_order if params.var_ratio != 0.0 else 0.0
+    code = METHODS[settings.method]
+    if tangent_error and tangent and code == METHOD_DP5:
+        code = METHOD_DP5_TANGENT
     status, done, n_ev, h_last, n_steps = integrate_periods(
-        y, start_period, p, METHODS[settings.method], settings.rtol, settings.atol,
+        y, start_period, p, code, settings.rtol, settings.atol,
         settings.hmax, n_rk, m, substeps, tangent, h_init, sec, ints[0], ints[1], *floats, traj,
         ev_t, ev_c, settings.divergence_bound, *phase_tables(n_rk, nu),
     )

@@ -436,6 +436,10 @@ def to_markdown(rep: Report) -> str:
                     f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
                     f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
                     "docs/calibration.md.", ""]
+    if rep.calibration and rep.calibration.get("forms"):
+        from .fidelity import form_report_lines
+
+        out += form_report_lines(rep.calibration["forms"])
     out += _audit_lines(rep.audit)
     out += ["## 1. Landmarks of the standard sweep", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
@@ -472,7 +476,11 @@ def to_markdown(rep: Report) -> str:
         from .exact_landmarks import report_lines
 
         out += ["Exact bifurcation points (Newton-Floquet continuation of the standard set, "
-                "located to 1e-8; docs/orbits.md):", "", *report_lines(rep.exact), ""]
+                "located to 1e-8; docs/orbits.md). Each landmark is paired with the located "
+                "bifurcation of its kind and orbit period nearest the grid reading; \"in "
+                "interval\" says whether it lies between the two swept values where the "
+                "simulated labels change (next to a period doubling the simulated transient "
+                "decays slowly and the labels change early).", "", *report_lines(rep.exact), ""]
     out += ["## 2. DC and Kmax at the jump", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]

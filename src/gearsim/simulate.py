@@ -8,8 +8,9 @@ quasi-periodic or unsettled is decided by the Lyapunov exponent).
 
 from __future__ import annotations
 
+import functools
 import typing
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,7 @@ __all__ = [
 ]
 
 TANGENT_SEED = 20251022  # fixed seed of the initial tangent vector (recorded in provenance)
+_CLASSIFICATION_FIELDS = tuple(f.name for f in fields(Classification))
 
 
 @dataclass
@@ -54,7 +56,8 @@ class CellResult:
 
     def row(self) -> dict[str, Any]:
         """Flat record for tables (the catalogue's cell columns: :func:`result_columns`)."""
-        c = asdict(self.classification)
+        cls = self.classification
+        c = {name: getattr(cls, name) for name in _CLASSIFICATION_FIELDS}  # flat: no deepcopy
         c["kmax"] = self.classification.kmax
         c["periods"] = self.periods
         c["steps"] = self.steps
@@ -86,8 +89,15 @@ def initial_tangent(params: ModelParameters) -> np.ndarray:
     the Lyapunov exponent measures the mesh mode (a frozen component would never decay and pull
     the estimate to zero).
     """
+    return project_tangent(_tangent_unit(), pack_parameters(params))
+
+
+@functools.cache
+def _tangent_unit() -> np.ndarray:
     v = np.random.default_rng(TANGENT_SEED).standard_normal(N_STATE)
-    return project_tangent(v / np.linalg.norm(v), pack_parameters(params))
+    v = v / np.linalg.norm(v)
+    v.flags.writeable = False
+    return v
 
 
 def diverged_result(params: ModelParameters, k: int, steps: int,

@@ -30,8 +30,11 @@ def tangent_map(
     Z: np.ndarray,
     *,
     start_period: int = 0,
+    tangent_error: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Flow ``n_periods`` mesh periods from ``y0`` and map the tangent vectors ``Z`` (columns).
+
+    ``tangent_error``: DP5 controls the tangent's error too (see :func:`run_periods`).
 
     Returns ``(y_end, DPhi Z, status)``: the final state (10 entries), the image of every column
     of ``Z`` (shape ``(10, k)``) under the derivative of the ``n_periods``-period map, and the
@@ -49,7 +52,7 @@ def tangent_map(
         if nz == 0.0:
             continue
         r = run_periods(params, np.concatenate([y0, z / nz]), n_periods, settings,
-                        start_period=start_period, tangent=True)
+                        start_period=start_period, tangent=True, tangent_error=tangent_error)
         status = max(status, r.status)
         if r.status != 0:
             out[:, i] = np.nan
@@ -67,6 +70,7 @@ def monodromy(
     settings: IntegrationSettings,
     *,
     start_period: int = 0,
+    tangent_error: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, int]:
     """Jacobian of the ``n_periods``-period stroboscopic map at ``y0`` on the evolved states.
 
@@ -77,7 +81,8 @@ def monodromy(
     d = n_evolved(pack_parameters(params))
     Z = np.zeros((N_STATE, d))
     Z[:d, :d] = np.eye(d)
-    y_end, MZ, status = tangent_map(params, y0, n_periods, settings, Z, start_period=start_period)
+    y_end, MZ, status = tangent_map(params, y0, n_periods, settings, Z, start_period=start_period,
+                                    tangent_error=tangent_error)
     return y_end, MZ[:d, :], status
 
 

@@ -4,11 +4,14 @@
 # maps (pattern, DC, Kmax, and any registered later) from rule plane_maps.
 # Outputs: results/figures/figNN.{png,pdf,json}, results/figures/planes/<plane>-<kind>.*, and
 # the index results/figures/README.md.
+from gearsim.bifcurves import pipeline_orbit_tables
 from gearsim.figures import rules as gfr
 
 FIGURE_PARAMS = gfr.figure_params(config)
-FIGURE_GROUPS = gfr.groups(SWEEPS, PLANES, POINT_SETS)
-FIGURES_BUILT = gfr.built_figures(SWEEPS, PLANES, POINT_SETS)
+# continuation tables made by workflow/rules/orbits.smk (config `orbits:`)
+ORBIT_TABLES = pipeline_orbit_tables(config)
+FIGURE_GROUPS = gfr.groups(SWEEPS, PLANES, POINT_SETS, ORBIT_TABLES)
+FIGURES_BUILT = gfr.built_figures(SWEEPS, PLANES, POINT_SETS, ORBIT_TABLES)
 
 
 for _spec in FIGURE_GROUPS:
@@ -17,7 +20,7 @@ for _spec in FIGURE_GROUPS:
         name:
             gfr.rule_name(_spec)
         input:
-            **gfr.input_paths(_spec),
+            **gfr.input_paths(_spec, ORBIT_TABLES),
             config=CONFIG,
         output:
             *[
@@ -31,7 +34,7 @@ for _spec in FIGURE_GROUPS:
             GEARSIM_ENV
         threads: 1
         params:
-            args=gfr.cli_args(_spec),
+            args=gfr.cli_args(_spec, ORBIT_TABLES),
             caption=gfr.caption_params(_spec),
             figure=FIGURE_PARAMS,
             code_version=CODE_VERSION,

@@ -1,6 +1,27 @@
-# Periodic orbits (docs/orbits.md): Newton refinement of every periodic cell of a plane.
+# Periodic orbits (docs/orbits.md).
+#
+# In the default run (`all`), unless config `orbits: {continuation: false, curves: false}`:
+#  * standard_continuation: the continuation of the standard sweep's parameter set along w
+#    (Newton-Floquet, branch switching at period doublings): the exact landmarks of the report,
+#    Fig 4's unstable branches and exact marks, Fig 23; ~2-3 CPU-minutes.
+#  * bifurcation_curves: per plane, the fold, period-doubling and grazing points of that
+#    continuation (when the plane's seed parameters are the standard set's; else its own
+#    seeding continuation) followed across the plane's second parameter: Figs 21, 22 and the
+#    catalogue tables bifurcation_points / bifurcation_curves. Two processes per job.
 # On demand only (not in `all`: ~60 ms per periodic cell, hours on a 400 x 400 plane):
 #   snakemake --cores 2 results/wb/orbits.parquet
+
+
+from gearsim.bifcurves import pipeline_orbit_tables
+from gearsim.exact_landmarks import sweep_set_arguments
+
+ORBIT_TABLES = pipeline_orbit_tables(config)  # config `orbits: {continuation, curves}`
+ORBITS_STANDARD = "standard" in ORBIT_TABLES
+ORBIT_CURVES = {
+    plane: f"results/orbits/{plane}_curves.parquet"
+    for plane in PLANES
+    if f"{plane}_curves" in ORBIT_TABLES
+}
 
 
 rule refine_orbits:
@@ -23,8 +44,7 @@ rule refine_orbits:
         "--configfile {input.config} --out {output} > {log} 2>&1"
 
 
-# Exact landmarks of the standard sweep (continuation from w = 0.1 to 2.5; the report lists them
-# beside the grid-read ones when results/orbits/standard_points.parquet exists). On demand.
+# Exact landmarks of the standard sweep: continuation over the sweep's range from its start.
 rule standard_continuation:
     input:
         sweep="results/sweeps/standard.parquet",
@@ -36,19 +56,26 @@ rule standard_continuation:
         figure="results/orbits/standard.png",
     log:
         "logs/orbits/standard.log",
+    benchmark:
+        "logs/benchmarks/orbits/standard.tsv"
     conda:
         GEARSIM_ENV
     params:
+        sets=sweep_set_arguments(config, "standard") if ORBITS_STANDARD else "",
+        start=config["sweeps"]["standard"]["min"] if ORBITS_STANDARD else 0,
+        stop=config["sweeps"]["standard"]["max"] if ORBITS_STANDARD else 0,
         code_version=CODE_VERSION,
     shell:
-        "gearsim continue --name w --from 0.1 --to 2.5 --period 1 --sweep {input.sweep} "
-        "--out {output.branches} --figure {output.figure} > {log} 2>&1"
+        "gearsim continue --name w --from {params.start} --to {params.stop} --period 1 "
+        "{params.sets} --sweep {input.sweep} --out {output.branches} "
+        "--figure {output.figure} > {log} 2>&1"
 
 
-# Two-parameter bifurcation curves over a plane's pattern map. On demand.
+# Two-parameter bifurcation curves over a plane's pattern map.
 rule bifurcation_curves:
     input:
         cells="results/{plane}/cells.parquet",
+        points=["results/orbits/standard_points.parquet"] if ORBITS_STANDARD else [],
         config=CONFIG,
     output:
         curves="results/orbits/{plane}_curves.parquet",
@@ -59,11 +86,26 @@ rule bifurcation_curves:
         "logs/orbits/{plane}_curves.log",
     benchmark:
         "logs/benchmarks/orbits/{plane}_curves.tsv"
+    threads: 2
     conda:
         GEARSIM_ENV
     params:
         config=plane_params,
+        points=lambda wildcards, input: f"--points {input.points}" if input.points else "",
         code_version=CODE_VERSION,
     shell:
         "gearsim bifurcation-curves --plane {wildcards.plane} --cells {input.cells} "
-        "--configfile {input.config} --out {output.curves} > {log} 2>&1"
+        "{params.points} --workers {threads} --configfile {input.config} "
+        "--out {output.curves} > {log} 2>&1"
+
+
+# what the catalogue loads (bifurcation_points, bifurcation_curves) and the report reads
+ORBIT_CATALOGUE_FILES = [
+    f
+    for plane in ORBIT_CURVES
+    for f in (f"results/orbits/{plane}_curves_points.parquet", ORBIT_CURVES[plane])
+]
+ORBIT_REPORT_INPUTS = (
+    ["results/orbits/standard_points.parquet"] if ORBITS_STANDARD else []
+)
+ALL_TARGETS += ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS

@@ -86,6 +86,8 @@ rule catalogue:
         sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
         audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
         attractors=ATTRACTOR_FILES,
+        # bifurcation points / curves (workflow/rules/orbits.smk, included later)
+        orbits=lambda wildcards: globals().get("ORBIT_CATALOGUE_FILES", []),
     output:
         CATALOGUE,
     log:
@@ -94,7 +96,7 @@ rule catalogue:
         GEARSIM_ENV
     shell:
         "gearsim catalogue build --cells {input.cells} --sweeps {input.sweeps} "
-        "--audits {input.audits} --attractors {input.attractors} "
+        "--audits {input.audits} --attractors {input.attractors} --orbits {input.orbits} "
         "--out {output} --publish results/catalogue.sqlite "
         "> {log} 2>&1"
 

@@ -28,6 +28,8 @@ rule report:
         audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
         calibration=[str(CALIBRATION)] if CALIBRATION.is_file() else [],
         table1="results/table1.md",
+        # exact landmarks by continuation (workflow/rules/orbits.smk)
+        orbits=globals().get("ORBIT_REPORT_INPUTS", []),
         config=CONFIG,
     output:
         "results/report.md",

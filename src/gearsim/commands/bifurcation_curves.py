@@ -38,6 +38,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="period doublings followed onto the doubled branch")
     p.add_argument("--kinds", default="fold,period_doubling,grazing",
                    help="comma-separated kinds to follow")
+    p.add_argument("--points", metavar="PARQUET", default=None,
+                   help="located points of a continuation along x at the seed parameters "
+                   "(e.g. results/orbits/standard_points.parquet from `gearsim continue`): used "
+                   "instead of a new seeding continuation when its parameters are the seed's")
+    p.add_argument("--workers", type=int, default=1,
+                   help="processes for the curves (one curve half each; default 1)")
+    p.add_argument("--method", choices=("secant", "window"), default="secant",
+                   help="re-location of a curve point: direct secant solve (default), or a "
+                   "windowed continuation (the slower reference; also the secant's fallback)")
     p.add_argument("--out", required=True,
                    help="curves Parquet (results/orbits/PLANE_curves.parquet); the located "
                    "points go to *_points.parquet beside it, the figure to *.png")
@@ -75,20 +84,28 @@ def run(args: argparse.Namespace) -> int:
     step2 = args.step2 if args.step2 is not None else (y1 - y0) / 20
     if not 0 < step2 <= (y1 - y0):
         raise UsageError(f"--step2 = {step2} must be in (0, {y1 - y0}]")
+    if not 1 <= args.workers <= 64:
+        raise UsageError(f"--workers = {args.workers} must be in [1, 64]")
     params = base.with_(**{yn: at, xn: x0})
     started = catalogue.now_iso()
     t0 = time.perf_counter()
-    from ..simulate import simulate_cell
+    given = _given_points(args.points, params, xn, x0, x1) if args.points else None
+    if given is not None:
+        points, branches = given
+        _log(f"seed: {len(points)} located points from {args.points} (same parameters)")
+    else:
+        from ..simulate import simulate_cell
 
-    seed = simulate_cell(params).final_state
-    orbit = find_periodic_orbit(params, args.period, seed, grazing=False)
-    cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth, max_points=600,
-                       progress=_log)
-    branches = continue_orbit(params, xn, x0, x1, orbit, config=cfg)
+        seed = simulate_cell(params).final_state
+        orbit = find_periodic_orbit(params, args.period, seed, grazing=False)
+        cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth,
+                           max_points=600, progress=_log)
+        branches = continue_orbit(params, xn, x0, x1, orbit, config=cfg)
+        points = bifurcation_points(branches)
     t_branch = time.perf_counter() - t0
-    points = bifurcation_points(branches)
     curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds,
-                           config=Continuation(progress=_log))
+                           config=Continuation(progress=_log), workers=args.workers,
+                           method=args.method, range1=(x0, x1))
     wall = time.perf_counter() - t0
     out = Path(args.out)
     stem = out.with_suffix("")
@@ -123,6 +140,42 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out}, {stem}_points.parquet, {stem}_branches.parquet and "
           f"{out.with_suffix('.png')}", file=sys.stderr)
     return 0
+
+
+def _given_points(path: str, params, xn: str, x0: float, x1: float):
+    """``(points, branches)`` of a continuation file whose parameters are ``params`` (all but
+    ``xn``), restricted to ``[x0, x1]``; None (with a note) when the parameters differ."""
+    import pandas as pd
+
+    from .. import catalogue
+    from ..continuation import COLUMNS
+
+    p = Path(path)
+    if not p.is_file():
+        raise UsageError(f"--points: file not found: {path}")
+    meta = catalogue.read_metadata(p, b"gearsim.continuation") or {}
+    theirs = dict(meta.get("params") or {})
+    ours = params.to_dict()
+    diff = [k for k in ours if k != xn and theirs.get(k) != ours[k]]
+    if meta.get("name") != xn or diff:
+        _log(f"--points {path}: not the seed's parameters ({', '.join(diff[:4]) or xn}); "
+             "running the seeding continuation")
+        return None
+    lo, hi = min(x0, x1), max(x0, x1)
+    lo_c, hi_c = sorted((float(meta.get("start", lo)), float(meta.get("stop", hi))))
+    if lo_c > lo + 1e-12 or hi_c < hi - 1e-12:
+        _log(f"--points {path}: covers {xn} in [{lo_c}, {hi_c}], not [{lo}, {hi}]; "
+             "running the seeding continuation")
+        return None
+    pts = pd.read_parquet(p)
+    pts = pts[(pts["value"] >= lo) & (pts["value"] <= hi)].reset_index(drop=True)
+    pts = pts.drop(columns=[c for c in ("name2", "value2") if c in pts.columns])
+    pts.attrs.update(meta)
+    branch_path = p.with_name(p.name.replace("_points.parquet", ".parquet"))
+    branches = (pd.read_parquet(branch_path) if branch_path.is_file() and branch_path != p
+                else pd.DataFrame(columns=list(COLUMNS)))
+    branches.attrs.update(meta)
+    return pts, branches
 
 
 def _log(line: str) -> None:

@@ -25,7 +25,9 @@ HELP = "fit Fe/Fm, eps, phi_e, xi, friction to the paper's landmarks (differenti
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--stage", choices=("search", "verify", "both", "standard"), default="both",
+    p.add_argument("--stage", choices=("search", "verify", "both", "standard", "forms",
+                                        "forms-table"),
+                   default="both",
                    help="standard: write --standard-out from --out's result (or MODEL.md's set)")
     p.add_argument("--standard-out", default="config/standard_parameters.yaml",
                    help="standard-parameter file written by --stage standard")
@@ -51,6 +53,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--box", choices=("wide", "narrow"), default="narrow",
                    help="search bounds (gearsim.calibrate.BOXES)")
     p.add_argument("--no-start", action="store_true", help="do not seed DE with MODEL.md's set")
+    p.add_argument("--forms", default="today,fixed_start",
+                   help="stage forms: comma-separated model forms (gearsim.fidelity_fit.FORMS)")
+    p.add_argument("--generations", type=int, default=10,
+                   help="stage forms: differential evolution generations (same for every form)")
+    p.add_argument("--population", type=int, default=16,
+                   help="stage forms: population (Sobol, seeded; same for every form)")
+    p.add_argument("--refine-fev", type=int, default=16,
+                   help="stage forms: Nelder-Mead evaluations of the exact objective")
+    p.add_argument("--forms-dir", default="results/calibration/forms",
+                   help="stage forms: one JSON per form and the evaluation logs")
+    p.add_argument("--adopt", default=None,
+                   help="stage forms-table: the form adopted as the standard set")
+    p.add_argument("--decision", default="", help="stage forms-table: why (one paragraph)")
 
 
 def _search(args) -> dict:
@@ -210,6 +225,64 @@ def standard_parameters(record: dict, *, bearing_ratio: float, bearing_xi: float
     return standard_document(params, geo, prov, header=header)
 
 
+def _forms(args) -> int:
+    """Fit each model form with the same search and budget (gearsim.fidelity_fit.fit_form)."""
+    from ..fidelity_fit import FORMS, fit_form
+
+    names = [s.strip() for s in args.forms.split(",") if s.strip()]
+    unknown = [n for n in names if n not in FORMS]
+    if unknown:
+        raise UsageError(f"--forms: unknown form(s) {', '.join(unknown)}; known: "
+                         f"{', '.join(FORMS)}")
+    if args.generations < 0 or args.population < 5 or args.refine_fev < 0:
+        raise UsageError("--generations >= 0, --population >= 5, --refine-fev >= 0 required")
+    d = Path(args.forms_dir)
+    d.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        rec = fit_form(FORMS[name], seed=args.seed, generations=args.generations,
+                       population=args.population, refine_fev=args.refine_fev,
+                       workers=args.workers, log_dir=str(d / "logs"),
+                       time_budget=args.time_budget, log=lambda s: print(s, flush=True))
+        (d / f"{name}.json").write_text(json.dumps(rec, indent=1, default=float))
+        print(f"wrote {d / (name + '.json')}", flush=True)
+    return 0
+
+
+def _forms_table(args) -> int:
+    """Collect the per-form records into --out (key ``forms``) and print the table."""
+    from ..fidelity import compact_record, form_report_lines
+    from ..fidelity_fit import FORMS
+
+    d = Path(args.forms_dir)
+    recs = {}
+    for name in [s.strip() for s in args.forms.split(",") if s.strip()]:
+        f = d / f"{name}.json"
+        if not f.is_file():
+            raise UsageError(f"--forms: no record {f} (run --stage forms first)")
+        recs[name] = compact_record(json.loads(f.read_text()))
+    if args.adopt is not None and args.adopt not in recs:
+        raise UsageError(f"--adopt {args.adopt!r} is not among --forms {', '.join(recs)}")
+    out = Path(args.out)
+    record = json.loads(out.read_text()) if out.is_file() else {}
+    kform = args.adopt or next(iter(recs))
+    best = recs[kform].get("best") or {}
+    kmax = {}
+    if best:
+        from ..fidelity_fit import kmax_for
+
+        form = FORMS[kform]
+        kmax = kmax_for(form, [best[f.name] for f in form.free])
+        kmax["form"] = kform
+        kmax["x"] = best
+    record["forms"] = {"records": recs, "adopted": args.adopt, "decision": args.decision,
+                       "kmax_form": kform, "kmax": kmax,
+                       "known_forms": {n: f.text for n, f in FORMS.items()}}
+    out.write_text(json.dumps(record, indent=1, default=float))
+    print("\n".join(form_report_lines(record["forms"])))
+    print(f"wrote {out}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     if args.stage == "standard":
         from ..calibrate import write_standard_parameters
@@ -223,6 +296,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.workers < 1:
         raise UsageError("--workers must be >= 1")
+    if args.stage == "forms":
+        return _forms(args)
+    if args.stage == "forms-table":
+        return _forms_table(args)
     out = Path(args.out)
     record: dict = json.loads(out.read_text()) if out.is_file() else {}
     if args.stage in ("search", "both"):

@@ -57,6 +57,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--points", action="append", default=[], metavar="NAME=PATH",
                    help="a recorded point set (results/points/NAME.parquet), repeatable")
     p.add_argument("--outdir", default="results/figures", help="output directory")
+    p.add_argument("--orbits", action="append", default=[], metavar="NAME=PATH",
+                   help="a continuation table (results/orbits/standard.parquet, "
+                   "results/orbits/wb_curves.parquet), repeatable; for 'standard' the located "
+                   "points are read from *_points.parquet beside it")
     p.add_argument("--maps", action="store_true",
                    help="draw the maps of every --plane (any two axes) into OUTDIR/planes/")
     p.add_argument("--map", nargs="+", default=None, metavar="KIND",
@@ -87,6 +91,11 @@ def _context(args, config):
         ctx.planes[name] = read_table(path)
     for name, path in _pairs(args.points, "--points").items():
         ctx.points[name] = read_table(path)
+    for name, path in _pairs(args.orbits, "--orbits").items():
+        ctx.orbits[name] = read_table(path)
+        pts = Path(path).with_name(Path(path).stem + "_points.parquet")
+        if not name.endswith("_curves") and pts.is_file():
+            ctx.orbits[f"{name}_points"] = read_table(pts)
     return ctx
 
 

@@ -55,6 +55,9 @@ class Context:
     points: dict[str, pd.DataFrame] = field(default_factory=dict)  # pipeline point tables
     point_specs: dict[str, Any] = field(default_factory=dict)  # config `points:`
     sweep_fixed: dict[str, dict[str, float]] = field(default_factory=dict)  # config `sweeps:`
+    # continuation tables (docs/orbits.md): "standard" (branches of the standard sweep's set),
+    # "standard_points", "<plane>_curves" (two-parameter bifurcation curves)
+    orbits: dict[str, pd.DataFrame] = field(default_factory=dict)
 
 
 @dataclass
@@ -189,11 +192,21 @@ def _fig4(ctx: Context) -> list[Built]:
         diffs.append(f"Largest DC {float(df['dc'].max()):.3f} (paper 0.66 after the jump); "
                      f"Kmax at the jump in the paper 1.311; our Kmax reading is the default "
                      "catalogue column 'kmax'.")
-    return [Built(4, figure4(df), "(a) Bifurcation diagram of the mesh displacement x at the "
+    fig = figure4(df)
+    inputs = ["sweeps/standard"]
+    exact = ""
+    if "standard" in ctx.orbits:  # the continuation of the same set (docs/orbits.md)
+        from .orbits import overlay_standard
+
+        diffs += overlay_standard(fig, ctx, df)
+        inputs.append("orbits/standard")
+        exact = (" Dashed: unstable periodic orbits (continuation); diamonds on the axis: the "
+                 "exact bifurcation points of the landmarks.")
+    return [Built(4, fig, "(a) Bifurcation diagram of the mesh displacement x at the "
                   "Poincaré section versus ω (red I = 0, black I = 1, blue I = 2) with the "
                   "landmarks found in the same data (G Bif grazing, PD Bif period doubling, "
                   "Jump, Chaos onset); (b) I:DC diagram (DC coloured by I, runs labelled "
-                  "I:DC band); (c) Kmax versus ω.", diffs, ["sweeps/standard"])]
+                  "I:DC band); (c) Kmax versus ω." + exact, diffs, inputs)]
 
 
 def _point_motions(ctx: Context, name: str, ws_default):
@@ -411,10 +424,28 @@ class Inputs:
     planes: tuple[str, ...] = ()
     points: tuple[str, ...] = ()
     config_points: tuple[str, ...] = ()
+    # continuation tables ``results/orbits/NAME.parquet`` (workflow/rules/orbits.smk):
+    # "standard" (its located points are read from standard_points.parquet beside it) and
+    # "<plane>_curves" (one per plane); ``optional_orbits`` are passed when the pipeline makes
+    # them (config ``orbits:``), the figure is drawn without them otherwise
+    orbits: tuple[str, ...] = ()
+    optional_orbits: tuple[str, ...] = ()
 
     def tables(self) -> dict[str, tuple[str, ...]]:
-        """``{"sweeps": names, "planes": names, "points": names}``."""
-        return {"sweeps": self.sweeps, "planes": self.planes, "points": self.points}
+        """``{"sweeps": names, "planes": names, "points": names, "orbits": names}``."""
+        return {"sweeps": self.sweeps, "planes": self.planes, "points": self.points,
+                "orbits": self.orbits}
+
+
+def orbit_available(name: str, sweeps, planes, orbits=None) -> bool:
+    """Whether the pipeline makes the continuation table ``name``: listed in ``orbits``
+    (:func:`gearsim.bifcurves.pipeline_orbit_tables`), or when that is not given, its sweep or
+    plane is configured."""
+    if orbits is not None:
+        return name in orbits
+    if name.endswith("_curves"):
+        return name[: -len("_curves")] in planes
+    return name in sweeps
 
 
 @dataclass(frozen=True)
@@ -448,11 +479,13 @@ class FigureSpec:
     def lead(self) -> int:
         return self.members[0]
 
-    def available(self, sweeps, planes, points) -> bool:
-        """True when every input is configured (names of the config's sweeps, planes, points)."""
+    def available(self, sweeps, planes, points, orbits=None) -> bool:
+        """True when every input is configured (names of the config's sweeps, planes, points;
+        ``orbits``: the continuation tables the pipeline makes)."""
         i = self.inputs
         return (all(s in sweeps for s in i.sweeps) and all(p in planes for p in i.planes)
-                and all(q in points for q in (*i.points, *i.config_points)))
+                and all(q in points for q in (*i.points, *i.config_points))
+                and all(orbit_available(o, sweeps, planes, orbits) for o in i.orbits))
 
 
 FIGURES: dict[int, FigureSpec] = {}
@@ -505,7 +538,8 @@ register(FigureSpec(3, "(Caption lost in our copy; the text: schematic diagram o
                     "a(i, j).)", Inputs(planes=("wb",)), _fig3,
                     caption="The co-simulation grid: a coarse view of the (w, b) plane."))
 register(FigureSpec(4, "(a) Bifurcation diagram of mesh displacement; (b) I: DC diagram; (c) "
-                    "Kmax diagram.", Inputs(sweeps=("standard",)), _fig4,
+                    "Kmax diagram.", Inputs(sweeps=("standard",), optional_orbits=("standard",)),
+                    _fig4,
                     caption="Standard forward sweep in w: Poincare points, I:DC and Kmax."))
 register(FigureSpec(5, "Superpositions of the phase diagram and Poincaré mapping of the gear "
                     "pair: (a) ω = 0.48 1-0-0, (b) ω = 0.569 grazing, (c) ω = 0.86 1-1-0, (d) "
@@ -611,7 +645,7 @@ def build_maps(plane: str, df: pd.DataFrame, kinds: Sequence[str] | None = None
 
 #: modules of other analyses that register figures numbered after 17 (imported by
 #: :func:`figures`; a module missing from this checkout is skipped).
-EXTENSIONS: tuple[str, ...] = ("gearsim.figures.multistability",)
+EXTENSIONS: tuple[str, ...] = ("gearsim.figures.multistability", "gearsim.figures.orbits")
 
 
 def figures() -> dict[int, FigureSpec]:

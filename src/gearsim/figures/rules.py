@@ -14,44 +14,56 @@ from typing import Any
 from . import registry
 
 
-def groups(sweeps: Iterable[str], planes: Iterable[str], points: Iterable[str]
-           ) -> list[registry.FigureSpec]:
-    """The lead spec of every figure group whose inputs are all configured (one job each)."""
+def groups(sweeps: Iterable[str], planes: Iterable[str], points: Iterable[str],
+           orbits: Iterable[str] | None = None) -> list[registry.FigureSpec]:
+    """The lead spec of every figure group whose inputs are all configured (one job each);
+    ``orbits``: the continuation tables the pipeline makes (default: by their sweep / plane)."""
     sweeps, planes, points = list(sweeps), list(planes), list(points)
+    orbits = None if orbits is None else list(orbits)
     out, seen = [], set()
     for spec in registry.figures().values():
         if spec.lead in seen:
             continue
         seen.add(spec.lead)
         lead = registry.FIGURES[spec.lead]
-        if lead.available(sweeps, planes, points):
+        if lead.available(sweeps, planes, points, orbits):
             out.append(lead)
     return out
 
 
-def built_figures(sweeps, planes, point_sets) -> list[int]:
+def built_figures(sweeps, planes, point_sets, orbits=None) -> list[int]:
     """Every figure number the pipeline draws for this config."""
-    return sorted(n for g in groups(sweeps, planes, point_sets) for n in g.members)
+    return sorted(n for g in groups(sweeps, planes, point_sets, orbits) for n in g.members)
 
 
-def input_paths(spec: registry.FigureSpec) -> dict[str, list[str]]:
-    """Rule inputs of a figure: its tables' paths, by kind."""
+def _orbit_names(spec: registry.FigureSpec, orbits) -> list[str]:
+    i = spec.inputs
+    return [*i.orbits, *(o for o in i.optional_orbits if orbits is not None and o in orbits)]
+
+
+def input_paths(spec: registry.FigureSpec, orbits=None) -> dict[str, list[str]]:
+    """Rule inputs of a figure: its tables' paths, by kind (``orbits``: the continuation
+    tables the pipeline makes; optional ones are inputs only when listed there)."""
     i = spec.inputs
     return {
         "sweeps": [f"results/sweeps/{s}.parquet" for s in i.sweeps],
         "planes": [f"results/{p}/cells.parquet" for p in i.planes],
         "points": [f"results/points/{p}.parquet" for p in i.points],
+        "orbits": [f"results/orbits/{o}.parquet" for o in _orbit_names(spec, orbits)],
     }
 
 
-def cli_args(spec: registry.FigureSpec) -> str:
-    """``--fig N [M ...] --sweep NAME=PATH --plane NAME=PATH --points NAME=PATH``."""
-    paths = input_paths(spec)
+def cli_args(spec: registry.FigureSpec, orbits=None) -> str:
+    """``--fig N [M ...] --sweep NAME=PATH --plane NAME=PATH --points NAME=PATH``
+    (``--orbits NAME=PATH``)."""
+    paths = input_paths(spec, orbits)
     i = spec.inputs
     args = ["--fig", *(str(n) for n in spec.members)]
     args += [f"--sweep {n}={p}" for n, p in zip(i.sweeps, paths["sweeps"], strict=True)]
     args += [f"--plane {n}={p}" for n, p in zip(i.planes, paths["planes"], strict=True)]
     args += [f"--points {n}={p}" for n, p in zip(i.points, paths["points"], strict=True)]
+    args += [f"--orbits {n}={p}" for n, p in zip(_orbit_names(spec, orbits), paths["orbits"],
+                                                  strict=True)]
     return " ".join(args)
 
 
