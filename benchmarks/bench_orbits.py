@@ -82,7 +82,7 @@ def plane_tile_estimate(plane: str, rows: int = 8) -> dict:
             "plane_cpu_s_est": (c1 - c0) * ny / rows, "plane_wall_s_est": (w1 - w0) * ny / rows}
 
 
-def curves_default(workers: int, method: str) -> dict:
+def curves_default(workers: int, method: str, out_dir: str | None = None) -> dict:
     """The pipeline's curves of both default planes (standard continuation + follow_curves)."""
     from gearsim.config import plane_base, study_config
 
@@ -96,6 +96,13 @@ def curves_default(workers: int, method: str) -> dict:
     c1, w1 = time.process_time(), time.perf_counter()
     out["continuation"] = {"cpu_s": c1 - c0, "wall_s": w1 - w0, "points": len(pts),
                            "reasons": br.attrs["reasons"]}
+    if out_dir:
+        from pathlib import Path
+
+        from gearsim.continuation import write_branches
+
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        write_branches(br, Path(out_dir) / "standard.parquet")
     for plane in ("wb", "wxi"):
         pl = cfg["planes"][plane]
         yn, y0, y1 = pl["y"]["name"], float(pl["y"]["min"]), float(pl["y"]["max"])
@@ -106,6 +113,10 @@ def curves_default(workers: int, method: str) -> dict:
         cur = follow_curves(p, pts, yn, (y0, y1), step2=(y1 - y0) / 20, workers=workers,
                             method=method)
         c1, w1 = time.process_time(), time.perf_counter()
+        if out_dir:
+            from pathlib import Path
+
+            cur.assign(plane=plane).to_parquet(Path(out_dir) / f"{plane}_curves.parquet")
         out[plane] = {"curves": int(cur["curve"].nunique()) if len(cur) else 0,
                       "curve_points": len(cur), "wall_s": w1 - w0,
                       "cpu_s_parent": c1 - c0, "relocations": cur.attrs["relocations"],
@@ -136,10 +147,12 @@ def main() -> None:
                     help="only the default planes' curves against their tile time")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--method", choices=("secant", "window"), default="secant")
+    ap.add_argument("--out-dir", default=None,
+                    help="also write the continuation and curves as Parquet here")
     args = ap.parse_args()
     load = open("/proc/loadavg").read().split()[:3]
     if args.curves:
-        r = curves_default(args.workers, args.method)
+        r = curves_default(args.workers, args.method, args.out_dir)
         r["loadavg_start"] = load
         c = r["continuation"]
         print(f"load {' '.join(load)}; standard continuation: {c['points']} points, "

@@ -95,3 +95,28 @@ def test_report_cli_reads_sweeps_and_cells(tmp_path):
                  "--calibration", str(tmp_path / "none.json"), "--out", str(out)]) == 0
     text = out.read_text()
     assert "b: no double-sided impact above | 0.4125 | 0.4" in text
+
+
+def test_report_lists_exact_landmarks_from_the_standard_continuation(tmp_path):
+    """results/orbits/standard_points.parquet (workflow/rules/orbits.smk) puts each landmark's
+    exact bifurcation point beside the grid-read one and the paper's."""
+    (tmp_path / "sweeps").mkdir()
+    std = paper_like()
+    std.to_parquet(tmp_path / "sweeps" / "standard.parquet")
+    (tmp_path / "orbits").mkdir()
+    lm = analyse({"standard": std}, {}).matched.set_index("key")
+    g, pd12 = lm.loc["grazing_1"], lm.loc["pd_1_2"]
+    pts = pd.DataFrame([
+        {"kind": "grazing", "value": 0.5 * (g.lo + g.hi), "period": 1, "stable": True},
+        {"kind": "period_doubling", "value": pd12.hi + 0.01, "period": 1, "stable": True},
+        {"kind": "period_doubling", "value": pd12.hi + 0.01, "period": 2, "stable": True},
+    ])
+    pts.to_parquet(tmp_path / "orbits" / "standard_points.parquet")
+    rep, md = build_report(sweeps_dir=tmp_path / "sweeps", catalogue=None, results=tmp_path,
+                           calibration=None)
+    ex = rep.exact.set_index("key")
+    assert ex.loc["grazing_1", "inside"] and ex.loc["grazing_1", "exact_period"] == 1
+    # the doubling of the 1T orbit, just outside the grid interval (the labels change early)
+    assert ex.loc["pd_1_2", "exact_period"] == 1 and not ex.loc["pd_1_2", "inside"]
+    assert "Exact bifurcation points" in md and "exact - grid" in md
+    assert f"{0.5 * (g.lo + g.hi):.8f}" in md

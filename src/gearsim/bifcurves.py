@@ -29,8 +29,13 @@ import numpy as np
 import pandas as pd
 
 from .continuation import Continuation, continue_orbit
-from .orbits import OrbitError, find_periodic_orbit, section_map
+from .orbits import OrbitError, find_periodic_orbit, free_states, section_map
 from .parameters import ModelParameters, ParameterError
+
+#: curve points are tracked with the monodromy's state-only error control (half the cost; the
+#: multipliers then are good to ~6e-8 in the 6-DOF model, the curve point's w to ~1e-7); the
+#: seed points (one-parameter continuation) use the full control (gearsim.orbits.TANGENT_ERROR)
+TRACKING_TANGENT_ERROR = False
 
 CURVE_COLUMNS = (
     "curve", "kind", "period", "boundary", "name", "value", "name2", "value2", "x", "v",
@@ -112,7 +117,7 @@ def _pd_test(M: np.ndarray) -> float | None:
 def _relocate_secant(
     params: ModelParameters, kind: str, boundary: str, n: int, name: str, w_pred: float,
     y_pred: np.ndarray, window: float, cfg: Continuation, *, wtol: float = 1e-10,
-    max_eval: int = 14,
+    max_eval: int = 14, slope: float | None = None, tangent_error: bool | None = None,
 ) -> tuple[dict[str, Any], np.ndarray] | None:
     """Locate a period doubling or grazing of the period-``n`` orbit near ``w_pred`` directly.
 
@@ -130,24 +135,58 @@ def _relocate_secant(
     from .orbits import grazing_margin, newton_orbit
 
     settings = cfg.settings
-    dims = np.arange(len(y_pred))
+    dims = free_states(params)
+    d = len(dims)
     evals: list[tuple[float, float, np.ndarray, np.ndarray]] = []  # (w, f, y, M)
+    jac: list[np.ndarray] = []  # the latest monodromy: the chord iteration's matrix
+
+    def chord(pw: ModelParameters, guess: np.ndarray):
+        """Chord Newton on P^n(y) = y with the latest monodromy (state-only maps, ~10x
+        cheaper than a monodromy); None when it does not contract fast (then full Newton)."""
+        if not jac:
+            return None
+        parr = pw.to_array()
+        J = jac[-1] - np.eye(d)
+        y = guess.copy()
+        r_prev = math.inf
+        for _ in range(10):
+            yn, _ = section_map(pw, y, n, settings, jacobian=False, parray=parr)
+            G = yn[dims] - y[dims]
+            r = float(np.max(np.abs(G)))
+            if r < 1e-10:
+                return y
+            if r > 0.3 * r_prev:
+                return None
+            r_prev = r
+            y[dims] = y[dims] + np.linalg.solve(J, -G)
+        return None
 
     def f_at(w: float, guess: np.ndarray):
         try:
             pw = params.with_(**{name: w})
-            y, _yn, M, _r, _it = newton_orbit(pw, n, guess, settings, max_iter=8)
+            y = chord(pw, guess)
+            M = None
+            if y is None:
+                y, _yn, M, _r, _it = newton_orbit(pw, n, guess, settings, max_iter=8,
+                                                  tangent_error=tangent_error)
+                jac.append(M)
         except (OrbitError, ParameterError, np.linalg.LinAlgError):
             return None
         if n > 1:  # the orbit must not have collapsed to a divisor of its period
             yh, _ = section_map(pw, y, n // 2, settings, jacobian=False)
             if float(np.max(np.abs(yh[:2] - y[:2]))) < 1e-7 * (1.0 + abs(y[0])):
                 return None
-        if kind == "period_doubling":
-            f = _pd_test(M)
-        else:
-            g = grazing_margin(pw, y, n, settings, substeps=cfg.substeps).signed
-            f = g.get(boundary)
+        try:
+            if kind == "period_doubling":
+                if M is None:
+                    _, M = section_map(pw, y, n, settings, tangent_error=tangent_error)
+                    jac.append(M)
+                f = _pd_test(M)
+            else:
+                g = grazing_margin(pw, y, n, settings, substeps=cfg.substeps).signed
+                f = g.get(boundary)
+        except OrbitError:
+            return None
         if f is None or not math.isfinite(f):
             return None
         return y, M, float(f)
@@ -158,6 +197,11 @@ def _relocate_secant(
         return None
     evals.append((w_a, r[2], r[0], r[1]))
     w_b = w_pred + min(0.1 * window, 1e-3)
+    if slope is not None and slope != 0.0 and math.isfinite(slope):
+        # the previous curve point's secant slope: a Newton-like first step
+        w_b = w_pred - r[2] / slope
+        if abs(w_b - w_pred) > window or abs(w_b - w_pred) < 1e-12:
+            w_b = w_pred + min(0.1 * window, 1e-3)
     lo = hi = None  # bracket
     for _ in range(max_eval):
         wa, fa, ya, _ = evals[-1]
@@ -171,7 +215,7 @@ def _relocate_secant(
                 return None
             guess = ya.copy()
             if wa != wp:
-                guess[dims] = ya + (w_b - wa) / (wa - wp) * (ya - yp)
+                guess[dims] = ya[dims] + (w_b - wa) / (wa - wp) * (ya[dims] - yp[dims])
         else:
             guess = ya.copy()
         r = f_at(w_b, guess)
@@ -193,11 +237,19 @@ def _relocate_secant(
     ok = abs(f) < (1e-6 if kind == "period_doubling" else 1e-7)
     if not ok:
         return None
+    if M is None:  # grazing: the multipliers of the located orbit
+        try:
+            _, M = section_map(params.with_(**{name: w}), y, n, settings,
+                               tangent_error=tangent_error)
+        except OrbitError:
+            return None
     mu = np.linalg.eigvals(M).astype(complex)
     mu = mu[np.argsort(-np.abs(mu), kind="stable")]
     row = {"value": w, "x": float(y[0]), "v": float(y[1]), "mu_max": float(abs(mu[0])),
            "mu_re": [float(m.real) for m in mu], "mu_im": [float(m.imag) for m in mu],
            "stable": bool(abs(mu[0]) < 1.0), "evals": len(evals)}
+    (wp, fp, _, _), (wl, fl, _, _) = evals[-2], evals[-1]
+    row["slope"] = (fl - fp) / (wl - wp) if wl != wp else math.nan
     return row, y
 
 
@@ -306,12 +358,24 @@ def follow_curve(
     config: Continuation | None = None,
     max_points: int = 200,
     method: str = "secant",
+    range2: Sequence[float] | None = None,
+    range1: Sequence[float] | None = None,
 ) -> pd.DataFrame:
-    """Follow one located bifurcation point in ``name2`` from its value in ``params`` to ``stop2``.
+    """Follow one located bifurcation point in ``name2`` from its value in ``params`` towards
+    ``stop2``.
 
     ``point`` is a row of :func:`bifurcation_points` (``kind``, ``period``, ``boundary``,
     ``name``, ``value``, ``x``, ``v``). Returns the curve (columns :data:`CURVE_COLUMNS` without
     ``curve``), starting with the given point.
+
+    Stepping: the first step moves ``name2`` towards ``stop2``; then the curve's secant
+    direction in the plane (each axis scaled by its range: ``range1`` for ``name``, default
+    2.4 wide; ``range2``, default the start-to-``stop2`` distance) predicts the next point,
+    ``step2`` (in ``name2`` units) long. Where the curve runs more along ``name`` than along
+    ``name2`` the roles swap: ``name`` is fixed at the prediction and the point is located
+    along ``name2`` (a curve turning back in ``name2`` is followed round its turn instead of
+    being lost). The curve ends when it leaves ``range2`` (the last point lands on its edge)
+    or ``range1``, or is lost.
     """
     if name2 not in ModelParameters.names():
         raise ParameterError(f"second parameter 'name2' = {name2!r} is not a model parameter")
@@ -327,65 +391,106 @@ def follow_curve(
     cfg = Continuation(**base)
     mu = float(getattr(params, name2))
     direction = 1.0 if stop2 > mu else -1.0
+    lo2, hi2 = ((min(range2), max(range2)) if range2 is not None
+                else (min(mu, stop2), max(mu, stop2)))
+    lo1, hi1 = (min(range1), max(range1)) if range1 is not None else (1e-6, 100.0)
+    s1 = (hi1 - lo1) if range1 is not None else 2.4
+    s2 = max(hi2 - lo2, abs(step2))
     h = abs(step2)
     h_min = step_min if step_min is not None else h / 16
     pts: list[dict[str, Any]] = []
-    stats = {"secant": 0, "secant_failed": 0, "window": 0}
+    stats = {"secant": 0, "secant_failed": 0, "window": 0, "swapped": 0}
 
-    def add(mu_v, r):
+    def add(w_v, mu_v, r):
         pts.append({
             "kind": kind, "period": n, "boundary": boundary, "name": name,
-            "value": float(r["value"]), "name2": name2, "value2": float(mu_v),
+            "value": float(w_v), "name2": name2, "value2": float(mu_v),
             "x": float(r["x"]), "v": float(r["v"]), "mu_max": float(r["mu_max"]),
             "mu_re": list(r["mu_re"]), "mu_im": list(r["mu_im"]), "stable": bool(r["stable"]),
         })
 
-    add(mu, point)
-    y_last = _state(point)
-    hist = [(mu, float(point["value"]), y_last.copy())]
-    reason = "max points"
-    while len(pts) < max_points:
-        if (stop2 - mu) * direction <= 1e-12:
-            reason = f"reached {name2} = {stop2}"
-            break
-        hh = min(h, abs(stop2 - mu))
-        mu_new = mu + direction * hh
-        if len(hist) >= 2:
-            (m0, w0, y0), (m1, w1, y1) = hist[-2], hist[-1]
-            f = (mu_new - m1) / (m1 - m0)
-            w_pred = w1 + f * (w1 - w0)
-            y_pred = y1 + f * (y1 - y0)
-        else:
-            _, w_pred, y_pred = hist[-1]
-        try:
-            pnew = params.with_(**{name2: mu_new})
-        except ParameterError:
-            reason = f"{name2} = {mu_new} outside its range"
-            break
+    slopes: dict[str, float] = {}
+
+    def locate(p_fixed, along, pred, y_pred, win):
         found = None
         if method == "secant" and kind in ("period_doubling", "grazing", "fold"):
             if kind == "fold":
-                found = _relocate_fold(pnew, n, name, w_pred, y_pred, window, cfg)
+                found = _relocate_fold(p_fixed, n, along, pred, y_pred, win, cfg)
             else:
-                found = _relocate_secant(pnew, kind, boundary, n, name, w_pred, y_pred,
-                                         window, cfg)
+                found = _relocate_secant(p_fixed, kind, boundary, n, along, pred, y_pred,
+                                         win, cfg, wtol=1e-9, slope=slopes.get(along),
+                                         tangent_error=TRACKING_TANGENT_ERROR)
+                if found is not None:
+                    slopes[along] = found[0].get("slope", math.nan)
             stats["secant" if found is not None else "secant_failed"] += 1
+            # the windowed continuation is a fallback for the first two failures only: a
+            # point that neither finds is mostly the curve's end (a codimension-2 point)
+            if found is None and stats["secant_failed"] > 2:
+                return None
         if found is None:
-            for win in (window, 2 * window):
-                found = _relocate(pnew, kind, boundary, n, name, w_pred, y_pred, win, cfg)
+            for ww in (win, 2 * win):
+                found = _relocate(p_fixed, kind, boundary, n, along, pred, y_pred, ww, cfg)
                 if found is not None:
                     stats["window"] += 1
                     break
+        return found
+
+    add(float(point["value"]), mu, point)
+    hist = [(mu, float(point["value"]), _state(point))]
+    reason = "max points"
+    while len(pts) < max_points:
+        m1, w1, y1 = hist[-1]
+        if len(hist) >= 2:
+            m0, w0, y0 = hist[-2]
+            t = np.array([(w1 - w0) / s1, (m1 - m0) / s2])
+            t /= np.linalg.norm(t)
+        else:
+            t = np.array([0.0, direction])
+        hn = h / s2  # step in scaled units
+        w_p, m_p = w1 + hn * t[0] * s1, m1 + hn * t[1] * s2
+        swap = abs(t[0]) > abs(t[1])
+        edge = False
+        if not swap and not (lo2 - 1e-12 <= m_p <= hi2 + 1e-12):
+            m_edge = hi2 if m_p > hi2 else lo2
+            if abs(m_edge - m1) <= 1e-12:
+                reason = f"reached {name2} = {m_edge}"
+                break
+            frac = (m_edge - m1) / (m_p - m1)
+            w_p, m_p, edge = w1 + frac * (w_p - w1), m_edge, True
+        if len(hist) >= 2:
+            dist = math.hypot((w1 - w0) / s1, (m1 - m0) / s2)
+            f = math.hypot((w_p - w1) / s1, (m_p - m1) / s2) / max(dist, 1e-300)
+            y_pred = y1 + f * (y1 - y0)
+        else:
+            y_pred = y1
+        try:
+            if swap:
+                found = locate(params.with_(**{name2: m1, name: w_p}), name2, m_p, y_pred,
+                               window * s2 / s1)
+                stats["swapped"] += 1
+            else:
+                found = locate(params.with_(**{name2: m_p}), name, w_p, y_pred, window)
+        except ParameterError:
+            found = None
         if found is None:
             h *= 0.5
             if h < h_min:
-                reason = f"point lost beyond {name2} = {mu:.6g}"
+                reason = f"point lost beyond {name2} = {m1:.6g}, {name} = {w1:.6g}"
                 break
             continue
         r, y = found
-        add(mu_new, r)
-        hist.append((mu_new, float(r["value"]), y))
-        mu = mu_new
+        w_new, m_new = (w_p, float(r["value"])) if swap else (float(r["value"]), m_p)
+        if not (lo2 - 1e-12 <= m_new <= hi2 + 1e-12):
+            reason = f"left {name2} in [{lo2}, {hi2}] near {name} = {w_new:.6g}"
+            break
+        add(w_new, m_new, r)
+        hist.append((m_new, w_new, y))
+        if edge:
+            reason = f"reached {name2} = {m_new}"
+            break
+        if not (lo1 <= w_new <= hi1):
+            reason = f"left {name} in [{lo1}, {hi1}] at {name2} = {m_new:.6g}"
+            break
         h = min(abs(step2), h * 1.5)
     df = pd.DataFrame(pts, columns=[c for c in CURVE_COLUMNS if c != "curve"])
     df.attrs["reason"] = reason
@@ -410,8 +515,10 @@ def follow_curves(
     config: Continuation | None = None,
     workers: int = 1,
     method: str = "secant",
+    range1: Sequence[float] | None = None,
 ) -> pd.DataFrame:
-    """Follow every point of ``kinds`` both ways in ``name2`` across ``range2 = (lo, hi)``.
+    """Follow every point of ``kinds`` both ways in ``name2`` across ``range2 = (lo, hi)``
+    (and inside ``range1`` of the points' own parameter, e.g. the plane's w range).
 
     ``workers > 1`` runs the curve halves (one point, one direction each) in that many
     processes; the result does not depend on ``workers`` (each half is computed alone).
@@ -428,7 +535,8 @@ def follow_curves(
             if config is not None and workers > 1:
                 cfg = Continuation(**{**config.__dict__, "progress": None})
             tasks.append((params, r.to_dict(), name2, stop,
-                          dict(step2=step2, window=window, config=cfg, method=method)))
+                          dict(step2=step2, window=window, config=cfg, method=method,
+                               range2=tuple(range2), range1=range1)))
     if workers > 1 and len(tasks) > 1:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
@@ -446,8 +554,9 @@ def follow_curves(
     parts: list[pd.DataFrame] = []
 
     def flush():
-        if parts:
-            c = pd.concat(parts, ignore_index=True).sort_values("value2", kind="stable")
+        if parts:  # in curve order: the first half reversed, then the second
+            first = parts[0].iloc[::-1]
+            c = pd.concat([first, *parts[1:]], ignore_index=True)
             c.insert(0, "curve", cid)
             curves.append(c)
 

@@ -27,9 +27,8 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``, ``tau = w_n
 
 Model-form options (docs/model.md, "Model forms"; all off by default, where the field is today's
 bit for bit): ``F`` gains ``2 xi (1 - beta) e'(tau)`` (the damper follows only part of the
-transmission-error rate, ``te_damping = beta``), loses ``2 xi delta (x' + ...)`` inside the
-backlash (``mesh_damping_contact = delta``), and the friction factor becomes
-``gamma lambda (1 + a (theta / pi - 1))`` (the sawtooth arm of Eq 9, ``friction_arm_var = a``).
+transmission-error rate, ``te_damping = beta``) and loses ``2 xi delta (x' + ...)`` inside the
+backlash (``mesh_damping_contact = delta``).
 
 ``f(x, b)`` is the dead zone (x - b above b, 0 inside, x + b below -b);
 ``lambda = sign(sin(w tau))`` is the friction direction (it flips at the pitch point, mid
@@ -81,7 +80,7 @@ P_GAP = 22  # 4 entries: bearing half clearances
 # term adds an exact zero and the default field is bit-identical to the field before the options
 P_VTE = 26  # TE rate seen by the mesh damper: -(1 - te_damping) Fe w  (x' + P_VTE sin(w tau + phi_e))
 P_XIO = 27  # damping removed outside contact: 2 xi mesh_damping_contact
-P_GAM1 = 28  # friction-arm variation: gamma friction_arm_var (times the triangle of the phase)
+P_GAM1 = 28  # reserved (0.0): the time-varying friction arm, pending (docs/model.md)
 N_FIELD = 29
 # further entries read by the integrators (not by the field)
 P_W = 29  # mesh frequency w
@@ -132,7 +131,6 @@ def pack_parameters(params) -> np.ndarray:
     p[P_GAM] = params.friction
     p[P_VTE] = -(1.0 - params.te_damping) * params.Fe * w
     p[P_XIO] = 2.0 * params.xi * params.mesh_damping_contact
-    p[P_GAM1] = params.friction * params.friction_arm_var
     p[P_CA] = ca
     p[P_SA] = sa
     if dof6:
@@ -220,38 +218,36 @@ def mesh_force(c, x, v, P, r0, s0):
     return (1.0 + P[P_EPS] * c) * (s0 * x - r0 * P[P_B]) + P[P_XI2] * v
 
 
-# fdlibm's rational approximation of asin(x) = x + x R(x^2) (|error| <= 2 ulp in acos over [-1, 1],
-# checked against math.acos in tests/test_model_forms.py); plain arithmetic, so the batched
-# kernel hoists it out of its lane loop (the mesh phase is the same in every lane of a block)
-_PS = (1.66666666666666657415e-01, -3.25565818622400915405e-01, 2.01212532134862925881e-01,
-       -4.00555345006794114027e-02, 7.91534994289814532176e-04, 3.47933107596021167570e-05)
-_QS = (-2.40339491173441421878e00, 2.02094576023350569471e00, -6.88283971605453293030e-01,
-       7.70381505559019352791e-02)
-
-
 @njit(cache=True, nogil=True, inline="always")
-def _asin_r(z):
-    p = z * (_PS[0] + z * (_PS[1] + z * (_PS[2] + z * (_PS[3] + z * (_PS[4] + z * _PS[5])))))
-    q = 1.0 + z * (_QS[0] + z * (_QS[1] + z * (_QS[2] + z * _QS[3])))
-    return p / q
+def mesh_force_full(c, s, x, v, P, r0, s0):
+    """The mesh force of every model form: :func:`mesh_force` plus the forms' terms.
 
-
-@njit(cache=True, nogil=True, inline="always")
-def arm_triangle(c):
-    """The friction-arm triangle ``acos(c) / pi - 1`` of the mesh phase ``theta`` (``c = cos theta``).
-
-    ``lambda(theta) (theta / pi - 1)``: the sawtooth arm of Eq 9 (``L_p`` grows by one base pitch
-    over a mesh period) times the friction direction; -1 at the period start, 0 at the pitch
-    point (``theta = pi``), continuous (docs/model.md). Branch-free.
+    ``s = sin(w tau)``; ``P`` the full field tuple (:func:`field_params`). Equal to
+    :func:`mesh_force` bit for bit in today's form (the added terms are exact zeros). For the
+    Kmax trackers (events.py, integrate.py, batch.py), which still call :func:`mesh_force`
+    (docs/model.md, "What the options do not cover").
     """
-    a = abs(c)
-    r_small = 0.5 * math.pi - (a + a * _asin_r(a * a))
-    z = 0.5 * (1.0 - a)
-    sq = math.sqrt(z)
-    r_large = 2.0 * (sq + sq * _asin_r(z))
-    r = r_small if a <= 0.5 else r_large
-    ac = r if c >= 0.0 else math.pi - r
-    return ac * (1.0 / math.pi) - 1.0
+    F = (1.0 + P[P_EPS] * c) * (s0 * x - r0 * P[P_B]) + P[P_XI2] * v
+    out = 1.0 - s0
+    dv = (P[P_XI2] - P[P_XIO] * out) * P[P_VTE]
+    F = F + dv * P[P_CPHI] * s
+    F = F + dv * P[P_SPHI] * c
+    return F - P[P_XIO] * out * v
+
+
+def mesh_force_series(p: np.ndarray, tau: np.ndarray, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The mesh force of every model form along a recorded trajectory (numpy, packed ``p``).
+
+    ``tau`` must be the time within the period or absolute time (the force is T-periodic).
+    For :func:`gearsim.simulate.trajectory`, which recomputes today's form in numpy.
+    """
+    b = p[P_B]
+    s0 = (np.abs(x) > b).astype(float)
+    f = np.where(x > b, x - b, np.where(x < -b, x + b, 0.0))
+    ph = p[P_W] * np.asarray(tau, dtype=float)
+    c, s = np.cos(ph), np.sin(ph)
+    damper = (p[P_XI2] - p[P_XIO] * (1.0 - s0)) * (v + p[P_VTE] * (s * p[P_CPHI] + c * p[P_SPHI]))
+    return (1.0 + p[P_EPS] * c) * f + damper
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -264,7 +260,7 @@ def field_state(c, s, lam, vr, y, P, M):
     (:func:`mode_tuple`).
     """
     (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
-     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, gam1) = P  # fmt: skip
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, _gam1) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
     F = (1.0 + eps * c) * (s0 * y[0] - r0 * b) + xi2 * y[1]
     drive = fm + few2 * (c * cphi - s * sphi) + vr
@@ -273,7 +269,7 @@ def field_state(c, s, lam, vr, y, P, M):
     a_gy = -z2 * y[7] - k2 * (sb2 * y[6] - rb2 * g2) + rgca * F
     a_gz = -z3 * y[9] - k3 * (sb3 * y[8] - rb3 * g3) + rgsa * F
     acc = drive - F * (1.0 + gam * lam) + (a_py - a_gy) * ca + (a_pz - a_gz) * sa
-    if vte != 0.0 or xio != 0.0 or gam1 != 0.0:
+    if vte != 0.0 or xio != 0.0:
         # model forms (docs/model.md), all off in today's form: the branch leaves today's
         # arithmetic untouched (bit-identical) and adds the forms' change dFx of the mesh force.
         # One product per addition, so the FMA contraction is unique and the scalar and the
@@ -291,7 +287,6 @@ def field_state(c, s, lam, vr, y, P, M):
         acc = acc - dFx * (1.0 + gam * lam)
         acc = acc - (rpca + rgca) * dFx * ca
         acc = acc - (rpsa + rgsa) * dFx * sa
-        acc = acc - gam1 * arm_triangle(c) * Fn  # the friction arm's sawtooth
     return (y[1], acc, y[3], a_py, y[5], a_pz, y[7], a_gy, y[9], a_gz)
 
 
@@ -304,7 +299,7 @@ def field_tangent(c, lam, z, P, M):
     the mesh switch (its saltation term is not applied; docs/model.md).
     """
     (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
-     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, gam1) = P  # fmt: skip
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, _gam1) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
     dF = (1.0 + eps * c) * s0 * z[0] + xi2 * z[1]
     if xio != 0.0:  # (branches, not added zeros: today's tangent keeps its FMA contraction)
@@ -314,8 +309,6 @@ def field_tangent(c, lam, z, P, M):
     d_gy = -z2 * z[7] - k2 * sb2 * z[6] + rgca * dF
     d_gz = -z3 * z[9] - k3 * sb3 * z[8] + rgsa * dF
     dacc = -dF * (1.0 + gam * lam) + (d_py - d_gy) * ca + (d_pz - d_gz) * sa
-    if gam1 != 0.0:
-        dacc = dacc - gam1 * arm_triangle(c) * dF
     return (z[1], dacc, z[3], d_py, z[5], d_pz, z[7], d_gy, z[9], d_gz)
 
 

@@ -92,12 +92,14 @@ def section_map(
     *,
     jacobian: bool = True,
     parray: np.ndarray | None = None,
+    tangent_error: bool | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """``P^n(y0)`` and (if ``jacobian``) the monodromy matrix over the model's free states.
 
     Returns ``(y_n, M)``: ``y_n`` the full 10-state after ``n`` mesh periods from ``tau = 0``,
     ``M`` the ``d x d`` matrix ``d y_n / d y_0`` restricted to :func:`free_states`.
-    The monodromy is the one variational computation, :func:`gearsim.variational.monodromy`.
+    The monodromy is the one variational computation, :func:`gearsim.variational.monodromy`;
+    ``tangent_error`` (default :data:`TANGENT_ERROR`) puts the tangent into DP5's error norm.
     Raises :class:`OrbitError` if the integration diverges.
     """
     p = params.to_array() if parray is None else parray
@@ -107,7 +109,8 @@ def section_map(
         if r.status != STATUS_OK:
             raise OrbitError(f"integration diverged from {y0[:2]} at w = {params.w}")
         return r.state[:N_STATE].copy(), None
-    yn, M, status = monodromy(params, y0, n, settings, tangent_error=TANGENT_ERROR)
+    te = TANGENT_ERROR if tangent_error is None else tangent_error
+    yn, M, status = monodromy(params, y0, n, settings, tangent_error=te)
     if status != STATUS_OK:
         raise OrbitError(f"integration diverged from {y0[:2]} at w = {params.w}")
     return yn.copy(), M
@@ -223,6 +226,7 @@ def newton_orbit(
     max_iter: int = 40,
     trust: float = 0.5,
     parray: np.ndarray | None = None,
+    tangent_error: bool | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
     """Safeguarded Newton on ``G(y) = P^n(y) - y``: returns ``(y, P^n(y), M, residual, iters)``.
 
@@ -234,7 +238,7 @@ def newton_orbit(
     dims = free_states(params)
     d = len(dims)
     y = np.asarray(guess, dtype=float)[:N_STATE].copy()
-    yn, M = section_map(params, y, n, settings, parray=p)
+    yn, M = section_map(params, y, n, settings, parray=p, tangent_error=tangent_error)
     G = yn[dims] - y[dims]
     r = float(np.max(np.abs(G)))
     radius = trust * (1.0 + float(np.max(np.abs(y[dims]))))
@@ -255,7 +259,8 @@ def newton_orbit(
             yt = y.copy()
             yt[dims] += lam * dy
             try:
-                ynt, Mt = section_map(params, yt, n, settings, parray=p)
+                ynt, Mt = section_map(params, yt, n, settings, parray=p,
+                                      tangent_error=tangent_error)
             except OrbitError:
                 lam *= 0.5
                 continue

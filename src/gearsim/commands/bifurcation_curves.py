@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     t_branch = time.perf_counter() - t0
     curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds,
                            config=Continuation(progress=_log), workers=args.workers,
-                           method=args.method)
+                           method=args.method, range1=(x0, x1))
     wall = time.perf_counter() - t0
     out = Path(args.out)
     stem = out.with_suffix("")
