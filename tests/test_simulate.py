@@ -113,9 +113,11 @@ def test_batched_lanes_compacted_as_cells_finish_give_the_same_results(monkeypat
     st = IntegrationSettings(method="rk4", transient=30, max_periods=96)
     ws = np.linspace(0.5, 2.2, 19)  # periodic cells finish early, chaotic ones use the budget
     cells = [ModelParameters(w=float(w), b=(0.15, 0.3)[k % 2]) for k, w in enumerate(ws)]
+    # two cells on a finer step grid (T / hmax > 256 steps): run as their own group
+    cells += [ModelParameters(w=0.105, b=0.15), ModelParameters(w=0.118, b=0.3)]
     together = simulate_cells(cells, settings=st)
     assert len({r.periods for r in together}) > 2  # cells finish at different times
-    assert sizes and sizes[0][0] == 3  # 19 lanes in 3 blocks, then compacted
+    assert sizes and sizes[0][0] == 3  # 19 lanes of one grid in 3 blocks, then compacted
     for p, r in zip(cells, together, strict=True):
         alone = simulate_cells([p], settings=st)[0]
         assert r.row() == alone.row() or (

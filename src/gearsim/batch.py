@@ -255,7 +255,7 @@ def _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, 
 
 
 # ============================================================================ flagged lanes
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
     """Redo grid step ``j`` of lane ``q`` with the event layer (the scalar integrator's call).
 
@@ -665,10 +665,36 @@ def simulate_cells(
 
     ``u0``: one start state for all cells, one per cell (None = static state), or None.
     E.g. an audit that restarts sampled plane cells from their left neighbours' final states.
+
+    Cells are run in groups of one step grid (steps per period, variable-ratio order): a kernel
+    call advances the lanes of one grid and computes every block of its lanes, so a few cells of
+    another grid (small ``w``: ``ceil(T / hmax)`` steps) in the same lanes would cost a call
+    over all blocks for one lane. Cells are independent: the grouping changes no result.
     """
-    res = simulate_rows([[p] for p in params_list], settings=settings, continuation=False, u0=u0,
-                        start_periods=start_periods)
-    return [r[0] for r in res]
+    params_list = list(params_list)
+    n = len(params_list)
+    if u0 is None or (isinstance(u0, np.ndarray) and u0.ndim == 1):
+        u0s = [u0] * n
+    else:
+        u0s = list(u0)
+        if len(u0s) != n:
+            raise ParameterError("u0: one start state per row expected")
+    ks = [0] * n if start_periods is None else [int(k) for k in start_periods]
+    if len(ks) != n:
+        raise ParameterError("start_periods: one start period per row expected")
+    st = settings or IntegrationSettings()
+    groups: dict[tuple, list[int]] = {}
+    for k, p in enumerate(params_list):
+        key = (steps_per_period(p, st), p.var_ratio_order if p.var_ratio != 0.0 else None)
+        groups.setdefault(key, []).append(k)
+    out: list[CellResult | None] = [None] * n
+    for idx in groups.values():
+        res = simulate_rows([[params_list[k]] for k in idx], settings=settings,
+                            continuation=False, u0=[u0s[k] for k in idx],
+                            start_periods=[ks[k] for k in idx])  # fmt: skip
+        for k, r in zip(idx, res, strict=True):
+            out[k] = r[0]
+    return out  # type: ignore[return-value]
 
 
 def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, continuation: bool,
