@@ -81,6 +81,7 @@ def _lane_field(p: ModelParameters, t, y, mode, friction_sign):
         p.kappa_py, p.kappa_pz, p.kappa_gy, p.kappa_gz,
         2 * p.xi_py, 2 * p.xi_pz, 2 * p.xi_gy, 2 * p.xi_gz,
         p.b_py, p.b_pz, p.b_gy, p.b_gz,
+        -(1.0 - p.te_damping) * p.Fe * w, 2 * p.xi * p.mesh_damping_contact, 0.0,
     )  # fmt: skip
     regions = [float(mode[k]) for k in range(5)]
     M = (regions[0], abs(regions[0]), *regions[1:], *(abs(r) for r in regions[1:]))

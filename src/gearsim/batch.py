@@ -255,7 +255,7 @@ def _block_step_state(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, 
 
 
 # ============================================================================ flagged lanes
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
     """Redo grid step ``j`` of lane ``q`` with the event layer (the scalar integrator's call).
 

@@ -61,7 +61,7 @@ def hermite(x0, v0, x1, v1, h, s):
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def hermite_extremum(x0, v0, x1, v1, h):
     """Fraction s in (0, 1) where the Hermite cubic has zero slope (v0, v1 of opposite sign)."""
     # derivative / h: a s^2 + b s + c
@@ -87,7 +87,7 @@ def hermite_extremum(x0, v0, x1, v1, h):
     return best
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def channels(p, mode, y, gaps, active, reset):
     """Fill the gaps and active flags of the switching channels from ``p``.
 
@@ -103,7 +103,7 @@ def channels(p, mode, y, gaps, active, reset):
             mode[c] = region_of(y[SWITCH_COORD[c]], gaps[c]) if active[c] else 1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def scan_switches(y, ynew, hh, mode, gaps, active):
     """First switch inside a step from ``y`` to ``ynew``: ``(channel, fraction, graze)``.
 
@@ -154,7 +154,7 @@ def scan_switches(y, ynew, hh, mode, gaps, active):
     return first_c, first_s, graze
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def _track(acc, c_phase, y, p, mode):
     """Fold the state at a landed point into the force and displacement extremes."""
     P0 = (p[0], p[1], p[2])  # eps, 2 xi, b
@@ -166,7 +166,7 @@ def _track(acc, c_phase, y, p, mode):
     acc[ACC_XMIN] = min(acc[ACC_XMIN], y[0])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, _nrt=False)
 def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tangent, ks, ytmp,
                      ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code, t_abs0):
     """Integrate from ``t`` to ``t_stop`` (times within the period) with located switches.

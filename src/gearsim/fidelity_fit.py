@@ -417,3 +417,20 @@ def kmax_for(form: Form, x: Sequence[float], st: FidelitySettings | None = None,
     df = sweep(p, grid, st.integration(), continuation=form.continuation,
                w_factor=form.w_factor(p))
     return kmax_at_jump(p, df, st)
+
+
+def evidence_lines(best: dict[str, dict[str, Any]]) -> list[str]:
+    """Markdown: per target the closest any evaluation came, and what that evaluation's J was
+    (a target met only by sets with a large J is a trade-off, not a fit)."""
+    from .fidelity import SHORT_HEAD, TARGETS
+
+    lines = ["| target | tol | closest error any evaluation reached | form | level | J of that "
+             "evaluation | evaluations measuring it |", "|---|---|---|---|---|---|---|"]
+    for t in TARGETS:
+        b = best.get(t.key)
+        if not b or "error" not in b:
+            lines.append(f"| {SHORT_HEAD[t.key]} | {t.tol:g} | never measured | | | | 0 |")
+            continue
+        lines.append(f"| {SHORT_HEAD[t.key]} | {t.tol:g} | {b['error']:+.4g} | {b['form']} | "
+                     f"{b['level']} | {b['J']:.2f} | {b['n']} |")
+    return lines

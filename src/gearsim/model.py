@@ -25,6 +25,11 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``, ``tau = w_n
             - F (1 + gamma lambda(tau))
             + (u_py'' - u_gy'') d_y + (u_pz'' - u_gz'') d_z
 
+Model-form options (docs/model.md, "Model forms"; all off by default, where the field is today's
+bit for bit): ``F`` gains ``2 xi (1 - beta) e'(tau)`` (the damper follows only part of the
+transmission-error rate, ``te_damping = beta``) and loses ``2 xi delta (x' + ...)`` inside the
+backlash (``mesh_damping_contact = delta``).
+
 ``f(x, b)`` is the dead zone (x - b above b, 0 inside, x + b below -b);
 ``lambda = sign(sin(w tau))`` is the friction direction (it flips at the pitch point, mid
 mesh cycle). The single-DOF model is the same field with the bearing couplings packed as zero
@@ -71,24 +76,29 @@ P_RGSA = 13  # rho_g sin(alpha)
 P_KAP = 14  # 4 entries: kappa py, pz, gy, gz (0 in the single-DOF model)
 P_ZB = 18  # 4 entries: 2 xi_brg
 P_GAP = 22  # 4 entries: bearing half clearances
-N_FIELD = 26
+# model-form options (docs/model.md, "Model forms"); each is 0.0 in today's form, so a default
+# term adds an exact zero and the default field is bit-identical to the field before the options
+P_VTE = 26  # TE rate seen by the mesh damper: -(1 - te_damping) Fe w  (x' + P_VTE sin(w tau + phi_e))
+P_XIO = 27  # damping removed outside contact: 2 xi mesh_damping_contact
+P_GAM1 = 28  # reserved (0.0): the time-varying friction arm, pending (docs/model.md)
+N_FIELD = 29
 # further entries read by the integrators (not by the field)
-P_W = 26  # mesh frequency w
-P_VRA = 27  # variable-ratio amplitude A_vr w^2
-P_VR_ORDER = 28  # variable-ratio order nu
-P_DOF6 = 29  # 1.0: 6-DOF model, 0.0: single-DOF
-P_ACT = 30  # 4 entries: bearing switching channel active (1.0) or linear (0.0)
+P_W = 29  # mesh frequency w
+P_VRA = 30  # variable-ratio amplitude A_vr w^2
+P_VR_ORDER = 31  # variable-ratio order nu
+P_DOF6 = 32  # 1.0: 6-DOF model, 0.0: single-DOF
+P_ACT = 33  # 4 entries: bearing switching channel active (1.0) or linear (0.0)
 # per mesh period, set by the integrator: A w^2 sin / cos(2 pi nu K) for period K, so that the
 # variable-ratio forcing is A w^2 sin(nu w (K T + t)) = VRS cos(nu w t) + VRC sin(nu w t)
-P_VRS = 34
-P_VRC = 35
+P_VRS = 37
+P_VRC = 38
 # kept for static_state and diagnostics
-P_ALPHA = 36
-P_RHO_P = 37
-P_RHO_G = 38
-P_XI = 39
-P_FE = 40
-N_PARAMS = 41
+P_ALPHA = 39
+P_RHO_P = 40
+P_RHO_G = 41
+P_XI = 42
+P_FE = 43
+N_PARAMS = 44
 
 N_STATE = 10
 N_SWITCH = 5  # switching channels: mesh, then the four bearing coordinates
@@ -119,6 +129,8 @@ def pack_parameters(params) -> np.ndarray:
     p[P_CPHI] = math.cos(params.phi_e)
     p[P_SPHI] = math.sin(params.phi_e)
     p[P_GAM] = params.friction
+    p[P_VTE] = -(1.0 - params.te_damping) * params.Fe * w
+    p[P_XIO] = 2.0 * params.xi * params.mesh_damping_contact
     p[P_CA] = ca
     p[P_SA] = sa
     if dof6:
@@ -163,7 +175,7 @@ def field_params(buf, base, stride):
         buf[base + 13 * s], buf[base + 14 * s], buf[base + 15 * s], buf[base + 16 * s],
         buf[base + 17 * s], buf[base + 18 * s], buf[base + 19 * s], buf[base + 20 * s],
         buf[base + 21 * s], buf[base + 22 * s], buf[base + 23 * s], buf[base + 24 * s],
-        buf[base + 25 * s],
+        buf[base + 25 * s], buf[base + 26 * s], buf[base + 27 * s], buf[base + 28 * s],
     )  # fmt: skip
 
 
@@ -207,6 +219,38 @@ def mesh_force(c, x, v, P, r0, s0):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def mesh_force_full(c, s, x, v, P, r0, s0):
+    """The mesh force of every model form: :func:`mesh_force` plus the forms' terms.
+
+    ``s = sin(w tau)``; ``P`` the full field tuple (:func:`field_params`). Equal to
+    :func:`mesh_force` bit for bit in today's form (the added terms are exact zeros). For the
+    Kmax trackers (events.py, integrate.py, batch.py), which still call :func:`mesh_force`
+    (docs/model.md, "What the options do not cover").
+    """
+    F = (1.0 + P[P_EPS] * c) * (s0 * x - r0 * P[P_B]) + P[P_XI2] * v
+    out = 1.0 - s0
+    dv = (P[P_XI2] - P[P_XIO] * out) * P[P_VTE]
+    F = F + dv * P[P_CPHI] * s
+    F = F + dv * P[P_SPHI] * c
+    return F - P[P_XIO] * out * v
+
+
+def mesh_force_series(p: np.ndarray, tau: np.ndarray, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The mesh force of every model form along a recorded trajectory (numpy, packed ``p``).
+
+    ``tau`` must be the time within the period or absolute time (the force is T-periodic).
+    For :func:`gearsim.simulate.trajectory`, which recomputes today's form in numpy.
+    """
+    b = p[P_B]
+    s0 = (np.abs(x) > b).astype(float)
+    f = np.where(x > b, x - b, np.where(x < -b, x + b, 0.0))
+    ph = p[P_W] * np.asarray(tau, dtype=float)
+    c, s = np.cos(ph), np.sin(ph)
+    damper = (p[P_XI2] - p[P_XIO] * (1.0 - s0)) * (v + p[P_VTE] * (s * p[P_CPHI] + c * p[P_SPHI]))
+    return (1.0 + p[P_EPS] * c) * f + damper
+
+
+@njit(cache=True, nogil=True, inline="always")
 def field_state(c, s, lam, vr, y, P, M):
     """Right-hand side of the state with frozen regions: a 10-tuple ``dy/dtau``.
 
@@ -216,7 +260,7 @@ def field_state(c, s, lam, vr, y, P, M):
     (:func:`mode_tuple`).
     """
     (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
-     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3) = P  # fmt: skip
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, _gam1) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
     F = (1.0 + eps * c) * (s0 * y[0] - r0 * b) + xi2 * y[1]
     drive = fm + few2 * (c * cphi - s * sphi) + vr
@@ -225,6 +269,24 @@ def field_state(c, s, lam, vr, y, P, M):
     a_gy = -z2 * y[7] - k2 * (sb2 * y[6] - rb2 * g2) + rgca * F
     a_gz = -z3 * y[9] - k3 * (sb3 * y[8] - rb3 * g3) + rgsa * F
     acc = drive - F * (1.0 + gam * lam) + (a_py - a_gy) * ca + (a_pz - a_gz) * sa
+    if vte != 0.0 or xio != 0.0:
+        # model forms (docs/model.md), all off in today's form: the branch leaves today's
+        # arithmetic untouched (bit-identical) and adds the forms' change dFx of the mesh force.
+        # One product per addition, so the FMA contraction is unique and the scalar and the
+        # batched paths round alike.
+        out = 1.0 - s0  # 1 inside the backlash
+        dv = (xi2 - xio * out) * vte  # damper times the TE-rate amplitude -(1 - beta) Fe w
+        Fn = F + dv * cphi * s  # ... times sin(w tau + phi_e) = s cphi + c sphi
+        Fn = Fn + dv * sphi * c
+        Fn = Fn - xio * out * y[1]  # damping removed outside contact
+        dFx = Fn - F
+        a_py = a_py - rpca * dFx
+        a_pz = a_pz - rpsa * dFx
+        a_gy = a_gy + rgca * dFx
+        a_gz = a_gz + rgsa * dFx
+        acc = acc - dFx * (1.0 + gam * lam)
+        acc = acc - (rpca + rgca) * dFx * ca
+        acc = acc - (rpsa + rgsa) * dFx * sa
     return (y[1], acc, y[3], a_py, y[5], a_pz, y[7], a_gy, y[9], a_gz)
 
 
@@ -233,12 +295,15 @@ def field_tangent(c, lam, z, P, M):
     """Jacobian-vector product ``J z`` of the same frozen (piecewise-linear) field: a 10-tuple.
 
     The Jacobian of the region's field; exact across switches (continuous field, identity
-    saltation matrix).
+    saltation matrix), except with ``mesh_damping_contact > 0``, whose damping force jumps at
+    the mesh switch (its saltation term is not applied; docs/model.md).
     """
     (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
-     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3) = P  # fmt: skip
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, _gam1) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
     dF = (1.0 + eps * c) * s0 * z[0] + xi2 * z[1]
+    if xio != 0.0:  # (branches, not added zeros: today's tangent keeps its FMA contraction)
+        dF = dF - xio * (1.0 - s0) * z[1]
     d_py = -z0 * z[3] - k0 * sb0 * z[2] - rpca * dF
     d_pz = -z1 * z[5] - k1 * sb1 * z[4] - rpsa * dF
     d_gy = -z2 * z[7] - k2 * sb2 * z[6] + rgca * dF

@@ -53,6 +53,13 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "b_pz": (0.0, 1e3, True, True, "pinion bearing half clearance (Z) / b_c"),
     "b_gy": (0.0, 1e3, True, True, "gear bearing half clearance (Y) / b_c"),
     "b_gz": (0.0, 1e3, True, True, "gear bearing half clearance (Z) / b_c"),
+    # model-form options (docs/model.md, "Model forms"); the defaults are today's form
+    "te_damping": (0.0, 1.0, True, True,
+                   "fraction of the transmission-error rate the mesh damper follows "
+                   "(1: C (x' - e') of Eq 3, 0: C x')"),
+    "mesh_damping_contact": (0.0, 1.0, True, True,
+                             "fraction of the mesh damping acting only in contact "
+                             "(0: always, 1: only in contact)"),
 }
 
 MODELS = ("6dof", "1dof")
@@ -128,6 +135,8 @@ class ModelParameters:
     b_pz: float = 0.0
     b_gy: float = 0.0
     b_gz: float = 0.0
+    te_damping: float = 1.0
+    mesh_damping_contact: float = 0.0
     model: str = "6dof"
 
     def __post_init__(self) -> None:
@@ -207,3 +216,62 @@ class ModelParameters:
     def to_array(self) -> np.ndarray:
         """The float64 vector the Numba kernels read (:func:`gearsim.model.pack_parameters`)."""
         return _m.pack_parameters(self)
+
+
+# ---------------------------------------------------------------- the frequency scale (a mapping)
+FREQUENCY_SCALES = ("mesh", "coupled")
+
+
+def mesh_mode_ratio(params: ModelParameters) -> float:
+    """``r = w_c / w_n``: the coupled mesh-mode frequency of the 6-DOF model over ``sqrt(Km / Me)``.
+
+    The undamped linear model in contact at the mean stiffness (``eps = 0``, every bearing in its
+    loaded region) has five modes; the mesh mode is the one with the largest share of its strain
+    energy in the mesh spring (``x^2`` against ``sum (K_ij / Km) u_ij^2 = sum kappa_ij / rho_i
+    u_ij^2``). Bearing compliance in series with the mesh lowers it below 1; the single-DOF model
+    (rigid bearings) has ``r = 1``. The matrix comes from the field's own Jacobian
+    (:func:`gearsim.model.rhs` with the tangent), so it follows the equations as implemented.
+
+    Reading the paper's ``w`` as ``w_h / w_c`` (docs/model.md, "Model forms") means simulating at
+    ``w = r w_paper`` (:func:`at_axis_w`).
+    """
+    if params.model != "6dof" or params.rho_p == 0.0 or params.rho_g == 0.0:
+        return 1.0  # rigid or decoupled bearings: the mesh mode is sqrt(Km / Me) itself
+    lin = params.with_(eps=0.0, xi=0.0, xi_py=0.0, xi_pz=0.0, xi_gy=0.0, xi_gz=0.0, friction=0.0,
+                       var_ratio=0.0, mesh_damping_contact=0.0)
+    p = lin.to_array()
+    mode = np.ones(_m.N_MODE, dtype=np.int64)  # mesh and bearings in their loaded region (+1)
+    y = np.zeros(2 * _m.N_STATE)
+    dy = np.zeros(2 * _m.N_STATE)
+    pos = (0, 2, 4, 6, 8)
+    A = np.zeros((5, 5))
+    for j, k in enumerate(pos):
+        y[_m.N_STATE:] = 0.0
+        y[_m.N_STATE + k] = 1.0
+        _m.rhs(0.0, y, p, mode, dy, True)
+        for i, kk in enumerate(pos):
+            A[i, j] = -dy[_m.N_STATE + kk + 1]
+    lam, vec = np.linalg.eig(A)
+    stiff = np.array([1.0] + [getattr(params, f"kappa_{n}") / rho
+                              for n, rho in zip(_m.BEARINGS, (params.rho_p, params.rho_p,
+                                                              params.rho_g, params.rho_g),
+                                                strict=True)])
+    v = np.real(vec)
+    share = stiff[0] * v[0] ** 2 / np.sum(stiff[:, None] * v**2, axis=0)
+    k = int(np.argmax(share))
+    return float(math.sqrt(float(np.real(lam[k]))))
+
+
+def at_axis_w(params: ModelParameters, w_axis: float, frequency_scale: str = "mesh"
+              ) -> ModelParameters:
+    """Parameters at the axis value ``w_axis`` under a frequency-scale reading.
+
+    ``"mesh"`` (today): ``w = w_axis`` (``w_h / sqrt(Km / Me)``); ``"coupled"``: the axis is
+    ``w_h / w_c`` and the model runs at ``w = mesh_mode_ratio(params) * w_axis``.
+    """
+    if frequency_scale not in FREQUENCY_SCALES:
+        raise ParameterError(
+            f"frequency_scale = {frequency_scale!r}; allowed: {', '.join(FREQUENCY_SCALES)}"
+        )
+    r = 1.0 if frequency_scale == "mesh" else mesh_mode_ratio(params)
+    return params.with_(w=r * float(w_axis))

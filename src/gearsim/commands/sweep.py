@@ -57,15 +57,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def sweep_frame(
-    base, name: str, values: np.ndarray, direction: str, settings, progress=None
+    base, name: str, values: np.ndarray, direction: str, settings, progress=None,
+    start: str = "continuation",
 ) -> pd.DataFrame:
     """The rows of :func:`gearsim.sweep.orbit_diagram` plus final_state/final_period/elapsed_s.
 
     ``direction="both"``: the forward rows, then the backward rows (hysteresis in one job).
+    ``start="rest"``: every cell from the static state instead of the previous cell's state.
     """
     if direction == "both":
         return pd.concat(
-            [sweep_frame(base, name, values, d, settings, progress)
+            [sweep_frame(base, name, values, d, settings, progress, start)
              for d in ("forward", "backward")],
             ignore_index=True,
         )  # fmt: skip
@@ -84,10 +86,12 @@ def sweep_frame(
 
     if settings.method == "rk4":
         results = simulate_rows(
-            [plist], settings=settings, on_cell=lambda _r, i, res: on_cell(i, res)
+            [plist], settings=settings, continuation=start == "continuation",
+            on_cell=lambda _r, i, res: on_cell(i, res),
         )[0]
     else:
-        results = continuation_chain(plist, settings=settings, on_cell=on_cell)
+        results = continuation_chain(plist, settings=settings, on_cell=on_cell,
+                                     continuation=start == "continuation")
     rows: list[dict[str, Any]] = []
     prev = t0
     for v, r, t in zip(vals, results, stamps, strict=True):
@@ -208,6 +212,7 @@ def run(args: argparse.Namespace) -> int:
             spec.get("direction", "forward"),
             integration_settings(config),
             progress,
+            spec.get("start", "continuation"),
         )
         subtree = sweep_subtree(config, args.name)
         kind, name = "sweep", args.name
