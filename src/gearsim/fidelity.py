@@ -649,6 +649,6 @@ def form_report_lines(forms: Mapping[str, Any]) -> list[str]:
     km = forms.get("kmax") or recs.get(k, {}).get("measured", {}).get("kmax")
     if k and km:
         kl = kmax_lines(km)
-        out += [f"Form {k}, its best set (jump resolved on a 0.002 grid): " + kl[0], "",
-                *kl[2:], ""]
+        at = km.get("at", "its best set")
+        out += [f"Form {k}, {at} (jump resolved on a 0.002 grid): " + kl[0], "", *kl[2:], ""]
     return out

@@ -267,13 +267,16 @@ def _forms_table(args) -> int:
     kform = args.adopt or next(iter(recs))
     best = recs[kform].get("best") or {}
     kmax = {}
-    if best:
+    if best and kform in FORMS:
         from ..fidelity_fit import kmax_for
 
         form = FORMS[kform]
-        kmax = kmax_for(form, [best[f.name] for f in form.free])
-        kmax["form"] = kform
-        kmax["x"] = best
+        # the kept standard shape (the search's start) and the form's own best set
+        x0 = {f.name: f.start for f in form.free}
+        kmax = kmax_for(form, [x0[f.name] for f in form.free])
+        kmax.update(form=kform, x=x0, at="standard (the search's start)")
+        kb = kmax_for(form, [best[f.name] for f in form.free])
+        kmax["best"] = {**kb, "x": best}
     record["forms"] = {"records": recs, "adopted": args.adopt, "decision": args.decision,
                        "kmax_form": kform, "kmax": kmax,
                        "known_forms": {n: f.text for n, f in FORMS.items()}}
