@@ -11,7 +11,8 @@ margin at the shooting tolerance). Cells: the standard parameter set at w in [0.
 Curves (``--curves``): what the pipeline runs (workflow/rules/orbits.smk): the standard
 continuation along the plane's x range (w in [0.1, 2.5], branch switching to period 4), then
 ``follow_curves`` of every fold, period doubling and grazing across each default plane's y
-range (step 1/20 of the range) with the secant re-location, in ``--workers`` processes; beside
+range (step 1/10 of the range, orbits of period <= 2: the defaults of ``gearsim
+bifurcation-curves``) with the secant re-location, in ``--workers`` processes; beside
 it the plane's tile time, estimated from 8 of its 400 rows simulated exactly as a tile does
 (``tiles.simulate_rows_batched``, rows spread over the plane) times 50. ``--method window``
 measures the previous re-location (a windowed continuation per curve point) instead.
@@ -109,17 +110,24 @@ def curves_default(workers: int, method: str, out_dir: str | None = None) -> dic
         base = plane_base(cfg, plane)
         at = min(max(float(getattr(base, yn)), y0), y1)
         p = base.with_(**{yn: at, "w": 0.1})
+        import resource
+
+        ch0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         c0, w0 = time.process_time(), time.perf_counter()
-        cur = follow_curves(p, pts, yn, (y0, y1), step2=(y1 - y0) / 20, workers=workers,
-                            method=method)
+        cur = follow_curves(p, pts, yn, (y0, y1), step2=(y1 - y0) / 10, workers=workers,
+                            method=method, range1=(float(pl["x"]["min"]), float(pl["x"]["max"])),
+                            max_period=2)
         c1, w1 = time.process_time(), time.perf_counter()
+        ch1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        child_cpu = (ch1.ru_utime + ch1.ru_stime) - (ch0.ru_utime + ch0.ru_stime)
         if out_dir:
             from pathlib import Path
 
             cur.assign(plane=plane).to_parquet(Path(out_dir) / f"{plane}_curves.parquet")
         out[plane] = {"curves": int(cur["curve"].nunique()) if len(cur) else 0,
                       "curve_points": len(cur), "wall_s": w1 - w0,
-                      "cpu_s_parent": c1 - c0, "relocations": cur.attrs["relocations"],
+                      "cpu_s_parent": c1 - c0, "cpu_s_workers": child_cpu,
+                      "cpu_s": c1 - c0 + child_cpu, "relocations": cur.attrs["relocations"],
                       "reasons": cur.attrs["reasons"], "tiles": plane_tile_estimate(plane)}
     return out
 
@@ -161,7 +169,8 @@ def main() -> None:
             q = r[plane]
             t = q["tiles"]
             print(f"{plane}: {q['curves']} curves, {q['curve_points']} points, "
-                  f"{q['wall_s']:.1f} s wall ({args.workers} workers, {args.method}); "
+                  f"{q['wall_s']:.1f} s wall, {q['cpu_s']:.1f} s CPU ({args.workers} workers, "
+                  f"{args.method}); "
                   f"relocations {q['relocations']}; plane tiles (estimate from {t['rows']} "
                   f"rows) {t['plane_wall_s_est']:.0f} s wall, {t['plane_cpu_s_est']:.0f} s CPU")
         r["loadavg_end"] = open("/proc/loadavg").read().split()[:3]

@@ -367,3 +367,15 @@ def test_mesh_force_helpers_follow_the_reference(name):
         old = [m.mesh_force(math.cos(p.w * t), xx, vv, P, rr, abs(rr))
                for t, xx, vv, rr in zip(tau, x, v, r0, strict=True)]
         assert old == got
+
+
+def test_sweep_start_is_validated(tmp_path):
+    from gearsim import config as gcfg
+    from gearsim.errors import ConfigError
+
+    f = tmp_path / "s.yaml"
+    f.write_text("sweeps:\n  s1: {name: w, min: 0.5, max: 0.9, n: 3, start: rest}\n")
+    assert gcfg.study_config([f], root=ROOT)["sweeps"]["s1"]["start"] == "rest"
+    f.write_text("sweeps:\n  s1: {name: w, min: 0.5, max: 0.9, n: 3, start: fixed}\n")
+    with pytest.raises(ConfigError, match=r"sweeps.s1.start.*continuation.*rest"):
+        gcfg.study_config([f], root=ROOT)

@@ -397,7 +397,7 @@ def follow_curve(
     s1 = (hi1 - lo1) if range1 is not None else 2.4
     s2 = max(hi2 - lo2, abs(step2))
     h = abs(step2)
-    h_min = step_min if step_min is not None else h / 16
+    h_min = step_min if step_min is not None else h / 4
     pts: list[dict[str, Any]] = []
     stats = {"secant": 0, "secant_failed": 0, "window": 0, "swapped": 0}
 
@@ -516,9 +516,11 @@ def follow_curves(
     workers: int = 1,
     method: str = "secant",
     range1: Sequence[float] | None = None,
+    max_period: int | None = None,
 ) -> pd.DataFrame:
     """Follow every point of ``kinds`` both ways in ``name2`` across ``range2 = (lo, hi)``
-    (and inside ``range1`` of the points' own parameter, e.g. the plane's w range).
+    (and inside ``range1`` of the points' own parameter, e.g. the plane's w range); with
+    ``max_period`` only the points of orbits of at most that period.
 
     ``workers > 1`` runs the curve halves (one point, one direction each) in that many
     processes; the result does not depend on ``workers`` (each half is computed alone).
@@ -526,7 +528,7 @@ def follow_curves(
     t0 = time.perf_counter()
     tasks = []
     for _, r in points.iterrows():
-        if r["kind"] not in kinds:
+        if r["kind"] not in kinds or (max_period is not None and int(r["period"]) > max_period):
             continue
         for stop in (range2[0], range2[1]):
             if math.isclose(stop, getattr(params, name2)):

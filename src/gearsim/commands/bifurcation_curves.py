@@ -33,7 +33,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--period", "-n", type=int, default=1,
                    help="period of the orbit at the start of the x range (default 1)")
     p.add_argument("--step2", type=float, default=None,
-                   help="largest step in y between curve points (default: y range / 20)")
+                   help="largest step in y between curve points (default: y range / 10)")
+    p.add_argument("--max-period", type=int, default=2,
+                   help="follow the points of orbits of at most this period (default 2: the "
+                   "period-4 points lie in the chaotic band and cost 4x per map; 0: all)")
     p.add_argument("--switch-depth", type=int, default=2,
                    help="period doublings followed onto the doubled branch")
     p.add_argument("--kinds", default="fold,period_doubling,grazing",
@@ -81,7 +84,9 @@ def run(args: argparse.Namespace) -> int:
     base = gcfg.plane_base(config, args.plane)
     at = float(getattr(base, yn)) if args.at is None else args.at
     at = min(max(at, y0), y1)
-    step2 = args.step2 if args.step2 is not None else (y1 - y0) / 20
+    step2 = args.step2 if args.step2 is not None else (y1 - y0) / 10
+    if args.max_period < 0:
+        raise UsageError(f"--max-period = {args.max_period} must be >= 0 (0: all)")
     if not 0 < step2 <= (y1 - y0):
         raise UsageError(f"--step2 = {step2} must be in (0, {y1 - y0}]")
     if not 1 <= args.workers <= 64:
@@ -105,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
     t_branch = time.perf_counter() - t0
     curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds,
                            config=Continuation(progress=_log), workers=args.workers,
-                           method=args.method, range1=(x0, x1))
+                           method=args.method, range1=(x0, x1),
+                           max_period=args.max_period or None)
     wall = time.perf_counter() - t0
     out = Path(args.out)
     stem = out.with_suffix("")
