@@ -1,11 +1,14 @@
 """(j) Scaling with the plane size, and 1 vs 2 workers: the pipeline's own commands, timed.
 
 For each size ``n`` a plane ``scale`` of ``n x n`` cells over the default (w, b) region
-(w 0.1..2.5, b 0..1, config/config.yaml otherwise) is run the way Snakemake runs it:
-one ``gearsim simulate-tile --workers W`` process per tile (``tile_rows`` of the default config),
-one after the other, then ``gearsim catalogue cells`` (the plane's cells.parquet). Each process
-runs under ``/usr/bin/time``: wall time, user + system CPU (including its dask worker processes)
-and the peak resident set size of the largest process (``%M``, kB).
+(w 0.1..2.5, b 0..1, config/config.yaml otherwise) is run with the pipeline's commands:
+one ``gearsim simulate-tile`` process per tile (``tile_rows`` of the default config), one after
+the other, then ``gearsim catalogue cells`` (the plane's cells.parquet). Each process runs under
+``/usr/bin/time``: wall time, user + system CPU and the peak resident set size (``%M``, kB).
+The size rows run the tiles in-process (``--no-cluster``, one core): ``/usr/bin/time`` does not
+see the CPU of dask's worker processes (they are not its waited-for children), so only
+in-process tiles give the whole CPU. The 1 vs 2 workers rows use ``--workers 1|2`` (dask) and
+compare wall times.
 
 Reported per size: cells, wall, CPU, cells per CPU second, CPU per cell relative to the largest
 size (1.00 = linear), the peak memory of a tile job and of the cells step. The tile job's
@@ -44,6 +47,7 @@ def timed(cmd: list[str]) -> dict:
 
 
 def run_plane(n: int, workers: int, tmp: Path, tile_rows: int) -> dict:
+    """``workers`` 0: tiles in-process (``--no-cluster``)."""
     over = {
         "planes": {
             "scale": {
@@ -62,7 +66,8 @@ def run_plane(n: int, workers: int, tmp: Path, tile_rows: int) -> dict:
         out = tmp / f"n{n}_w{workers}_{t}.parquet"
         out.unlink(missing_ok=True)
         jobs.append(timed(["gearsim", "simulate-tile", "--plane", "scale", "--tile", str(t),
-                           "--config-json", cj, "--workers", str(workers), "--out", str(out)]))
+                           "--config-json", cj, "--out", str(out),
+                           *(["--workers", str(workers)] if workers else ["--no-cluster"])]))
         tiles.append(str(out))
     cells_out = tmp / f"n{n}_w{workers}_cells.parquet"
     cells_out.unlink(missing_ok=True)
@@ -83,7 +88,7 @@ def run_plane(n: int, workers: int, tmp: Path, tile_rows: int) -> dict:
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 200, 400, 800])
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=0, help="0: in-process tiles (whole CPU)")
     ap.add_argument("--compare-workers", type=int, default=200, metavar="N",
                     help="plane size of the 1 vs 2 workers comparison (0: skip)")  # fmt: skip
     ap.add_argument("--name", default="scaling")

@@ -588,14 +588,17 @@ def form_table_lines(forms: Mapping[str, Mapping[str, Any]]) -> list[str]:
             lines.append(f"| {name} | {rec.get('skipped', 'failed')} |" + " |" * len(keys))
             continue
         v = target_values(m)
-        lines.append(f"| {name} | {rec['J']:.3f} | " + " | ".join(v[k] for k in keys) + " |")
+        label = name if rec.get("searched", True) else (
+            f"{name} (not searched: at {rec.get('best_point', 'start')})")
+        lines.append(f"| {label} | {rec['J']:.3f} | " + " | ".join(v[k] for k in keys) + " |")
     return lines
 
 
 def compact_record(rec: Mapping[str, Any]) -> dict[str, Any]:
     """The part of a :func:`gearsim.fidelity_fit.fit_form` record kept in docs/calibration.json."""
     keep = ("form", "text", "fixed", "continuation", "seed", "budget", "code_version", "wall_s",
-            "best", "J", "terms", "measured", "b_star_bisection", "skipped")
+            "best", "J", "terms", "measured", "b_star_bisection", "skipped", "searched",
+            "best_point")
     out = {k: rec[k] for k in keep if k in rec}
     if "de" in rec:
         out["de"] = {k: rec["de"][k] for k in ("J", "nfev", "nit", "stopped_by_time", "wall_s",

@@ -434,3 +434,28 @@ def evidence_lines(best: dict[str, dict[str, Any]]) -> list[str]:
         lines.append(f"| {SHORT_HEAD[t.key]} | {t.tol:g} | {b['error']:+.4g} | {b['form']} | "
                      f"{b['level']} | {b['J']:.2f} | {b['n']} |")
     return lines
+
+
+def evaluate_unsearched(form: Form, points: dict[str, Sequence[float]],
+                        final: FidelitySettings | None = None) -> dict[str, Any]:
+    """A form measured (the fit's final measurement) at given points without a search, e.g. the
+    standard shape and another form's best; the best point's values are the row."""
+    from .provenance import code_version
+
+    final = final or FidelitySettings(exact=True, xi_bisect=6, xi_dw=0.02)
+    rec: dict[str, Any] = {"form": form.name, "text": form.text, "fixed": form.fixed,
+                           "continuation": form.continuation, "searched": False,
+                           "code_version": code_version(), "points": {}}
+    t0 = time.time()
+    names = [f.name for f in form.free]
+    for key, x in points.items():
+        J, m, terms, b = final_measure(form, x, final)
+        rec["points"][key] = {"x": dict(zip(names, [float(v) for v in x], strict=True)),
+                              "J": J, "terms": terms, "measured": m.to_dict() if m else None,
+                              "b_star_bisection": b}
+    best = min(rec["points"], key=lambda k: rec["points"][k]["J"])
+    p = rec["points"][best]
+    rec.update(J=p["J"], terms=p["terms"], measured=p["measured"], best=p["x"],
+               b_star_bisection=p["b_star_bisection"], best_point=best,
+               wall_s=time.time() - t0)
+    return rec

@@ -63,6 +63,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="stage forms: Nelder-Mead evaluations of the exact objective")
     p.add_argument("--forms-dir", default="results/calibration/forms",
                    help="stage forms: one JSON per form and the evaluation logs")
+    p.add_argument("--no-search", action="store_true",
+                   help="stage forms: measure each form at the standard shape and at the "
+                   "'today' form's best (results of a previous search) without searching")
     p.add_argument("--adopt", default=None,
                    help="stage forms-table: the form adopted as the standard set")
     p.add_argument("--decision", default="", help="stage forms-table: why (one paragraph)")
@@ -239,6 +242,19 @@ def _forms(args) -> int:
     d = Path(args.forms_dir)
     d.mkdir(parents=True, exist_ok=True)
     for name in names:
+        if args.no_search:
+            from ..fidelity_fit import evaluate_unsearched
+
+            form = FORMS[name]
+            pts = {"start": [f.start for f in form.free]}
+            tb = d / "today.json"
+            if tb.is_file():
+                best = json.loads(tb.read_text()).get("best", {})
+                pts["today_best"] = [best.get(f.name, f.start) for f in form.free]
+            rec = evaluate_unsearched(form, pts)
+            (d / f"{name}.json").write_text(json.dumps(rec, indent=1, default=float))
+            print(f"{name}: J = {rec['J']:.4f} at {rec['best_point']} (not searched)", flush=True)
+            continue
         rec = fit_form(FORMS[name], seed=args.seed, generations=args.generations,
                        population=args.population, refine_fev=args.refine_fev,
                        workers=args.workers, log_dir=str(d / "logs"),
