@@ -120,10 +120,9 @@ def test_batched_lanes_compacted_as_cells_finish_give_the_same_results(monkeypat
     assert sizes and sizes[0][0] == 3  # 19 lanes of one grid in 3 blocks, then compacted
     for p, r in zip(cells, together, strict=True):
         alone = simulate_cells([p], settings=st)[0]
-        assert r.row() == alone.row() or (
-            r.row().keys() == alone.row().keys()
-            and all(a == b or (a != a and b != b) for a, b in zip(r.row().values(),
-                                                                 alone.row().values()))
-        )  # fmt: skip
+        ra, rb = r.row(), alone.row()
+        assert ra.keys() == rb.keys()
+        assert all(a == b or (a != a and b != b)  # NaN fields equal
+                   for a, b in zip(ra.values(), rb.values(), strict=True))  # fmt: skip
         assert np.array_equal(r.final_state, alone.final_state)
         assert np.array_equal(r.poincare, alone.poincare)
