@@ -71,6 +71,9 @@ def test_step_budget_ends_a_cell_and_the_chain_goes_on():
 
     st = IntegrationSettings(method="rk4", max_steps=200_000)
     cells = [ModelParameters(w=0.8), ModelParameters(w=1e-4), ModelParameters(w=0.9)]
+    # compile both paths first: the bound below is about the budget, not a cold Numba cache
+    continuation_chain(cells[:1], settings=st)
+    simulate_rows([cells[:1]], settings=st)
     t0 = time.perf_counter()
     scalar = continuation_chain(cells, settings=st)
     batched = simulate_rows([cells], settings=st)[0]
