@@ -5,8 +5,9 @@ Each option is checked against scipy's DOP853 on the equations written out here,
 coordinate ``q`` (rotations and bearing projections, without the transmission error), where the
 error enters only through the mesh force ``K(t) f(q - e, b) + C (q' - beta e')`` and there is no
 inertial forcing; the model integrates the deflection ``x = q - e`` (docs/model.md, "Model
-forms"). The contact-only damping uses the actual contact state. Switches are located by DOP853's event detection and the
-integration restarts there, so the reference keeps its order across every kink.
+forms"). The contact-only damping uses the actual contact state. Switches are located by
+DOP853's event detection and the integration restarts there, so the reference keeps its order
+across every kink.
 
 Paths checked: scalar DP5, scalar RK4 and the batched SIMD kernel (``run_periods_batched``),
 bit-identical to scalar RK4. The Jacobian-vector product (``field_tangent``) is checked by
@@ -154,12 +155,12 @@ class Reference:
                 # the contact state of the coming stretch (at a switch: where the motion goes)
                 xd = y[1] - self.de(t)
                 contact = abs(x) > p.b + 1e-11 or (abs(abs(x) - p.b) <= 1e-11 and x * xd > 0)
-                r = solve_ivp(lambda tt, yy: self.rhs(tt, yy, contact, half), (t, t1), y,
+                r = solve_ivp(lambda tt, yy, c=contact, h=half: self.rhs(tt, yy, c, h), (t, t1), y,
                               method="DOP853", rtol=1e-12, atol=1e-14, events=evs)
                 y = r.y[:, -1]
                 t_new = r.t[-1]
                 if r.status == 1 and t_new <= t + 1e-13:  # an event at the start: step past it
-                    r = solve_ivp(lambda tt, yy: self.rhs(tt, yy, contact, half),
+                    r = solve_ivp(lambda tt, yy, c=contact, h=half: self.rhs(tt, yy, c, h),
                                   (t, min(t1, t + 1e-7)), y, method="DOP853", rtol=1e-12,
                                   atol=1e-14)
                     y, t_new = r.y[:, -1], r.t[-1]
@@ -272,7 +273,8 @@ def _lagrangian_mesh_mode(p: ModelParameters) -> float:
     return math.sqrt(lam[np.argmax(mesh / total)])
 
 
-@pytest.mark.parametrize("kappa", [(40.0, 40.0, 10.0, 10.0), (3.0, 5.0, 2.0, 8.0), (400, 400, 100, 100)])
+@pytest.mark.parametrize("kappa", [(40.0, 40.0, 10.0, 10.0), (3.0, 5.0, 2.0, 8.0),
+                                   (400, 400, 100, 100)])
 def test_mesh_mode_ratio_against_the_lagrangian(kappa):
     p = BASE.with_(**dict(zip(("kappa_py", "kappa_pz", "kappa_gy", "kappa_gz"), kappa,
                               strict=True)))

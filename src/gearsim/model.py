@@ -78,7 +78,8 @@ P_ZB = 18  # 4 entries: 2 xi_brg
 P_GAP = 22  # 4 entries: bearing half clearances
 # model-form options (docs/model.md, "Model forms"); each is 0.0 in today's form, so a default
 # term adds an exact zero and the default field is bit-identical to the field before the options
-P_VTE = 26  # TE rate seen by the mesh damper: -(1 - te_damping) Fe w  (x' + P_VTE sin(w tau + phi_e))
+# TE rate seen by the mesh damper: -(1 - te_damping) Fe w  (x' + P_VTE sin(w tau + phi_e))
+P_VTE = 26
 P_XIO = 27  # damping removed outside contact: 2 xi mesh_damping_contact
 P_GAM1 = 28  # reserved (0.0): the time-varying friction arm, pending (docs/model.md)
 N_FIELD = 29
