@@ -134,42 +134,45 @@ def _tail_spread(a, j, n, lag):
 
 @njit(cache=True, nogil=True)
 def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_confirm,
-                             max_window=96, steady=0.1, resolved=0.02, limit_rtol=0.05,
+                             max_window=96, steady=0.2, resolved=0.02, limit_rtol=0.05,
                              near=1e-2):
     """True if the section sequence converges geometrically onto a period-``lag`` orbit.
 
-    ``S_j`` = sum of ``|P_i - P_{i-lag}|`` (x component) over the ``n`` samples ending at ``j``
-    (``lag = n``: onto a period-``n`` orbit; ``lag = 1``: the guard of :func:`estimate_period`
-    that the sequence is not converging onto a lower period, e.g. a period-1 orbit with a
-    complex multiplier of rotation ``2 pi / n``).
-    Over the longest window ``W <= min(m - 2 n, max_window)`` (a multiple of 4 n, at least
-    ``max(4 n, min_confirm)``) take ``S`` at its five quarter points. A linear transient onto a
-    period-``n`` orbit with one dominant real multiplier ``mu`` of ``P^n`` gives
-    ``S_j ~ |mu|^(j / n)``: the four quarter ratios are equal and below 1. Accepted when
+    ``S_j`` = sum of ``|P_i - P_{i-lag}|`` (x component) over the ``2 n`` samples ending at
+    ``j`` (``lag = n``: onto a period-``n`` orbit; ``lag = 1``: the guard of
+    :func:`estimate_period` that the sequence is not converging onto a lower period, e.g. a
+    period-1 orbit with a complex multiplier of rotation ``2 pi / n``). Over the longest window
+    ``W <= min(m - 3 n, max_window)`` (a multiple of ``8 n``, at least ``min_confirm``) take
+    ``S`` at its five quarter points. A linear transient onto a period-``n`` orbit with one
+    dominant real multiplier ``mu`` of ``P^n`` gives ``S_j ~ |mu|^(j / n)``: the four quarter
+    ratios are equal and below 1 (sums over pairs of motion periods: a smaller second mode makes
+    ``|P_i - P_{i-n}|`` alternate in size under an alternating dominant one). Accepted when
 
     - every quarter ratio is below 1 and they agree to ``steady`` times the decay rate
       ``1 - mean ratio`` (one steady geometric rate: a quasi-periodic or chaotic sequence, or
       a complex multiplier whose rotation is not a multiple of ``2 pi / n``, fails);
     - the decay over the window is resolved (``S`` falls by at least ``resolved``);
     - Aitken's extrapolation of ``S`` from the first, middle and last point is zero within
-      ``max(n * tol_x, limit_rtol * S_end)`` (the points repeat after ``n`` in the limit; a
+      ``max(2 n tol_x, limit_rtol * S_end)`` (the points repeat after ``n`` in the limit; a
       spread that levels off at a finite value ``A``, e.g. a period-``n`` sequence approaching
       a period-``2 n`` orbit, extrapolates to ``A`` and fails unless the motion is still 20
       times farther from that orbit than its amplitude -- then ``near`` bounds ``A`` to 5e-4
       of the scale, an orbit within ``~A^2`` of its doubling). The relative part absorbs the
       weak nonlinearity of a transient of 1e-3 of the scale (its rate drifts with its
       amplitude);
-    - the motion is near its limit (``S_end / n <= near * scale``) and the velocity
+    - the motion is near its limit (``S_end / 2 n <= near * scale``) and the velocity
       differences do not grow.
     """
-    w4 = (min(m - 2 * n, max_window) // 4) // n * n  # whole motion periods per quarter
+    # quarters of whole pairs of motion periods: an alternating dominant mode plus a smaller
+    # non-alternating one makes |P_i - P_{i-n}| alternate in size; pairs average it out
+    w4 = (min(m - 3 * n, max_window) // 4) // (2 * n) * (2 * n)
     W = 4 * w4
-    if W < max(4 * n, min_confirm):
+    if W < max(8 * n, min_confirm):
         return False
     j0 = m - 1 - W
     S = np.empty(5)
     for k in range(5):
-        S[k] = _tail_spread(section_x, j0 + k * w4, n, lag)
+        S[k] = _tail_spread(section_x, j0 + k * w4, 2 * n, lag)
     if not (S[0] > 0.0 and np.all(np.isfinite(S))):
         return False
     rsum = 0.0
@@ -190,10 +193,10 @@ def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_
     if d1 - d0 == 0.0:
         return False
     limit = S[4] - d1 * d1 / (d1 - d0)
-    if abs(limit) > max(n * tol_x, limit_rtol * S[4]) or S[4] > near * scale * n:
+    if abs(limit) > max(2 * n * tol_x, limit_rtol * S[4]) or S[4] > near * scale * 2 * n:
         return False
-    v_early = _tail_spread(section_v, j0, n, lag)
-    v_late = _tail_spread(section_v, m - 1, n, lag)
+    v_early = _tail_spread(section_v, j0, 2 * n, lag)
+    v_late = _tail_spread(section_v, m - 1, 2 * n, lag)
     return v_late <= v_early
 
 
