@@ -78,7 +78,7 @@ def test_defaults_filled():
     cfg = {"planes": {"p": {"x": {"name": "w", "min": 0.5, "max": 1, "n": 4},
                             "y": {"name": "b", "min": 0, "max": 1, "n": 4}}}}
     gcfg.validate_schema(cfg)
-    assert cfg["tile_rows"] == 48 and cfg["integration"]["method"] == "rk4"
+    assert cfg["tile_rows"] == 80 and cfg["integration"]["method"] == "rk4"
     assert cfg["integration"]["transient_continuation"] == 40 and cfg["study"] is None
     assert cfg["planes"]["p"]["fixed"] == {} and cfg["cluster"]["scheduler_address"] is None
 
