@@ -81,13 +81,14 @@ def _lane_field(p: ModelParameters, t, y, mode, friction_sign):
         p.kappa_py, p.kappa_pz, p.kappa_gy, p.kappa_gz,
         2 * p.xi_py, 2 * p.xi_pz, 2 * p.xi_gy, 2 * p.xi_gz,
         p.b_py, p.b_pz, p.b_gy, p.b_gz,
-        -(1.0 - p.te_damping) * p.Fe * w, 2 * p.xi * p.mesh_damping_contact, 0.0,
+        -(1.0 - p.te_damping) * p.Fe * w, 2 * p.xi * p.mesh_damping_contact, p.friction_arm_var,
     )  # fmt: skip
     regions = [float(mode[k]) for k in range(5)]
     M = (regions[0], abs(regions[0]), *regions[1:], *(abs(r) for r in regions[1:]))
     vr = p.var_ratio * w * w * math.sin(p.var_ratio_order * w * t)
-    dy = field_state(c, s, friction_sign, vr, tuple(y[:10]), P, M)
-    dz = field_tangent(c, friction_sign, tuple(y[10:]), P, M)
+    q = (w * t) * (1.0 / math.pi) - 1.0  # the friction arm's phase (t: time within the period)
+    dy = field_state(c, s, friction_sign, q, vr, tuple(y[:10]), P, M)
+    dz = field_tangent(c, friction_sign, q, tuple(y[10:]), P, M)
     return np.array(dy + dz)
 
 

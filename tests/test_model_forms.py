@@ -5,7 +5,8 @@ Each option is checked against scipy's DOP853 on the equations written out here,
 coordinate ``q`` (rotations and bearing projections, without the transmission error), where the
 error enters only through the mesh force ``K(t) f(q - e, b) + C (q' - beta e')`` and there is no
 inertial forcing; the model integrates the deflection ``x = q - e`` (docs/model.md, "Model
-forms"). The contact-only damping uses the actual contact state. Switches are located by
+forms"). The friction arm is the sawtooth of Eq 9 evaluated with ``mod`` of the absolute time,
+the contact-only damping with the actual contact state. Switches are located by
 DOP853's event detection and the integration restarts there, so the reference keeps its order
 across every kink.
 
@@ -39,7 +40,6 @@ from gearsim.parameters import (
 from gearsim.simulate import IntegrationSettings, run_periods
 
 ROOT = Path(__file__).resolve().parents[1]
-ARM_VAR = 0.0  # the friction arm's sawtooth (Eq 9) in the reference; the field's option is pending
 N_PER = 10  # mesh periods compared
 DP5 = IntegrationSettings(method="dp5", rtol=1e-11, atol=1e-13)
 RK4 = IntegrationSettings(method="rk4", steps_per_period=1024)
@@ -56,6 +56,9 @@ FORMS = {
     # mesh damping only in contact
     "damping_contact": dict(mesh_damping_contact=1.0),
     "damping_contact_half_te0": dict(mesh_damping_contact=0.5, te_damping=0.0),
+    # time-varying friction arm of Eq 9 (sawtooth), friction large enough to matter
+    "friction_arm": dict(friction=0.08, friction_arm_var=0.8),
+    "friction_arm_te_half": dict(friction=0.05, friction_arm_var=1.24, te_damping=0.5),
     # bearings as Eq 1 / Eq 13: independent soft supports with radial clearance
     "bearings_clearance": dict(kappa_py=6.0, kappa_pz=9.0, kappa_gy=3.0, kappa_gz=4.0,
                                xi_py=0.04, xi_pz=0.05, xi_gy=0.03, xi_gz=0.035,
@@ -108,7 +111,7 @@ class Reference:
         if theta < 1e-9 and half % 2 == 1:  # the end of the second half, not the start
             theta = 2.0 * math.pi
         lam = 1.0 if half % 2 == 0 else -1.0
-        return p.friction * lam * (1.0 + ARM_VAR * (theta / math.pi - 1.0))
+        return p.friction * lam * (1.0 + p.friction_arm_var * (theta / math.pi - 1.0))
 
     def rhs(self, t, y, contact, half):
         F = self.force(t, y, contact)
@@ -196,8 +199,8 @@ def test_form_against_dop853_reference(name, batched):
     y0 = _start(p)
     ref = Reference(p).sections(y0, N_PER)
     # the option changes the motion (the test can fail): against the same cell in today's form
-    today = p.with_(te_damping=1.0, mesh_damping_contact=0.0, b_py=0.0, b_pz=0.0, b_gy=0.0,
-                    b_gz=0.0)
+    today = p.with_(te_damping=1.0, mesh_damping_contact=0.0, friction_arm_var=0.0, b_py=0.0,
+                    b_pz=0.0, b_gy=0.0, b_gz=0.0)
     assert np.abs(ref - Reference(today).sections(y0, N_PER)).max() > 1e-3
     dp5 = run_periods(p, y0, N_PER, DP5).summaries.section
     np.testing.assert_allclose(dp5, ref[:N_PER], atol=1e-7, err_msg=f"{name}: DP5")
@@ -292,7 +295,8 @@ def test_stiff_bearings_approach_the_mesh_frequency():
 
 
 # ---------------------------------------------------------------- bad values
-@pytest.mark.parametrize("key, value", [("te_damping", 1.5), ("mesh_damping_contact", -0.1)])
+@pytest.mark.parametrize("key, value", [("te_damping", 1.5), ("mesh_damping_contact", -0.1),
+                                        ("friction_arm_var", 11.0)])
 def test_bad_option_value_is_one_clear_error(key, value):
     with pytest.raises(ParameterError, match=rf"'{key}'.*allowed range"):
         ModelParameters(**{key: value})
@@ -381,3 +385,4 @@ def test_sweep_start_is_validated(tmp_path):
     f.write_text("sweeps:\n  s1: {name: w, min: 0.5, max: 0.9, n: 3, start: fixed}\n")
     with pytest.raises(ConfigError, match=r"sweeps.s1.start.*continuation.*rest"):
         gcfg.study_config([f], root=ROOT)
+

@@ -58,7 +58,7 @@ def fresh(tmp_path_factory):
 @pytest.mark.parametrize(
     ("configs", "tiles", "sweeps", "points"),
     [
-        ((), 2 * 9, 8, 3),  # 400 rows / tile_rows 48
+        ((), 2 * 5, 8, 3),  # 400 rows / tile_rows 80
         (("config/quick.yaml",), 2 * 2, 8, 3),
         (("config/tiny.yaml",), 2 * 2, 8, 3),
     ],

@@ -78,7 +78,7 @@ def test_defaults_filled():
     cfg = {"planes": {"p": {"x": {"name": "w", "min": 0.5, "max": 1, "n": 4},
                             "y": {"name": "b", "min": 0, "max": 1, "n": 4}}}}
     gcfg.validate_schema(cfg)
-    assert cfg["tile_rows"] == 48 and cfg["integration"]["method"] == "rk4"
+    assert cfg["tile_rows"] == 80 and cfg["integration"]["method"] == "rk4"
     assert cfg["integration"]["transient_continuation"] == 40 and cfg["study"] is None
     assert cfg["planes"]["p"]["fixed"] == {} and cfg["cluster"]["scheduler_address"] is None
 
@@ -213,3 +213,37 @@ def test_rk4_tiles_use_the_batched_kernel(tiny):
                                    atol=1e-9)
     assert gt.row_groups(list(range(16)), 2) == [list(range(8)), list(range(8, 16))]
     assert gt.row_groups(list(range(8)), 2) == [list(range(8))]
+
+
+def test_tile_records_do_not_depend_on_the_worker_split(tiny, tmp_path, capsys):
+    """One worker (in this process) and two workers (two row groups) give the same records, and
+    `simulate-tile --workers 1` without a scheduler runs in-process (no LocalCluster)."""
+    import pandas as pd
+
+    from gearsim.cli import main
+
+    cfg = copy.deepcopy(tiny)
+    cfg["integration"].update(method="rk4", transient=40, transient_continuation=8, chunk=16,
+                              max_periods=64)
+    cfg["tile_rows"] = 16
+    for plane in ("wb", "wxi"):
+        cfg["planes"][plane]["y"]["n"] = 16
+    cfg["planes"]["wb"]["x"]["n"] = 6
+    whole = gt.run_tile(cfg, "wb", 0, client=None)
+    specs = gt.row_specs(cfg, "wb", 0)
+    groups = gt.row_groups(specs, 2)
+    assert [len(g) for g in groups] == [8, 8]
+    split = gt.records_to_frame([r for g in groups for r in gt.simulate_rows_batched(g)])
+    split = split.sort_values(["j", "i"], kind="stable").reset_index(drop=True)
+    cols = [c for c in whole.columns if c != "elapsed_s"]
+    pd.testing.assert_frame_equal(whole[cols], split[cols])
+
+    cfg_file = tmp_path / "c.yaml"
+    cfg_file.write_text(yaml.safe_dump({k: cfg[k] for k in ("integration", "tile_rows",
+                                                            "planes")}))
+    out = tmp_path / "t.parquet"
+    assert main(["simulate-tile", "--plane", "wb", "--tile", "0", "--workers", "1",
+                 "--configfile", str(cfg_file), "--out", str(out)]) == 0
+    assert "in-process" in capsys.readouterr().err
+    got = pd.read_parquet(out)
+    pd.testing.assert_frame_equal(got[cols], whole[cols], check_dtype=False)

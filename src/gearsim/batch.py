@@ -64,6 +64,7 @@ from .model import (
     N_SWITCH,
     P_ACT,
     P_DOF6,
+    P_GAM1,
     P_VRA,
     P_VRC,
     P_VRS,
@@ -183,8 +184,8 @@ def _store10(blk, r, flag, old, new):
 
 # ============================================================================ the vector step
 @njit(cache=True, nogil=True, inline="always")
-def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-               tangent, bearings, forms):
+def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
+               bound, tangent, bearings, forms):
     """RK4 grid step of lane ``q`` of a block (straight-line code: selects, no branches).
 
     The arithmetic of ``integrate._rk4_grid_interval`` (the same inlined functions). With
@@ -197,7 +198,7 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     y = _load10(blk, o, _Y, q)
     P = field_params(blk, r + _PAR * L, L)
     if not forms:
-        P = tuple_setitem(tuple_setitem(P, P_VTE, 0.0), P_XIO, 0.0)
+        P = tuple_setitem(tuple_setitem(tuple_setitem(P, P_VTE, 0.0), P_XIO, 0.0), P_GAM1, 0.0)
     M = _lane_modes(blk, o, q)
     h = blk[r + _H * L]
     vrs = blk[r + (_PAR + P_VRS) * L]
@@ -205,14 +206,14 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     vA = vrs * cvA + vrc * svA
     vM = vrs * cvM + vrc * svM
     vB = vrs * cvB + vrc * svB
-    yn = rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, P, M)
+    yn = rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M)
     A = (blk[r + (_PAR + P_ACT) * L], blk[r + (_PAR + P_ACT + 1) * L],
          blk[r + (_PAR + P_ACT + 2) * L], blk[r + (_PAR + P_ACT + 3) * L])
     flag = grid_step_flag(y, yn, P, M, A, bound, bearings)
     _store10(blk, r + _Y * L, flag, y, yn)
     if tangent:
         z = _load10(blk, o, _Y + 10, q)
-        zn = rk4_tangent(z, h, cA, cM, cB, lam, P, M)
+        zn = rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M)
         _store10(blk, r + (_Y + 10) * L, flag, z, zn)
     r0 = M[0]
     td = blk[r + _TD * L]
@@ -230,8 +231,8 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-                tangent, bearings, forms):
+def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
+                bound, tangent, bearings, forms):
     """One RK4 step (the state, and the tangent vector if ``tangent``) of block ``bi``'s lanes.
 
     The loop over the lanes is straight-line code and vectorises (check: ``inspect_asm()``).
@@ -242,8 +243,8 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
     """
     o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
     for q in range(LANES):
-        _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, bound,
-                   tangent, bearings, forms)
+        _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM,
+                   qB, bound, tangent, bearings, forms)
     anyf = False
     for q in range(LANES):
         anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
@@ -309,7 +310,7 @@ def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
 
 # ============================================================================ the kernel
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
-def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fout,
+def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout,
             tangent=True):
     """Advance every lane with ``ist[_ST] == 0`` by ``m`` mesh periods of ``N`` RK4 steps.
 
@@ -321,7 +322,7 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fou
         int64 ``[NI, n_lanes]``: status (lanes with status != 0 are skipped; a lane that diverges
         gets status 1 and is frozen), periods done, record position, absolute period index,
         step count, face/back entries of the current period.
-    C, S, LAM, CV, SV
+    C, S, LAM, CV, SV, Q
         The phase tables of :func:`gearsim.steps.phase_tables` for ``N`` and ``nu``.
     sec, nface, nback, fout
         Per-lane records ``[n_lanes, capacity, ...]``; period ``k`` of lane ``l`` is written at
@@ -346,7 +347,8 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fou
     forms = False  # any lane with a model-form option (docs/model.md)
     for l in range(n_lanes):
         r = (l // L) * BLOCK + (l % L)
-        if blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0:
+        if (blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0
+                or blk[r + (_PAR + P_GAM1) * L] != 0.0):
             forms = True
     for k in range(m):
         # ---- period start: section, accumulators, variable-ratio phase of the lane
@@ -388,20 +390,23 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, nu, bound, sec, nface, nback, fou
             cvB = CV[i2 + 2]
             svB = SV[i2 + 2]
             lam = LAM[j]
+            qA = Q[i2]
+            qM = Q[i2 + 1]
+            qB = Q[i2 + 2]
             for bi in range(nblk):
                 o = bi * BLOCK
                 if tangent and forms:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, bound, True, bearings, True)
+                                       cvB, svB, lam, qA, qM, qB, bound, True, bearings, True)
                 elif tangent:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, bound, True, bearings, False)
+                                       cvB, svB, lam, qA, qM, qB, bound, True, bearings, False)
                 elif forms:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, bound, False, bearings, True)
+                                       cvB, svB, lam, qA, qM, qB, bound, False, bearings, True)
                 else:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, bound, False, bearings, False)
+                                       cvB, svB, lam, qA, qM, qB, bound, False, bearings, False)
                 if anyf:
                     for q in range(L):
                         if blk[o + _FLAG * L + q] != 0.0:
@@ -495,8 +500,8 @@ class Lanes:
 
     def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True) -> None:
         """Advance the lanes with status 0 by ``m`` periods (the kernel :func:`advance`)."""
-        C, S, LAM, CV, SV = phase_tables(N, nu)
-        advance(self.blk, self.ist, int(N), int(m), C, S, LAM, CV, SV, float(nu), float(bound),
+        C, S, LAM, CV, SV, Q = phase_tables(N, nu)
+        advance(self.blk, self.ist, int(N), int(m), C, S, LAM, CV, SV, Q, float(nu), float(bound),
                 self.sec, self.nface, self.nback, self.fout, bool(tangent))
 
     def summaries(self, lane: int, n: int, copy: bool = True) -> PeriodSummaries:

@@ -127,7 +127,7 @@ def end_period_tangent(z):
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, bearings, bound, acc):
+def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings, bound, acc):
     """The vector kernel's grid step for one cell; returns True if the event layer must redo it.
 
     Same arithmetic as ``batch._lane_step`` (both inline :func:`rk4_state`, :func:`rk4_tangent`
@@ -142,13 +142,14 @@ def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, bearings, b
     vM = variable_ratio(p, CV[i2 + 1], SV[i2 + 1])
     vB = variable_ratio(p, CV[i2 + 2], SV[i2 + 2])
     yn = rk4_state(ys, h, C[i2], S[i2], vA, C[i2 + 1], S[i2 + 1], vM, C[i2 + 2], S[i2 + 2], vB,
-                   lam, P, M)
+                   lam, Q[i2], Q[i2 + 1], Q[i2 + 2], P, M)
     A = (p[P_ACT], p[P_ACT + 1], p[P_ACT + 2], p[P_ACT + 3])
     if grid_step_flag(ys, yn, P, M, A, bound, bearings):
         return True
     if tangent:
         z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
-        zn = rk4_tangent(z, h, C[i2], C[i2 + 1], C[i2 + 2], lam, P, M)
+        zn = rk4_tangent(z, h, C[i2], C[i2 + 1], C[i2 + 2], lam, Q[i2], Q[i2 + 1], Q[i2 + 2], P,
+                         M)
         for i in range(N_STATE):
             y[10 + i] = zn[i]
     for i in range(N_STATE):
@@ -196,12 +197,13 @@ def integrate_periods(
     LAM,
     CV,
     SV,
+    Q,
 ):
     """Integrate ``n_periods`` mesh periods starting at ``tau = k0 T`` from state ``y0``.
 
     ``y0`` has 10 entries (20 with ``tangent``: state then tangent vector) and is updated in
     place to the final state. ``p`` is the packed parameter vector (a private copy is used).
-    ``n_rk`` is the RK4 steps per period (a multiple of ``substeps``; ``C, S, LAM, CV, SV`` its
+    ``n_rk`` is the RK4 steps per period (a multiple of ``substeps``; ``C, S, LAM, CV, SV, Q`` its
     phase tables); DP5 ignores them. Per period ``k`` the kernel writes ``sec[k]`` (state at the
     start of the period), ``nface[k]``/``nback[k]`` (entries into face / back contact),
     ``tdis[k]`` (time inside the backlash), ``fmax``/``fmin`` (mesh force extremes),
@@ -261,7 +263,7 @@ def integrate_periods(
             for j in range(n_rk):
                 mode[MODE_FRICTION] = int(LAM[j])
                 cnt[CNT_STEPS] += 1
-                if _rk4_grid_interval(j, h_rk, y, pl, mode, tangent, C, S, LAM, CV, SV,
+                if _rk4_grid_interval(j, h_rk, y, pl, mode, tangent, C, S, LAM, CV, SV, Q,
                                       bearings, bound, acc):
                     t_end = T if j == n_rk - 1 else (j + 1) * h_rk
                     cnt[CNT_STEPS] -= 1  # the event layer counts its own steps

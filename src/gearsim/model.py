@@ -81,7 +81,9 @@ P_GAP = 22  # 4 entries: bearing half clearances
 # TE rate seen by the mesh damper: -(1 - te_damping) Fe w  (x' + P_VTE sin(w tau + phi_e))
 P_VTE = 26
 P_XIO = 27  # damping removed outside contact: 2 xi mesh_damping_contact
-P_GAM1 = 28  # reserved (0.0): the time-varying friction arm, pending (docs/model.md)
+# friction-arm variation a of Eq 9 (the arm is Lbar (1 + a (theta / pi - 1)), a sawtooth over the
+# mesh period, theta = w tau mod 2 pi); the callers pass q = theta / pi - 1 per stage time
+P_GAM1 = 28
 N_FIELD = 29
 # further entries read by the integrators (not by the field)
 P_W = 29  # mesh frequency w
@@ -132,6 +134,7 @@ def pack_parameters(params) -> np.ndarray:
     p[P_GAM] = params.friction
     p[P_VTE] = -(1.0 - params.te_damping) * params.Fe * w
     p[P_XIO] = 2.0 * params.xi * params.mesh_damping_contact
+    p[P_GAM1] = params.friction_arm_var
     p[P_CA] = ca
     p[P_SA] = sa
     if dof6:
@@ -252,16 +255,18 @@ def mesh_force_series(p: np.ndarray, tau: np.ndarray, x: np.ndarray, v: np.ndarr
 
 
 @njit(cache=True, nogil=True, inline="always")
-def field_state(c, s, lam, vr, y, P, M):
+def field_state(c, s, lam, q, vr, y, P, M):
     """Right-hand side of the state with frozen regions: a 10-tuple ``dy/dtau``.
 
     ``c, s`` = cos, sin of the mesh phase ``w tau``; ``lam`` the friction direction (+/-1);
+    ``q = theta / pi - 1`` with ``theta = w tau`` in ``[0, 2 pi]`` (time within the period: the
+    friction arm's sawtooth, read only when ``friction_arm_var != 0``; :func:`arm_phase`);
     ``vr`` the variable-ratio forcing ``A w^2 sin(nu w tau)``; ``y`` the state (10-tuple);
     ``P`` the field parameters (:func:`field_params`); ``M`` the frozen regions
     (:func:`mode_tuple`).
     """
     (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
-     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, _gam1) = P  # fmt: skip
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, gam1) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
     F = (1.0 + eps * c) * (s0 * y[0] - r0 * b) + xi2 * y[1]
     drive = fm + few2 * (c * cphi - s * sphi) + vr
@@ -270,7 +275,7 @@ def field_state(c, s, lam, vr, y, P, M):
     a_gy = -z2 * y[7] - k2 * (sb2 * y[6] - rb2 * g2) + rgca * F
     a_gz = -z3 * y[9] - k3 * (sb3 * y[8] - rb3 * g3) + rgsa * F
     acc = drive - F * (1.0 + gam * lam) + (a_py - a_gy) * ca + (a_pz - a_gz) * sa
-    if vte != 0.0 or xio != 0.0:
+    if vte != 0.0 or xio != 0.0 or gam1 != 0.0:
         # model forms (docs/model.md), all off in today's form: the branch leaves today's
         # arithmetic untouched (bit-identical) and adds the forms' change dFx of the mesh force.
         # One product per addition, so the FMA contraction is unique and the scalar and the
@@ -288,19 +293,22 @@ def field_state(c, s, lam, vr, y, P, M):
         acc = acc - dFx * (1.0 + gam * lam)
         acc = acc - (rpca + rgca) * dFx * ca
         acc = acc - (rpsa + rgsa) * dFx * sa
+        # time-varying friction arm (Eq 9): gamma lambda (1 + a q) on the full mesh force
+        acc = acc - Fn * (gam * lam) * (gam1 * q)
     return (y[1], acc, y[3], a_py, y[5], a_pz, y[7], a_gy, y[9], a_gz)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def field_tangent(c, lam, z, P, M):
+def field_tangent(c, lam, q, z, P, M):
     """Jacobian-vector product ``J z`` of the same frozen (piecewise-linear) field: a 10-tuple.
 
-    The Jacobian of the region's field; exact across switches (continuous field, identity
-    saltation matrix), except with ``mesh_damping_contact > 0``, whose damping force jumps at
-    the mesh switch (its saltation term is not applied; docs/model.md).
+    The Jacobian of the region's field (``q`` as in :func:`field_state`); exact across
+    switches (continuous field, identity saltation matrix), except with
+    ``mesh_damping_contact > 0``, whose damping force jumps at the mesh switch: the event layer
+    applies that saltation matrix at the landed switch (``events.apply_saltation``).
     """
     (eps, xi2, b, fm, few2, cphi, sphi, gam, ca, sa, rpca, rpsa, rgca, rgsa,
-     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, _gam1) = P  # fmt: skip
+     k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, gam1) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
     dF = (1.0 + eps * c) * s0 * z[0] + xi2 * z[1]
     if xio != 0.0:  # (branches, not added zeros: today's tangent keeps its FMA contraction)
@@ -310,7 +318,20 @@ def field_tangent(c, lam, z, P, M):
     d_gy = -z2 * z[7] - k2 * sb2 * z[6] + rgca * dF
     d_gz = -z3 * z[9] - k3 * sb3 * z[8] + rgsa * dF
     dacc = -dF * (1.0 + gam * lam) + (d_py - d_gy) * ca + (d_pz - d_gz) * sa
+    if gam1 != 0.0:
+        dacc = dacc - dF * (gam * lam) * (gam1 * q)
     return (z[1], dacc, z[3], d_py, z[5], d_pz, z[7], d_gy, z[9], d_gz)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def arm_phase(w, t):
+    """``q = theta / pi - 1`` at time ``t`` within the mesh period (``theta = w t``).
+
+    ``lambda q`` is the continuous triangle of the friction arm (-1 at the period start, 0 at
+    the pitch point); its kinks at ``kT`` and ``kT + T/2`` are landed on by the integrators. The
+    RK4 grid reads the same values from :func:`gearsim.steps.phase_tables` (``Q``).
+    """
+    return (w * t) * (1.0 / math.pi) - 1.0
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -354,13 +375,14 @@ def rhs(t, y, p, mode, dy, tangent):
     P = field_params(p, 0, 1)
     M = mode_tuple(mode)
     lam = float(mode[MODE_FRICTION])
+    q = arm_phase(w, t)
     ys = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9])
-    d = field_state(c, s, lam, vr, ys, P, M)
+    d = field_state(c, s, lam, q, vr, ys, P, M)
     for i in range(N_STATE):
         dy[i] = d[i]
     if tangent:
         z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
-        dz = field_tangent(c, lam, z, P, M)
+        dz = field_tangent(c, lam, q, z, P, M)
         for i in range(N_STATE):
             dy[10 + i] = dz[i]
 

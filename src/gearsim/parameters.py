@@ -60,6 +60,9 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "mesh_damping_contact": (0.0, 1.0, True, True,
                              "fraction of the mesh damping acting only in contact "
                              "(0: always, 1: only in contact)"),
+    "friction_arm_var": (0.0, 10.0, True, True,
+                         "friction-arm variation: half range of the sawtooth L_p of Eq 9 "
+                         "over its mean"),
 }
 
 MODELS = ("6dof", "1dof")
@@ -137,6 +140,7 @@ class ModelParameters:
     b_gz: float = 0.0
     te_damping: float = 1.0
     mesh_damping_contact: float = 0.0
+    friction_arm_var: float = 0.0
     model: str = "6dof"
 
     def __post_init__(self) -> None:

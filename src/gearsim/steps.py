@@ -28,6 +28,7 @@ from .model import (
     P_VR_ORDER,
     P_VRA,
     P_W,
+    arm_phase,
     field_params,
     field_state,
     field_tangent,
@@ -107,36 +108,37 @@ def _add(s, k):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, P, M):
+def rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M):
     """One RK4 step of the state, ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.
 
     ``(c, s, v)`` at A (start), M (middle), B (end): cos, sin of the mesh phase and the
-    variable-ratio forcing there. The weight sum is accumulated stage by stage (few live values:
-    no register spills in the vector loop).
+    variable-ratio forcing there; ``q`` the friction arm's phase there
+    (:func:`gearsim.model.arm_phase`). The weight sum is accumulated stage by stage (few live
+    values: no register spills in the vector loop).
     """
     a = 0.5 * h
-    k = field_state(cA, sA, lam, vA, y, P, M)
+    k = field_state(cA, sA, lam, qA, vA, y, P, M)
     acc = k
-    k = field_state(cM, sM, lam, vM, axpy10(y, a, k), P, M)
+    k = field_state(cM, sM, lam, qM, vM, axpy10(y, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_state(cM, sM, lam, vM, axpy10(y, a, k), P, M)
+    k = field_state(cM, sM, lam, qM, vM, axpy10(y, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_state(cB, sB, lam, vB, axpy10(y, h, k), P, M)
+    k = field_state(cB, sB, lam, qB, vB, axpy10(y, h, k), P, M)
     acc = _add(acc, k)
     return axpy10(y, h / 6.0, acc)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def rk4_tangent(z, h, cA, cM, cB, lam, P, M):
+def rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M):
     """The same RK4 step for the tangent vector (linear; independent of the state)."""
     a = 0.5 * h
-    k = field_tangent(cA, lam, z, P, M)
+    k = field_tangent(cA, lam, qA, z, P, M)
     acc = k
-    k = field_tangent(cM, lam, axpy10(z, a, k), P, M)
+    k = field_tangent(cM, lam, qM, axpy10(z, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_tangent(cM, lam, axpy10(z, a, k), P, M)
+    k = field_tangent(cM, lam, qM, axpy10(z, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_tangent(cB, lam, axpy10(z, h, k), P, M)
+    k = field_tangent(cB, lam, qB, axpy10(z, h, k), P, M)
     acc = _add(acc, k)
     return axpy10(z, h / 6.0, acc)
 
@@ -160,15 +162,15 @@ def rk4_step(t, y, h, p, mode, tangent, yout):
     P = field_params(p, 0, 1)
     M = mode_tuple(mode)
     lam = float(mode[MODE_FRICTION])
+    qA, qM, qB = arm_phase(w, t), arm_phase(w, t + 0.5 * h), arm_phase(w, t + h)
     ys = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9])
-    yn = rk4_state(
-        ys, h, cA, math.sin(ph), vA, cM, math.sin(pm), vM, cB, math.sin(pe), vB, lam, P, M
-    )
+    yn = rk4_state(ys, h, cA, math.sin(ph), vA, cM, math.sin(pm), vM, cB, math.sin(pe), vB, lam,
+                   qA, qM, qB, P, M)
     for i in range(N_STATE):
         yout[i] = yn[i]
     if tangent:
         z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
-        zn = rk4_tangent(z, h, cA, cM, cB, lam, P, M)
+        zn = rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M)
         for i in range(N_STATE):
             yout[10 + i] = zn[i]
     return 0.0
@@ -284,11 +286,13 @@ _TABLES: dict = {}
 
 
 def phase_tables(N: int, nu: float = 0.0):
-    """``(C, S, LAM, CV, SV)`` for ``N`` RK4 steps per period and variable-ratio order ``nu``.
+    """``(C, S, LAM, CV, SV, Q)`` for ``N`` RK4 steps per period and variable-ratio order ``nu``.
 
     ``C``/``S``: cos/sin of the mesh phase ``theta_i = pi i / N`` on the half-step grid
     (``i = 0 .. 2N``); ``LAM``: the friction direction on grid step ``j``; ``CV``/``SV``:
-    cos/sin of ``nu theta_i``. No transcendental function is evaluated inside an RK4 grid step.
+    cos/sin of ``nu theta_i``; ``Q``: the friction arm's phase ``theta_i / pi - 1 = i / N - 1``
+    (:func:`gearsim.model.arm_phase`, exact on the grid). No transcendental function is evaluated
+    inside an RK4 grid step.
     """
     key = (int(N), float(nu))
     if key not in _TABLES:
@@ -303,7 +307,8 @@ def phase_tables(N: int, nu: float = 0.0):
         LAM = np.where(np.sin(np.pi * (2 * np.arange(N) + 1) / N) >= 0.0, 1.0, -1.0)
         CV = np.cos(nu * th)
         SV = np.sin(nu * th)
+        Q = i / N - 1.0
         if len(_TABLES) > 64:
             _TABLES.clear()
-        _TABLES[key] = (C, S, LAM, CV, SV)
+        _TABLES[key] = (C, S, LAM, CV, SV, Q)
     return _TABLES[key]

@@ -26,7 +26,10 @@ rule attractor_tile:
         "logs/benchmarks/{plane}/attractors_{tile}.tsv"
     conda:
         GEARSIM_ENV
-    threads: 2
+    # one process per job, Snakemake runs --cores of them at once: no LocalCluster start-up per
+    # job (~7 s of a tile job's wall on 2 idle cores; benchmarks/README.md (k)). With
+    # cluster.scheduler_address set, each job still sends its tasks to that scheduler.
+    threads: 1
     params:
         config=plane_params,
         code_version=CODE_VERSION,

@@ -33,7 +33,13 @@ rule simulate_tile:
         "logs/benchmarks/{plane}/tile_{tile}.tsv"
     conda:
         GEARSIM_ENV
-    threads: 2
+    # one process per job, Snakemake runs --cores of them at once: no LocalCluster start-up per
+    # job (~7 s of a tile job's wall on 2 idle cores; benchmarks/README.md (k)). With
+    # cluster.scheduler_address set, each job still sends its tasks to that scheduler.
+    threads: 1
+    # the planes' chain (tiles -> cells -> audit -> catalogue) is the longest: start it first,
+    # the sweeps, points and figures fill the other core
+    priority: 10
     params:
         config=plane_params,
         code_version=CODE_VERSION,
@@ -52,6 +58,7 @@ rule plane_cells:
         "logs/{plane}/cells.log",
     conda:
         GEARSIM_ENV
+    priority: 10
     params:
         config=plane_params,
         code_version=CODE_VERSION,
@@ -72,6 +79,7 @@ rule audit:
         "logs/benchmarks/{plane}/audit.tsv"
     conda:
         GEARSIM_ENV
+    priority: 10
     params:
         config=audit_params,
         code_version=CODE_VERSION,

@@ -27,7 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the plane's simulated tile (forward-continuation states; default "
                    "results/<plane>/tiles/<tile>.parquet)")  # fmt: skip
     add_config_arguments(p)
-    p.add_argument("--workers", type=int, default=1, help="LocalCluster worker processes")
+    p.add_argument("--workers", type=int, default=1,
+                   help="LocalCluster worker processes (1 without a scheduler address: in this "
+                   "process, no dask)")  # fmt: skip
     p.add_argument("--no-cluster", action="store_true", help="run in this process (no dask)")
     p.add_argument("--out", default=None,
                    help="output (default results/<plane>/attractors/<tile>.parquet)")
@@ -103,11 +105,12 @@ def run(args: argparse.Namespace) -> int:
             done += len({(r["i"], r["j"]) for r in recs})
             progress(done, total, time.perf_counter() - t0)
 
-    if args.no_cluster:
+    address = config["cluster"].get("scheduler_address")
+    if args.no_cluster or (args.workers == 1 and not address):
         workers = "in-process"
         collect(map(cell_group_records, specs))
     else:
-        with open_client(args.workers, config["cluster"].get("scheduler_address")) as client:
+        with open_client(args.workers, address) as client:
             workers = describe(client)
             collect(map_unordered(client, cell_group_records, specs))
     progress.close()

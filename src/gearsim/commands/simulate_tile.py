@@ -91,7 +91,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--workers",
         type=int,
         default=1,
-        help=f"LocalCluster worker processes, 1..{MAX_WORKERS} (one thread each)",
+        help=f"LocalCluster worker processes, 1..{MAX_WORKERS} (one thread each; 1 without a "
+        "scheduler address: in this process, no dask)",
     )
     p.add_argument(
         "--scheduler",
@@ -102,7 +103,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--no-cluster",
         action="store_true",
-        help="run the rows in this process (no dask; for debugging)",
+        help="run the rows in this process (no dask); the default with --workers 1 and no "
+        "scheduler address",
     )
     p.add_argument(
         "--out",
@@ -124,7 +126,10 @@ def run(args: argparse.Namespace) -> int:
     label = f"{args.plane}/tile {args.tile}"
     progress = Progress(label, nx * len(rows))
     address = args.scheduler or config["cluster"].get("scheduler_address")
-    if not args.no_cluster:
+    # one worker and no scheduler: this process is the worker (a LocalCluster would only add
+    # its start-up, ~3-7 s per job: two processes importing gearsim and loading the kernels)
+    in_process = args.no_cluster or (args.workers == 1 and not address)
+    if not in_process:
         if address:
             check_address(address)
         else:
@@ -132,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     banner = f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells"
-    if args.no_cluster:
+    if in_process:
         workers = "in-process"
         print(f"{banner}, {workers}", file=sys.stderr, flush=True)
         df = tiles.run_tile(config, args.plane, args.tile, client=None, progress=progress)
