@@ -23,10 +23,22 @@ SHARED_GROUPS = {
     "test_figures_planes.py": "tiny_study",
     "test_explorer.py": "tiny_study",
 }
-# Units handed out first, longest first (measured with `pytest -n 2 --durations=0`), so the last
-# units to start are short ones and both workers finish close together. Units not named here
-# follow in collection order.
-LONGEST_FIRST: tuple[str, ...] = ()
+# Units handed out first, longest first, so the last units to start are short ones and both
+# workers finish close together; units not named here follow in collection order. CPU seconds
+# (test + waited subprocesses) from a parallel run on a loaded machine (30 Nov, round 4):
+# tiny_run >= 240 (its fixture 190), test_attractors_pipeline 139, test_cluster 33; the rest of
+# this list runs whole pipelines or a fresh compile too, ordered by what they run.
+LONGEST_FIRST: tuple[str, ...] = (
+    "tiny_run",  # the tiny workflow, then rebuilds, dry runs and a killed-and-resumed run
+    "test_one_source.py",  # compiles a modified copy of the package from an empty cache
+    "test_attractors_pipeline.py",
+    "tiny_study",
+    "test_pipeline_study.py",
+    "test_readme.py",
+    "test_trust_config.py",
+    "test_trust_input.py",
+    "test_cluster.py",
+)
 
 
 def _unit(path: str) -> str:
