@@ -15,6 +15,7 @@ rule compile:
         "logs/compile.log",
     conda:
         GEARSIM_ENV
+    priority: 10  # the planes wait for it
     params:
         code_version=CODE_VERSION,
     shell:
