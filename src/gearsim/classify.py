@@ -170,10 +170,17 @@ def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_
     if W < max(8 * n, min_confirm):
         return False
     j0 = m - 1 - W
+    # the cheap necessary conditions first (most aperiodic sequences stop here)
+    s0 = _tail_spread(section_x, j0, 2 * n, lag)
+    s4 = _tail_spread(section_x, j0 + 4 * w4, 2 * n, lag)
+    if not (s0 > 0.0 and s4 <= (1.0 - resolved) * s0 and s4 <= near * scale * 2 * n):
+        return False  # no resolved decay, not near the limit, or NaN
     S = np.empty(5)
-    for k in range(5):
+    S[0] = s0
+    S[4] = s4
+    for k in range(1, 4):
         S[k] = _tail_spread(section_x, j0 + k * w4, 2 * n, lag)
-    if not (S[0] > 0.0 and np.all(np.isfinite(S))):
+    if not np.all(np.isfinite(S)):
         return False
     rsum = 0.0
     rmin = 2.0
@@ -186,14 +193,12 @@ def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_
     rate = 1.0 - rsum / 4.0
     if not (rmax < 1.0 and rmax - rmin <= steady * rate):
         return False
-    if S[0] - S[4] < resolved * S[0]:
-        return False
     d1 = S[4] - S[2]
     d0 = S[2] - S[0]
     if d1 - d0 == 0.0:
         return False
     limit = S[4] - d1 * d1 / (d1 - d0)
-    if abs(limit) > max(2 * n * tol_x, limit_rtol * S[4]) or S[4] > near * scale * 2 * n:
+    if abs(limit) > max(2 * n * tol_x, limit_rtol * S[4]):
         return False
     v_early = _tail_spread(section_v, j0, 2 * n, lag)
     v_late = _tail_spread(section_v, m - 1, 2 * n, lag)
