@@ -316,6 +316,7 @@ def integrate_periods(
         xmin[k] = acc[ACC_XMIN]
         if tangent:
             lyap[k] = end_period_tangent(y[10:20])
+            acc[ACC_K1] = 0.0  # the FSAL stage holds the derivative of the unnormalised tangent
         periods_done = k + 1
     for i in range(n):
         y0[i] = y[i]
