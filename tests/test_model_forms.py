@@ -85,7 +85,8 @@ class Reference:
         self.kap = [d[f"kappa_{n}"] for n in ("py", "pz", "gy", "gz")]
         self.zb = [d[f"xi_{n}"] for n in ("py", "pz", "gy", "gz")]
         self.dirs = [math.cos(p.alpha), math.sin(p.alpha)] * 2
-        self.rho = [p.rho_p, p.rho_p, p.rho_g, p.rho_g]
+        dof6 = p.model == "6dof"  # the single-DOF model: rigid bearings (no coupling)
+        self.rho = [p.rho_p, p.rho_p, p.rho_g, p.rho_g] if dof6 else [0.0] * 4
         self.sgn = [-1.0, -1.0, 1.0, 1.0]  # pinion pushed back, gear pushed forward
 
     def e(self, t):
@@ -385,4 +386,34 @@ def test_sweep_start_is_validated(tmp_path):
     f.write_text("sweeps:\n  s1: {name: w, min: 0.5, max: 0.9, n: 3, start: fixed}\n")
     with pytest.raises(ConfigError, match=r"sweeps.s1.start.*continuation.*rest"):
         gcfg.study_config([f], root=ROOT)
+
+
+
+# ---------------------------------------------------------------- saltation (contact-only damping)
+@pytest.mark.parametrize("model", ["1dof", "6dof"])
+def test_monodromy_with_contact_damping_matches_dop853_finite_differences(model):
+    """Damping only in contact makes the field jump at x = +/-b: the monodromy needs the
+    saltation matrix at each mesh switch. Reference: central finite differences of the
+    DOP853 section map of the equations written out above (no gearsim integrator)."""
+    from gearsim.variational import monodromy
+
+    p = BASE.with_(mesh_damping_contact=1.0, model=model)
+    r = run_periods(p, _start(p), 30, DP5, event_capacity=1000)
+    y0 = r.state[:10].copy()
+    n = 2
+    chk = run_periods(p, y0, n, DP5, start_period=30, event_capacity=1000)
+    mesh = chk.events_code[chk.events_code < 4]
+    assert mesh.size >= 2, "the orbit must switch mesh contact inside the window"
+    d = m.n_evolved(p.to_array())
+    _, M, status = monodromy(p, y0, n, DP5, start_period=30)
+    assert status == 0
+    ref = Reference(p)
+    h = 1e-6
+    fd = np.zeros((d, d))
+    for i in range(d):
+        e = np.zeros(10)
+        e[i] = h
+        fd[:, i] = (ref.sections(y0 + e, n)[-1, :d] - ref.sections(y0 - e, n)[-1, :d]) / (2 * h)
+    scale = np.abs(fd).max()
+    np.testing.assert_allclose(M, fd, rtol=0, atol=2e-5 * scale)
 

@@ -12,7 +12,9 @@ switch, the region changes, and the rest of the interval is integrated in the ne
 :func:`advance_interval` is that loop over one interval of a mesh period. The scalar integrator
 (:func:`gearsim.integrate.integrate_periods`) calls it for every DP5 output interval and for every
 RK4 grid interval that its step flags; the batched kernel (:mod:`gearsim.batch`) calls it for its
-flagged lanes. It also keeps the per-period accumulators (time inside the backlash, impact
+flagged lanes. At a mesh switch of a discontinuous field (damping only in contact) it applies
+the saltation matrix to the tangent vector (:func:`apply_saltation`). It also keeps the
+per-period accumulators (time inside the backlash, impact
 counts, force and displacement extremes with the Hermite extremum inside a step) and the event
 log.
 """
@@ -23,7 +25,17 @@ import math
 
 from numba import njit
 
-from .model import N_STATE, N_SWITCH, P_ACT, SWITCH_COORD, SWITCH_GAP, mesh_force, region_of
+from .model import (
+    N_STATE,
+    N_SWITCH,
+    P_ACT,
+    P_XIO,
+    SWITCH_COORD,
+    SWITCH_GAP,
+    mesh_force,
+    region_of,
+    rhs,
+)
 from .model import P_W as _P_W
 from .steps import METHOD_DP5, METHOD_RK4, trial_step
 
@@ -155,6 +167,29 @@ def scan_switches(y, ynew, hh, mode, gaps, active):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
+def apply_saltation(t, y, p, mode, new_region, fm, fp):
+    """Jump of the tangent vector ``y[10:20]`` at a landed mesh switch of a discontinuous field.
+
+    With damping only in contact (``mesh_damping_contact > 0``) the field jumps at ``x = +/-b``;
+    the variational solution then crosses the switch with the saltation matrix
+    ``S = I + (f+ - f-) e_x^T / (e_x^T f-)`` (switching surface ``x -/+ b = 0``, time-independent:
+    normal ``e_x``, ``e_x^T f- = x'``). ``f-`` is the field in the old region, ``f+`` in
+    ``new_region``, both at the switch point; ``fm``, ``fp`` are scratch rows (10+ entries).
+    """
+    v = y[1]
+    if v == 0.0:
+        return
+    old = mode[0]
+    rhs(t, y, p, mode, fm, False)
+    mode[0] = new_region
+    rhs(t, y, p, mode, fp, False)
+    mode[0] = old
+    s = y[N_STATE] / v
+    for i in range(N_STATE):
+        y[N_STATE + i] += (fp[i] - fm[i]) * s
+
+
+@njit(cache=True, nogil=True, _nrt=False)
 def _track(acc, c_phase, y, p, mode):
     """Fold the state at a landed point into the force and displacement extremes."""
     P0 = (p[0], p[1], p[2])  # eps, 2 xi, b
@@ -263,6 +298,9 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
                     cnt[CNT_NF] += 1
                 elif new_region == -1:
                     cnt[CNT_NB] += 1
+            if tangent and c == 0 and p[P_XIO] != 0.0:
+                # the field jumps here (contact-only damping); ks rows are free until the next step
+                apply_saltation(t, y, p, mode, new_region, ks[1], ks[2])
             k_ev = cnt[CNT_EV]
             if k_ev < ev_t.shape[0]:
                 ev_t[k_ev] = t_abs0 + t

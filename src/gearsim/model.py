@@ -28,7 +28,8 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``, ``tau = w_n
 Model-form options (docs/model.md, "Model forms"; all off by default, where the field is today's
 bit for bit): ``F`` gains ``2 xi (1 - beta) e'(tau)`` (the damper follows only part of the
 transmission-error rate, ``te_damping = beta``) and loses ``2 xi delta (x' + ...)`` inside the
-backlash (``mesh_damping_contact = delta``).
+backlash (``mesh_damping_contact = delta``); the friction factor ``gamma lambda`` becomes
+``gamma lambda (1 + a q)`` (the sawtooth arm of Eq 9, ``friction_arm_var = a``).
 
 ``f(x, b)`` is the dead zone (x - b above b, 0 inside, x + b below -b);
 ``lambda = sign(sin(w tau))`` is the friction direction (it flips at the pitch point, mid
@@ -41,7 +42,8 @@ Piecewise-smooth handling: every dead zone is evaluated in a *frozen region* (``
 the start of a step; the event layer (:mod:`gearsim.events`) locates the switching surfaces and
 changes the region there. Because ``f`` is continuous, the vector field is continuous across every
 switch: the saltation matrix of the variational equations is the identity, so the tangent vector
-needs no jump.
+needs no jump (except with ``mesh_damping_contact > 0``, whose damping force jumps at the mesh
+switch: :func:`gearsim.events.apply_saltation`).
 
 Adding a nonlinearity: edit :func:`field_state` (the force law) and :func:`field_tangent` (its
 Jacobian-vector product) and, if it needs a parameter, add a slot to the packed layout below and
