@@ -32,9 +32,10 @@ from .model import (
     P_XIO,
     SWITCH_COORD,
     SWITCH_GAP,
-    mesh_force,
+    field_params,
     region_of,
     rhs,
+    tracked_force,
 )
 from .model import P_W as _P_W
 from .steps import METHOD_DP5, METHOD_RK4, trial_step
@@ -190,11 +191,12 @@ def apply_saltation(t, y, p, mode, new_region, fm, fp):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def _track(acc, c_phase, y, p, mode):
-    """Fold the state at a landed point into the force and displacement extremes."""
-    P0 = (p[0], p[1], p[2])  # eps, 2 xi, b
+def _track(acc, ph, y, p, mode):
+    """Fold the state at a landed point (mesh phase ``ph``) into the force and displacement
+    extremes (the force of the model form: :func:`gearsim.model.tracked_force`)."""
     r0 = float(mode[0])
-    fl = mesh_force(c_phase, y[0], y[1], P0, r0, abs(r0))
+    fl = tracked_force(math.cos(ph), math.sin(ph), y[0], y[1], field_params(p, 0, 1), r0,
+                       abs(r0))
     acc[ACC_FMAX] = max(acc[ACC_FMAX], fl)
     acc[ACC_FMIN] = min(acc[ACC_FMIN], fl)
     acc[ACC_XMAX] = max(acc[ACC_XMAX], y[0])
@@ -308,7 +310,7 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
             cnt[CNT_EV] = k_ev + 1
             mode[c] = new_region
             acc[ACC_K1] = 0.0
-            _track(acc, math.cos(w * t), y, p, mode)
+            _track(acc, w * t, y, p, mode)
             continue
         # ---- no switch: accept the whole step
         if mode[0] == 0:
@@ -322,8 +324,9 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
                 acc[ACC_XMAX] = max(acc[ACC_XMAX], xe)
                 acc[ACC_XMIN] = min(acc[ACC_XMIN], xe)
                 r0 = float(mode[0])
-                fe = mesh_force(math.cos(w * (t + se * hh)), xe, 0.0, (p[0], 0.0, gaps[0]), r0,
-                                abs(r0))
+                pe = w * (t + se * hh)
+                fe = tracked_force(math.cos(pe), math.sin(pe), xe, 0.0, field_params(p, 0, 1), r0,
+                                   abs(r0))
                 acc[ACC_FMAX] = max(acc[ACC_FMAX], fe)
                 acc[ACC_FMIN] = min(acc[ACC_FMIN], fe)
         for i in range(n):
@@ -333,7 +336,7 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
         if t > t_stop or t_stop - t < 1e-12 * T:
             t = t_stop
         acc[ACC_K1] = 1.0 if method == METHOD_DP5 else 0.0
-        _track(acc, math.cos(w * t), y, p, mode)
+        _track(acc, w * t, y, p, mode)
         bad = False
         for i in range(N_STATE):
             if not (abs(y[i]) < bound):

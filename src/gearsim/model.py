@@ -229,9 +229,8 @@ def mesh_force_full(c, s, x, v, P, r0, s0):
     """The mesh force of every model form: :func:`mesh_force` plus the forms' terms.
 
     ``s = sin(w tau)``; ``P`` the full field tuple (:func:`field_params`). Equal to
-    :func:`mesh_force` bit for bit in today's form (the added terms are exact zeros). For the
-    Kmax trackers (events.py, integrate.py, batch.py), which still call :func:`mesh_force`
-    (docs/model.md, "What the options do not cover").
+    :func:`mesh_force` bit for bit in today's form (the added terms are exact zeros). The Kmax
+    trackers (events.py, integrate.py, batch.py) call it through :func:`tracked_force`.
     """
     F = (1.0 + P[P_EPS] * c) * (s0 * x - r0 * P[P_B]) + P[P_XI2] * v
     out = 1.0 - s0
@@ -239,6 +238,16 @@ def mesh_force_full(c, s, x, v, P, r0, s0):
     F = F + dv * P[P_CPHI] * s
     F = F + dv * P[P_SPHI] * c
     return F - P[P_XIO] * out * v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def tracked_force(c, s, x, v, P, r0, s0):
+    """The mesh force the Kmax trackers record: :func:`mesh_force` in today's form (a branch, so
+    today's paths keep their arithmetic), :func:`mesh_force_full` when a form changes the force
+    (``te_damping < 1`` or ``mesh_damping_contact > 0``)."""
+    if P[P_VTE] != 0.0 or P[P_XIO] != 0.0:
+        return mesh_force_full(c, s, x, v, P, r0, s0)
+    return mesh_force(c, x, v, P, r0, s0)
 
 
 def mesh_force_series(p: np.ndarray, tau: np.ndarray, x: np.ndarray, v: np.ndarray) -> np.ndarray:
