@@ -33,8 +33,14 @@ quick: venv  ## small grids for a fast look (config/quick.yaml)
 	$(unlock_stale)
 	. $(BIN)/activate && snakemake --cores $(CORES) --rerun-incomplete --configfile config/quick.yaml
 
+# The suite on TEST_WORKERS pytest-xdist workers, one test file per unit (tests/conftest.py: files
+# sharing a session-scoped study are one unit). The kernels are compiled into NUMBA_CACHE_DIR once
+# first, as the workflow's `compile` rule does, so the workers load them instead of compiling the
+# same kernels side by side.
+TEST_WORKERS ?= 2
 test: venv  ## the test suite (what CI runs)
-	. $(BIN)/activate && pytest -q
+	. $(BIN)/activate && gearsim compile && \
+	  pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=30
 
 lint: venv
 	. $(BIN)/activate && ruff check src tests benchmarks && snakemake --lint

@@ -137,11 +137,12 @@ def rule_times(log: Path) -> dict:
 
     stamp = re.compile(r"^\[(\w{3} \w{3} +\d+ \d\d:\d\d:\d\d \d{4})\]$")
     now, start, rule_of, out = None, {}, {}, {}
-    pending = None
+    pending, t_first = None, None
     for line in log.read_text().splitlines():
         m = stamp.match(line.strip())
         if m:
             now = datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y").timestamp()
+            t_first = now if t_first is None else t_first
             continue
         t = line.strip()
         if t.startswith(("rule ", "localrule ")) and t.endswith(":"):
@@ -153,9 +154,13 @@ def rule_times(log: Path) -> dict:
         elif t.startswith("Finished jobid:"):
             jid = t.split()[2]
             if jid in start:
-                r = out.setdefault(rule_of[jid], {"jobs": 0, "wall_s": 0.0})
+                r = out.setdefault(rule_of[jid], {"jobs": 0, "wall_s": 0.0, "first_start_s": 1e99,
+                                                  "last_end_s": 0.0})  # fmt: skip
                 r["jobs"] += 1
                 r["wall_s"] += now - start[jid]
+                # seconds from the run's first time stamp: the stages' order on the critical path
+                r["first_start_s"] = min(r["first_start_s"], start[jid] - t_first)
+                r["last_end_s"] = max(r["last_end_s"], now - t_first)
     return out
 
 
@@ -163,17 +168,29 @@ def cmd_rules(args) -> None:
     """Per-rule job seconds of a finished run directory (Snakemake log + benchmark files)."""
     d = Path(args.dir)
     logs = sorted((d / ".snakemake" / "log").glob("*.snakemake.log"))
+    if not logs and d.parent.name == "studies":  # a study: Snakemake's log is the project's
+        logs = sorted((d.parent.parent / ".snakemake" / "log").glob("*.snakemake.log"))
     if not logs:
         raise SystemExit(f"no Snakemake log in {d}/.snakemake/log")
     rules = rule_times(logs[-1])
     cpu: dict[str, float] = {}
+    # benchmark file -> rule: sweeps/<name>, points/<set>, orbits/standard, orbits/<plane>_curves,
+    # <plane>/tile_<k>, <plane>/attractors_<k>, <plane>/audit, <plane>/orbits
+    by_path = {"sweeps": "sweep", "points": "points", "standard": "standard_continuation",
+               "curves": "bifurcation_curves", "tile": "simulate_tile",
+               "attractors": "attractor_tile", "audit": "audit", "orbits": "refine_orbits"}
     for k, v in job_table(d).items():
-        name = Path(k).stem.rsplit("_", 1)[0] if "_" in Path(k).stem else Path(k).stem
+        parent, stem = Path(k).parent.name, Path(k).stem
+        name = by_path.get(parent) or by_path.get(stem.rsplit("_", 1)[-1]) or by_path.get(
+            stem.split("_", 1)[0], stem)
         cpu[name] = cpu.get(name, 0.0) + (v["cpu_time_s"] if v["cpu_time_s"] == v["cpu_time_s"]
                                           else 0.0)  # fmt: skip
-    print(f"{'rule':24s} {'jobs':>5s} {'job wall s':>11s}")
-    for r, v in sorted(rules.items(), key=lambda kv: -kv[1]["wall_s"]):
-        print(f"{r:24s} {v['jobs']:5d} {v['wall_s']:11.0f}")
+    print(f"{'rule':24s} {'jobs':>5s} {'job wall s':>11s} {'first start':>12s} {'last end':>9s}"
+          f" {'CPU s':>7s}")  # fmt: skip
+    for r, v in sorted(rules.items(), key=lambda kv: kv[1]["first_start_s"]):
+        c = cpu.get(r)
+        print(f"{r:24s} {v['jobs']:5d} {v['wall_s']:11.0f} {v['first_start_s']:12.0f} "
+              f"{v['last_end_s']:9.0f} {'' if c is None else round(c):>7}")
     print("benchmark-file CPU seconds (jobs with a `benchmark:`):",
           {k: round(v) for k, v in sorted(cpu.items())})  # fmt: skip
     if args.json:

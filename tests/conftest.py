@@ -11,6 +11,71 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import pytest  # noqa: E402
 
+# Parallel runs (`make test`: pytest-xdist, `-n 2 --dist loadfile`). Every test file is one
+# scheduling unit, so its module-scoped fixtures are built once, on one worker. Files that share a
+# session-scoped study are one unit, so the study is built once (the scheduler below):
+SHARED_GROUPS = {
+    # tiny_run below: the whole workflow on config/tiny.yaml
+    "test_pipeline.py": "tiny_run",
+    "test_catalogue_integrity.py": "tiny_run",
+    "test_trust_runs.py": "tiny_run",
+    # tests/tiny_study.py: the tiny study with a (w, eps) plane, under the worker's basetemp
+    "test_figures_planes.py": "tiny_study",
+    "test_explorer.py": "tiny_study",
+}
+# Units handed out first, longest first, so the last units to start are short ones and both
+# workers finish close together; units not named here follow in collection order. CPU seconds
+# (test + waited subprocesses) from a parallel run on a loaded machine (30 Nov, round 4):
+# tiny_run >= 240 (its fixture 190), test_attractors_pipeline 139, test_cluster 33; the rest of
+# this list runs whole pipelines or a fresh compile too, ordered by what they run.
+LONGEST_FIRST: tuple[str, ...] = (
+    "tiny_run",  # the tiny workflow, then rebuilds, dry runs and a killed-and-resumed run
+    "test_one_source.py",  # compiles a modified copy of the package from an empty cache
+    "test_attractors_pipeline.py",
+    "tiny_study",
+    "test_pipeline_study.py",
+    "test_readme.py",
+    "test_trust_config.py",
+    "test_trust_input.py",
+    "test_cluster.py",
+)
+
+
+def _unit(path: str) -> str:
+    name = Path(path).name
+    return SHARED_GROUPS.get(name, name)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_xdist_make_scheduler(config, log):
+    """`--dist loadfile` with the shared-study files of SHARED_GROUPS as one unit each.
+
+    (xdist's own `loadgroup` marks do not group under pytest 9: xdist 3.8 renames
+    `item._nodeid`, which pytest 9 no longer reads.)
+    """
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class SharedStudyScheduling(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _unit(nodeid.split("::", 1)[0])
+
+    config.option.loadscopereorder = False  # keep the order set below
+    return SharedStudyScheduling(config, log)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """On xdist workers, put the units of LONGEST_FIRST first (the scheduler follows this order).
+
+    A plain `pytest` run keeps the files in collection order.
+    """
+    if not hasattr(config, "workerinput") or not LONGEST_FIRST:
+        return
+    rank = {u: i for i, u in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda it: rank.get(_unit(str(it.fspath)), len(rank)))  # stable
+
 
 @pytest.fixture(scope="session")
 def tiny_run(tmp_path_factory):

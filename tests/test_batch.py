@@ -350,3 +350,47 @@ def test_single_dof_lanes_equal_scalar_and_keep_bearings_frozen():
     (a,) = batch.simulate_cells([p], settings=RK4)
     np.testing.assert_array_equal(a.final_state[2:], 0.0)
     assert a.classification.label == simulate_cell(p, settings=RK4).classification.label
+
+
+# ------------------------------------------------------------------------------ quick config
+#: The quick configuration's wxi plane, row j = 9, cell i = 15 (w = 1.03, xi = 0.0685; a
+#: quasi-periodic cell with friction). Its start is the final state of cell 14 of that row's
+#: continuation chain (absolute period 1070), recorded from ef892c4 (the pre-refactor code).
+QUICK_CELL = dict(
+    w=1.03, Fm=0.1184623614, Fe=0.2115055312, eps=0.3175445853, xi=0.0685, phi_e=-0.7258227962,
+    friction=7.987869645e-05, alpha=0.3490658504, var_ratio_order=0.1111111111, rho_p=0.4,
+    rho_g=0.1, kappa_py=40.0, kappa_pz=40.0, kappa_gy=10.0, kappa_gz=10.0,
+)
+QUICK_U0 = (
+    "0x1.6f20fb173fbf2p-1", "-0x1.67fdf89ab96b6p-3", "0x1.0292088c9626bp-12",
+    "0x1.e0f4dbde73fe4p-11", "0x1.7872a1a15232ep-14", "0x1.5e1b9144586c6p-12",
+    "-0x1.0e42d62d6febap-12", "0x1.54bf299b5d2f3p-8", "-0x1.8977cbea80b99p-14",
+    "0x1.f0162fc7bae0cp-10",
+)
+#: Its final state and Lyapunov exponent from ef892c4's batched kernel (that version's scalar RK4
+#: differed by rounding: last bits of the exponent, 1e-16 in the state).
+QUICK_FINAL = (
+    "0x1.a439dd6e484f0p-1", "-0x1.67e5853d4a2f9p-3", "-0x1.2f16eef57427dp-14",
+    "0x1.45a23c5617804p-10", "-0x1.b943292f0f2a2p-16", "0x1.da157d643b0b9p-12",
+    "-0x1.dd1a4c9b1b0a4p-12", "0x1.47ca0b105eee0p-7", "-0x1.5b4d69289f222p-13",
+    "0x1.dd38db1a94d29p-9",
+)
+QUICK_LYAP = "-0x1.283a80f9e7d94p-9"
+
+
+def test_quick_config_cell_is_bit_identical_to_ef892c4_on_both_paths():
+    """296 periods (77,541 RK4 steps, the event layer included) of the cell that
+    round 3 saw 1 ulp apart at period 165: scalar RK4, batched RK4 and ef892c4's batched kernel
+    agree to the last bit (ef892c4 ran without the tangent lead: ``tangent_lead=0`` here)."""
+    p = ModelParameters.from_mapping(QUICK_CELL)
+    st = RK4.with_(transient_continuation=40, tangent_lead=0)
+    u0 = np.array([float.fromhex(v) for v in QUICK_U0])
+    (a,) = batch.simulate_cells([p], settings=st, u0=[u0], start_periods=[1070])
+    b = simulate_cell(p, u0, settings=st, start_period=1070)
+    final = np.array([float.fromhex(v) for v in QUICK_FINAL])
+    for r in (a, b):
+        assert r.classification.label == "quasi-periodic"
+        assert (r.steps, r.final_period) == (77541, 1366)
+        np.testing.assert_array_equal(r.final_state, final)
+        assert r.classification.lyapunov == float.fromhex(QUICK_LYAP)
+    np.testing.assert_array_equal(a.poincare, b.poincare)

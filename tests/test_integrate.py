@@ -96,3 +96,27 @@ def test_late_start_in_a_long_chain_does_not_stall(method):
     np.testing.assert_allclose(late.summaries.section, early.summaries.section, atol=1e-9)
     T = 2 * np.pi / p.w
     np.testing.assert_allclose(late.events_t - 19518 * T, early.events_t, atol=1e-8)
+
+
+@pytest.mark.parametrize("form", [{}, {"te_damping": 0.5, "mesh_damping_contact": 0.3}])
+def test_trajectory_mesh_force_is_the_force_of_the_model_form(form):
+    """The recorded mesh force, written out from the equations (docs/model.md, Model forms):
+    ``(1 + eps cos w tau) f(x, b) + 2 xi (1 - delta [inside the backlash]) (x' - (1 - beta) Fe w
+    sin(w tau + phi_e))``; in today's form (beta = 1, delta = 0) bit for bit the old formula."""
+    from gearsim.simulate import trajectory
+
+    p = ModelParameters(w=0.8, b=0.15, **form)
+    tr = trajectory(p, periods=3, samples_per_period=16, transient=5,
+                    settings=IntegrationSettings(method="rk4"))
+    x, v, tau = tr.state[:, 0], tr.state[:, 1], tr.tau
+    f = np.where(x > p.b, x - p.b, np.where(x < -p.b, x + p.b, 0.0))
+    inside = np.abs(x) <= p.b
+    assert inside.any() and (~inside).any()  # both branches of the dead zone are sampled
+    rate = v - (1.0 - p.te_damping) * p.Fe * p.w * np.sin(p.w * tau + p.phi_e)
+    damper = 2.0 * p.xi * (1.0 - p.mesh_damping_contact * inside) * rate
+    expected = (1.0 + p.eps * np.cos(p.w * tau)) * f + damper
+    if form:
+        np.testing.assert_allclose(tr.mesh_force, expected, rtol=1e-13, atol=1e-13)
+    else:
+        old = (1.0 + p.eps * np.cos(p.w * tau)) * f + 2.0 * p.xi * v
+        np.testing.assert_array_equal(tr.mesh_force, old)

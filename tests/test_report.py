@@ -120,3 +120,24 @@ def test_report_lists_exact_landmarks_from_the_standard_continuation(tmp_path):
     assert ex.loc["pd_1_2", "exact_period"] == 1 and not ex.loc["pd_1_2", "inside"]
     assert "Exact bifurcation points" in md and "exact - grid" in md
     assert f"{0.5 * (g.lo + g.hi):.8f}" in md
+    # the model form: from the sweep's provenance (none here: said, not guessed)
+    assert "| model form |" in md and "Model form (?): model form unknown" in md
+
+
+def test_exact_landmark_table_names_the_model_form_from_the_sweep_provenance(tmp_path):
+    from gearsim import catalogue
+
+    (tmp_path / "sweeps").mkdir()
+    subtree = {"sweep": {"name": "w", "fixed": {}, "start": "rest"},
+               "parameters": {"te_damping": 1.0, "mesh_damping_contact": 0.0, "model": "1dof"},
+               "integration": {"method": "rk4", "steps_per_period": 256}}
+    catalogue.write_parquet(paper_like(), tmp_path / "sweeps" / "standard.parquet",
+                            {catalogue.PROVENANCE_KEY: {"subtree": subtree}})
+    (tmp_path / "orbits").mkdir()
+    pd.DataFrame([{"kind": "grazing", "value": 0.6, "period": 1, "stable": True}]).to_parquet(
+        tmp_path / "orbits" / "standard_points.parquet")
+    _, md = build_report(sweeps_dir=tmp_path / "sweeps", catalogue=None, results=tmp_path,
+                         calibration=None)
+    assert "Model form (1dof+fixed_start): 1DOF; rigid bearings;" in md
+    assert "sweep start: rest; RK4, 256 steps per period." in md
+    assert "| 1dof+fixed_start |" in md

@@ -13,6 +13,12 @@ period ``n``
     confirmation window of ``max(2 n, min_confirm)`` consecutive comparisons, with tolerance
     ``period_rtol * scale`` where ``scale`` is the displacement range of the orbit (velocity
     tolerance scaled by ``w``). Scale-aware: the same relative test for tiny and large orbits.
+    Or (:func:`_converges_geometrically`): the differences ``P_k - P_{k-n}`` decay at one
+    steady geometric rate over the measured tail and extrapolate to below that tolerance --
+    the sequence converges onto a period-``n`` orbit whose Floquet multiplier is real and near
+    the unit circle (next to a period doubling ``mu -> -1``: the transient alternates, repeats
+    after ``2 n`` samples within the tolerance and the repeat test alone takes it for period
+    ``2 n``; docs/orbits.md, "Simulated labels next to a period doubling").
 ``p``, ``q``
     Face (x crosses +b upward) and back (x crosses -b downward) impacts per motion period.
 ``I``
@@ -109,7 +115,89 @@ def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, 
             if n > 1 and _spread_decays(section_x, m, window, n, tol_x):
                 return 0  # a decaying transient mimics period n: integrate on
             return n
+        if _converges_geometrically(section_x, section_v, m, n, n, scale, tol_x, min_confirm):
+            if n > 1 and _converges_geometrically(section_x, section_v, m, n, 1, scale, tol_x,
+                                                  min_confirm):
+                return 0  # consecutive points converge too: a lower period's transient
+            return n
     return 0
+
+
+@njit(cache=True, nogil=True)
+def _tail_spread(a, j, n, lag):
+    """Sum over ``i = j-n+1 .. j`` of ``|a[i] - a[i-lag]|`` (one motion period of differences)."""
+    s = 0.0
+    for i in range(j - n + 1, j + 1):
+        s += abs(a[i] - a[i - lag])
+    return s
+
+
+@njit(cache=True, nogil=True)
+def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_confirm,
+                             max_window=96, steady=0.2, resolved=0.02, limit_rtol=0.05,
+                             near=1e-2):
+    """True if the section sequence converges geometrically onto a period-``lag`` orbit.
+
+    ``S_j`` = sum of ``|P_i - P_{i-lag}|`` (x component) over the ``2 n`` samples ending at
+    ``j`` (``lag = n``: onto a period-``n`` orbit; ``lag = 1``: the guard of
+    :func:`estimate_period` that the sequence is not converging onto a lower period, e.g. a
+    period-1 orbit with a complex multiplier of rotation ``2 pi / n``). Over the longest window
+    ``W <= min(m - 3 n, max_window)`` (a multiple of ``8 n``, at least ``min_confirm``) take
+    ``S`` at its five quarter points. A linear transient onto a period-``n`` orbit with one
+    dominant real multiplier ``mu`` of ``P^n`` gives ``S_j ~ |mu|^(j / n)``: the four quarter
+    ratios are equal and below 1 (sums over pairs of motion periods: a smaller second mode makes
+    ``|P_i - P_{i-n}|`` alternate in size under an alternating dominant one). Accepted when
+
+    - every quarter ratio is below 1 and they agree to ``steady`` times the decay rate
+      ``1 - mean ratio`` (one steady geometric rate: a quasi-periodic or chaotic sequence, or
+      a complex multiplier whose rotation is not a multiple of ``2 pi / n``, fails);
+    - the decay over the window is resolved (``S`` falls by at least ``resolved``);
+    - Aitken's extrapolation of ``S`` from the first, middle and last point is zero within
+      ``max(2 n tol_x, limit_rtol * S_end)`` (the points repeat after ``n`` in the limit; a
+      spread that levels off at a finite value ``A``, e.g. a period-``n`` sequence approaching
+      a period-``2 n`` orbit, extrapolates to ``A`` and fails unless the motion is still 20
+      times farther from that orbit than its amplitude -- then ``near`` bounds ``A`` to 5e-4
+      of the scale, an orbit within ``~A^2`` of its doubling). The relative part absorbs the
+      weak nonlinearity of a transient of 1e-3 of the scale (its rate drifts with its
+      amplitude);
+    - the motion is near its limit (``S_end / 2 n <= near * scale``) and the velocity
+      differences do not grow.
+    """
+    # quarters of whole pairs of motion periods: an alternating dominant mode plus a smaller
+    # non-alternating one makes |P_i - P_{i-n}| alternate in size; pairs average it out
+    w4 = (min(m - 3 * n, max_window) // 4) // (2 * n) * (2 * n)
+    W = 4 * w4
+    if W < max(8 * n, min_confirm):
+        return False
+    j0 = m - 1 - W
+    S = np.empty(5)
+    for k in range(5):
+        S[k] = _tail_spread(section_x, j0 + k * w4, 2 * n, lag)
+    if not (S[0] > 0.0 and np.all(np.isfinite(S))):
+        return False
+    rsum = 0.0
+    rmin = 2.0
+    rmax = -1.0
+    for k in range(4):
+        r = S[k + 1] / S[k] if S[k] > 0.0 else 2.0
+        rsum += r
+        rmin = min(rmin, r)
+        rmax = max(rmax, r)
+    rate = 1.0 - rsum / 4.0
+    if not (rmax < 1.0 and rmax - rmin <= steady * rate):
+        return False
+    if S[0] - S[4] < resolved * S[0]:
+        return False
+    d1 = S[4] - S[2]
+    d0 = S[2] - S[0]
+    if d1 - d0 == 0.0:
+        return False
+    limit = S[4] - d1 * d1 / (d1 - d0)
+    if abs(limit) > max(2 * n * tol_x, limit_rtol * S[4]) or S[4] > near * scale * 2 * n:
+        return False
+    v_early = _tail_spread(section_v, j0, 2 * n, lag)
+    v_late = _tail_spread(section_v, m - 1, 2 * n, lag)
+    return v_late <= v_early
 
 
 @njit(cache=True, nogil=True)

@@ -104,12 +104,83 @@ def exact_landmarks(points: pd.DataFrame, sweep: pd.DataFrame | None = None,
     return pd.DataFrame(rows, columns=list(COLUMNS))
 
 
-def report_lines(table: pd.DataFrame) -> list[str]:
-    """Markdown table lines for the reproduction report."""
+FORM_KEYS = ("model", "te_damping", "mesh_damping_contact")
+
+
+def model_form(subtree: dict | None) -> str:
+    """One line naming the model form of a sweep from its provenance subtree (``parameters``,
+    ``sweep``, ``integration``): the options of docs/model.md, "Model forms" (transmission-error
+    path, mesh damping, friction arm, frequency scale, bearings) and the sweep method."""
+    if not subtree or "parameters" not in subtree:
+        return "model form unknown (the sweep table has no provenance)"
+    from dataclasses import fields
+
+    from .parameters import ModelParameters
+
+    p = {**subtree["parameters"], **((subtree.get("sweep") or {}).get("fixed") or {})}
+    defaults = {f.name: f.default for f in fields(ModelParameters)}
+    model = str(p.get("model", defaults["model"]))
+    beta = float(p.get("te_damping", 1.0))
+    delta = float(p.get("mesh_damping_contact", 0.0))
+    parts = [f"{model.upper() if model[0].isdigit() else model}"]
+    if model == "6dof":
+        kap = "/".join(f"{float(p.get(k, defaults[k])):g}"
+                       for k in ("kappa_py", "kappa_pz", "kappa_gy", "kappa_gz"))
+        clear = [float(p.get(k, 0.0)) for k in ("b_py", "b_pz", "b_gy", "b_gz")]
+        parts.append(f"bearings rho_p {float(p.get('rho_p', defaults['rho_p'])):g}, rho_g "
+                     f"{float(p.get('rho_g', defaults['rho_g'])):g}, kappa {kap}, "
+                     + ("no clearance" if not any(clear)
+                        else "clearance " + "/".join(f"{c:g}" for c in clear)))
+    else:
+        parts.append("rigid bearings")
+    parts.append("transmission error as the inertial load Fe w^2, damper on x' - e'"
+                 if beta == 1.0 else
+                 f"damper on x' - {beta:g} e' (te_damping {beta:g})")
+    parts.append("mesh damping always" if delta == 0.0 else
+                 f"mesh damping {delta:g} contact-only (mesh_damping_contact {delta:g})")
+    arm = {k: v for k, v in p.items() if k.startswith("friction_arm")}
+    parts.append("friction arm: its mean" if not any(float(v) for v in arm.values())
+                 else "friction arm: " + ", ".join(f"{k} {float(v):g}" for k, v in arm.items()))
+    parts.append("w over sqrt(Km / Me)")
+    sw = subtree.get("sweep") or {}
+    parts.append(f"sweep start: {sw.get('start', 'continuation')}")
+    integ = subtree.get("integration") or {}
+    if integ.get("method") == "rk4":
+        parts.append(f"RK4, {integ.get('steps_per_period')} steps per period")
+    elif integ.get("method"):
+        parts.append(f"{integ['method']} rtol {integ.get('rtol')}")
+    return "; ".join(parts)
+
+
+def form_name(subtree: dict | None) -> str:
+    """Short name of the model form (the names of docs/calibration.md's form table): ``today``
+    when every option is at today's default, else the options that differ."""
+    if not subtree or "parameters" not in subtree:
+        return "?"
+    p = {**subtree["parameters"], **((subtree.get("sweep") or {}).get("fixed") or {})}
+    names = []
+    if str(p.get("model", "6dof")) != "6dof":
+        names.append(str(p["model"]))
+    if float(p.get("te_damping", 1.0)) != 1.0:
+        names.append(f"te_damping={float(p['te_damping']):g}")
+    if float(p.get("mesh_damping_contact", 0.0)) != 0.0:
+        names.append(f"contact_damping={float(p['mesh_damping_contact']):g}")
+    if any(float(v) for k, v in p.items() if k.startswith("friction_arm")):
+        names.append("friction_arm")
+    if any(float(p.get(k, 0.0)) for k in ("b_py", "b_pz", "b_gy", "b_gz")):
+        names.append("bearing_clearance")
+    if (subtree.get("sweep") or {}).get("start", "continuation") != "continuation":
+        names.append("fixed_start")
+    return "+".join(names) or "today"
+
+
+def report_lines(table: pd.DataFrame, form: str | None = None) -> list[str]:
+    """Markdown table lines for the reproduction report (``form``: the model form's short name,
+    :func:`form_name`, one column)."""
     lines = [
         "| landmark | paper | grid (interval) | exact (continuation) | exact - grid "
-        "| exact - paper | kind, period | in interval |",
-        "|---|---|---|---|---|---|---|---|",
+        "| exact - paper | kind, period | in interval | model form |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for _, r in table.iterrows():
         grid = ("missing" if not np.isfinite(r["grid"])
@@ -121,7 +192,7 @@ def report_lines(table: pd.DataFrame) -> list[str]:
                   else f"{r['exact'] - r['grid']:+.4f}")
         d_paper = "-" if not np.isfinite(r["exact"]) else f"{r['exact'] - r['paper']:+.4f}"
         lines.append(f"| {r['text']} | {r['paper']:.3f} | {grid} | {ex} | {d_grid} | {d_paper} "
-                     f"| {kp} | {inside} |")
+                     f"| {kp} | {inside} | {form or '?'} |")
     return lines
 
 

@@ -203,6 +203,7 @@ class Report:
     planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
     hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
     exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
+    exact_form: dict | None = None  # provenance subtree of the standard sweep (its model form)
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -473,14 +474,15 @@ def to_markdown(rep: Report) -> str:
     else:
         out += ["Not computed (standard sweep missing).", ""]
     if rep.exact is not None:
-        from .exact_landmarks import report_lines
+        from .exact_landmarks import form_name, model_form, report_lines
 
         out += ["Exact bifurcation points (Newton-Floquet continuation of the standard set, "
                 "located to 1e-8; docs/orbits.md). Each landmark is paired with the located "
                 "bifurcation of its kind and orbit period nearest the grid reading; \"in "
                 "interval\" says whether it lies between the two swept values where the "
-                "simulated labels change (next to a period doubling the simulated transient "
-                "decays slowly and the labels change early).", "", *report_lines(rep.exact), ""]
+                "simulated labels change.", "",
+                f"Model form ({form_name(rep.exact_form)}): {model_form(rep.exact_form)}.", "",
+                *report_lines(rep.exact, form_name(rep.exact_form)), ""]
     out += ["## 2. DC and Kmax at the jump", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
@@ -600,9 +602,12 @@ def build_report(
     # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
     exact_points = Path(results) / "orbits" / "standard_points.parquet"
     if exact_points.is_file() and "standard" in loaded:
+        from .catalogue import read_metadata
         from .exact_landmarks import exact_landmarks
 
         rep.exact = exact_landmarks(pd.read_parquet(exact_points), loaded["standard"])
+        prov = read_metadata(Path(sweeps_dir) / "standard.parquet")
+        rep.exact_form = (prov or {}).get("subtree")
     return rep, to_markdown(rep)
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from .classify import Classification, PeriodSummaries, classify_motion, estimate_period
 from .integrate import STATUS_OK, IntegrationSettings, Run, run_periods, steps_lower_bound
-from .model import N_STATE, pack_parameters, project_tangent, static_state
+from .model import N_STATE, mesh_force_series, pack_parameters, project_tangent, static_state
 from .parameters import ModelParameters, ParameterError
 from .variational import Spectrum, lyapunov_spectrum
 
@@ -245,7 +245,7 @@ class Trajectory:
 
     tau: np.ndarray  # (m,) dimensionless time
     state: np.ndarray  # (m, 10)
-    mesh_force: np.ndarray  # (m,) F / (Km b_c)
+    mesh_force: np.ndarray  # (m,) F / (Km b_c), every model form (model.mesh_force_series)
     events_tau: np.ndarray  # switch times
     events_code: np.ndarray  # 4 * channel + new region + 1
     section: np.ndarray  # (periods, 10)
@@ -288,7 +288,5 @@ def trajectory(
     m = r.periods_done * samples_per_period + 1
     tau = k * T + np.arange(m) * (T / samples_per_period)
     states = r.trajectory[:m]
-    x, v = states[:, 0], states[:, 1]
-    f = np.where(x > params.b, x - params.b, np.where(x < -params.b, x + params.b, 0.0))
-    force = (1.0 + params.eps * np.cos(params.w * tau)) * f + 2.0 * params.xi * v
+    force = mesh_force_series(p, tau, states[:, 0], states[:, 1])
     return Trajectory(tau, states, force, r.events_t, r.events_code, r.summaries.section)

@@ -33,6 +33,7 @@ from .model import (
     field_state,
     field_tangent,
     mode_tuple,
+    region_of,
     rhs,
     variable_ratio,
 )
@@ -231,19 +232,9 @@ def trial_step(method, t, y, h, p, mode, n, nerr, tangent, ks, ytmp, yout, rtol,
 
 # ---------------------------------------------------------------------------- RK4 grid steps
 @njit(cache=True, nogil=True, inline="always")
-def region_f(x, gap):
-    """Region of ``x`` as a float (+1.0, -1.0, 0.0): branch-free selects in the vector loop."""
-    if x > gap:
-        return 1.0
-    if x < -gap:
-        return -1.0
-    return 0.0
-
-
-@njit(cache=True, nogil=True, inline="always")
 def _watch(v0, u1, v1, gap, r, act):
     """Bearing channel needs the event layer: active, and region change or velocity sign change."""
-    return (act != 0.0) & ((region_f(u1, gap) != r) | (v0 * v1 < 0.0))
+    return (act != 0.0) & ((region_of(u1, gap) != r) | (v0 * v1 < 0.0))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -255,7 +246,7 @@ def grid_step_flag(y, yn, P, M, A, bound, bearings):
     the divergence bound. ``A`` are the four bearing channels' active flags; ``bearings`` is
     false when no channel has a clearance (a loop invariant in the vector kernel).
     """
-    flag = ((P[P_B] > 0.0) & (region_f(yn[0], P[P_B]) != M[0])) | (y[1] * yn[1] < 0.0)
+    flag = ((P[P_B] > 0.0) & (region_of(yn[0], P[P_B]) != M[0])) | (y[1] * yn[1] < 0.0)
     if bearings:
         flag = flag | _watch(y[3], yn[2], yn[3], P[P_GAP + 0], M[2], A[0])
         flag = flag | _watch(y[5], yn[4], yn[5], P[P_GAP + 1], M[3], A[1])

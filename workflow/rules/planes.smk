@@ -15,6 +15,7 @@ rule compile:
         "logs/compile.log",
     conda:
         GEARSIM_ENV
+    priority: 10  # the planes wait for it
     params:
         code_version=CODE_VERSION,
     shell:
@@ -37,6 +38,9 @@ rule simulate_tile:
     # job (~7 s of a tile job's wall on 2 idle cores; benchmarks/README.md (k)). With
     # cluster.scheduler_address set, each job still sends its tasks to that scheduler.
     threads: 1
+    # the planes' chain (tiles -> cells -> audit -> catalogue) is the longest: start it first,
+    # the sweeps, points and figures fill the other core
+    priority: 10
     params:
         config=plane_params,
         code_version=CODE_VERSION,
@@ -55,6 +59,7 @@ rule plane_cells:
         "logs/{plane}/cells.log",
     conda:
         GEARSIM_ENV
+    priority: 10
     params:
         config=plane_params,
         code_version=CODE_VERSION,
@@ -75,6 +80,7 @@ rule audit:
         "logs/benchmarks/{plane}/audit.tsv"
     conda:
         GEARSIM_ENV
+    priority: 10
     params:
         config=audit_params,
         code_version=CODE_VERSION,

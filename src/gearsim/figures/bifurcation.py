@@ -105,24 +105,56 @@ def mark_landmarks(ax, lm: pd.DataFrame, *, text: bool = True):
     if not text or not marks:
         return
     lo, hi = ax.get_xlim()
-    gap = (hi - lo) / 70
+    gap = (hi - lo) / 300  # marks this close share a label; the rest are staggered
     groups: list[list[tuple[float, str, str]]] = [[marks[0]]]
     for m in marks[1:]:
         if m[0] - groups[-1][-1][0] < gap:
             groups[-1].append(m)
         else:
             groups.append([m])
-    for g in groups:
+    centres = [float(np.mean([m[0] for m in g])) for g in groups]
+    shifts = label_shifts(ax, centres)
+    for g, c, dx in zip(groups, centres, shifts, strict=True):
         names = list(dict.fromkeys(m[1] for m in g))
         if len(names) > 1:  # several kinds close together: short names
             short = {"G Bif": "G", "PD Bif": "PD", "Jump": "Jump", "Chaos": "Chaos"}
             names = ["/".join(short[n] for n in names)]
         ws = [m[0] for m in g]
         where = f"{ws[0]:.3f}" if len(ws) == 1 else f"{min(ws):.3f}–{max(ws):.3f}"
-        ax.annotate(f"{'/'.join(names)} {where}", xy=(float(np.mean(ws)), 1.0),
-                    xycoords=("data", "axes fraction"), xytext=(0, 2),
+        ax.annotate(f"{'/'.join(names)} {where}", xy=(c, 1.0),
+                    xycoords=("data", "axes fraction"), xytext=(dx, 2 if dx == 0 else 6),
                     textcoords="offset points", fontsize=5.5, color=g[0][2], va="bottom",
-                    ha="center", rotation=90)
+                    ha="center", rotation=90,
+                    arrowprops=None if dx == 0 else dict(arrowstyle="-", lw=0.4,
+                                                         color=g[0][2], shrinkA=0, shrinkB=0))
+
+
+def label_shifts(ax, xs: list[float], min_sep_pt: float = 7.5) -> list[float]:
+    """Horizontal offsets (points) that keep rotated labels at ``xs`` (data, increasing) at
+    least ``min_sep_pt`` apart (one line of 5.5-pt text): labels are pushed right where they
+    crowd, then each crowded run is centred on its marks (not past its left neighbour); a
+    label that moves gets a leader line to its mark (Fig 4's 1.565-1.619 cluster)."""
+    if not xs:
+        return []
+    lo, hi = ax.get_xlim()
+    width = ax.get_window_extent().width * 72.0 / ax.figure.dpi
+    pos = [(x - lo) / (hi - lo) * width for x in xs]
+    out = list(pos)
+    runs: list[list[int]] = [[0]]
+    for t in range(1, len(out)):
+        if pos[t] < out[t - 1] + min_sep_pt:
+            out[t] = out[t - 1] + min_sep_pt
+            runs[-1].append(t)
+        else:
+            runs.append([t])
+    prev_end = -np.inf
+    for run in runs:
+        back = float(np.mean([out[t] - pos[t] for t in run]))
+        back = min(back, out[run[0]] - (prev_end + min_sep_pt))
+        for t in run:
+            out[t] -= back
+        prev_end = out[run[-1]]
+    return [0.0 if abs(o - p_) < 1e-6 else float(o - p_) for o, p_ in zip(out, pos, strict=True)]
 
 
 def draw_dc(ax, df: pd.DataFrame, *, band_labels: bool = True) -> None:
