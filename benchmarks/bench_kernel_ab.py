@@ -79,10 +79,10 @@ print(json.dumps(out))
 """
 
 
-def export(rev: str, dest: Path) -> Path:
-    """``git archive`` of ``src`` at ``rev`` into ``dest``; returns the src directory."""
+def export(rev: str, dest: Path, paths: tuple[str, ...] = ("src",)) -> Path:
+    """``git archive`` of ``paths`` at ``rev`` into ``dest``; returns the src directory."""
     dest.mkdir(parents=True, exist_ok=True)
-    tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "src"], check=True,
+    tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, *paths], check=True,
                          capture_output=True).stdout
     subprocess.run(["tar", "-x", "-C", str(dest)], input=tar, check=True)
     return dest / "src"

@@ -7,8 +7,8 @@ the other, then ``gearsim catalogue cells`` (the plane's cells.parquet). Each pr
 ``/usr/bin/time``: wall time, user + system CPU and the peak resident set size (``%M``, kB).
 The size rows run the tiles in-process (``--no-cluster``, one core): ``/usr/bin/time`` does not
 see the CPU of dask's worker processes (they are not its waited-for children), so only
-in-process tiles give the whole CPU. The 1 vs 2 workers rows use ``--workers 1|2`` (dask) and
-compare wall times.
+in-process tiles give the whole CPU. The 1 vs 2 workers rows use ``--workers 1|2`` and
+compare wall times (``--workers 1`` without a scheduler runs in-process, 2 starts a LocalCluster).
 
 Reported per size: cells, wall, CPU, cells per CPU second, CPU per cell relative to the largest
 size (1.00 = linear), the peak memory of a tile job and of the cells step. The tile job's

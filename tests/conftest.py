@@ -46,7 +46,7 @@ def _unit(path: str) -> str:
     return SHARED_GROUPS.get(name, name)
 
 
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(tryfirst=True, optionalhook=True)  # optional: without xdist, no error
 def pytest_xdist_make_scheduler(config, log):
     """`--dist loadfile` with the shared-study files of SHARED_GROUPS as one unit each.
 

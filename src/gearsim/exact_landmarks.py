@@ -61,8 +61,9 @@ def exact_landmarks(points: pd.DataFrame, sweep: pd.DataFrame | None = None,
     slack
         How far outside the grid interval ``[lo, hi]`` an exact point of the landmark's kind
         and orbit period (:func:`orbit_period`) may lie and still be paired (default: 3 grid
-        spacings of the sweep, at least 0.05: the simulated labels lag a doubling by up to
-        ~0.03 in w, docs/orbits.md).
+        spacings of the sweep, at least 0.05: on a coarse sweep a label next to a doubling can
+        lag it by a cell or two, where the multiplier is within ~0.01 of -1; docs/orbits.md,
+        "Simulated labels next to a period doubling").
 
     ``inside`` says whether the exact point lies in the grid interval where the labels change.
     """
