@@ -188,3 +188,10 @@ def test_geometric_rule_onto_period_two_and_its_guards():
     # consecutive differences: a period-1 transient, not period 3
     c = 0.5 + 2e-3 * 0.97 ** k * np.cos(2 * np.pi * k / 3 + 0.3)
     assert estimate_period(c, np.zeros(72), scale=1.0, w=1.0) == 0
+    # a 1T orbit whose multiplier 0.83 exp(1.64 i) has a nearly real negative square (the
+    # quick wb plane at w = 0.97, b = 0.1625): P_k - P_{k-2} decays steadily, but so do the
+    # consecutive differences -- not period 2
+    mu = 0.8282 * np.exp(1.6496j)
+    z1 = 0.5 + (2e-3 * mu ** k).real
+    assert _geometric_reference(z1[:48], 2, 1.0, 1e-5)  # the lag-2 rule alone would say 2
+    assert estimate_period(z1[:48], (1e-3 * mu ** k).real[:48], scale=1.0, w=1.0) != 2

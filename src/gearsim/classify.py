@@ -116,11 +116,35 @@ def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, 
                 return 0  # a decaying transient mimics period n: integrate on
             return n
         if _converges_geometrically(section_x, section_v, m, n, n, scale, tol_x, min_confirm):
-            if n > 1 and _converges_geometrically(section_x, section_v, m, n, 1, scale, tol_x,
-                                                  min_confirm):
-                return 0  # consecutive points converge too: a lower period's transient
+            if n > 1 and _lower_period_transient(section_x, m, n, min_confirm):
+                return 0  # the lag-d differences decay as well: a lower period's transient
             return n
     return 0
+
+
+@njit(cache=True, nogil=True)
+def _lower_period_transient(section_x, m, n, min_confirm, max_window=96, share=0.5):
+    """True if, over the window of :func:`_converges_geometrically`, the differences at some lag
+    ``d`` dividing ``n`` (``d < n``) shrink by at least ``share`` of the relative decay of the
+    lag-``n`` differences: the points converge onto a period-``d`` orbit (e.g. a 1T orbit with a
+    complex multiplier whose square is nearly real and negative: ``P_k - P_{k-2}`` decays
+    steadily). Approaching a true period-``n`` orbit of amplitude ``A`` with a residual ``c``,
+    the lag-``d`` differences shrink only by ``~c / A`` of that."""
+    w4 = (min(m - 3 * n, max_window) // 4) // (2 * n) * (2 * n)
+    j0 = m - 1 - 4 * w4
+    sn0 = _tail_spread(section_x, j0, 2 * n, n)
+    sn4 = _tail_spread(section_x, m - 1, 2 * n, n)
+    if not sn0 > 0.0:
+        return False
+    rel_n = (sn0 - sn4) / sn0
+    for d in range(1, n):
+        if n % d != 0:
+            continue
+        sd0 = _tail_spread(section_x, j0, 2 * n, d)
+        sd4 = _tail_spread(section_x, m - 1, 2 * n, d)
+        if sd0 > 0.0 and (sd0 - sd4) / sd0 >= share * rel_n:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True)
@@ -139,9 +163,7 @@ def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_
     """True if the section sequence converges geometrically onto a period-``lag`` orbit.
 
     ``S_j`` = sum of ``|P_i - P_{i-lag}|`` (x component) over the ``2 n`` samples ending at
-    ``j`` (``lag = n``: onto a period-``n`` orbit; ``lag = 1``: the guard of
-    :func:`estimate_period` that the sequence is not converging onto a lower period, e.g. a
-    period-1 orbit with a complex multiplier of rotation ``2 pi / n``). Over the longest window
+    ``j`` (``lag = n``: onto a period-``n`` orbit). Over the longest window
     ``W <= min(m - 3 n, max_window)`` (a multiple of ``8 n``, at least ``min_confirm``) take
     ``S`` at its five quarter points. A linear transient onto a period-``n`` orbit with one
     dominant real multiplier ``mu`` of ``P^n`` gives ``S_j ~ |mu|^(j / n)``: the four quarter
