@@ -123,3 +123,29 @@ def test_committed_standard_file_is_valid():
 def test_calibrate_cli_bad_workers():
     assert main(["calibrate", "--stage", "search", "--workers", "0"]) == 2
     np.testing.assert_equal(1, 1)
+
+
+def test_bisect_bool_finds_a_known_threshold():
+    from gearsim.calibrate import bisect_bool
+
+    calls = []
+
+    def below(x):
+        calls.append(x)
+        return x < 0.1436
+
+    got = bisect_bool(below, 0.0, 0.3, 0.001)
+    assert abs(got - 0.1436) <= 0.0005
+    assert len(calls) == 9  # ceil(log2(0.3 / 0.001))
+
+
+def test_fidelity_and_objective_settings_share_one_grid_and_integration():
+    from gearsim.calibrate import ObjectiveSettings, SweepSettings
+    from gearsim.fidelity import FidelitySettings
+
+    f, o = FidelitySettings(dw=0.02, rtol=1e-8), ObjectiveSettings(dw=0.02, rtol=1e-8)
+    assert isinstance(f, SweepSettings) and isinstance(o, SweepSettings)
+    np.testing.assert_array_equal(f.grid(), o.grid())
+    g = f.grid()
+    assert g[0] == pytest.approx(0.3 + 0.5 * 2.2 / 110) and len(g) == 110
+    assert f.integration() == o.integration() and f.integration().rtol == 1e-8

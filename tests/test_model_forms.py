@@ -85,7 +85,8 @@ class Reference:
         self.kap = [d[f"kappa_{n}"] for n in ("py", "pz", "gy", "gz")]
         self.zb = [d[f"xi_{n}"] for n in ("py", "pz", "gy", "gz")]
         self.dirs = [math.cos(p.alpha), math.sin(p.alpha)] * 2
-        self.rho = [p.rho_p, p.rho_p, p.rho_g, p.rho_g]
+        dof6 = p.model == "6dof"  # the single-DOF model: rigid bearings (no coupling)
+        self.rho = [p.rho_p, p.rho_p, p.rho_g, p.rho_g] if dof6 else [0.0] * 4
         self.sgn = [-1.0, -1.0, 1.0, 1.0]  # pinion pushed back, gear pushed forward
 
     def e(self, t):
@@ -386,3 +387,70 @@ def test_sweep_start_is_validated(tmp_path):
     with pytest.raises(ConfigError, match=r"sweeps.s1.start.*continuation.*rest"):
         gcfg.study_config([f], root=ROOT)
 
+
+
+# ---------------------------------------------------------------- saltation (contact-only damping)
+@pytest.mark.parametrize("model", ["1dof", "6dof"])
+def test_monodromy_with_contact_damping_matches_dop853_finite_differences(model):
+    """Damping only in contact makes the field jump at x = +/-b: the monodromy needs the
+    saltation matrix at each mesh switch. Reference: central finite differences of the
+    DOP853 section map of the equations written out above (no gearsim integrator)."""
+    from gearsim.variational import monodromy
+
+    p = BASE.with_(mesh_damping_contact=1.0, model=model)
+    r = run_periods(p, _start(p), 30, DP5, event_capacity=1000)
+    y0 = r.state[:10].copy()
+    n = 2
+    chk = run_periods(p, y0, n, DP5, start_period=30, event_capacity=1000)
+    mesh = chk.events_code[chk.events_code < 4]
+    assert mesh.size >= 2, "the orbit must switch mesh contact inside the window"
+    d = m.n_evolved(p.to_array())
+    _, M, status = monodromy(p, y0, n, DP5, start_period=30)
+    assert status == 0
+    ref = Reference(p)
+    h = 1e-6
+    fd = np.zeros((d, d))
+    for i in range(d):
+        e = np.zeros(10)
+        e[i] = h
+        fd[:, i] = (ref.sections(y0 + e, n)[-1, :d] - ref.sections(y0 - e, n)[-1, :d]) / (2 * h)
+    scale = np.abs(fd).max()
+    np.testing.assert_allclose(M, fd, rtol=0, atol=2e-5 * scale)
+
+
+@pytest.mark.parametrize("method", ["rk4", "dp5"])
+def test_kmax_tracker_records_the_mesh_force_of_the_form(method):
+    """The per-period force extremes (Kmax) follow the form's force: against the maximum of the
+    reference force over a finely sampled trajectory of the same cell."""
+    from gearsim.simulate import trajectory
+
+    p = BASE.with_(te_damping=0.0, mesh_damping_contact=0.5, model="1dof")
+    st = RK4 if method == "rk4" else DP5
+    y0 = _start(p)
+    n, k = 4, 1024
+    s = run_periods(p, y0, n, st).summaries
+    tr = trajectory(p, y0, periods=n, samples_per_period=k, transient=0, settings=RK4)
+    ref = Reference(p)
+    F = []
+    for t, y in zip(tr.tau, tr.state, strict=True):
+        q = np.array(y, dtype=float)
+        q[0], q[1] = y[0] + ref.e(t), y[1] + ref.de(t)
+        F.append(ref.force(t, q, abs(y[0]) > p.b))
+    F = np.array(F)
+    fmax = np.array([F[i * k:(i + 1) * k + 1].max() for i in range(n)])
+    fmin = np.array([F[i * k:(i + 1) * k + 1].min() for i in range(n)])
+    scale = np.abs(F).max()
+    np.testing.assert_allclose(s.fmax, fmax, rtol=0, atol=2e-3 * scale)
+    if method == "rk4":
+        # RK4 samples every grid point; DP5's tracker reads its step ends, switch points and the
+        # x extrema only, so it can miss the damper force's extremum inside the backlash (fmin)
+        np.testing.assert_allclose(s.fmin, fmin, rtol=0, atol=2e-3 * scale)
+    # today's force (K f + 2 xi x') would differ by more: the test can fail
+    x = tr.state[:, 0]
+    f = np.where(x > p.b, x - p.b, np.where(x < -p.b, x + p.b, 0.0))
+    old = (1 + p.eps * np.cos(p.w * tr.tau)) * f + 2 * p.xi * tr.state[:, 1]
+    assert np.abs(old.max() - F.max()) > 2e-2 * scale or np.abs(old.min() - F.min()) > 2e-2 * scale
+    if method == "rk4":
+        out, _, status, _ = run_periods_batched([p], np.concatenate([y0, np.eye(10)[0]])[None, :],
+                                                n, RK4)
+        np.testing.assert_allclose(out[0].fmax, s.fmax, rtol=0, atol=1e-12)

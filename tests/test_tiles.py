@@ -213,6 +213,9 @@ def test_rk4_tiles_use_the_batched_kernel(tiny):
                                    atol=1e-9)
     assert gt.row_groups(list(range(16)), 2) == [list(range(8)), list(range(8, 16))]
     assert gt.row_groups(list(range(8)), 2) == [list(range(8))]
+    assert [len(g) for g in gt.row_groups(list(range(80)), 8)] == [16] * 5
+    assert [len(g) for g in gt.row_groups(list(range(80)), 2)] == [40, 40]
+    assert [len(g) for g in gt.row_groups(list(range(20)), 2)] == [16, 4]
 
 
 def test_tile_records_do_not_depend_on_the_worker_split(tiny, tmp_path, capsys):

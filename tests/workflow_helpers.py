@@ -29,7 +29,9 @@ def make_workdir(path: Path) -> Path:
     return path
 
 
-def smk(workdir: Path, *args: str, check: bool = True, timeout: float = 900):
+def smk(workdir: Path, *args: str, check: bool = True, timeout: float = 2400):
+    # timeout: a hang guard only (the tiny workflow took 15 min of wall time beside the other
+    # pytest-xdist worker on a loaded machine)
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(workdir), *args]
     r = subprocess.run(cmd, cwd=workdir, env=_env(), capture_output=True, text=True,
                        timeout=timeout)

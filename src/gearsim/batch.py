@@ -73,9 +73,11 @@ from .model import (
     P_XIO,
     field_params,
     mesh_force,
+    mesh_force_full,
     pack_parameters,
     period_forcing,
     static_state,
+    tracked_force,
 )
 from .parameters import ModelParameters, ParameterError
 from .simulate import (
@@ -218,7 +220,10 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     r0 = M[0]
     td = blk[r + _TD * L]
     blk[r + _TD * L] = _sel(flag | (r0 != 0.0), td, td + h)
-    fl = mesh_force(cB, yn[0], yn[1], P, r0, M[1])
+    if forms:  # a literal: today's lane loop keeps mesh_force
+        fl = mesh_force_full(cB, sB, yn[0], yn[1], P, r0, M[1])
+    else:
+        fl = mesh_force(cB, yn[0], yn[1], P, r0, M[1])
     fmx = blk[r + _FMX * L]
     fmn = blk[r + _FMN * L]
     xmx = blk[r + _XMX * L]
@@ -362,8 +367,8 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
                     sec[l, pos + k, i] = blk[r + (_Y + i) * L]
             x = blk[r + _Y * L]
             r0 = blk[r + _R0 * L]
-            f0 = mesh_force(1.0, x, blk[r + (_Y + 1) * L], field_params(blk, r + _PAR * L, L),
-                            r0, abs(r0))
+            f0 = tracked_force(1.0, 0.0, x, blk[r + (_Y + 1) * L],
+                               field_params(blk, r + _PAR * L, L), r0, abs(r0))
             blk[r + _FMX * L] = f0
             blk[r + _FMN * L] = f0
             blk[r + _XMX * L] = x

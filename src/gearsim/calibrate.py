@@ -92,34 +92,29 @@ BOXES = {"wide": DEFAULT_FREE, "narrow": NARROW_FREE}
 
 
 @dataclass(frozen=True)
-class ObjectiveSettings:
-    """Grid and weights of the calibration objective (recorded with every result)."""
+class SweepSettings:
+    """The w grid and the integration of the calibration sweeps: the one definition that
+    :class:`ObjectiveSettings` (round 1) and :class:`gearsim.fidelity.FidelitySettings`
+    (the forms' objective) share."""
 
     w_min: float = 0.3
     w_max: float = 2.5
     dw: float = 0.01
-    model: str = "1dof"
     method: str = "dp5"
     rtol: float = 1e-7
     max_periods: int = 256
     transient_continuation: int = 40  # the core default (16) flips 1T/2T next to a PD
     chunk: int = 32
-    miss_penalty: float = 0.2
-    extra_penalty: float = 0.01
-    extra_w_min: float = 0.3
-    xi_check: bool = True
-    xi_dxi: float = 0.01
+    Fm: float = 0.1  # scale of the search (the shape is scale-free; Fm is derived afterwards)
     xi_w_min: float = 0.6
-    xi_w_max: float = 2.5
     xi_dw: float = 0.03
-    xi_penalty: float = 0.02
-    xi_gate: float = 0.08  # the xi check runs only when the landmark part is below this
-    Fm: float = 0.1
-    b: float = 1.0
 
-    def grid(self) -> np.ndarray:
-        n = int(round((self.w_max - self.w_min) / self.dw))
-        return self.w_min + (np.arange(n) + 0.5) * (self.w_max - self.w_min) / n
+    def grid(self, dw: float | None = None, lo: float | None = None) -> np.ndarray:
+        """Cell centres of ``[lo, w_max]`` (``lo`` = ``w_min``) at step about ``dw``."""
+        lo = self.w_min if lo is None else lo
+        dw = self.dw if dw is None else dw
+        n = int(round((self.w_max - lo) / dw))
+        return lo + (np.arange(n) + 0.5) * (self.w_max - lo) / n
 
     def integration(self) -> IntegrationSettings:
         return IntegrationSettings(method=self.method, rtol=self.rtol,
@@ -131,6 +126,34 @@ class ObjectiveSettings:
         from dataclasses import asdict
 
         return asdict(self)
+
+
+@dataclass(frozen=True)
+class ObjectiveSettings(SweepSettings):
+    """Grid and weights of the calibration objective (recorded with every result)."""
+
+    model: str = "1dof"
+    miss_penalty: float = 0.2
+    extra_penalty: float = 0.01
+    extra_w_min: float = 0.3
+    xi_check: bool = True
+    xi_dxi: float = 0.01
+    xi_w_max: float = 2.5
+    xi_penalty: float = 0.02
+    xi_gate: float = 0.08  # the xi check runs only when the landmark part is below this
+    b: float = 1.0
+
+
+def bisect_bool(pred, lo: float, hi: float, tol: float) -> float:
+    """Midpoint of the final bracket of ``[lo, hi]`` where ``pred`` turns from true (at ``lo``)
+    to false (at ``hi``), bisected to width ``tol``."""
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        if pred(mid):
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 def params_from_vector(
@@ -412,13 +435,7 @@ def damping_threshold(
         return float("inf")
     if not sub(lo):
         return lo
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if sub(mid):
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+    return bisect_bool(sub, lo, hi, tol)
 
 
 # ----------------------------------------------------------------------------- standard file

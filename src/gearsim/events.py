@@ -12,7 +12,9 @@ switch, the region changes, and the rest of the interval is integrated in the ne
 :func:`advance_interval` is that loop over one interval of a mesh period. The scalar integrator
 (:func:`gearsim.integrate.integrate_periods`) calls it for every DP5 output interval and for every
 RK4 grid interval that its step flags; the batched kernel (:mod:`gearsim.batch`) calls it for its
-flagged lanes. It also keeps the per-period accumulators (time inside the backlash, impact
+flagged lanes. At a mesh switch of a discontinuous field (damping only in contact) it applies
+the saltation matrix to the tangent vector (:func:`apply_saltation`). It also keeps the
+per-period accumulators (time inside the backlash, impact
 counts, force and displacement extremes with the Hermite extremum inside a step) and the event
 log.
 """
@@ -23,7 +25,18 @@ import math
 
 from numba import njit
 
-from .model import N_STATE, N_SWITCH, P_ACT, SWITCH_COORD, SWITCH_GAP, mesh_force, region_of
+from .model import (
+    N_STATE,
+    N_SWITCH,
+    P_ACT,
+    P_XIO,
+    SWITCH_COORD,
+    SWITCH_GAP,
+    field_params,
+    region_of,
+    rhs,
+    tracked_force,
+)
 from .model import P_W as _P_W
 from .steps import METHOD_DP5, METHOD_RK4, trial_step
 
@@ -155,11 +168,35 @@ def scan_switches(y, ynew, hh, mode, gaps, active):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
-def _track(acc, c_phase, y, p, mode):
-    """Fold the state at a landed point into the force and displacement extremes."""
-    P0 = (p[0], p[1], p[2])  # eps, 2 xi, b
+def apply_saltation(t, y, p, mode, new_region, fm, fp):
+    """Jump of the tangent vector ``y[10:20]`` at a landed mesh switch of a discontinuous field.
+
+    With damping only in contact (``mesh_damping_contact > 0``) the field jumps at ``x = +/-b``;
+    the variational solution then crosses the switch with the saltation matrix
+    ``S = I + (f+ - f-) e_x^T / (e_x^T f-)`` (switching surface ``x -/+ b = 0``, time-independent:
+    normal ``e_x``, ``e_x^T f- = x'``). ``f-`` is the field in the old region, ``f+`` in
+    ``new_region``, both at the switch point; ``fm``, ``fp`` are scratch rows (10+ entries).
+    """
+    v = y[1]
+    if v == 0.0:
+        return
+    old = mode[0]
+    rhs(t, y, p, mode, fm, False)
+    mode[0] = new_region
+    rhs(t, y, p, mode, fp, False)
+    mode[0] = old
+    s = y[N_STATE] / v
+    for i in range(N_STATE):
+        y[N_STATE + i] += (fp[i] - fm[i]) * s
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _track(acc, ph, y, p, mode):
+    """Fold the state at a landed point (mesh phase ``ph``) into the force and displacement
+    extremes (the force of the model form: :func:`gearsim.model.tracked_force`)."""
     r0 = float(mode[0])
-    fl = mesh_force(c_phase, y[0], y[1], P0, r0, abs(r0))
+    fl = tracked_force(math.cos(ph), math.sin(ph), y[0], y[1], field_params(p, 0, 1), r0,
+                       abs(r0))
     acc[ACC_FMAX] = max(acc[ACC_FMAX], fl)
     acc[ACC_FMIN] = min(acc[ACC_FMIN], fl)
     acc[ACC_XMAX] = max(acc[ACC_XMAX], y[0])
@@ -263,6 +300,9 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
                     cnt[CNT_NF] += 1
                 elif new_region == -1:
                     cnt[CNT_NB] += 1
+            if tangent and c == 0 and p[P_XIO] != 0.0:
+                # the field jumps here (contact-only damping); ks rows are free until the next step
+                apply_saltation(t, y, p, mode, new_region, ks[1], ks[2])
             k_ev = cnt[CNT_EV]
             if k_ev < ev_t.shape[0]:
                 ev_t[k_ev] = t_abs0 + t
@@ -270,7 +310,7 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
             cnt[CNT_EV] = k_ev + 1
             mode[c] = new_region
             acc[ACC_K1] = 0.0
-            _track(acc, math.cos(w * t), y, p, mode)
+            _track(acc, w * t, y, p, mode)
             continue
         # ---- no switch: accept the whole step
         if mode[0] == 0:
@@ -284,8 +324,9 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
                 acc[ACC_XMAX] = max(acc[ACC_XMAX], xe)
                 acc[ACC_XMIN] = min(acc[ACC_XMIN], xe)
                 r0 = float(mode[0])
-                fe = mesh_force(math.cos(w * (t + se * hh)), xe, 0.0, (p[0], 0.0, gaps[0]), r0,
-                                abs(r0))
+                pe = w * (t + se * hh)
+                fe = tracked_force(math.cos(pe), math.sin(pe), xe, 0.0, field_params(p, 0, 1), r0,
+                                   abs(r0))
                 acc[ACC_FMAX] = max(acc[ACC_FMAX], fe)
                 acc[ACC_FMIN] = min(acc[ACC_FMIN], fe)
         for i in range(n):
@@ -295,7 +336,7 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
         if t > t_stop or t_stop - t < 1e-12 * T:
             t = t_stop
         acc[ACC_K1] = 1.0 if method == METHOD_DP5 else 0.0
-        _track(acc, math.cos(w * t), y, p, mode)
+        _track(acc, w * t, y, p, mode)
         bad = False
         for i in range(N_STATE):
             if not (abs(y[i]) < bound):

@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .calibrate import SweepSettings
 from .landmarks import PAPER_JUMP_DC, PAPER_LANDMARKS, find_landmarks, match_paper
 from .parameters import ModelParameters
 
@@ -187,43 +188,16 @@ def score(m: Measured, *, cap: float = CAP) -> tuple[float, dict[str, float]]:
 
 # ============================================================================ measurement
 @dataclass(frozen=True)
-class FidelitySettings:
-    """Grids and integration of one measurement (recorded with every result)."""
+class FidelitySettings(SweepSettings):
+    """Grids and integration of one measurement (recorded with every result); the w grid and
+    the integration are :class:`gearsim.calibrate.SweepSettings`."""
 
-    w_min: float = 0.3
-    w_max: float = 2.5
-    dw: float = 0.01
     seq_dw: float = 0.02
-    xi_w_min: float = 0.6
-    xi_dw: float = 0.03
     xi_bisect: int = 3  # bisection steps of the xi threshold after the 0.09 / 0.15 bracket
-    method: str = "dp5"
-    rtol: float = 1e-7
-    max_periods: int = 256
-    transient_continuation: int = 40
-    chunk: int = 32
-    Fm: float = 0.1  # scale of the search (the shape is scale-free; Fm is derived afterwards)
     b0: float = 1.0  # standard backlash of the search scale (must exceed b*)
     attractor_starts: int = 16
     gate: float = 4.0  # landmark RMS in tolerances above which the other targets are not run
     exact: bool = False  # locate bifurcation landmarks by continuation
-
-    def grid(self, dw: float | None = None, lo: float | None = None) -> np.ndarray:
-        lo = self.w_min if lo is None else lo
-        dw = self.dw if dw is None else dw
-        n = int(round((self.w_max - lo) / dw))
-        return lo + (np.arange(n) + 0.5) * (self.w_max - lo) / n
-
-    def integration(self):
-        from .simulate import IntegrationSettings
-
-        return IntegrationSettings(method=self.method, rtol=self.rtol,
-                                   max_periods=self.max_periods,
-                                   transient_continuation=self.transient_continuation,
-                                   chunk=self.chunk)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def sweep(params: ModelParameters, grid: np.ndarray, settings, *, continuation: bool = True,

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from .calibrate import bisect_bool
 from .fidelity import FidelitySettings, Measured, measure, score
 from .parameters import ModelParameters
 
@@ -273,16 +274,9 @@ def backlash_bisection(p: ModelParameters, st: FidelitySettings, *, continuation
         q = df["q"].fillna(0).astype(int)
         return bool(((df["I"] == 2) | (df["I"] == -1) | (q > 0)).any())
 
-    lo, hi = 0.0, st.b0
-    if double(hi):
+    if double(st.b0):
         return math.nan
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        if double(mid):
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+    return bisect_bool(double, 0.0, st.b0, tol)
 
 
 def final_measure(form: Form, x: Sequence[float], st: FidelitySettings

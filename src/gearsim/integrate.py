@@ -60,9 +60,9 @@ from .model import (
     P_GAM,
     P_W,
     field_params,
-    mesh_force,
     mode_tuple,
     set_period,
+    tracked_force,
     variable_ratio,
 )
 from .parameters import ModelParameters, ParameterError
@@ -102,7 +102,7 @@ STATUS_NAMES = {STATUS_OK: "ok", STATUS_DIVERGED: "diverged", STATUS_STEP_COLLAP
 @njit(cache=True, nogil=True, inline="always")
 def start_period_accumulators(y, P, r0, acc, cnt):
     """Reset the per-period accumulators at a period start (``cos(w tau) = 1`` there)."""
-    f0 = mesh_force(1.0, y[0], y[1], P, r0, abs(r0))
+    f0 = tracked_force(1.0, 0.0, y[0], y[1], P, r0, abs(r0))
     acc[ACC_TD] = 0.0
     acc[ACC_FMAX] = f0
     acc[ACC_FMIN] = f0
@@ -157,7 +157,7 @@ def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings
     r0 = M[0]
     if r0 == 0.0:
         acc[ACC_TD] += h
-    fl = mesh_force(C[i2 + 2], yn[0], yn[1], P, r0, M[1])
+    fl = tracked_force(C[i2 + 2], S[i2 + 2], yn[0], yn[1], P, r0, M[1])
     acc[ACC_FMAX] = max(acc[ACC_FMAX], fl)
     acc[ACC_FMIN] = min(acc[ACC_FMIN], fl)
     acc[ACC_XMAX] = max(acc[ACC_XMAX], yn[0])
@@ -316,6 +316,7 @@ def integrate_periods(
         xmin[k] = acc[ACC_XMIN]
         if tangent:
             lyap[k] = end_period_tangent(y[10:20])
+            acc[ACC_K1] = 0.0  # the FSAL stage holds the derivative of the unnormalised tangent
         periods_done = k + 1
     for i in range(n):
         y0[i] = y[i]

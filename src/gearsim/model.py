@@ -28,7 +28,8 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``, ``tau = w_n
 Model-form options (docs/model.md, "Model forms"; all off by default, where the field is today's
 bit for bit): ``F`` gains ``2 xi (1 - beta) e'(tau)`` (the damper follows only part of the
 transmission-error rate, ``te_damping = beta``) and loses ``2 xi delta (x' + ...)`` inside the
-backlash (``mesh_damping_contact = delta``).
+backlash (``mesh_damping_contact = delta``); the friction factor ``gamma lambda`` becomes
+``gamma lambda (1 + a q)`` (the sawtooth arm of Eq 9, ``friction_arm_var = a``).
 
 ``f(x, b)`` is the dead zone (x - b above b, 0 inside, x + b below -b);
 ``lambda = sign(sin(w tau))`` is the friction direction (it flips at the pitch point, mid
@@ -41,7 +42,8 @@ Piecewise-smooth handling: every dead zone is evaluated in a *frozen region* (``
 the start of a step; the event layer (:mod:`gearsim.events`) locates the switching surfaces and
 changes the region there. Because ``f`` is continuous, the vector field is continuous across every
 switch: the saltation matrix of the variational equations is the identity, so the tangent vector
-needs no jump.
+needs no jump (except with ``mesh_damping_contact > 0``, whose damping force jumps at the mesh
+switch: :func:`gearsim.events.apply_saltation`).
 
 Adding a nonlinearity: edit :func:`field_state` (the force law) and :func:`field_tangent` (its
 Jacobian-vector product) and, if it needs a parameter, add a slot to the packed layout below and
@@ -227,9 +229,8 @@ def mesh_force_full(c, s, x, v, P, r0, s0):
     """The mesh force of every model form: :func:`mesh_force` plus the forms' terms.
 
     ``s = sin(w tau)``; ``P`` the full field tuple (:func:`field_params`). Equal to
-    :func:`mesh_force` bit for bit in today's form (the added terms are exact zeros). For the
-    Kmax trackers (events.py, integrate.py, batch.py), which still call :func:`mesh_force`
-    (docs/model.md, "What the options do not cover").
+    :func:`mesh_force` bit for bit in today's form (the added terms are exact zeros). The Kmax
+    trackers (events.py, integrate.py, batch.py) call it through :func:`tracked_force`.
     """
     F = (1.0 + P[P_EPS] * c) * (s0 * x - r0 * P[P_B]) + P[P_XI2] * v
     out = 1.0 - s0
@@ -237,6 +238,16 @@ def mesh_force_full(c, s, x, v, P, r0, s0):
     F = F + dv * P[P_CPHI] * s
     F = F + dv * P[P_SPHI] * c
     return F - P[P_XIO] * out * v
+
+
+@njit(cache=True, nogil=True, inline="always")
+def tracked_force(c, s, x, v, P, r0, s0):
+    """The mesh force the Kmax trackers record: :func:`mesh_force` in today's form (a branch, so
+    today's paths keep their arithmetic), :func:`mesh_force_full` when a form changes the force
+    (``te_damping < 1`` or ``mesh_damping_contact > 0``)."""
+    if P[P_VTE] != 0.0 or P[P_XIO] != 0.0:
+        return mesh_force_full(c, s, x, v, P, r0, s0)
+    return mesh_force(c, x, v, P, r0, s0)
 
 
 def mesh_force_series(p: np.ndarray, tau: np.ndarray, x: np.ndarray, v: np.ndarray) -> np.ndarray:
