@@ -254,7 +254,7 @@ def mesh_force_series(p: np.ndarray, tau: np.ndarray, x: np.ndarray, v: np.ndarr
     """The mesh force of every model form along a recorded trajectory (numpy, packed ``p``).
 
     ``tau`` must be the time within the period or absolute time (the force is T-periodic).
-    For :func:`gearsim.simulate.trajectory`, which recomputes today's form in numpy.
+    Used by :func:`gearsim.simulate.trajectory` (its one source of the force for every form).
     """
     b = p[P_B]
     s0 = (np.abs(x) > b).astype(float)
