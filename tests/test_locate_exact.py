@@ -48,6 +48,18 @@ def _section_state(p):
     return y
 
 
+def _assert_located(p, w_ref, kind, label_before, label_after):
+    """locate_exact, given the sweep over the 0.002 grid interval holding ``w_ref``, must return
+    the exact point (not its grid fallback) to 1e-6 and inside the interval."""
+    lo = math.floor(w_ref * 500) / 500
+    hi = lo + 0.002
+    df = _sweep(p, lo, hi, _section_state(p.with_(w=lo)))
+    w, how = locate_exact(p, df, _row(kind, lo, hi, label_before, label_after))
+    assert how == "exact"
+    assert w == pytest.approx(w_ref, abs=1e-6)
+    assert lo <= w <= hi
+
+
 def test_grazing_point_matches_the_closed_form():
     p = ModelParameters(**BASE, eps=0.0, Fe=0.1724)
 
@@ -55,14 +67,7 @@ def test_grazing_point_matches_the_closed_form():
         return p.Fe * w * w / math.hypot(1 - w * w, 2 * p.xi * w) - p.Fm
 
     w_ref = brentq(excess, 0.3, 0.9, xtol=1e-14)
-    lo = math.floor(w_ref * 500) / 500  # the 0.002 grid interval holding the grazing
-    hi = lo + 0.002
-    p_lo = p.with_(w=lo)
-    df = _sweep(p, lo, hi, _section_state(p_lo))
-    w, how = locate_exact(p, df, _row("grazing", lo, hi, "1-0-0", "1-1-0"))
-    assert how == "exact"
-    assert w == pytest.approx(w_ref, abs=1e-6)
-    assert lo <= w <= hi
+    _assert_located(p, w_ref, "grazing", "1-0-0", "1-1-0")
 
 
 def _mathieu_multipliers(w, eps, xi):
@@ -82,10 +87,4 @@ def test_period_doubling_matches_the_mathieu_tongue():
     w_ref = brentq(lambda w: min(_mathieu_multipliers(w, eps, xi).real) + 1.0, 1.7, 2.0,
                    xtol=1e-12)
     assert 1.8 < w_ref < 1.85  # the lower edge of the principal parametric tongue
-    lo = math.floor(w_ref * 500) / 500
-    hi = lo + 0.002
-    p_lo = p.with_(w=lo)
-    df = _sweep(p, lo, hi, _section_state(p_lo))
-    w, how = locate_exact(p, df, _row("period_doubling", lo, hi, "1-1-0", "2-2-0"))
-    assert how == "exact"
-    assert w == pytest.approx(w_ref, abs=1e-6)
+    _assert_located(p, w_ref, "period_doubling", "1-1-0", "2-2-0")
