@@ -115,7 +115,7 @@ def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, 
             if n > 1 and _spread_decays(section_x, m, window, n, tol_x):
                 return 0  # a decaying transient mimics period n: integrate on
             return n
-        if _converges_geometrically(section_x, section_v, m, n, n, scale, tol_x, min_confirm):
+        if _converges_geometrically(section_x, section_v, m, n, scale, tol_x, min_confirm):
             if n > 1 and _lower_period_transient(section_x, m, n, min_confirm):
                 return 0  # the lag-d differences decay as well: a lower period's transient
             return n
@@ -130,8 +130,7 @@ def _lower_period_transient(section_x, m, n, min_confirm, max_window=96, share=0
     complex multiplier whose square is nearly real and negative: ``P_k - P_{k-2}`` decays
     steadily). Approaching a true period-``n`` orbit of amplitude ``A`` with a residual ``c``,
     the lag-``d`` differences shrink only by ``~c / A`` of that."""
-    w4 = (min(m - 3 * n, max_window) // 4) // (2 * n) * (2 * n)
-    j0 = m - 1 - 4 * w4
+    j0 = m - 1 - 4 * _quarter_window(m, n, max_window)
     sn0 = _tail_spread(section_x, j0, 2 * n, n)
     sn4 = _tail_spread(section_x, m - 1, 2 * n, n)
     if not sn0 > 0.0:
@@ -148,6 +147,13 @@ def _lower_period_transient(section_x, m, n, min_confirm, max_window=96, share=0
 
 
 @njit(cache=True, nogil=True)
+def _quarter_window(m, n, max_window):
+    """A quarter of the geometric rule's window: whole pairs of motion periods, the window
+    ``4 * quarter <= min(m - 3 n, max_window)`` (shared by both rules so they read one window)."""
+    return (min(m - 3 * n, max_window) // 4) // (2 * n) * (2 * n)
+
+
+@njit(cache=True, nogil=True)
 def _tail_spread(a, j, n, lag):
     """Sum over ``i = j-n+1 .. j`` of ``|a[i] - a[i-lag]|`` (one motion period of differences)."""
     s = 0.0
@@ -157,13 +163,13 @@ def _tail_spread(a, j, n, lag):
 
 
 @njit(cache=True, nogil=True)
-def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_confirm,
+def _converges_geometrically(section_x, section_v, m, n, scale, tol_x, min_confirm,
                              max_window=96, steady=0.2, resolved=0.02, limit_rtol=0.05,
                              near=1e-2):
-    """True if the section sequence converges geometrically onto a period-``lag`` orbit.
+    """True if the section sequence converges geometrically onto a period-``n`` orbit.
 
-    ``S_j`` = sum of ``|P_i - P_{i-lag}|`` (x component) over the ``2 n`` samples ending at
-    ``j`` (``lag = n``: onto a period-``n`` orbit). Over the longest window
+    ``S_j`` = sum of ``|P_i - P_{i-n}|`` (x component) over the ``2 n`` samples ending at
+    ``j``. Over the longest window
     ``W <= min(m - 3 n, max_window)`` (a multiple of ``8 n``, at least ``min_confirm``) take
     ``S`` at its five quarter points. A linear transient onto a period-``n`` orbit with one
     dominant real multiplier ``mu`` of ``P^n`` gives ``S_j ~ |mu|^(j / n)``: the four quarter
@@ -187,21 +193,21 @@ def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_
     """
     # quarters of whole pairs of motion periods: an alternating dominant mode plus a smaller
     # non-alternating one makes |P_i - P_{i-n}| alternate in size; pairs average it out
-    w4 = (min(m - 3 * n, max_window) // 4) // (2 * n) * (2 * n)
+    w4 = _quarter_window(m, n, max_window)
     W = 4 * w4
     if W < max(8 * n, min_confirm):
         return False
     j0 = m - 1 - W
     # the cheap necessary conditions first (most aperiodic sequences stop here)
-    s0 = _tail_spread(section_x, j0, 2 * n, lag)
-    s4 = _tail_spread(section_x, j0 + 4 * w4, 2 * n, lag)
+    s0 = _tail_spread(section_x, j0, 2 * n, n)
+    s4 = _tail_spread(section_x, j0 + 4 * w4, 2 * n, n)
     if not (s0 > 0.0 and s4 <= (1.0 - resolved) * s0 and s4 <= near * scale * 2 * n):
         return False  # no resolved decay, not near the limit, or NaN
     S = np.empty(5)
     S[0] = s0
     S[4] = s4
     for k in range(1, 4):
-        S[k] = _tail_spread(section_x, j0 + k * w4, 2 * n, lag)
+        S[k] = _tail_spread(section_x, j0 + k * w4, 2 * n, n)
     if not np.all(np.isfinite(S)):
         return False
     rsum = 0.0
@@ -222,8 +228,8 @@ def _converges_geometrically(section_x, section_v, m, n, lag, scale, tol_x, min_
     limit = S[4] - d1 * d1 / (d1 - d0)
     if abs(limit) > max(2 * n * tol_x, limit_rtol * S[4]):
         return False
-    v_early = _tail_spread(section_v, j0, 2 * n, lag)
-    v_late = _tail_spread(section_v, m - 1, 2 * n, lag)
+    v_early = _tail_spread(section_v, j0, 2 * n, n)
+    v_late = _tail_spread(section_v, m - 1, 2 * n, n)
     return v_late <= v_early
 
 
@@ -236,14 +242,8 @@ def _spread_decays(section_x, m, window, n, tol_x):
     n samples to within the tolerance and would pass for period n. A true period-n orbit keeps
     its spread (mean |P_k - P_{k-1}| over a motion period); a transient's spread decays.
     """
-    early = 0.0
-    late = 0.0
-    for i in range(m - window, m - window + n):
-        early += abs(section_x[i] - section_x[i - 1])
-    for i in range(m - n, m):
-        late += abs(section_x[i] - section_x[i - 1])
-    early /= n
-    late /= n
+    early = _tail_spread(section_x, m - window + n - 1, n, 1) / n
+    late = _tail_spread(section_x, m - 1, n, 1) / n
     return early - late > max(2.0 * tol_x, 1e-3 * early)
 
 
