@@ -145,3 +145,98 @@ def test_form_table_and_report_lines_show_every_target():
     assert cells[-1] == "1-1-1/2-2-1/4-4-2"
     rep = form_report_lines({"records": {"hand": rec}, "adopted": "hand", "decision": "why"})
     assert any("Adopted: **hand**" in x for x in rep)
+
+
+# ---------------------------------------------------------------- --stage forms --no-search
+def _hand_sweep(p, grid, settings, u0=None, k=0):
+    """A forward continuation sweep built here from the public ``simulate_cell`` (each cell
+    from the previous cell's final section state and period; the first from ``u0``)."""
+    from gearsim.simulate import simulate_cell
+
+    rows = []
+    for w in grid:
+        r = simulate_cell(p.with_(w=float(w)), u0, settings=settings, start_period=k)
+        rows.append({**r.row(), "final_state": r.final_state, "final_period": r.final_period})
+        u0, k = r.final_state, r.final_period
+    return rows
+
+
+def _min_x(p, u0, settings):
+    """Smallest mesh displacement of the steady motion at ``p`` (from ``u0``): 100 periods of
+    transient, then 4 periods sampled 1024 times each (direct integration)."""
+    from gearsim.simulate import trajectory
+
+    tr = trajectory(p, u0, periods=4, samples_per_period=1024, settings=settings, transient=100)
+    return float(tr.state[:, 0].min())
+
+
+def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monkeypatch):
+    """``gearsim calibrate --stage forms --no-search`` (``evaluate_unsearched``) on a short w
+    window around the first grazing and the jump, against a sweep and landmark rules built
+    here: the grazing as the root of min x - b of the steady non-impacting orbit (bisection of
+    direct integrations), the jump as the first DC step on a 0.002 sweep, DC after the jump, and
+    the backlash threshold (the scale) as the b where back contact (x_min < -b) appears."""
+    import json
+    from dataclasses import replace
+
+    import gearsim.fidelity_fit as ff
+    from gearsim.cli import main
+    from gearsim.parameters import ModelParameters
+
+    st = replace(ff.FINAL, w_min=0.55, w_max=0.80, dw=0.01)
+    grid = st.grid()
+    monkeypatch.setattr(ff, "FINAL", st)
+    monkeypatch.setattr(ff, "B_GRID", grid)  # the scale's bisection on the same short window
+    assert main(["calibrate", "--stage", "forms", "--no-search", "--forms", "today",
+                 "--forms-dir", str(tmp_path)]) == 0
+    rec = json.loads((tmp_path / "today.json").read_text())
+    m = rec["measured"]
+    # the same parameters, written out here (the search scale: Fm 0.1, b 1; the start shape)
+    p = ModelParameters.standard().with_(model="1dof", Fm=0.1, Fe=0.17854, eps=0.3175,
+                                         phi_e=math.radians(-41.59), xi=0.0609, friction=0.0,
+                                         b=1.0)
+    assert rec["best"] == {"Fe_over_Fm": 1.7854, "eps": 0.3175, "phi_e_deg": -41.59,
+                           "xi": 0.0609, "friction": 0.0}
+    settings = st.integration()
+    rows = _hand_sweep(p, grid, settings)
+    xmin = np.array([r["x_min"] for r in rows])
+    dc = np.array([r["dc"] for r in rows])
+    # the test's rules on the 0.01 grid: grazing = first cell whose motion leaves the contact
+    # (x_min < b); jump = first DC step above 0.15
+    ig = int(np.argmax(xmin < p.b))
+    ij = int(np.argmax(np.diff(dc) > 0.15)) + 1
+    assert 0 < ig < ij < len(grid) - 1
+    assert m["landmark_source"]["grazing_1"] == "exact" and m["landmark_source"]["jump"] == "exact"
+    g_exact, j_exact = m["landmarks"]["grazing_1"], m["landmarks"]["jump"]
+    assert grid[ig - 1] < g_exact < grid[ig]
+    assert grid[ij - 1] < j_exact < grid[ij]
+    # grazing: min x = b of the non-impacting orbit, bisected in w by direct integrations
+    lo, hi = float(grid[ig - 1]), float(grid[ig])
+    for _ in range(12):  # 0.01 / 2^12 = 2.4e-6
+        mid = 0.5 * (lo + hi)
+        if _min_x(p.with_(w=mid), rows[ig - 1]["final_state"], settings) > p.b:
+            lo = mid
+        else:
+            hi = mid
+    assert abs(g_exact - 0.5 * (lo + hi)) < 2e-5
+    # jump: the fold lies between the last low-branch cell and the first jumped cell of a
+    # 0.002 continuation sweep from the cell before the jump
+    fine = np.arange(grid[ij - 1], grid[ij] + 1e-9, 0.002)
+    before = rows[ij - 1]
+    fdc = np.array([r["dc"] for r in _hand_sweep(p, fine[1:], settings, before["final_state"],
+                                                  before["final_period"])])
+    fdc = np.concatenate([[dc[ij - 1]], fdc])
+    i1 = int(np.argmax(fdc - dc[ij - 1] > 0.15))
+    assert i1 > 0
+    assert fine[i1 - 1] < j_exact <= fine[i1]
+    # DC after the jump: the first cell after the jump on the window's grid
+    assert m["dc_jump"] == pytest.approx(dc[ij], abs=1e-9)
+    # the scale: back contact somewhere on the window just below b*, nowhere just above it
+    b_star = rec["b_star_bisection"]
+    assert 0 < b_star < p.b
+    assert m["Fm_derived"] == pytest.approx(p.Fm * 0.4125 / b_star)
+
+    def back_contact(b):
+        return any(r["x_min"] < -b for r in _hand_sweep(p.with_(b=b), grid, settings))
+
+    assert back_contact(b_star - 0.002) and not back_contact(b_star + 0.002)

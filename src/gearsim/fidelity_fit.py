@@ -260,6 +260,9 @@ def refine(fun: Callable[[np.ndarray], float], x0: Sequence[float],
 # ============================================================================ one form
 #: the backlash bisection grid: the paper's plane grid (400 cell centres on [0.1, 2.5])
 B_GRID = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400
+#: the reported (final) measurement of a form: exact landmarks, the xi threshold to ~0.001;
+#: one definition for :func:`fit_form` and :func:`evaluate_unsearched`
+FINAL = FidelitySettings(exact=True, xi_bisect=6, xi_dw=0.02)
 
 
 def backlash_bisection(p: ModelParameters, st: FidelitySettings, *, continuation: bool = True,
@@ -345,7 +348,7 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
         xbest, Jbest = np.asarray(nm["x"]), nm["J"]
     # final measurement: the backlash threshold by bisection of whole sweeps (the scale), the
     # xi threshold to ~0.001, exact landmarks
-    final = final or FidelitySettings(exact=True, xi_bisect=6, xi_dw=0.02)
+    final = final or FINAL
     J, m, terms, b_star = final_measure(form, xbest, final)
     J_start, m_start, terms_start, b_star0 = final_measure(form, x0, final)
     names = [f.name for f in form.free]
@@ -436,10 +439,11 @@ def evaluate_unsearched(form: Form, points: dict[str, Sequence[float]],
     standard shape and another form's best; the best point's values are the row."""
     from .provenance import code_version
 
-    final = final or FidelitySettings(exact=True, xi_bisect=6, xi_dw=0.02)
+    final = final or FINAL
     rec: dict[str, Any] = {"form": form.name, "text": form.text, "fixed": form.fixed,
                            "continuation": form.continuation, "searched": False,
-                           "code_version": code_version(), "points": {}}
+                           "code_version": code_version(), "final": final.to_dict(),
+                           "points": {}}
     t0 = time.time()
     names = [f.name for f in form.free]
     for key, x in points.items():
