@@ -240,3 +240,62 @@ def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monke
         return any(r["x_min"] < -b for r in _hand_sweep(p.with_(b=b), grid, settings))
 
     assert back_contact(b_star - 0.002) and not back_contact(b_star + 0.002)
+
+
+def test_unfinished_form_stream_log_and_tradeoff_evidence(tmp_path):
+    """forms-table's helpers on hand-written logs: an unfinished form's row is its best logged
+    evaluation (exact before coarse) with the counts; the stream log gives load and wall time;
+    the evidence names, for a target hit within tolerance, the landmarks missing there."""
+    import json
+
+    from gearsim.fidelity import form_summary_lines, landmarks_within
+    from gearsim.fidelity_fit import FORMS, best_per_target, partial_record, stream_runs
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    good = perfect()
+    bad = perfect()
+    bad.landmarks["grazing_1"] = 0.569 + 0.1  # 5 tolerances late; every other target exact
+    hit = perfect()
+    hit.landmarks["period_one"] = 1.864 - 0.05  # first grazing exact, 2>1 misses
+    hit.landmarks["jump"] = None
+
+    def line(x, m):
+        return json.dumps({"x": x, "J": score(m)[0], "measured": m.to_dict()}) + "\n"
+
+    x0 = [f.start for f in FORMS["today"].free]
+    (logs / "today-coarse.11.jsonl").write_text(line(x0, good) + json.dumps(
+        {"x": x0, "J": 1e3, "error": "boom"}) + "\n")
+    (logs / "today-exact.11.jsonl").write_text(line(x0, bad) + line(x0, hit))
+    rec = partial_record(FORMS["today"], logs)
+    assert rec["unfinished"] == {"n_coarse": 2, "n_exact": 2, "level": "exact"}
+    assert rec["J"] == pytest.approx(score(bad)[0])  # the exact level wins over a better coarse
+    assert landmarks_within(rec["measured"]) == 11
+    assert partial_record(FORMS["te_rate"], logs) is None
+    (tmp_path / "streamA.log").write_text(
+        "=== today start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
+        "[today] start J (coarse) = 2.3\n321.56 s wall 249.23 s user\n"
+        "=== today end 2026-11-30T02:44:22Z rc 0\n")
+    runs = stream_runs(tmp_path)
+    assert runs["today"] == {"stream": "streamA", "start": "2026-11-30T02:39:00Z",
+                             "load": "0.32 1.43 1.80", "code": "f3f7786", "wall_s": 321.56,
+                             "user_s": 249.23, "end": "2026-11-30T02:44:22Z"}
+    rec["run"] = runs["today"]
+    row = form_summary_lines({"today": rec})[2]
+    assert "11 of 12" in row and "0 + 2" not in row and "2 + 2 (unfinished)" in row
+    assert "| 322 | 0.32 1.43 1.80 | f3f7786 |" in row
+    best = best_per_target(logs)
+    g = best["grazing_1"]
+    assert g["n"] == 3 and g["n_hit"] == 2 and g["error"] == pytest.approx(0.0)
+    # of the two evaluations that hit the first grazing, the lower J is `good` (nothing misses)
+    assert g["hit_J"] == 0.0 and g["hit_misses"] == {}
+    p1 = best["period_one"]
+    assert p1["n_hit"] == 2 and p1["hit_J"] == 0.0
+    # with `hit` alone: hitting the first grazing, the jump (lost) and 2>1 miss, both named
+    logs2 = tmp_path / "logs2"
+    logs2.mkdir()
+    (logs2 / "today-exact.12.jsonl").write_text(line(x0, hit))
+    g2 = best_per_target(logs2)["grazing_1"]
+    assert g2["hit_misses"].keys() == {"jump", "period_one"}
+    assert g2["hit_misses"]["jump"] is None
+    assert g2["hit_misses"]["period_one"] == pytest.approx(-0.05)
