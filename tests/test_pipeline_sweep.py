@@ -1,38 +1,46 @@
-"""``gearsim sweep``: its table is orbit_diagram's plus the continuation seeds."""
+"""``gearsim sweep``: its table is the scalar continuation chain's, cell by cell, plus the seeds."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from gearsim import config as gcfg
 from gearsim.commands.sweep import _point_list, sweep_frame
 from gearsim.parameters import ModelParameters
-from gearsim.sweep import orbit_diagram
+from gearsim.sweep import continuation_chain, orbit_diagram
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize("direction", ["forward", "backward"])
-def test_sweep_frame_is_orbit_diagram_plus_seeds(direction):
+def test_sweep_frame_is_the_scalar_chain(direction):
+    """RK4 sweeps run through the batched kernel; the reference is the scalar simulate_cell
+    chain in the same order, which must agree to the last bit (one algorithm, issue 10)."""
     cfg = gcfg.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml"])
-    st = gcfg.integration_settings(cfg)
+    st = gcfg.integration_settings(cfg).with_(method="rk4")  # tiny.yaml's budgets, production RK4
     p = ModelParameters(b=0.25)
-    vals = np.array([0.6, 1.1, 1.6, 2.1])
+    vals = np.array([1.1, 0.6, 2.1, 1.6])  # unsorted on purpose: the builder orders them
     ours = sweep_frame(p, "w", vals, direction, st)
-    ref = orbit_diagram(p, "w", vals, direction=direction, settings=st)
-    assert list(ours.columns[: len(ref.columns)]) == list(ref.columns)
-    assert set(ours.columns) - set(ref.columns) == {"final_state", "final_period", "elapsed_s"}
-    for col in ("value", "label", "label_npq", "I", "n", "dc", "kmax", "lyapunov"):
-        a, b = ours[col].to_numpy(), ref[col].to_numpy()
-        if a.dtype.kind == "f":
-            np.testing.assert_allclose(a, b, equal_nan=True)
-        else:
-            assert list(a) == list(b), col
-    pd.testing.assert_series_equal(ours["poincare_x"].map(list), ref["poincare_x"].map(list))
+    order = np.sort(vals) if direction == "forward" else np.sort(vals)[::-1]
+    ref = continuation_chain([p.with_(w=float(w)) for w in order], settings=st)
+    np.testing.assert_array_equal(ours["value"].to_numpy(), order)
+    assert (ours["direction"] == direction).all()
+    for k, r in enumerate(ref):
+        row = r.row()
+        for col in ("label", "label_npq", "I", "n", "status"):
+            assert ours[col].iloc[k] == row[col], (k, col)
+        for col in ("dc", "kmax", "lyapunov"):  # running sums: batched order, equal to rounding
+            np.testing.assert_allclose(ours[col].iloc[k], row[col], rtol=1e-12, atol=1e-15)
+        np.testing.assert_array_equal(ours["poincare_x"].iloc[k], r.poincare[:, 0])
+        np.testing.assert_array_equal(ours["final_state"].iloc[k], r.final_state)
+        assert ours["final_period"].iloc[k] == r.final_period
+    # orbit_diagram is the same table without the catalogue dtypes
+    od = orbit_diagram(p, "w", vals, direction=direction, settings=st)
+    assert list(od.columns) == list(ours.columns)
+    assert list(od["label"]) == list(ours["label"])
 
 
 def test_point_sets():

@@ -564,7 +564,81 @@ def form_table_lines(forms: Mapping[str, Mapping[str, Any]]) -> list[str]:
         v = target_values(m)
         label = name if rec.get("searched", True) else (
             f"{name} (not searched: at {rec.get('best_point', 'start')})")
+        if rec.get("unfinished"):
+            label = f"{name} (unfinished: best logged {rec['unfinished'].get('level')})"
         lines.append(f"| {label} | {rec['J']:.3f} | " + " | ".join(v[k] for k in keys) + " |")
+    return lines
+
+
+def landmarks_within(m: Mapping[str, Any] | None, tol: float = 0.02) -> int:
+    """Number of the 12 landmarks of a :meth:`Measured.to_dict` record within ``tol`` in w."""
+    if not m:
+        return 0
+    n = 0
+    for pl in PAPER_LANDMARKS:
+        v = m["landmarks"].get(pl.key)
+        if v is not None and np.isfinite(v) and abs(pl.error(float(v))) <= tol:
+            n += 1
+    return n
+
+
+def landmark_rms(m: Mapping[str, Any] | None) -> float:
+    """RMS of the found landmarks' errors in w (NaN if none)."""
+    if not m:
+        return math.nan
+    e = [pl.error(float(m["landmarks"][pl.key])) for pl in PAPER_LANDMARKS
+         if m["landmarks"].get(pl.key) is not None]
+    return math.sqrt(sum(x * x for x in e) / len(e)) if e else math.nan
+
+
+def _evals(rec: Mapping[str, Any]) -> str:
+    b = rec.get("budget") or {}
+    if rec.get("unfinished"):
+        u = rec["unfinished"]
+        return f"{u.get('n_coarse', 0)} + {u.get('n_exact', 0)} (unfinished)"
+    if "nfev_coarse" in b:
+        return f"{b['nfev_coarse']} + {b['nfev_exact']}"
+    if rec.get("searched") is False:
+        return "not searched"
+    return "-"
+
+
+def _code(rec: Mapping[str, Any]) -> str:
+    """Git commit of the fit's process (from the stream log) and the results-deciding code
+    hash (:func:`gearsim.provenance.code_version`) it recorded."""
+    git = (rec.get("run") or {}).get("code")
+    cv = rec.get("code_version")
+    if git and cv:
+        return f"{git} ({cv[:8]})"
+    return git or cv or "-"
+
+
+def form_summary_lines(forms: Mapping[str, Mapping[str, Any]]) -> list[str]:
+    """Markdown: one row per form with its cost and budget: J, landmarks within 0.02, landmark
+    RMS, xi*, b* (the scale Fm that makes it 0.4125, from b* at the search scale), evaluations
+    (coarse + exact), wall time, load average at its start, code version."""
+    lines = ["| form | J | landmarks within 0.02 | landmark RMS | xi* | b* (Fm derived; b* at "
+             "Fm 0.1) | evaluations (coarse + exact) | wall s | load at start | code |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for name, rec in forms.items():
+        m = rec.get("measured")
+        if not m:
+            lines.append(f"| {name} | {rec.get('skipped', 'failed')} | | | | | {_evals(rec)} | "
+                         "| | |")
+            continue
+        run = rec.get("run") or {}
+        wall = run.get("wall_s", rec.get("wall_s"))
+        xi = m.get("xi_threshold")
+        xi_s = "-" if xi is None or not np.isfinite(xi) else f"{xi:.4f}"
+        bt = m.get("b_threshold")
+        b_s = "-" if bt is None or not np.isfinite(bt) else (
+            f"{bt:.4f} (Fm {m['Fm_derived']:.4f}; {m['b_star_raw']:.4f})")
+        label = name + (" (unfinished: best logged evaluation)" if rec.get("unfinished") else "")
+        lines.append(
+            f"| {label} | {rec['J']:.3f} | {landmarks_within(m)} of 12 | "
+            f"{landmark_rms(m):.4f} | {xi_s} | {b_s} | {_evals(rec)} | "
+            f"{'-' if wall is None else format(wall, '.0f')} | {run.get('load', '-')} | "
+            f"{_code(rec)} |")
     return lines
 
 
@@ -572,7 +646,7 @@ def compact_record(rec: Mapping[str, Any]) -> dict[str, Any]:
     """The part of a :func:`gearsim.fidelity_fit.fit_form` record kept in docs/calibration.json."""
     keep = ("form", "text", "fixed", "continuation", "seed", "budget", "code_version", "wall_s",
             "best", "J", "terms", "measured", "b_star_bisection", "skipped", "searched",
-            "best_point")
+            "best_point", "unfinished", "run")
     out = {k: rec[k] for k in keep if k in rec}
     if "de" in rec:
         out["de"] = {k: rec["de"][k] for k in ("J", "nfev", "nit", "stopped_by_time", "wall_s",
@@ -611,7 +685,12 @@ def form_report_lines(forms: Mapping[str, Any]) -> list[str]:
            "DC 0.03, gap 0.02, one pattern per sequence, one motion at Figs 9-11; capped at 10). "
            "Landmark values are exact (continuation) unless marked g (grid read). "
            "Details: docs/calibration.md, docs/calibration.json (`forms`).", "",
-           *form_table_lines(recs), ""]
+           *form_table_lines(recs), "", *form_summary_lines(recs), ""]
+    starts = {n: {"J": r["start"]["J"], "measured": r["start"]["measured"]}
+              for n, r in recs.items() if (r.get("start") or {}).get("measured")}
+    if starts:
+        out += ["Each searched form's start (the standard shape, measured as that form the same "
+                "way):", "", *form_table_lines(starts), ""]
     budget = {n: r.get("budget") for n, r in recs.items() if r.get("budget")}
     if budget:
         b0 = next(iter(budget.values()))
@@ -628,4 +707,11 @@ def form_report_lines(forms: Mapping[str, Any]) -> list[str]:
         kl = kmax_lines(km)
         at = km.get("at", "its best set")
         out += [f"Form {k}, {at} (jump resolved on a 0.002 grid): " + kl[0], "", *kl[2:], ""]
+        if km.get("best"):
+            kb = kmax_lines(km["best"])
+            out += [f"Form {k}, its best set (jump resolved on a 0.002 grid): " + kb[0], "",
+                    *kb[2:], ""]
+    if forms.get("evidence_lines"):
+        out += ["Closest error any logged evaluation of any form reached per target "
+                "(`fidelity_fit.best_per_target`):", "", *forms["evidence_lines"], ""]
     return out

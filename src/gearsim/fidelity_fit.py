@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from .calibrate import bisect_bool
-from .fidelity import FidelitySettings, Measured, measure, score
+from .fidelity import LANDMARK_KEYS, FidelitySettings, Measured, measure, score
 from .parameters import ModelParameters
 
 POPULATION = 16
@@ -260,6 +260,9 @@ def refine(fun: Callable[[np.ndarray], float], x0: Sequence[float],
 # ============================================================================ one form
 #: the backlash bisection grid: the paper's plane grid (400 cell centres on [0.1, 2.5])
 B_GRID = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400
+#: the reported (final) measurement of a form: exact landmarks, the xi threshold to ~0.001;
+#: one definition for :func:`fit_form` and :func:`evaluate_unsearched`
+FINAL = FidelitySettings(exact=True, xi_bisect=6, xi_dw=0.02)
 
 
 def backlash_bisection(p: ModelParameters, st: FidelitySettings, *, continuation: bool = True,
@@ -345,7 +348,7 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
         xbest, Jbest = np.asarray(nm["x"]), nm["J"]
     # final measurement: the backlash threshold by bisection of whole sweeps (the scale), the
     # xi threshold to ~0.001, exact landmarks
-    final = final or FidelitySettings(exact=True, xi_bisect=6, xi_dw=0.02)
+    final = final or FINAL
     J, m, terms, b_star = final_measure(form, xbest, final)
     J_start, m_start, terms_start, b_star0 = final_measure(form, x0, final)
     names = [f.name for f in form.free]
@@ -376,8 +379,9 @@ def best_per_target(log_dir: str | Path) -> dict[str, dict[str, Any]]:
     """For every target: the smallest error any logged evaluation of any form reached, with
     that evaluation's form, level (coarse grid read / exact), J and how many evaluations
     measured the target. Evidence for a miss: no tested form got closer within its search."""
-    from .fidelity import Measured, target_errors
+    from .fidelity import TARGETS, Measured, target_errors
 
+    tol = {t.key: t.tol for t in TARGETS}
     best: dict[str, dict[str, Any]] = {}
     for f in sorted(Path(log_dir).glob("*.jsonl")):
         form, level = f.name.split(".")[0].rsplit("-", 1)
@@ -387,15 +391,84 @@ def best_per_target(log_dir: str | Path) -> dict[str, dict[str, Any]]:
             if not md:
                 continue
             m = Measured(**{k: v for k, v in md.items() if k in Measured.__dataclass_fields__})
-            for k, e in target_errors(m).items():
+            errs = target_errors(m)
+            for k, e in errs.items():
                 if not np.isfinite(e):
                     continue
-                b = best.setdefault(k, {"n": 0})
+                b = best.setdefault(k, {"n": 0, "n_hit": 0})
                 b["n"] += 1
                 if "error" not in b or abs(e) < abs(b["error"]):
                     b.update(error=float(e), form=form, level=level, J=float(rec["J"]),
                              x=rec["x"])
+                if abs(e) <= tol[k] * (1 + 1e-9):
+                    # the trade-off: of the evaluations that hit this target, the lowest J and
+                    # which landmarks miss 0.02 there
+                    b["n_hit"] += 1
+                    if "hit_J" not in b or rec["J"] < b["hit_J"]:
+                        b.update(hit_J=float(rec["J"]), hit_form=form, hit_level=level,
+                                 hit_x=rec["x"],
+                                 hit_misses={q: (None if not np.isfinite(v) else float(v))
+                                             for q, v in errs.items()
+                                             if q != k and q in LANDMARK_KEYS and
+                                             not (np.isfinite(v) and abs(v) <= tol[q])})
     return best
+
+
+def partial_record(form: Form, log_dir: str | Path) -> dict[str, Any] | None:
+    """A form whose fit did not finish: its evaluations so far and the best logged one (an
+    exact evaluation if any, else the best coarse one), marked ``unfinished``; None if nothing
+    was logged. The row is comparable with the finished ones only at the same level."""
+    n = {"coarse": 0, "exact": 0}
+    best: dict[str, Any] = {}
+    for level in ("coarse", "exact"):
+        for f in sorted(Path(log_dir).glob(f"{form.name}-{level}.*.jsonl")):
+            for line in f.read_text().splitlines():
+                rec = json.loads(line)
+                n[level] += 1
+                if not rec.get("measured"):
+                    continue
+                b = best.get(level)
+                if b is None or rec["J"] < b["J"]:
+                    best[level] = rec
+    if not n["coarse"] and not n["exact"]:
+        return None
+    level = "exact" if "exact" in best else "coarse"
+    rec = best.get(level)
+    names = [f.name for f in form.free]
+    out: dict[str, Any] = {"form": form.name, "text": form.text, "fixed": form.fixed,
+                           "continuation": form.continuation,
+                           "unfinished": {"n_coarse": n["coarse"], "n_exact": n["exact"],
+                                          "level": level}}
+    if rec is not None:
+        out.update(J=rec["J"], terms=rec.get("terms", {}), measured=rec["measured"],
+                   best=dict(zip(names, rec["x"], strict=True)))
+    return out
+
+
+def stream_runs(forms_dir: str | Path) -> dict[str, dict[str, Any]]:
+    """Per form, from the fit streams' logs (``stream*.log`` in ``forms_dir``, written by the
+    lead's fitstream.sh): start and end time, load average at the start, code version, wall
+    and user seconds of the process (``/usr/bin/time``)."""
+    import re
+
+    runs: dict[str, dict[str, Any]] = {}
+    for f in sorted(Path(forms_dir).glob("stream*.log")):
+        cur = None
+        for line in f.read_text().splitlines():
+            mo = re.match(r"=== (\S+) start (\S+) load (\S+) (\S+) (\S+) code (\S+)", line)
+            if mo:
+                cur = mo.group(1)
+                runs[cur] = {"stream": f.stem, "start": mo.group(2),
+                             "load": " ".join(mo.group(3, 4, 5)), "code": mo.group(6)}
+                continue
+            mo = re.match(r"([0-9.]+) s wall ([0-9.]+) s user", line)
+            if mo and cur:
+                runs[cur].update(wall_s=float(mo.group(1)), user_s=float(mo.group(2)))
+                continue
+            mo = re.match(r"=== (\S+) end (\S+)", line)
+            if mo and mo.group(1) in runs:
+                runs[mo.group(1)]["end"] = mo.group(2)
+    return runs
 
 
 def kmax_for(form: Form, x: Sequence[float], st: FidelitySettings | None = None, *,
@@ -419,14 +492,22 @@ def evidence_lines(best: dict[str, dict[str, Any]]) -> list[str]:
     from .fidelity import SHORT_HEAD, TARGETS
 
     lines = ["| target | tol | closest error any evaluation reached | form | level | J of that "
-             "evaluation | evaluations measuring it |", "|---|---|---|---|---|---|---|"]
+             "evaluation | evaluations measuring it | within tol | lowest J within tol "
+             "(form, level): landmarks then missing 0.02 |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for t in TARGETS:
         b = best.get(t.key)
         if not b or "error" not in b:
-            lines.append(f"| {SHORT_HEAD[t.key]} | {t.tol:g} | never measured | | | | 0 |")
+            lines.append(f"| {SHORT_HEAD[t.key]} | {t.tol:g} | never measured | | | | 0 | 0 | |")
             continue
+        hit = ""
+        if b.get("n_hit"):
+            miss = b.get("hit_misses") or {}
+            ms = ", ".join(f"{SHORT_HEAD[k]} {'miss' if v is None else format(v, '+.3f')}"
+                           for k, v in miss.items()) or "none"
+            hit = f"{b['hit_J']:.2f} ({b['hit_form']}, {b['hit_level']}): {ms}"
         lines.append(f"| {SHORT_HEAD[t.key]} | {t.tol:g} | {b['error']:+.4g} | {b['form']} | "
-                     f"{b['level']} | {b['J']:.2f} | {b['n']} |")
+                     f"{b['level']} | {b['J']:.2f} | {b['n']} | {b.get('n_hit', 0)} | {hit} |")
     return lines
 
 
@@ -436,10 +517,11 @@ def evaluate_unsearched(form: Form, points: dict[str, Sequence[float]],
     standard shape and another form's best; the best point's values are the row."""
     from .provenance import code_version
 
-    final = final or FidelitySettings(exact=True, xi_bisect=6, xi_dw=0.02)
+    final = final or FINAL
     rec: dict[str, Any] = {"form": form.name, "text": form.text, "fixed": form.fixed,
                            "continuation": form.continuation, "searched": False,
-                           "code_version": code_version(), "points": {}}
+                           "code_version": code_version(), "final": final.to_dict(),
+                           "points": {}}
     t0 = time.time()
     names = [f.name for f in form.free]
     for key, x in points.items():

@@ -267,15 +267,29 @@ def _forms(args) -> int:
 def _forms_table(args) -> int:
     """Collect the per-form records into --out (key ``forms``) and print the table."""
     from ..fidelity import compact_record, form_report_lines
-    from ..fidelity_fit import FORMS
+    from ..fidelity_fit import (
+        FORMS,
+        best_per_target,
+        evidence_lines,
+        partial_record,
+        stream_runs,
+    )
 
     d = Path(args.forms_dir)
+    runs = stream_runs(d)
     recs = {}
     for name in [s.strip() for s in args.forms.split(",") if s.strip()]:
         f = d / f"{name}.json"
-        if not f.is_file():
-            raise UsageError(f"--forms: no record {f} (run --stage forms first)")
-        recs[name] = compact_record(json.loads(f.read_text()))
+        if f.is_file():
+            rec = json.loads(f.read_text())
+        elif name in FORMS and (part := partial_record(FORMS[name], d / "logs")) is not None:
+            rec = part  # the fit did not finish: its evaluations so far, marked unfinished
+        else:
+            raise UsageError(f"--forms: no record {f} and no logged evaluation of {name} "
+                             "(run --stage forms first)")
+        if name in runs:
+            rec["run"] = runs[name]
+        recs[name] = compact_record(rec)
     if args.adopt is not None and args.adopt not in recs:
         raise UsageError(f"--adopt {args.adopt!r} is not among --forms {', '.join(recs)}")
     out = Path(args.out)
@@ -293,8 +307,11 @@ def _forms_table(args) -> int:
         kmax.update(form=kform, x=x0, at="standard (the search's start)")
         kb = kmax_for(form, [best[f.name] for f in form.free])
         kmax["best"] = {**kb, "x": best}
+    evidence = best_per_target(d / "logs") if (d / "logs").is_dir() else {}
     record["forms"] = {"records": recs, "adopted": args.adopt, "decision": args.decision,
                        "kmax_form": kform, "kmax": kmax,
+                       "evidence": evidence,
+                       "evidence_lines": evidence_lines(evidence) if evidence else [],
                        "known_forms": {n: f.text for n, f in FORMS.items()}}
     out.write_text(json.dumps(record, indent=1, default=float))
     print("\n".join(form_report_lines(record["forms"])))

@@ -13,14 +13,13 @@ import numpy as np
 import pandas as pd
 
 from .. import catalogue
-from ..batch import simulate_rows
 from ..config import base_parameters, integration_settings, resolved_parameters, results_dir
 from ..errors import UsageError
 from ..grid import sweep_values
 from ..parameters import ModelParameters
 from ..provenance import provenance, sweep_subtree
 from ..simulate import simulate_cell, trajectory
-from ..sweep import continuation_chain
+from ..sweep import continuation_chain, sweep_records
 from ..tiles import records_to_frame
 from ._common import check_new_file
 from .simulate_tile import Progress, add_config_arguments, config_from_args
@@ -60,51 +59,13 @@ def sweep_frame(
     base, name: str, values: np.ndarray, direction: str, settings, progress=None,
     start: str = "continuation",
 ) -> pd.DataFrame:
-    """The rows of :func:`gearsim.sweep.orbit_diagram` plus final_state/final_period/elapsed_s.
+    """The records of :func:`gearsim.sweep.sweep_records` with the catalogue's stable dtypes.
 
-    ``direction="both"``: the forward rows, then the backward rows (hysteresis in one job).
     ``start="rest"``: every cell from the static state instead of the previous cell's state.
     """
-    if direction == "both":
-        return pd.concat(
-            [sweep_frame(base, name, values, d, settings, progress, start)
-             for d in ("forward", "backward")],
-            ignore_index=True,
-        )  # fmt: skip
-
-    vals = np.sort(np.asarray(values, dtype=float))
-    if direction == "backward":
-        vals = vals[::-1]
-    plist = [base.with_(**{name: float(v)}) for v in vals]
-    stamps: list[float] = []
-    t0 = time.perf_counter()
-
-    def on_cell(i, _res):
-        stamps.append(time.perf_counter())
-        if progress and ((i + 1) % 25 == 0 or i + 1 == len(plist)):
-            progress(i + 1, len(plist), stamps[-1] - t0)
-
-    if settings.method == "rk4":
-        results = simulate_rows(
-            [plist], settings=settings, continuation=start == "continuation",
-            on_cell=lambda _r, i, res: on_cell(i, res),
-        )[0]
-    else:
-        results = continuation_chain(plist, settings=settings, on_cell=on_cell,
-                                     continuation=start == "continuation")
-    rows: list[dict[str, Any]] = []
-    prev = t0
-    for v, r, t in zip(vals, results, stamps, strict=True):
-        row = {"parameter": name, "value": float(v), "direction": direction}
-        row.update(r.row())
-        row["poincare_x"] = r.poincare[:, 0].tolist()
-        row["poincare_v"] = r.poincare[:, 1].tolist()
-        row["final_state"] = r.final_state.tolist()
-        row["final_period"] = int(r.final_period)
-        row["elapsed_s"] = t - prev
-        prev = t
-        rows.append(row)
-    return records_to_frame(rows)
+    return records_to_frame(sweep_records(base, name, values, direction=direction,
+                                          settings=settings, progress=progress,
+                                          continuation=start == "continuation"))
 
 
 def _point_list(spec) -> list[dict[str, float]]:
