@@ -216,6 +216,82 @@ def cmd_audit(args) -> dict:
     return out
 
 
+def cmd_audit_ab(args) -> dict:
+    """CPU of the audit's reference at each ``tighten``, side by side: the same sample, the
+    variants alternated ``--repeats`` times in one process (load recorded)."""
+    import pandas as pd
+
+    from gearsim.commands.catalogue import audit_frame
+
+    config = _config(args.config, {})
+    cells = pd.read_parquet(args.frame)
+    cpu: dict = {f: [] for f in args.tighten}
+    labels: dict = {}
+    l0 = loadavg()
+    for _ in range(args.repeats):
+        for f in args.tighten:
+            config["audit"] = {**config["audit"], "fraction": args.fraction, "tighten": f}
+            c0 = time.process_time()
+            df = audit_frame(config, args.plane, cells)
+            cpu[f].append(time.process_time() - c0)
+            labels[f] = (df["tight_label"] + " " + df["tight_label_npq"]).tolist()
+    ref = labels[args.tighten[0]]
+    out = {"frame": args.frame, "fraction": args.fraction, "cells": len(ref),
+           "cpu_s": {str(f): v for f, v in cpu.items()},
+           "ratio_to_first": {str(f): min(cpu[f]) / min(cpu[args.tighten[0]])
+                              for f in args.tighten},
+           "label_diffs_vs_first": {str(f): sum(a != b for a, b in zip(labels[f], ref,
+                                                                       strict=True))
+                                    for f in args.tighten},
+           "load_before": l0, "load_after": loadavg()}
+    print(json.dumps(out))
+    return out
+
+
+def cmd_landmarks(args) -> dict:
+    """The report's numbers with a setting changed: the standard sweep's landmarks matched to
+    the paper's (report.py: find_landmarks, match_paper; the default sweep, 1201 points) and the
+    thresholds read off plane frames (report.row_threshold)."""
+    import pandas as pd
+
+    from gearsim.commands.sweep import sweep_frame
+    from gearsim.config import base_parameters, integration_settings
+    from gearsim.grid import sweep_values
+    from gearsim.landmarks import find_landmarks, match_paper
+    from gearsim.parameters import ModelParameters
+    from gearsim.report import (
+        PAPER_B_THRESHOLD,
+        PAPER_XI_THRESHOLD,
+        double_sided,
+        not_period_one,
+        row_threshold,
+    )
+
+    config = _config(args.config, _sets(args.set))
+    sw = config["sweeps"]["standard"]
+    values, _ = base_parameters(config, CONFIG_ROOT)
+    base = ModelParameters.from_mapping({**values, **(sw.get("fixed") or {})})
+    c0 = time.process_time()
+    df = sweep_frame(base, sw["name"], sweep_values(sw), sw["direction"],
+                     integration_settings(config))
+    cpu = time.process_time() - c0
+    m = match_paper(find_landmarks(df))
+    out = {"set": _sets(args.set), "sweep_cpu_s": cpu, "load": loadavg(),
+           "landmarks": m[["key", "paper", "ours", "error", "found"]].to_dict("records")}
+    for f in args.frames or []:
+        cells = pd.read_parquet(f)
+        y = "b" if "b" in cells.columns and cells["b"].nunique() > 1 else "xi"
+        fn, paper = (double_sided, PAPER_B_THRESHOLD) if y == "b" else (not_period_one,
+                                                                        PAPER_XI_THRESHOLD)
+        t = row_threshold(cells, y, fn(cells), name=y, paper=paper)
+        out[f"threshold {Path(f).stem}"] = None if t is None else {
+            "value": t.value, "last_with": t.last_with, "first_without": t.first_without}
+    for r in out["landmarks"]:
+        print(r["key"], r["paper"], r["ours"], r["error"])
+    print({k: v for k, v in out.items() if k.startswith("threshold")}, f"sweep CPU {cpu:.1f} s")
+    return out
+
+
 def main(argv=None) -> int:
     setup_env()
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -243,10 +319,22 @@ def main(argv=None) -> int:
     d.add_argument("--plane", default="wb")
     d.add_argument("--audit", nargs="*", help="audit overrides key=value")
     d.add_argument("--save", default=None)
+    e = sub.add_parser("audit-ab")
+    e.add_argument("frame")
+    e.add_argument("--config", default=None)
+    e.add_argument("--plane", default="wb")
+    e.add_argument("--fraction", type=float, default=0.001)
+    e.add_argument("--tighten", type=float, nargs="+", default=[100.0, 10.0, 1.0])
+    e.add_argument("--repeats", type=int, default=2)
+    g = sub.add_parser("landmarks")
+    g.add_argument("--config", default=None)
+    g.add_argument("--set", nargs="*", help="integration overrides key=value")
+    g.add_argument("--frames", nargs="*", help="plane frames to read the thresholds from")
     ap.add_argument("--name", default=None, help="write benchmarks/results/<name>.json")
     args = ap.parse_args(argv)
     out = {"cells": cmd_cells, "plane": cmd_plane, "compare": cmd_compare,
-           "audit": cmd_audit}[args.cmd](args)
+           "audit": cmd_audit, "audit-ab": cmd_audit_ab,
+           "landmarks": cmd_landmarks}[args.cmd](args)
     if args.name:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / f"{args.name}.json").write_text(json.dumps(out, indent=1, default=str))
