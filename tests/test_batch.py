@@ -345,6 +345,36 @@ def test_scalar_rk4_and_batched_rk4_are_bit_identical():
     assert len(labels) >= 4  # impacting, chaotic and multi-period motions are compared
 
 
+def test_recurrence_probe_scalar_and_batched_are_bit_identical():
+    """transient_recurrence on: continuation chains through the lanes and through
+    simulate_cell agree to the last bit. Every cell comes twice in a row: the repeat starts on
+    its attractor (the probe ends its transient), a chaotic repeat does not recur (the whole
+    transient), so both branches run in the same lanes. (After a cut the next cell starts
+    1e-7 away from off's start: a chaotic cell's exponent, and so chaos or quasi-periodic at
+    the threshold, may then differ from off's; only cut cells are compared with off.)"""
+    st = RK4.with_(transient_continuation=40, transient_recurrence=24)
+    ws = (0.45, 0.7, 1.05, 1.25, 1.5, 1.55)
+    rows = [[ModelParameters(w=w, b=b) for w in ws for _ in (0, 1)] for b in (0.15, 1.0)]
+    got = batch.simulate_rows(rows, settings=st)
+    off = batch.simulate_rows(rows, settings=st.with_(transient_recurrence=0))
+    cut = full = 0
+    for row, res, res_off in zip(rows, got, off, strict=True):
+        ref = continuation_chain(row, settings=st)
+        for a, b, c in zip(res, ref, res_off, strict=True):
+            np.testing.assert_array_equal(a.poincare, b.poincare)
+            np.testing.assert_array_equal(a.final_state, b.final_state)
+            assert _key(a.classification) == _key(b.classification)
+            assert a.classification.lyapunov == b.classification.lyapunov
+            assert a.steps == b.steps and a.periods == b.periods
+            if a.periods == c.periods - 16:  # cut: the label of the option off
+                cut += 1
+                assert _key(a.classification) == _key(c.classification)
+            elif a.steps > c.steps:  # restarted after the probe: off's plan, probe steps added
+                full += 1
+                assert a.periods == c.periods
+    assert cut >= 6 and full >= 4  # both branches of the probe are compared
+
+
 def test_single_dof_lanes_equal_scalar_and_keep_bearings_frozen():
     p = ModelParameters(w=1.02, b=1.0, model="1dof")
     (a,) = batch.simulate_cells([p], settings=RK4)

@@ -69,3 +69,28 @@ def test_rk4_halved_step_keeps_classification(w, b, label, npq):
     base = IntegrationSettings(method="rk4")
     assert _classify(w, b, base) == (label, npq)
     assert _classify(w, b, base.tightened()) == (label, npq)
+
+
+
+
+def test_recurrence_probe_keeps_every_label_of_the_set():
+    """transient_recurrence (issue 16.4): every cell of the set from rest, then again continued
+    from its own final state (a start on its attractor, where the probe ends the transient):
+    the option changes no label, and it does cut the repeats' transients (not vacuous).
+    (A chain through the set's cells, e.g. w 1.7 -> 2.0 at b = 1, lands on one of two
+    coexisting attractors (1T, 3T) depending on the 1e-7 differences of its start: that
+    multistability is not the probe's, docs in benchmarks/README.md (l).)"""
+    from gearsim.batch import simulate_rows
+
+    base = IntegrationSettings.from_config().with_(transient_recurrence=0)
+    rows = [[ModelParameters(w=w, b=b, **REFERENCE_SET)] * 2 for w, b, _, _ in CELLS]
+    off = simulate_rows(rows, settings=base)
+    on = simulate_rows(rows, settings=base.with_(transient_recurrence=24))
+    cut = 0
+    for (_, _, label, npq), row_off, row_on in zip(CELLS, off, on, strict=True):
+        for a, c in zip(row_off, row_on, strict=True):
+            assert (c.classification.label, c.classification.label_npq) == (
+                a.classification.label, a.classification.label_npq)
+        assert (c.classification.label, c.classification.label_npq) == (label, npq)
+        cut += row_on[1].periods < row_off[1].periods
+    assert cut >= 20

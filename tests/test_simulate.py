@@ -129,3 +129,50 @@ def test_batched_lanes_compacted_as_cells_finish_give_the_same_results(monkeypat
                    for a, b in zip(ra.values(), rb.values(), strict=True))  # fmt: skip
         assert np.array_equal(r.final_state, alone.final_state)
         assert np.array_equal(r.poincare, alone.poincare)
+
+
+# ------------------------------------------------------ transient_recurrence (issue 16.4)
+def test_recurrence_probe_cuts_only_a_recurring_continued_start():
+    """A continued start already on its attractor measures after the probe (fewer periods,
+    the same label and section points as the full transient); a chaotic start does not recur
+    and runs the whole transient; a cell from rest never probes."""
+    off = IntegrationSettings(method="rk4", transient_continuation=40)
+    on = off.with_(transient_recurrence=24)
+    p = ModelParameters(w=1.05)
+    first = simulate_cell(p, settings=off)
+    args = dict(start_period=first.final_period)
+    a = simulate_cell(p, first.final_state, settings=off, **args)
+    b = simulate_cell(p, first.final_state, settings=on, **args)
+    assert b.classification.label_npq == a.classification.label_npq == "2-2-0"
+    assert b.periods == a.periods - (40 - 24)
+    np.testing.assert_allclose(np.sort(b.poincare[:, 0]), np.sort(a.poincare[:, 0]), atol=1e-7)
+    c = ModelParameters(w=1.5)
+    first = simulate_cell(c, settings=off)
+    a = simulate_cell(c, first.final_state, settings=off, start_period=first.final_period)
+    b = simulate_cell(c, first.final_state, settings=on, start_period=first.final_period)
+    assert a.classification.motion == b.classification.motion == "chaos"
+    assert b.periods == a.periods  # no recurrence: the whole transient
+    assert simulate_cell(p, settings=on).periods == simulate_cell(p, settings=off).periods
+
+
+def test_transient_recurrence_bad_values_exit_2_with_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    import pytest
+
+    from gearsim.parameters import ParameterError
+
+    for bad in (8, 16, -1, True, 2.5):
+        with pytest.raises(ParameterError, match="transient_recurrence"):
+            IntegrationSettings(transient_recurrence=bad)
+    with pytest.raises(ParameterError, match=r"\[30, 100000\]"):
+        IntegrationSettings(transient_recurrence=24, tangent_lead=30)  # below the lead
+    assert IntegrationSettings(transient_recurrence=17, tangent_lead=0).transient_recurrence == 17
+    f = tmp_path / "bad.yaml"
+    f.write_text("integration: {transient_recurrence: 10}\n")
+    r = subprocess.run([sys.executable, "-m", "gearsim", "point", "--omega", "0.48",
+                        "--configfile", str(f)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "transient_recurrence" in lines[0] and "[24, 100000]" in lines[0]

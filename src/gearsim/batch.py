@@ -40,7 +40,7 @@ import numpy as np
 from numba import njit
 from numba.cpython.unsafe.tuple import tuple_setitem
 
-from .classify import PeriodSummaries, estimate_period
+from .classify import PeriodSummaries
 from .events import (
     ACC_FMAX,
     ACC_FMIN,
@@ -86,6 +86,8 @@ from .simulate import (
     diverged_result,
     finish_cell,
     initial_tangent,
+    period_of,
+    recurrence_probe,
     seeds_continuation,
 )
 from .steps import (
@@ -575,6 +577,7 @@ _TRANSIENT = 0
 _LEAD = 2  # end of the transient with the tangent vector on (simulate_cell's tangent_lead)
 _BUDGET = 3  # the cell needs more steps than IntegrationSettings.max_steps: not integrated
 _MEASURE = 1
+_PROBE = 4  # transient_recurrence: a continued cell's probe for recurrence, recorded
 
 
 @dataclass
@@ -716,7 +719,8 @@ def simulate_cells(
 
 def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, continuation: bool,
                 on_cell) -> None:
-    lanes = Lanes(len(chains), st.max_periods)
+    # records of the measured periods, or of a longer recurrence probe
+    lanes = Lanes(len(chains), max(st.max_periods, st.transient_recurrence))
     for l, ch in enumerate(chains):
         ch.lane = l
         ch.start = ch.u0
@@ -744,7 +748,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             l = c.lane
             hcol[l] = c.h
             ist[_ST, l] = 0
-            ist[_POS, l] = c.measured if c.phase == _MEASURE else -1
+            ist[_POS, l] = c.measured if c.phase in (_MEASURE, _PROBE) else -1
             ist[_K, l] = c.k
         lanes.set_column(_H, hcol)
         # the tangent vector is only needed while some lane measures (else: the transient)
@@ -756,7 +760,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             c.k += done
             c.left -= done
             c.steps += int(ist[_STEPS, l])
-            if c.phase == _MEASURE:
+            if c.phase in (_MEASURE, _PROBE):
                 c.measured += done
             if ist[_ST, l] != 0:
                 # diverged (during the transient or a chunk): simulate_cell's diverged record
@@ -770,6 +774,8 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                     _begin_lead(c, lanes, st)
                 elif c.phase == _LEAD:
                     _begin_measure(c, lanes, st)
+                elif c.phase == _PROBE:
+                    _end_probe(c, lanes, st)
                 else:
                     _decide(c, lanes, st, continuation, on_cell)
         active = [ch for ch in chains if not ch.finished]
@@ -818,6 +824,15 @@ def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     ch.tangent0 = initial_tangent(params)
     lanes.load_state(ch.lane, np.concatenate([y, ch.tangent0]))
     ch.lead = min(st.tangent_lead, transient)
+    probe = recurrence_probe(st, ch.start is not None, transient)
+    if probe:
+        # simulate_cell's probe: the tangent runs from the start, the periods are recorded
+        ch.phase, ch.left = _PROBE, probe
+    else:
+        _begin_transient(ch, lanes, st, transient)
+
+
+def _begin_transient(ch: _Chain, lanes: Lanes, st: IntegrationSettings, transient: int) -> None:
     if transient - ch.lead > 0:
         ch.phase = _TRANSIENT
         ch.left = transient - ch.lead
@@ -836,6 +851,23 @@ def _begin_lead(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
         _begin_measure(ch, lanes, st)
 
 
+def _end_probe(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
+    """After the recurrence probe: measure at once if the start recurred, else restart the cell
+    from its start state with the plan without the probe (as simulate_cell does)."""
+    params = ch.cells[ch.i]
+    recurs = period_of(lanes.summaries(ch.lane, ch.measured, copy=False), params, st) > 0
+    ch.measured = 0
+    if recurs:
+        ch.lead = 0
+        lanes.reset_modes(ch.lane)  # a new run_periods call in simulate_cell
+        _begin_measure(ch, lanes, st)
+    else:
+        y = np.asarray(ch.start, dtype=float)[:N_STATE]
+        lanes.load_state(ch.lane, np.concatenate([y, ch.tangent0]))
+        ch.k = ch.period
+        _begin_transient(ch, lanes, st, st.transient_continuation)
+
+
 def _begin_measure(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     ch.phase = _MEASURE
     ch.measured = 0
@@ -848,9 +880,7 @@ def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_
     """After a measuring chunk: the period test of simulate_cell, then finish or go on."""
     params = ch.cells[ch.i]
     s = lanes.summaries(ch.lane, ch.measured, copy=False)  # read before the lane moves on
-    scale = float(s.xmax.max() - s.xmin.min())
-    n = estimate_period(s.section[:, 0], s.section[:, 1], scale, params.w, st.n_max,
-                        st.period_rtol)
+    n = period_of(s, params, st)
     if n > 0 or ch.measured >= st.max_periods:
         y = lanes.state(ch.lane, N_STATE)
         res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps)

@@ -96,6 +96,10 @@ __all__ = [
     "end_period_tangent",
 ]
 
+#: Shortest useful ``transient_recurrence``: the period test confirms over at least 16 points
+#: (``estimate_period``'s ``min_confirm``), so period 1 needs 17 recorded periods.
+RECURRENCE_MIN = 17
+
 STATUS_NAMES = {STATUS_OK: "ok", STATUS_DIVERGED: "diverged", STATUS_STEP_COLLAPSE: "diverged"}
 
 
@@ -357,6 +361,16 @@ class IntegrationSettings:
         Periods at the end of the transient during which the tangent vector already runs, so
         that it is aligned with the most unstable direction when measuring starts (a fresh
         random vector overestimates the largest exponent by ~log(transient growth) / window).
+    transient_recurrence
+        0 (off, the default): every transient runs to its end. ``k > 0``: a continued cell
+        (start ``u0`` given) first runs a probe of ``k`` periods with the tangent vector on and
+        its section points recorded; if they recur (the period test,
+        :func:`gearsim.classify.estimate_period`) the start was already on the attractor and
+        measuring starts at once, else the cell restarts from ``u0`` without the probe (its
+        numbers are then those of the option off, to the bit; the probe's steps are counted).
+        ``k`` must be at least ``tangent_lead`` (the tangent vector's alignment) and 17 (the
+        period test's shortest window: 16 confirming points); ``k >= transient_continuation``
+        means no probe.
     """
 
     method: str = "dp5"
@@ -374,6 +388,7 @@ class IntegrationSettings:
     divergence_bound: float = 1.0e6
     tangent_lead: int = 24
     max_steps: int = 5_000_000
+    transient_recurrence: int = 0
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -406,6 +421,13 @@ class IntegrationSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= {lo}")
+        k = self.transient_recurrence
+        lo = max(RECURRENCE_MIN, self.tangent_lead)
+        if isinstance(k, bool) or not isinstance(k, int) or (k != 0 and not lo <= k <= 100_000):
+            raise ParameterError(
+                f"setting 'transient_recurrence' = {k!r} must be 0 (off) or an integer in "
+                f"[{lo}, 100000] (at least tangent_lead and {RECURRENCE_MIN})"
+            )
 
     @classmethod
     def from_config(cls, config: Any = None) -> IntegrationSettings:

@@ -1,6 +1,7 @@
 """Drivers: integrate a cell to its steady motion and classify it; record trajectories.
 
-``simulate_cell`` runs a transient (its last ``tangent_lead`` periods with the tangent vector),
+``simulate_cell`` runs a transient (its last ``tangent_lead`` periods with the tangent vector;
+with ``transient_recurrence`` a continued cell's transient ends early when its start recurs),
 then measures in chunks of mesh periods and stops as soon as a period ``n <= n_max`` is
 established and confirmed, or when the budget ``max_periods`` is spent (then chaos,
 quasi-periodic or unsettled is decided by the Lyapunov exponent).
@@ -32,6 +33,8 @@ __all__ = [
     "finish_cell",
     "diverged_result",
     "seeds_continuation",
+    "period_of",
+    "recurrence_probe",
     "initial_tangent",
     "Trajectory",
     "trajectory",
@@ -123,6 +126,22 @@ def seeds_continuation(res: CellResult) -> bool:
     return res.classification.status not in ("diverged", "budget")
 
 
+def period_of(s: PeriodSummaries, params: ModelParameters, st: IntegrationSettings) -> int:
+    """The period test on recorded periods ``s`` (:func:`~gearsim.classify.estimate_period`,
+    tolerances relative to the orbit's x range): the motion's period ``n``, 0 if none.
+    The one call of the scalar and the batched driver, for measuring chunks and the probe."""
+    scale = float(s.xmax.max() - s.xmin.min())
+    return estimate_period(s.section[:, 0], s.section[:, 1], scale, params.w, st.n_max,
+                           st.period_rtol)
+
+
+def recurrence_probe(st: IntegrationSettings, continued: bool, transient: int) -> int:
+    """Periods of the recurrence probe of a cell (``transient_recurrence``), 0 for none: only a
+    continued cell whose transient is longer than the probe has one."""
+    k = st.transient_recurrence
+    return k if continued and 0 < k < transient else 0
+
+
 def finish_cell(
     params: ModelParameters,
     summaries: PeriodSummaries,
@@ -197,11 +216,24 @@ def simulate_cell(
     if steps_lower_bound(params, st, transient + min(st.chunk, max_periods)) > st.max_steps:
         return diverged_result(params, k, 0, status="budget")
     lead = min(st.tangent_lead, transient)
+    yt = None
+    probe = recurrence_probe(st, u0 is not None, transient)
+    if probe:
+        # the start of the transient with the tangent on, recorded: if it already recurs (on
+        # the attractor) measuring starts at once; else the cell restarts from u0 with the
+        # plan below, so a cell the probe does not cut is the plan without it to the bit
+        r = run_periods(params, np.concatenate([y, initial_tangent(params)]), probe, st,
+                        start_period=k, tangent=True, parray=p)
+        steps, status = r.n_steps, r.status
+        if status != STATUS_OK or period_of(r.summaries, params, st) > 0:
+            yt, k, h, lead, transient = r.state, k + r.periods_done, r.h_last, 0, 0
     if transient - lead > 0:
         r = run_periods(params, y, transient - lead, st, start_period=k, parray=p)
-        y, k, steps, h, status = r.state, k + r.periods_done, r.n_steps, r.h_last, r.status
+        y, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
+        steps += r.n_steps
     parts: list[PeriodSummaries] = []
-    yt = np.concatenate([y, initial_tangent(params)])
+    if yt is None:
+        yt = np.concatenate([y, initial_tangent(params)])
     if lead > 0 and status == STATUS_OK:
         # the tangent vector aligns during the end of the transient (not recorded)
         r = run_periods(params, yt, lead, st, start_period=k, tangent=True, h_init=h, parray=p)
@@ -218,11 +250,7 @@ def simulate_cell(
         measured += r.periods_done
         if status != STATUS_OK:
             break
-        s = PeriodSummaries.concat(parts)
-        scale = float(s.xmax.max() - s.xmin.min())
-        n = estimate_period(
-            s.section[:, 0], s.section[:, 1], scale, params.w, st.n_max, st.period_rtol
-        )
+        n = period_of(PeriodSummaries.concat(parts), params, st)
         if n > 0:
             break
         if steps > st.max_steps:

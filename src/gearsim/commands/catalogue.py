@@ -88,8 +88,23 @@ def _cells(args) -> int:
     return 0
 
 
+def audit_settings(config: dict):
+    """The audit's reference: the adaptive DP5 integrator, whatever method produced the cells
+    (an independent integrator, not just a finer step of the same one), at ``audit.tighten``
+    times the configuration's DP5 tolerances and half its step cap; the cell plan (transient,
+    chunks, period test, ``transient_recurrence``) is the configuration's. ``tighten: 100`` is
+    :meth:`IntegrationSettings.tightened`; the evidence for the default is in
+    benchmarks/README.md (l)."""
+    from .. import config as gcfg
+
+    st = gcfg.integration_settings(config).with_(method="dp5")
+    f = float(config["audit"].get("tighten", 100))
+    return st.with_(rtol=st.rtol / f, atol=st.atol / f, hmax=st.hmax / 2)
+
+
 def audit_frame(config: dict, plane: str, cells, progress=None):
-    """Re-simulate a deterministic sample of cells with DP5 at ``IntegrationSettings.tightened()``.
+    """Re-simulate a deterministic sample of cells with DP5 at tightened tolerance
+    (:func:`audit_settings`).
 
     Each audited cell starts exactly where the pipeline started it: from the final state of its
     left neighbour in the row (continuation), or from rest for the first cell of a row.
@@ -109,9 +124,7 @@ def audit_frame(config: dict, plane: str, cells, progress=None):
     pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
     base = gcfg.plane_base(config, plane)
     pl = config["planes"][plane]
-    # the reference is the adaptive DP5 integrator at 100x tighter tolerance, whatever method
-    # produced the cells: an independent integrator, not just a finer step of the same one
-    tight = gcfg.integration_settings(config).with_(method="dp5").tightened()
+    tight = audit_settings(config)
     index = {
         (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
     }
@@ -173,7 +186,6 @@ def _audit(args) -> int:
     import pandas as pd
 
     from .. import catalogue, provenance
-    from .. import config as gcfg
     from .simulate_tile import Progress
 
     config = config_from_args(args)
@@ -202,7 +214,7 @@ def _audit(args) -> int:
         audit_seed=int(config["audit"]["seed"]),
         agreement=agreement,
         threshold=threshold,
-        settings=gcfg.integration_settings(config).with_(method="dp5").tightened().to_dict(),
+        settings=audit_settings(config).to_dict(),
         workers="in-process",
     )
     catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})
