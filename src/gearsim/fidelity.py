@@ -690,7 +690,7 @@ def form_report_lines(forms: Mapping[str, Any]) -> list[str]:
               for n, r in recs.items() if (r.get("start") or {}).get("measured")}
     if starts:
         out += ["Each searched form's start (the standard shape, measured as that form the same "
-                "way):", "", *form_table_lines(starts), ""]
+                "way):", "", *form_table_lines(starts), "", *form_summary_lines(starts), ""]
     budget = {n: r.get("budget") for n, r in recs.items() if r.get("budget")}
     if budget:
         b0 = next(iter(budget.values()))
