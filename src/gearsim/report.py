@@ -224,8 +224,9 @@ def _audit_lines(audits: list[dict[str, Any]]) -> list[str]:
     if not audits:
         return []
     out = ["## Numerical audit", "",
-           "A seeded sample of every plane re-simulated with the adaptive DP5 integrator at 100x "
-           "tighter tolerance from the same start states; agreement = same label and n-p-q.", "",
+           "A seeded sample of every plane re-simulated with the adaptive DP5 integrator at "
+           "tightened tolerance (the configuration's DP5 tolerances divided by `audit.tighten`) "
+           "from the same start states; agreement = same label and n-p-q.", "",
            "| plane | audited cells | agreement | threshold |", "|---|---|---|---|"]
     low = []
     for a in audits:
