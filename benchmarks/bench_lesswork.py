@@ -183,10 +183,15 @@ def cmd_compare(args) -> dict:
     agree_ref = sum(r.get("dp5") == r["ref"] for r in rows)
     agree_new = sum(r.get("dp5") == r["new"] for r in rows)
     agree_new_start = sum(r.get("dp5_new_start") == r["new"] for r in rows)
+    # each run against DP5 from its own start state: the error rate of each step size
+    ref_wrong = sum("dp5" in r and r["dp5"] != r["ref"] for r in rows)
+    new_wrong = sum("dp5" in r and r["dp5_new_start"] != r["new"] for r in rows)
     summary = {"cells": len(ref), "changed": len(rows), "changed_at_boundary": n_b,
                "changed_interior": len(rows) - n_b, "dp5_checked": sum("dp5" in r for r in rows),
                "dp5_agrees_ref": agree_ref, "dp5_agrees_new": agree_new,
                "dp5_from_new_start_agrees_new": agree_new_start,
+               "ref_differs_from_dp5_same_start": ref_wrong,
+               "new_differs_from_dp5_same_start": new_wrong,
                "cpu_ref_periods": int(ref["periods"].sum()),
                "cpu_new_periods": int(new["periods"].sum()),
                "steps_ref": int(ref["steps"].sum()), "steps_new": int(new["steps"].sum())}
@@ -244,6 +249,39 @@ def cmd_audit_ab(args) -> dict:
                                                                        strict=True))
                                     for f in args.tighten},
            "load_before": l0, "load_after": loadavg()}
+    print(json.dumps(out))
+    return out
+
+
+def cmd_tile_ab(args) -> dict:
+    """Tile CPU per variant, side by side: every ``--every``-th row of the plane (its w step)
+    through the tiles' batched path, variants alternated ``--repeats`` times in one process."""
+    from gearsim.grid import tile_ids
+    from gearsim.tiles import row_specs, simulate_rows_batched
+
+    variants = [_sets(v.split(",")) for v in args.variants]
+    specs = {}
+    for k, v in enumerate(variants):
+        config = _config(args.config, v)
+        rows = [s for t in tile_ids(config, args.plane) for s in row_specs(config, args.plane, t)]
+        specs[k] = rows[:: args.every]
+    cpu: dict = {k: [] for k in specs}
+    steps: dict = {}
+    l0 = loadavg()
+    for _ in range(args.repeats):
+        for k, rows in specs.items():
+            c0 = time.process_time()
+            rec = []
+            for i in range(0, len(rows), 80):
+                rec += simulate_rows_batched(rows[i : i + 80])
+            cpu[k].append(time.process_time() - c0)
+            steps[k] = sum(r["steps"] for r in rec)
+    first = min(cpu[0])
+    out = {"plane": args.plane, "every": args.every, "cells": sum(len(r["x_values"])
+                                                                  for r in specs[0]),
+           "variants": args.variants, "cpu_s": [cpu[k] for k in specs],
+           "ratio_to_first": [min(cpu[k]) / first for k in specs],
+           "steps": [steps[k] for k in specs], "load_before": l0, "load_after": loadavg()}
     print(json.dumps(out))
     return out
 
@@ -326,6 +364,12 @@ def main(argv=None) -> int:
     e.add_argument("--fraction", type=float, default=0.001)
     e.add_argument("--tighten", type=float, nargs="+", default=[100.0, 10.0, 1.0])
     e.add_argument("--repeats", type=int, default=2)
+    t = sub.add_parser("tile-ab")
+    t.add_argument("variants", nargs="+", help="comma-separated key=value integration sets")
+    t.add_argument("--config", default=None)
+    t.add_argument("--plane", default="wb")
+    t.add_argument("--every", type=int, default=10)
+    t.add_argument("--repeats", type=int, default=2)
     g = sub.add_parser("landmarks")
     g.add_argument("--config", default=None)
     g.add_argument("--set", nargs="*", help="integration overrides key=value")
@@ -334,7 +378,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     out = {"cells": cmd_cells, "plane": cmd_plane, "compare": cmd_compare,
            "audit": cmd_audit, "audit-ab": cmd_audit_ab,
-           "landmarks": cmd_landmarks}[args.cmd](args)
+           "landmarks": cmd_landmarks, "tile-ab": cmd_tile_ab}[args.cmd](args)
     if args.name:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / f"{args.name}.json").write_text(json.dumps(out, indent=1, default=str))

@@ -56,7 +56,7 @@ def test_point_uses_the_study_and_says_so(tmp_path):
                        capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     first, second = r.stdout.splitlines()[:2]
-    assert first.startswith("parameters: config/standard_parameters.yaml; integration: rk4 256")
+    assert first.startswith("parameters: config/standard_parameters.yaml; integration: rk4 192")
     assert "pattern=0/1T (1-0-0)" in second
 
 

@@ -176,3 +176,24 @@ def test_transient_recurrence_bad_values_exit_2_with_one_line(tmp_path):
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "transient_recurrence" in lines[0] and "[24, 100000]" in lines[0]
+
+
+def test_audit_tighten_bad_value_is_one_config_error_and_sets_the_dp5_reference(tmp_path):
+    import pytest
+
+    from gearsim.commands.catalogue import audit_settings
+    from gearsim.config import study_config
+    from gearsim.errors import ConfigError
+
+    f = tmp_path / "bad.yaml"
+    f.write_text("audit: {tighten: 0.5}\n")
+    with pytest.raises(ConfigError, match="tighten"):
+        study_config([f])
+    cfg = study_config()
+    st = IntegrationSettings.from_config(cfg)
+    for k in (1, 10, 100):
+        ref = audit_settings({**cfg, "audit": {**cfg["audit"], "tighten": k}})
+        assert ref.method == "dp5" and ref.rtol == st.rtol / k and ref.hmax == st.hmax / 2
+    t = st.with_(method="dp5").tightened()
+    ref = audit_settings({**cfg, "audit": {**cfg["audit"], "tighten": 100}})
+    assert (ref.rtol, ref.atol, ref.hmax) == (t.rtol, t.atol, t.hmax)

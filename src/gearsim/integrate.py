@@ -432,7 +432,7 @@ class IntegrationSettings:
     @classmethod
     def from_config(cls, config: Any = None) -> IntegrationSettings:
         """The study's settings: ``config['integration']`` of a loaded configuration, or with no
-        argument those of ``config/config.yaml`` (:func:`gearsim.config.study_config`: RK4, 256
+        argument those of ``config/config.yaml`` (:func:`gearsim.config.study_config`: RK4, 192
         steps per period, a 40-period continuation transient), as the pipeline uses them."""
         # imported here: gearsim.config builds on this module (the config layer sits above)
         from .config import integration_settings, study_config

@@ -40,7 +40,7 @@ def load_point(args: argparse.Namespace):
     if args.transient < 0:
         raise ParameterError(f"--transient = {args.transient} must be an integer >= 0")
     params, source = orbit_parameters(args.params, args.set, w=args.omega)
-    # the study's settings (config/config.yaml: RK4, 256 steps per period), this transient
+    # the study's settings (config/config.yaml: RK4, 192 steps per period), this transient
     settings = IntegrationSettings.from_config().with_(method="rk4",
                                                        transient=int(args.transient))
     return params, source, settings

@@ -98,7 +98,7 @@ def audit_settings(config: dict):
     from .. import config as gcfg
 
     st = gcfg.integration_settings(config).with_(method="dp5")
-    f = float(config["audit"].get("tighten", 100))
+    f = float(config["audit"].get("tighten", 10))
     return st.with_(rtol=st.rtol / f, atol=st.atol / f, hmax=st.hmax / 2)
 
 
