@@ -113,18 +113,11 @@ def sweep_records(
     return rows
 
 
-def orbit_diagram(
-    params: ModelParameters,
-    name: str,
-    values: Sequence[float] | np.ndarray,
-    *,
-    continuation: bool = True,
-    direction: str = "forward",
-    settings: IntegrationSettings | None = None,
-) -> pd.DataFrame:
+def orbit_diagram(params: ModelParameters, name: str, values: Sequence[float] | np.ndarray,
+                  **options: Any) -> pd.DataFrame:
     """Sweep parameter ``name`` over ``values`` and classify the steady motion at each value.
 
-    A DataFrame of :func:`sweep_records` (one row per value, sorted as swept).
+    A DataFrame of :func:`sweep_records` (one row per value, sorted as swept); ``options`` are
+    its keywords (continuation, direction, settings, progress).
     """
-    return pd.DataFrame(sweep_records(params, name, values, continuation=continuation,
-                                      direction=direction, settings=settings))
+    return pd.DataFrame(sweep_records(params, name, values, **options))
