@@ -48,7 +48,8 @@ from gearsim.simulate import IntegrationSettings
 out, planes_only = sys.argv[1], sys.argv[2] == "1"
 fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
 # the old code's settings: 256 steps per period (config.yaml has 192 since round 5, issue 16.4)
-ov = {"integration": {"tangent_lead": 0, "steps_per_period": 256}} if "tangent_lead" in fields else None
+ov = ({"integration": {"tangent_lead": 0, "steps_per_period": 256}}
+      if "tangent_lead" in fields else None)
 cfg = load_config(["config/config.yaml", "config/quick.yaml"], ov)
 res = {}
 for plane in ("wb", "wxi"):
