@@ -442,12 +442,13 @@ class IntegrationSettings:
     def with_(self, **changes: Any) -> IntegrationSettings:
         return replace(self, **changes)
 
-    def tightened(self) -> IntegrationSettings:
-        """Settings for convergence checks: 100x tighter DP5 tolerance, half the RK4 step."""
+    def tightened(self, factor: float = 100.0) -> IntegrationSettings:
+        """Settings for convergence checks: ``factor`` times tighter DP5 tolerance, half the RK4
+        step and half the step cap (the audit's reference uses ``audit.tighten`` as factor)."""
         return replace(
             self,
-            rtol=self.rtol / 100,
-            atol=self.atol / 100,
+            rtol=self.rtol / factor,
+            atol=self.atol / factor,
             steps_per_period=self.steps_per_period * 2,
             hmax=self.hmax / 2,
         )

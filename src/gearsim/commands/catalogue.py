@@ -98,8 +98,7 @@ def audit_settings(config: dict):
     from .. import config as gcfg
 
     st = gcfg.integration_settings(config).with_(method="dp5")
-    f = float(config["audit"].get("tighten", 10))
-    return st.with_(rtol=st.rtol / f, atol=st.atol / f, hmax=st.hmax / 2)
+    return st.tightened(float(config["audit"].get("tighten", 10)))
 
 
 def audit_frame(config: dict, plane: str, cells, progress=None):
