@@ -5,7 +5,7 @@ values, w = 0.103 ... 2.5) at 8 values of b (rows j = 25, 75, ..., 375) -- with 
 continuation state of each cell (from the batched forward chains, the plane's own seeds) and
 16 seeded Sobol starts (the pipeline's attractor-tile task, ``cell_group_records``' call):
 
-* ``early``: :func:`gearsim.attractors.find_attractors_many` (recurrence-based labelling);
+* ``early``: :func:`gearsim.analysis.attractors.find_attractors_many` (recurrence-based labelling);
 * ``full``: the same with ``early=False`` (every start runs the full transient + measurement).
 
 Both get the same starts; the basin fractions are compared (they must be equal). CPU time
@@ -34,11 +34,11 @@ setup_env()
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
-from gearsim import batch  # noqa: E402
-from gearsim.attractors import find_attractors_many  # noqa: E402
-from gearsim.config_io import load_standard_parameters  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import IntegrationSettings  # noqa: E402
+from gearsim.analysis.attractors import find_attractors_many  # noqa: E402
+from gearsim.cell import chains  # noqa: E402
+from gearsim.cell.simulate import IntegrationSettings  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.study.config_io import load_standard_parameters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,11 +56,11 @@ def main() -> None:
     ws = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400
     bs = (np.arange(400) + 0.5) / 400
     rows_j = [25, 75, 125, 175, 225, 275, 325, 375][: 2 if args.quick else 8]
-    batch.warm_up()
+    chains.warm_up()
     cells, fwd = [], []
     for j in rows_j:
         chain = [base.with_(w=float(w), b=float(bs[j])) for w in ws]
-        res = batch.simulate_rows([chain], settings=st)[0]
+        res = chains.simulate_rows([chain], settings=st)[0]
         keep = range(0, 400, 8)
         cells += [chain[i] for i in keep]
         fwd += [res[i].final_state for i in keep]

@@ -74,9 +74,9 @@ def main(argv=None) -> int:
     setup_env()
     from synthetic_tiles import write_tile
 
-    from gearsim import catalogue as gc
-    from gearsim import config as gcfg
-    from gearsim import grid as ggrid
+    from gearsim.results import catalogue as gc
+    from gearsim.study import config as gcfg
+    from gearsim.study import grid as ggrid
 
     work = Path(args.workdir or tempfile.mkdtemp(prefix="bench_catalogue_"))
     work.mkdir(parents=True, exist_ok=True)

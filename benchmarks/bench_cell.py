@@ -32,16 +32,18 @@ setup_env()
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
-from gearsim import batch  # noqa: E402
-from gearsim.classify import PeriodSummaries, classify_motion, estimate_period  # noqa: E402
-from gearsim.model import static_state  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import (  # noqa: E402
+from gearsim.cell import chains  # noqa: E402
+from gearsim.cell.classify import classify_motion, estimate_period  # noqa: E402
+from gearsim.cell.simulate import (  # noqa: E402
     IntegrationSettings,
     initial_tangent,
     run_periods,
     simulate_cell,
 )
+from gearsim.dynamics.model import static_state  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics.integrate import PeriodSummaries  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -190,7 +192,7 @@ def kernel_period_cost(st, lanes=8):
 def batched_tile(bs, cells_w, st):
     rows = [[p.with_(b=b) for p in cells_w] for b in bs]
     times = {"kernel": 0.0, "decide": 0.0}
-    run0, decide0 = batch.Lanes.run, batch._decide
+    run0, decide0 = batch.Lanes.run, chains._decide
 
     def run(self, *a, **k):
         t = time.process_time()
@@ -202,13 +204,13 @@ def batched_tile(bs, cells_w, st):
         decide0(*a, **k)
         times["decide"] += time.process_time() - t
 
-    batch.Lanes.run, batch._decide = run, decide
+    batch.Lanes.run, chains._decide = run, decide
     try:
         t = time.process_time()
-        res = batch.simulate_rows(rows, settings=st)
+        res = chains.simulate_rows(rows, settings=st)
         total = time.process_time() - t
     finally:
-        batch.Lanes.run, batch._decide = run0, decide0
+        batch.Lanes.run, chains._decide = run0, decide0
     n = sum(len(r) for r in rows)
     per = {
         "cells": n,
@@ -261,7 +263,7 @@ def main(argv=None):
         kc = kernel_period_cost(st)
         res["kernel_8_lanes_ms_per_period"] = {k: v * 1e3 for k, v in kc.items()}
         bs = [0.15, 0.25, 0.3, 0.35, 0.45, 0.6, 0.8, 1.0]
-        batch.simulate_rows([[cells[0].with_(b=b)] for b in bs[:1]], settings=st)  # warm
+        chains.simulate_rows([[cells[0].with_(b=b)] for b in bs[:1]], settings=st)  # warm
         per, rb = batched_tile(bs, cells, st)
         # model split of the kernel time: per lane, transient periods vs measured periods
         tr_fresh = st.transient
@@ -274,7 +276,7 @@ def main(argv=None):
         }
         # fresh starts: independent cells (each 150 transient periods), 8 lanes
         t = time.process_time()
-        batch.simulate_cells(fresh_cells, settings=st)
+        chains.simulate_cells(fresh_cells, settings=st)
         per["fresh_ms_per_cell"] = (time.process_time() - t) / len(fresh_cells) * 1e3
         res["batched_8_rows"] = per
         same = sum(

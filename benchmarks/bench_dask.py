@@ -2,11 +2,12 @@
 
 A tile of the default (w, b) plane (config/config.yaml, tile_rows raised to 16 so that two
 workers each get a full 8-lane block; every ``stride``-th w centre) is simulated on a
-LocalCluster (gearsim.cluster.open_client: processes, one thread each) with 1 and with 2 workers:
+LocalCluster (gearsim.study.cluster.open_client: processes, one thread each) with 1 and with 2
+workers:
 
 * ``batched``: the rows are split into groups of 8; one task per group runs
-  :func:`gearsim.batch.simulate_rows` (what the pipeline should do, see README);
-* ``scalar``: the pipeline's current task, :func:`gearsim.tiles.simulate_row` per row
+  :func:`gearsim.cell.chains.simulate_rows` (what the pipeline should do, see README);
+* ``scalar``: the pipeline's current task, :func:`gearsim.study.tiles.simulate_row` per row
   (continuation_chain with DP5), on fewer cells (it is ~25x slower).
 
 Wall time of the map (cluster start-up excluded), speed-up 1 -> 2 workers, and the peak resident
@@ -34,9 +35,9 @@ def rows_task(specs):
     import resource
     import time as _t
 
-    from gearsim import batch
-    from gearsim.parameters import ModelParameters
-    from gearsim.simulate import IntegrationSettings
+    from gearsim.cell import chains
+    from gearsim.cell.simulate import IntegrationSettings
+    from gearsim.dynamics.parameters import ModelParameters
 
     t0 = _t.process_time()
     rows = []
@@ -49,7 +50,7 @@ def rows_task(specs):
             ]
         )
     st = IntegrationSettings(**specs[0]["settings"])
-    res = batch.simulate_rows(rows, settings=st)
+    res = chains.simulate_rows(rows, settings=st)
     labels = [c.classification.label for r in res for c in r]
     from distributed import get_worker
 
@@ -66,7 +67,7 @@ def scalar_task(spec):
     import resource
     import time as _t
 
-    from gearsim.tiles import simulate_row
+    from gearsim.study.tiles import simulate_row
 
     t0 = _t.process_time()
     recs = simulate_row(spec)
@@ -82,11 +83,11 @@ def scalar_task(spec):
 
 
 def warm(_):
-    from gearsim import batch
-    from gearsim.parameters import ModelParameters
-    from gearsim.simulate import simulate_cell
+    from gearsim.cell import chains
+    from gearsim.cell.simulate import simulate_cell
+    from gearsim.dynamics.parameters import ModelParameters
 
-    batch.simulate_cells([ModelParameters(w=1.0)])
+    chains.simulate_cells([ModelParameters(w=1.0)])
     simulate_cell(ModelParameters(w=1.0))
     return 0
 
@@ -94,7 +95,7 @@ def warm(_):
 def run(n_workers, fn, items):
     from distributed import wait
 
-    from gearsim.cluster import open_client
+    from gearsim.study.cluster import open_client
 
     with open_client(workers=n_workers) as client:
         client.wait_for_workers(n_workers)
@@ -122,7 +123,7 @@ def cpu_speedup(res):
 
 
 def specs_for(config, stride, rows):
-    from gearsim import tiles
+    from gearsim.study import tiles
 
     cfg = dict(config)
     cfg["tile_rows"] = rows
@@ -136,7 +137,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args(argv)
-    from gearsim.config import load_config
+    from gearsim.study.config import load_config
 
     config = load_config([ROOT / "config" / "config.yaml"], root=ROOT)
     out = {"plane": "wb", "tile_rows": 16, "results": {}}

@@ -1,8 +1,9 @@
 """(a) Cell-steps per second per core of the 6-DOF kernels.
 
-* scalar ``integrate_periods`` (gearsim.integrate): fixed-step RK4 (256 steps per period) and
+* scalar ``integrate_periods`` (gearsim.numerics.integrate): fixed-step RK4 (256 steps per period)
+and
   adaptive DP5 (rtol 1e-9, atol 1e-12), with and without the tangent vector;
-* batched RK4 (gearsim.batch.advance) with 8 ... 64 lanes.
+* batched RK4 (gearsim.numerics.batch.advance) with 8 ... 64 lanes.
 
 Cells: ModelParameters defaults at w in [0.6, 2.4], b in {0.15, 0.3, 1.0} (impacting, some
 double-sided, some chaotic), started after a 100-period transient. A cell-step is one accepted
@@ -24,12 +25,12 @@ setup_env()
 
 import numpy as np  # noqa: E402
 
-from gearsim import batch  # noqa: E402
-from gearsim.integrate import METHODS, integrate_periods  # noqa: E402
-from gearsim.model import static_state  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import IntegrationSettings, initial_tangent, run_periods  # noqa: E402
-from gearsim.steps import phase_tables, rk4_steps_per_period  # noqa: E402
+from gearsim.cell.simulate import IntegrationSettings, initial_tangent, run_periods  # noqa: E402
+from gearsim.dynamics.model import static_state  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics.integrate import METHODS, integrate_periods  # noqa: E402
+from gearsim.numerics.steps import phase_tables, rk4_steps_per_period  # noqa: E402
 
 
 def cells(n: int) -> list[ModelParameters]:

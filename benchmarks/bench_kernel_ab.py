@@ -31,12 +31,12 @@ ROOT = Path(__file__).resolve().parents[1]
 WORKER = r"""
 import json, sys, time
 import numpy as np
-from gearsim import batch
-from gearsim.model import static_state
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, run_periods
+from gearsim.numerics import batch
+from gearsim.dynamics.model import static_state
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.cell.simulate import IntegrationSettings, run_periods
 try:
-    from gearsim.simulate import initial_tangent as _it
+    from gearsim.cell.simulate import initial_tangent as _it
     tangent0 = lambda p: _it(p)
 except ImportError:
     tangent0 = lambda p: batch.initial_tangent()

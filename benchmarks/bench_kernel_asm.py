@@ -32,9 +32,10 @@ setup_env()
 
 import numpy as np  # noqa: E402
 
-from gearsim import batch  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import IntegrationSettings  # noqa: E402
+from gearsim.cell import chains  # noqa: E402
+from gearsim.cell.simulate import IntegrationSettings  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.numerics import batch  # noqa: E402
 
 ARITH = ("vfmadd", "vfmsub", "vfnmadd", "vfnmsub", "vmulpd", "vaddpd", "vsubpd", "vdivpd",
          "vmaxpd", "vminpd", "vsqrtpd")
@@ -104,7 +105,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     st = IntegrationSettings(method="rk4", transient=2, transient_continuation=1, chunk=4,
                              max_periods=8, n_max=2)
-    batch.simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
+    chains.simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
     out = {}
     fns = [f for f in ("_block_step", "_block_step_state") if hasattr(batch, f)]
     for name in fns:

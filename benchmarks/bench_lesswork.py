@@ -58,7 +58,7 @@ def _sets(pairs) -> dict:
 
 
 def _config(configfile: str | None, integration: dict) -> dict:
-    from gearsim.config import study_config
+    from gearsim.study.config import study_config
 
     over = {"integration": integration} if integration else None
     return study_config([configfile] if configfile else [], over, root=CONFIG_ROOT)
@@ -70,9 +70,9 @@ def cmd_cells(args) -> dict:
     sys.path.insert(0, str(ROOT / "tests"))
     from test_convergence import CELLS, REFERENCE_SET
 
-    from gearsim.model import static_state
-    from gearsim.parameters import ModelParameters
-    from gearsim.simulate import IntegrationSettings, run_periods, simulate_cell
+    from gearsim.cell.simulate import IntegrationSettings, run_periods, simulate_cell
+    from gearsim.dynamics.model import static_state
+    from gearsim.dynamics.parameters import ModelParameters
 
     base = IntegrationSettings(method="rk4", **_sets(args.set))
     tight = IntegrationSettings().tightened()
@@ -107,8 +107,8 @@ def cmd_cells(args) -> dict:
 
 
 def cmd_plane(args) -> dict:
-    from gearsim.grid import tile_ids
-    from gearsim.tiles import records_to_frame, row_specs, simulate_rows_batched
+    from gearsim.study.grid import tile_ids
+    from gearsim.study.tiles import records_to_frame, row_specs, simulate_rows_batched
 
     config = _config(args.config, _sets(args.set))
     if args.n:
@@ -138,7 +138,7 @@ def cmd_plane(args) -> dict:
 
 def _dp5_label(config, plane, ref, r):
     """The audit's reference (DP5 at tightened tolerance) for row ``r`` of frame ``ref``."""
-    from gearsim.commands.catalogue import audit_frame
+    from gearsim.cli.commands.catalogue import audit_frame
 
     config = dict(config, audit={**config["audit"], "fraction": 1.0, "seed": 0})
     sub = ref.iloc[[r]]
@@ -202,7 +202,7 @@ def cmd_compare(args) -> dict:
 def cmd_audit(args) -> dict:
     import pandas as pd
 
-    from gearsim.commands.catalogue import audit_frame
+    from gearsim.cli.commands.catalogue import audit_frame
 
     config = _config(args.config, {})
     if args.audit:
@@ -226,7 +226,7 @@ def cmd_audit_ab(args) -> dict:
     variants alternated ``--repeats`` times in one process (load recorded)."""
     import pandas as pd
 
-    from gearsim.commands.catalogue import audit_frame
+    from gearsim.cli.commands.catalogue import audit_frame
 
     config = _config(args.config, {})
     cells = pd.read_parquet(args.frame)
@@ -256,8 +256,8 @@ def cmd_audit_ab(args) -> dict:
 def cmd_tile_ab(args) -> dict:
     """Tile CPU per variant, side by side: every ``--every``-th row of the plane (its w step)
     through the tiles' batched path, variants alternated ``--repeats`` times in one process."""
-    from gearsim.grid import tile_ids
-    from gearsim.tiles import row_specs, simulate_rows_batched
+    from gearsim.study.grid import tile_ids
+    from gearsim.study.tiles import row_specs, simulate_rows_batched
 
     variants = [_sets(v.split(",")) for v in args.variants]
     specs = {}
@@ -292,18 +292,18 @@ def cmd_landmarks(args) -> dict:
     thresholds read off plane frames (report.row_threshold)."""
     import pandas as pd
 
-    from gearsim.commands.sweep import sweep_frame
-    from gearsim.config import base_parameters, integration_settings
-    from gearsim.grid import sweep_values
-    from gearsim.landmarks import find_landmarks, match_paper
-    from gearsim.parameters import ModelParameters
-    from gearsim.report import (
+    from gearsim.analysis.landmarks import find_landmarks, match_paper
+    from gearsim.cli.commands.sweep import sweep_frame
+    from gearsim.dynamics.parameters import ModelParameters
+    from gearsim.presentation.report import (
         PAPER_B_THRESHOLD,
         PAPER_XI_THRESHOLD,
         double_sided,
         not_period_one,
         row_threshold,
     )
+    from gearsim.study.config import base_parameters, integration_settings
+    from gearsim.study.grid import sweep_values
 
     config = _config(args.config, _sets(args.set))
     sw = config["sweeps"]["standard"]

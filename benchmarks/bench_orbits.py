@@ -31,12 +31,12 @@ setup_env()
 
 import numpy as np  # noqa: E402
 
-from gearsim.bifcurves import bifurcation_points, follow_curves  # noqa: E402
-from gearsim.config_io import load_standard_parameters  # noqa: E402
-from gearsim.continuation import Continuation, continue_orbit  # noqa: E402
-from gearsim.orbit_cells import refine_cell  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import IntegrationSettings, simulate_cell  # noqa: E402
+from gearsim.analysis.bifcurves import bifurcation_points, follow_curves  # noqa: E402
+from gearsim.analysis.continuation import Continuation, continue_orbit  # noqa: E402
+from gearsim.analysis.orbit_cells import refine_cell  # noqa: E402
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.study.config_io import load_standard_parameters  # noqa: E402
 
 STANDARD = ModelParameters.from_mapping(load_standard_parameters("config/standard_parameters.yaml"))
 RK4 = IntegrationSettings(method="rk4", transient_continuation=40)
@@ -67,9 +67,9 @@ def per_cell(model: str, n_cells: int) -> dict:
 def plane_tile_estimate(plane: str, rows: int = 8) -> dict:
     """Wall / CPU time of ``rows`` rows of a default plane (batched RK4, as in a tile), and the
     whole plane's estimate (x 400 / rows)."""
-    from gearsim.config import study_config
-    from gearsim.grid import tile_ids
-    from gearsim.tiles import row_specs, simulate_rows_batched
+    from gearsim.study.config import study_config
+    from gearsim.study.grid import tile_ids
+    from gearsim.study.tiles import row_specs, simulate_rows_batched
 
     cfg = study_config()
     specs = [s for t in tile_ids(cfg, plane) for s in row_specs(cfg, plane, t)]
@@ -85,7 +85,7 @@ def plane_tile_estimate(plane: str, rows: int = 8) -> dict:
 
 def curves_default(workers: int, method: str, out_dir: str | None = None) -> dict:
     """The pipeline's curves of both default planes (standard continuation + follow_curves)."""
-    from gearsim.config import plane_base, study_config
+    from gearsim.study.config import plane_base, study_config
 
     cfg = study_config()
     out: dict = {"workers": workers, "method": method}
@@ -100,7 +100,7 @@ def curves_default(workers: int, method: str, out_dir: str | None = None) -> dic
     if out_dir:
         from pathlib import Path
 
-        from gearsim.continuation import write_branches
+        from gearsim.analysis.continuation import write_branches
 
         Path(out_dir).mkdir(parents=True, exist_ok=True)
         write_branches(br, Path(out_dir) / "standard.parquet")

@@ -36,9 +36,13 @@ setup_env()
 
 import numpy as np  # noqa: E402
 
-from gearsim import attractors, batch, catalogue, simulate, tiles  # noqa: E402
-from gearsim.config import study_config  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
+from gearsim.analysis import attractors  # noqa: E402
+from gearsim.cell import chains, simulate  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.numerics import batch  # noqa: E402
+from gearsim.results import catalogue  # noqa: E402
+from gearsim.study import tiles  # noqa: E402
+from gearsim.study.config import study_config  # noqa: E402
 
 T_CPU: dict[str, float] = defaultdict(float)
 CALLS: dict[str, int] = defaultdict(int)
@@ -93,10 +97,10 @@ def instrument() -> None:
         return adv(blk, ist, N, m, *rest)
 
     batch.advance = timed("kernel", kernel, per_stage=True)
-    batch.estimate_period = timed("period test", batch.estimate_period, per_stage=True)
-    batch.finish_cell = timed("classification (finish_cell)", batch.finish_cell,
+    simulate.estimate_period = timed("period test", simulate.estimate_period, per_stage=True)
+    chains.finish_cell = timed("classification (finish_cell)", chains.finish_cell,
                               per_stage=True)  # fmt: skip
-    batch._begin_cell = timed("cell set-up (params, regions)", batch._begin_cell,
+    chains._begin_cell = timed("cell set-up (params, regions)", chains._begin_cell,
                               per_stage=True)  # fmt: skip
     tiles.cell_records = timed("records", tiles.cell_records)
     G = attractors.GearCells
@@ -145,7 +149,7 @@ def main(argv=None):
     config = study_config([])
     config["tile_rows"] = args.rows  # one worker's share as a tile
     args.tile = args.j0 // args.rows
-    batch.warm_up()
+    chains.warm_up()
     out = {"plane": args.plane, "tile": args.tile, "rows": args.rows, "load_start": loadavg()}
     k_state, k_tan = kernel_rate(False), kernel_rate(True)
     out["kernel_state_per_s"], out["kernel_tangent_per_s"] = k_state, k_tan
@@ -200,7 +204,7 @@ def main(argv=None):
     # ---- attractor task: the first task of the tile whose rows were simulated above
     from scipy.stats import qmc  # noqa: F401  (the Sobol starts' import, ~0.5 s once per worker)
 
-    from gearsim.commands.attractor_tile import task_specs
+    from gearsim.cli.commands.attractor_tile import task_specs
 
     T_CPU.clear()
     CALLS.clear()

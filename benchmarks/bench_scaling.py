@@ -94,7 +94,7 @@ def main(argv=None):
     ap.add_argument("--name", default="scaling")
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT / "src"))
-    from gearsim.config import study_config
+    from gearsim.study.config import study_config
 
     tile_rows = int(study_config([])["tile_rows"])
     out = {"tile_rows": tile_rows, "rows": [], "workers_compare": []}

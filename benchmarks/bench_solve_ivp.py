@@ -28,11 +28,13 @@ setup_env()
 import numpy as np  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
 
-from gearsim import batch  # noqa: E402
-from gearsim.classify import PeriodSummaries, classify_motion, estimate_period  # noqa: E402
-from gearsim.model import static_state  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import IntegrationSettings, initial_tangent, simulate_cell  # noqa: E402
+from gearsim.cell import chains  # noqa: E402
+from gearsim.cell.classify import classify_motion, estimate_period  # noqa: E402
+from gearsim.cell.simulate import IntegrationSettings, initial_tangent, simulate_cell  # noqa: E402
+from gearsim.dynamics.model import static_state  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics.integrate import PeriodSummaries  # noqa: E402
 
 RTOL, ATOL = 1e-8, 1e-10
 
@@ -182,18 +184,18 @@ def main(argv=None):
     cells = [ModelParameters(w=w, b=b) for b, w in (CELLS[:3] if args.quick else CELLS)]
     # batched path, per cell: the cell in a full 8-lane block (8 copies; CPU time / 8), i.e. its
     # cost inside a tile; and the cell alone (one lane busy, 7 idle)
-    batch.simulate_cells(cells[:1], settings=st)  # warm
+    chains.simulate_cells(cells[:1], settings=st)  # warm
     rb, full, single = [], [], []
     for p in cells:
         reps = []
         for _ in range(3):
             t = time.process_time()
-            r8 = batch.simulate_cells([p] * batch.LANES, settings=st)
+            r8 = chains.simulate_cells([p] * batch.LANES, settings=st)
             reps.append((time.process_time() - t) / batch.LANES)
         full.append(float(np.median(reps)))
         rb.append(r8[0])
         t = time.process_time()
-        batch.simulate_cells([p], settings=st)
+        chains.simulate_cells([p], settings=st)
         single.append(time.process_time() - t)
     rows = []
     for p, r, t8, t1 in zip(cells, rb, full, single, strict=True):

@@ -37,14 +37,14 @@ POINTS = ("fig5", "fig6", "fig9_11")
 WORKER = r"""
 import argparse, dataclasses, pickle, sys
 try:
-    from gearsim.config import base_parameters, integration_settings, load_config
-    from gearsim.grid import sweep_values
+    from gearsim.study.config import base_parameters, integration_settings, load_config
+    from gearsim.study.grid import sweep_values
 except ImportError:  # before the config split
-    from gearsim.tiles import base_parameters, integration_settings, load_config, sweep_values
-from gearsim import tiles
-from gearsim.commands import sweep as cmd
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings
+    from gearsim.study.tiles import base_parameters, integration_settings, load_config, sweep_values
+from gearsim.study import tiles
+from gearsim.cli.commands import sweep as cmd
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.cell.simulate import IntegrationSettings
 out, planes_only = sys.argv[1], sys.argv[2] == "1"
 fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
 # the old code's settings: 256 steps per period (config.yaml has 192 since round 5, issue 16.4)

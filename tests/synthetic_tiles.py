@@ -1,9 +1,9 @@
 """Hand-built tiles written through the real tile writer (catalogue tests and the scale benchmark).
 
-A tile here has every column of a simulated tile (``gearsim.tiles.cell_records``) with
+A tile here has every column of a simulated tile (``gearsim.study.tiles.cell_records``) with
 deterministic values computed from ``(i, j)``: label ``1/1T`` where ``(i + j)`` is even, else
 ``2/1T`` with ``I = 2``; ``kmax = 1 + i / nx``, ``dc = j / ny``; two Poincare points per cell.
-Its provenance is the real one (:func:`gearsim.provenance.provenance` of the plane's subtree),
+Its provenance is the real one (:func:`gearsim.study.provenance.provenance` of the plane's subtree),
 so only the cell values are not simulated.
 """
 
@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from gearsim import catalogue as gc
-from gearsim import grid as ggrid
-from gearsim import provenance as gprov
+from gearsim.results import catalogue as gc
+from gearsim.study import grid as ggrid
+from gearsim.study import provenance as gprov
 
 
 def tile_frame(config: dict, plane: str, tile: int) -> pd.DataFrame:

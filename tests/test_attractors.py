@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from gearsim.attractors import (
+from gearsim.analysis.attractors import (
     Steady,
     find_attractors,
     find_attractors_many,
@@ -19,8 +19,8 @@ from gearsim.attractors import (
     same_attractor,
     sobol_unit,
 )
-from gearsim.parameters import ModelParameters, ParameterError
-from gearsim.simulate import IntegrationSettings
+from gearsim.cell.simulate import IntegrationSettings
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 ZETA, GAMMA, FORCE = 0.02, 0.1, 0.1
 
@@ -189,7 +189,7 @@ def test_gear_chaotic_attractor_counted_once():
 
 
 def test_gear_continuation_states_found_by():
-    from gearsim.simulate import simulate_cell
+    from gearsim.cell.simulate import simulate_cell
 
     p = ModelParameters(w=1.1, b=0.15, **REFERENCE)
     fwd = simulate_cell(p.with_(w=1.09), settings=GEAR).final_state
@@ -212,9 +212,9 @@ def test_forward_backward_sweeps_differ_only_inside_fold_band():
     sweep jumps down at a lower w, and the two sweeps differ exactly between the jumps."""
     from pathlib import Path
 
-    from gearsim.attractors import hysteresis
-    from gearsim.commands.sweep import sweep_frame
-    from gearsim.config_io import load_standard_parameters
+    from gearsim.analysis.attractors import hysteresis
+    from gearsim.cli.commands.sweep import sweep_frame
+    from gearsim.study.config_io import load_standard_parameters
 
     root = Path(__file__).resolve().parents[1]
     base = ModelParameters.from_mapping(
@@ -259,9 +259,9 @@ def test_hysteresis_of_a_hand_built_fold_and_its_figure(tmp_path):
     import matplotlib
 
     matplotlib.use("Agg")
-    from gearsim.attractors import hysteresis
-    from gearsim.figures.multistability import figure_hysteresis
-    from gearsim.figures.registry import figures
+    from gearsim.analysis.attractors import hysteresis
+    from gearsim.presentation.figures.multistability import figure_hysteresis
+    from gearsim.presentation.figures.registry import figures
 
     h = hysteresis(_synthetic_sweeps())
     assert h.jump_forward == pytest.approx(0.675) and h.jump_backward == pytest.approx(0.575)
@@ -278,8 +278,9 @@ def test_hysteresis_of_a_hand_built_fold_and_its_figure(tmp_path):
 def test_probing_without_tangent_gives_the_same_states_bit_for_bit():
     """The attractor probes run without the tangent vector (issue 16): the event layer decides
     on the state only, so section points, contact counts and final states are identical."""
-    from gearsim.batch import initial_tangent, run_periods_batched
-    from gearsim.model import static_state
+    from gearsim.cell.simulate import initial_tangent
+    from gearsim.dynamics.model import static_state
+    from gearsim.numerics.batch import run_periods_batched
 
     cells = [ModelParameters(w=w, b=b) for w, b in ((0.6, 0.15), (1.02, 0.15), (1.37, 0.15),
                                                      (1.53, 0.15), (1.1, 0.0), (2.0, 1.0))]

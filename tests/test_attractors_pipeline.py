@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 from workflow_helpers import make_workdir, smk
 
-from gearsim.catalogue import open_catalogue
+from gearsim.results.catalogue import open_catalogue
 
 
 @pytest.fixture(scope="module")
@@ -86,8 +86,8 @@ def test_maps_written(ms_run):
 
 
 def test_every_thins_the_attractor_grid():
-    from gearsim.commands.attractor_tile import task_specs
-    from gearsim.config import load_config
+    from gearsim.cli.commands.attractor_tile import task_specs
+    from gearsim.study.config import load_config
 
     cfg = load_config(["config/config.yaml", "config/tiny.yaml"],
                       {"planes": {"wb": {"multistability": {"starts": 4, "every": 2}}}})

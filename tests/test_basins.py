@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from gearsim.basins import basin_grid, read_basin_grid, write_basin_grid
-from gearsim.cli import main
-from gearsim.parameters import ModelParameters, ParameterError
-from gearsim.simulate import IntegrationSettings
+from gearsim.analysis.basins import basin_grid, read_basin_grid, write_basin_grid
+from gearsim.cell.simulate import IntegrationSettings
+from gearsim.cli.main import main
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 REFERENCE = dict(Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0)
 GEAR = IntegrationSettings(method="rk4")

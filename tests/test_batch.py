@@ -1,10 +1,10 @@
-"""The batched RK4 path (gearsim.batch) against the scalar core.
+"""The batched RK4 path (gearsim.numerics.batch) against the scalar core.
 
-* the lane vector field equals :func:`gearsim.model.rhs` (state and tangent, every region);
+* the lane vector field equals :func:`gearsim.dynamics.model.rhs` (state and tangent, every region);
 * per-period summaries equal ``integrate_periods`` (METHOD_RK4, same steps per period) to a
   stated tolerance, including double-sided impacts, bearing clearances and chaos;
 * 30 fixed cells (1T, 2T, 3T, 4T, 8T, chaos, double-sided impacts) are classified exactly as
-  :func:`gearsim.simulate.simulate_cell` with the reference DP5 settings;
+  :func:`gearsim.cell.simulate.simulate_cell` with the reference DP5 settings;
 * ``simulate_rows`` equals ``continuation_chain`` with RK4 on continuation chains.
 """
 
@@ -15,12 +15,20 @@ import math
 import numpy as np
 import pytest
 
-from gearsim import batch
-from gearsim.classify import estimate_period
-from gearsim.model import N_SWITCH, field_state, field_tangent, rhs, set_period, static_state
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, initial_tangent, run_periods, simulate_cell
-from gearsim.sweep import continuation_chain
+from gearsim.cell import chains
+from gearsim.cell.classify import estimate_period
+from gearsim.cell.simulate import IntegrationSettings, initial_tangent, run_periods, simulate_cell
+from gearsim.cell.sweep import continuation_chain
+from gearsim.dynamics.model import (
+    N_SWITCH,
+    field_state,
+    field_tangent,
+    rhs,
+    set_period,
+    static_state,
+)
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics import batch
 
 RK4 = IntegrationSettings(method="rk4")
 
@@ -185,7 +193,7 @@ def test_divergent_lane_stops_alone():
 @pytest.fixture(scope="module")
 def batched_cells():
     cells = [ModelParameters(w=w, b=b) for b, w in CELLS]
-    return cells, batch.simulate_cells(cells, settings=IntegrationSettings())
+    return cells, chains.simulate_cells(cells, settings=IntegrationSettings())
 
 
 def test_cell_set_covers_the_patterns(batched_cells):
@@ -218,7 +226,8 @@ def test_batched_classifies_like_reference_dp5(batched_cells):
 
 
 def _period_reference(x, v, scale, w, n_max=64, period_rtol=1e-5, min_confirm=16):
-    """The period test written out with numpy (the definition in gearsim.classify's docstring)."""
+    """The period test written out with numpy (the definition in gearsim.cell.classify's
+    docstring)."""
     m = len(x)
     scale = max(scale, 1e-9)
     tol_x, tol_v = period_rtol * scale, period_rtol * scale * max(w, 1e-3)
@@ -262,7 +271,7 @@ def test_compiled_period_test_equals_numpy_reference(batched_cells):
 def test_simulate_rows_equals_continuation_chain():
     ws = [0.45, 0.7, 0.95, 1.1, 1.25, 1.32]
     rows = [[ModelParameters(w=w, b=b) for w in ws] for b in (0.15, 1.0)]
-    got = batch.simulate_rows(rows, settings=RK4)
+    got = chains.simulate_rows(rows, settings=RK4)
     for row, res in zip(rows, got, strict=True):
         ref = continuation_chain(row, settings=RK4)
         for a, b in zip(res, ref, strict=True):
@@ -287,7 +296,7 @@ def test_simulate_rows_callback_and_single_dof_fallback():
         [ModelParameters(w=0.8, b=0.3, model="1dof")],
         [],
     ]
-    res = batch.simulate_rows(rows, settings=RK4, on_cell=lambda r, i, c: seen.append((r, i)))
+    res = chains.simulate_rows(rows, settings=RK4, on_cell=lambda r, i, c: seen.append((r, i)))
     assert [len(r) for r in res] == [2, 1, 0]
     assert sorted(seen) == [(0, 0), (0, 1), (1, 0)]
     one = simulate_cell(rows[1][0], settings=RK4)
@@ -300,7 +309,7 @@ def test_simulate_cells_with_start_states_and_periods():
              enumerate((0.7, 0.9, 1.1))]  # fmt: skip
     starts = [None, static_state(cells[1].to_array()) + 0.01, static_state(cells[2].to_array())]
     ks = [0, 7, 40]
-    got = batch.simulate_cells(cells, settings=RK4, u0=starts, start_periods=ks)
+    got = chains.simulate_cells(cells, settings=RK4, u0=starts, start_periods=ks)
     for p, u, k, a in zip(cells, starts, ks, got, strict=True):
         b = simulate_cell(p, u, settings=RK4, start_period=k)
         assert _key(a.classification) == _key(b.classification)
@@ -313,7 +322,7 @@ def test_lanes_with_different_steps_per_period_wait_for_each_other():
     low = [ModelParameters(w=w, b=0.3) for w in (0.103, 0.115)]
     high = [ModelParameters(w=w, b=0.3) for w in (0.5, 0.6)]
     assert batch.steps_per_period(low[0], RK4) > batch.steps_per_period(low[1], RK4) > 256
-    got = batch.simulate_rows([low, high], settings=RK4)
+    got = chains.simulate_rows([low, high], settings=RK4)
     for row, res in zip([low, high], got, strict=True):
         ref = continuation_chain(row, settings=RK4)
         for a, b in zip(res, ref, strict=True):
@@ -331,7 +340,7 @@ BIT_CELLS = SUMMARY_CELLS + [
 def test_scalar_rk4_and_batched_rk4_are_bit_identical():
     """The scalar RK4 path and the SIMD lanes run one algorithm: identical to the last bit."""
     st = RK4.with_(transient=30, chunk=8, max_periods=48)
-    got = batch.simulate_cells(BIT_CELLS, settings=st)
+    got = chains.simulate_cells(BIT_CELLS, settings=st)
     labels = set()
     for p, a in zip(BIT_CELLS, got, strict=True):
         b = simulate_cell(p, settings=st)
@@ -355,8 +364,8 @@ def test_recurrence_probe_scalar_and_batched_are_bit_identical():
     st = RK4.with_(transient_continuation=40, transient_recurrence=24)
     ws = (0.45, 0.7, 1.05, 1.25, 1.5, 1.55)
     rows = [[ModelParameters(w=w, b=b) for w in ws for _ in (0, 1)] for b in (0.15, 1.0)]
-    got = batch.simulate_rows(rows, settings=st)
-    off = batch.simulate_rows(rows, settings=st.with_(transient_recurrence=0))
+    got = chains.simulate_rows(rows, settings=st)
+    off = chains.simulate_rows(rows, settings=st.with_(transient_recurrence=0))
     cut = full = 0
     for row, res, res_off in zip(rows, got, off, strict=True):
         ref = continuation_chain(row, settings=st)
@@ -377,7 +386,7 @@ def test_recurrence_probe_scalar_and_batched_are_bit_identical():
 
 def test_single_dof_lanes_equal_scalar_and_keep_bearings_frozen():
     p = ModelParameters(w=1.02, b=1.0, model="1dof")
-    (a,) = batch.simulate_cells([p], settings=RK4)
+    (a,) = chains.simulate_cells([p], settings=RK4)
     np.testing.assert_array_equal(a.final_state[2:], 0.0)
     assert a.classification.label == simulate_cell(p, settings=RK4).classification.label
 

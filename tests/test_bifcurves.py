@@ -2,7 +2,8 @@
 continuation it replaces, parallel against serial, and closed doubled branches.
 
 Reference for a curve point: a one-parameter continuation across a window around the predicted
-point, locating the event by Brent's method (:func:`gearsim.bifcurves._relocate`, the method of
+point, locating the event by Brent's method (:func:`gearsim.analysis.bifcurves._relocate`, the
+method of
 the previous release). The secant solve shares no code with that locator beyond the orbit
 Newton and the test functions' ingredients (multipliers, turning points)."""
 
@@ -11,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gearsim.bifcurves import bifurcation_points, follow_curve, follow_curves
-from gearsim.config_io import load_standard_parameters
-from gearsim.continuation import Continuation, continue_orbit
-from gearsim.parameters import ModelParameters
+from gearsim.analysis.bifcurves import bifurcation_points, follow_curve, follow_curves
+from gearsim.analysis.continuation import Continuation, continue_orbit
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study.config_io import load_standard_parameters
 
 STANDARD = ModelParameters.from_mapping(load_standard_parameters("config/standard_parameters.yaml"))
 ONE = STANDARD.with_(model="1dof")

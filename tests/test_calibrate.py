@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from test_landmarks import paper_like
 
-import gearsim.calibrate as cal
-from gearsim.cli import main
-from gearsim.config_io import load_standard_parameters
-from gearsim.geometry import GearGeometry
-from gearsim.landmarks import find_landmarks
-from gearsim.parameters import ModelParameters
+import gearsim.calibration.calibrate as cal
+from gearsim.analysis.landmarks import find_landmarks
+from gearsim.cli.main import main
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.physical.geometry import GearGeometry
+from gearsim.study.config_io import load_standard_parameters
 
 
 def test_params_from_vector_maps_free_parameters():
@@ -126,7 +126,7 @@ def test_calibrate_cli_bad_workers():
 
 
 def test_bisect_bool_finds_a_known_threshold():
-    from gearsim.calibrate import bisect_bool
+    from gearsim.calibration.calibrate import bisect_bool
 
     calls = []
 
@@ -140,8 +140,8 @@ def test_bisect_bool_finds_a_known_threshold():
 
 
 def test_fidelity_and_objective_settings_share_one_grid_and_integration():
-    from gearsim.calibrate import ObjectiveSettings, SweepSettings
-    from gearsim.fidelity import FidelitySettings
+    from gearsim.calibration.calibrate import ObjectiveSettings, SweepSettings
+    from gearsim.calibration.fidelity import FidelitySettings
 
     f, o = FidelitySettings(dw=0.02, rtol=1e-8), ObjectiveSettings(dw=0.02, rtol=1e-8)
     assert isinstance(f, SweepSettings) and isinstance(o, SweepSettings)

@@ -1,4 +1,4 @@
-"""Parquet provenance, combining tiles and the SQLite catalogue (gearsim.catalogue)."""
+"""Parquet provenance, combining tiles and the SQLite catalogue (gearsim.results.catalogue)."""
 
 from __future__ import annotations
 
@@ -11,13 +11,13 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from gearsim import catalogue as gc
-from gearsim import config as gcfg
-from gearsim import grid as ggrid
-from gearsim import provenance as gprov
-from gearsim import tiles as gt
-from gearsim.commands.catalogue import audit_frame, plane_record
-from gearsim.simulate import CellResult
+from gearsim.cell.simulate import CellResult
+from gearsim.cli.commands.catalogue import audit_frame, plane_record
+from gearsim.results import catalogue as gc
+from gearsim.study import config as gcfg
+from gearsim.study import grid as ggrid
+from gearsim.study import provenance as gprov
+from gearsim.study import tiles as gt
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,8 +39,8 @@ def small(tmp_path_factory):
                              cells=len(df), workers="in-process")
         files.append(gc.write_parquet(df, d / f"tiles/{t}.parquet", {gc.PROVENANCE_KEY: prov}))
     cells = gc.combine_tiles(files, d / "cells.parquet", plane_record(cfg, "wb"))
-    from gearsim.commands.sweep import sweep_frame
-    from gearsim.parameters import ModelParameters
+    from gearsim.cli.commands.sweep import sweep_frame
+    from gearsim.dynamics.parameters import ModelParameters
 
     sw = sweep_frame(ModelParameters(b=0.15), "w", np.array([0.5, 1.0, 1.5]), "forward",
                      gcfg.integration_settings(cfg))

@@ -22,10 +22,10 @@ import pytest
 import yaml
 from synthetic_tiles import tile_frame, write_tile
 
-from gearsim import catalogue as gc
-from gearsim import config as gcfg
-from gearsim import grid as ggrid
-from gearsim.commands.catalogue import plane_record
+from gearsim.cli.commands.catalogue import plane_record
+from gearsim.results import catalogue as gc
+from gearsim.study import config as gcfg
+from gearsim.study import grid as ggrid
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -38,7 +38,7 @@ class _Result:
 @pytest.fixture()
 def gearsim(capsys, monkeypatch):
     """Run the CLI in-process (interpreter start-up excluded from the time) from ``cwd``."""
-    from gearsim.cli import main
+    from gearsim.cli.main import main
 
     def run(args, cwd):
         monkeypatch.chdir(cwd)
@@ -288,7 +288,7 @@ class Reader(threading.Thread):
         self.db, self.stop, self.counts, self.errors = db, threading.Event(), [], []
 
     def run(self):
-        from gearsim.commands.query import execute
+        from gearsim.cli.commands.query import execute
 
         while not self.stop.is_set():
             try:

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from gearsim.classify import PeriodSummaries, classify_motion, estimate_period, impact_state
+from gearsim.cell.classify import classify_motion, estimate_period, impact_state
+from gearsim.numerics.integrate import PeriodSummaries
 
 
 def _summaries(section_x, nface, nback, tdis, lyap=None, fmax=None, xv=None):

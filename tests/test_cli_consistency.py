@@ -6,7 +6,7 @@ import argparse
 
 import pytest
 
-from gearsim.cli import build_parser
+from gearsim.cli.main import build_parser
 
 
 def _options():

@@ -7,9 +7,10 @@ import sys
 import pyarrow.parquet as pq
 import yaml
 
-from gearsim.cli import main
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings
+from gearsim.cell.simulate import IntegrationSettings
+from gearsim.cli.main import main
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study.config import standard_parameters, study_settings
 
 
 def test_point_prints_pattern(capsys):
@@ -61,8 +62,8 @@ def test_point_uses_the_study_and_says_so(tmp_path):
 
 
 def test_point_json_names_source_and_settings(capsys):
-    from gearsim.config import DEFAULT_STANDARD_PARAMETERS, project_root
-    from gearsim.config_io import load_standard_parameters
+    from gearsim.study.config import DEFAULT_STANDARD_PARAMETERS, project_root
+    from gearsim.study.config_io import load_standard_parameters
 
     assert main(["point", "--omega", "0.48", "--set", "xi=0.07", "--json"]) == 0
     row = _strict_json(capsys.readouterr().out)
@@ -70,8 +71,8 @@ def test_point_json_names_source_and_settings(capsys):
     study = yaml.safe_load((project_root() / "config/config.yaml").read_text())["integration"]
     assert row["settings"] == study
     std = load_standard_parameters(project_root() / DEFAULT_STANDARD_PARAMETERS)
-    assert ModelParameters.standard(w=0.48) == ModelParameters.from_mapping({**std, "w": 0.48})
-    assert IntegrationSettings.from_config() == IntegrationSettings(**study)
+    assert standard_parameters(w=0.48) == ModelParameters.from_mapping({**std, "w": 0.48})
+    assert study_settings() == IntegrationSettings(**study)
 
 
 def test_point_configfile_is_merged_over_config_yaml(tmp_path, capsys):

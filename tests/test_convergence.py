@@ -8,8 +8,9 @@ Every cell starts from the static state (coexisting attractors make continuation
 
 import pytest
 
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, simulate_cell
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study.config import study_settings
 
 REFERENCE_SET = dict(
     Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,
@@ -80,9 +81,9 @@ def test_recurrence_probe_keeps_every_label_of_the_set():
     (A chain through the set's cells, e.g. w 1.7 -> 2.0 at b = 1, lands on one of two
     coexisting attractors (1T, 3T) depending on the 1e-7 differences of its start: that
     multistability is not the probe's, docs in benchmarks/README.md (l).)"""
-    from gearsim.batch import simulate_rows
+    from gearsim.cell.chains import simulate_rows
 
-    base = IntegrationSettings.from_config().with_(transient_recurrence=0)
+    base = study_settings().with_(transient_recurrence=0)
     rows = [[ModelParameters(w=w, b=b, **REFERENCE_SET)] * 2 for w, b, _, _ in CELLS]
     off = simulate_rows(rows, settings=base)
     on = simulate_rows(rows, settings=base.with_(transient_recurrence=24))

@@ -1,6 +1,6 @@
 """The model form named beside the exact-landmark table (issue 15, "Done when")."""
 
-from gearsim.exact_landmarks import form_name, model_form
+from gearsim.analysis.exact_landmarks import form_name, model_form
 
 TODAY = {
     "sweep": {"name": "w", "min": 0.1, "max": 2.5, "n": 1201, "direction": "forward",

@@ -16,15 +16,15 @@ import pandas as pd
 import pytest
 from tiny_study import CATALOGUE, CONFIGS, tiny_study
 
-from gearsim.catalogue import open_catalogue
-from gearsim.cli import main
-from gearsim.explorer import (
+from gearsim.cli.main import main
+from gearsim.presentation.explorer import (
     MAX_POINTS,
     dequantise,
     plane_from_cells,
     plane_payload,
     plotly_js,
 )
+from gearsim.results.catalogue import open_catalogue
 
 CHROMIUM = shutil.which("chromium")
 DRIVER = shutil.which("chromedriver")

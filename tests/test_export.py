@@ -16,14 +16,14 @@ import pytest
 import xarray as xr
 from synthetic_tiles import tile_frame, write_tile
 
-from gearsim import catalogue as gc
-from gearsim import config as gcfg
-from gearsim import grid as ggrid
-from gearsim import provenance as gprov
-from gearsim import tiles as gt
-from gearsim.cli import main
-from gearsim.commands.catalogue import plane_record
-from gearsim.export import VARIABLES
+from gearsim.cli.commands.catalogue import plane_record
+from gearsim.cli.main import main
+from gearsim.results import catalogue as gc
+from gearsim.results.export import VARIABLES
+from gearsim.study import config as gcfg
+from gearsim.study import grid as ggrid
+from gearsim.study import provenance as gprov
+from gearsim.study import tiles as gt
 
 ROOT = Path(__file__).resolve().parents[1]
 NX, NY = 5, 4
@@ -78,7 +78,7 @@ def _assert_equals_catalogue(ds: xr.Dataset, db: Path, nx=NX, ny=NY, chaos=True)
 
 
 def test_dataset_attributes(db):
-    from gearsim.export import plane_dataset
+    from gearsim.results.export import plane_dataset
 
     ds = plane_dataset(db, "wb")
     for name, var in {**ds.coords, **ds.data_vars}.items():
@@ -115,7 +115,7 @@ def test_export_round_trip(db, tmp_path, capsys, fmt):
         ds = df.set_index(["b", "w"]).drop(columns=["i", "j"]).to_xarray()
         _assert_equals_catalogue(ds, db)
         meta = (json.loads(Path(str(out) + ".json").read_text()) if fmt == "csv"
-                else gc.read_metadata(out, b"gearsim.export"))
+                else gc.read_metadata(out, b"gearsim.results.export"))
         assert meta["columns"]["lyapunov"]["units"] == "1/tau"
         assert meta["attrs"]["config_hash"]
     assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]

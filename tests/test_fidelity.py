@@ -8,7 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gearsim.fidelity import (
+from gearsim.analysis.landmarks import PAPER_LANDMARKS
+from gearsim.calibration.fidelity import (
     CAP,
     PAPER_COEXIST,
     PAPER_SEQUENCES,
@@ -19,8 +20,8 @@ from gearsim.fidelity import (
     sequence_distance,
     target_errors,
 )
-from gearsim.fidelity_fit import refine, run_de, sobol_population
-from gearsim.landmarks import PAPER_LANDMARKS
+from gearsim.calibration.fidelity_fit import refine, run_de, sobol_population
+from gearsim.study.config import standard_parameters
 
 
 def perfect() -> Measured:
@@ -128,7 +129,7 @@ def test_sobol_population_seeded_in_bounds_with_start():
 
 
 def test_form_table_and_report_lines_show_every_target():
-    from gearsim.fidelity import form_report_lines, form_table_lines
+    from gearsim.calibration.fidelity import form_report_lines, form_table_lines
 
     m = perfect()
     m.landmark_source = {pl.key: "exact" for pl in PAPER_LANDMARKS}
@@ -151,7 +152,7 @@ def test_form_table_and_report_lines_show_every_target():
 def _hand_sweep(p, grid, settings, u0=None, k=0):
     """A forward continuation sweep built here from the public ``simulate_cell`` (each cell
     from the previous cell's final section state and period; the first from ``u0``)."""
-    from gearsim.simulate import simulate_cell
+    from gearsim.cell.simulate import simulate_cell
 
     rows = []
     for w in grid:
@@ -164,7 +165,7 @@ def _hand_sweep(p, grid, settings, u0=None, k=0):
 def _min_x(p, u0, settings):
     """Smallest mesh displacement of the steady motion at ``p`` (from ``u0``): 100 periods of
     transient, then 4 periods sampled 1024 times each (direct integration)."""
-    from gearsim.simulate import trajectory
+    from gearsim.cell.simulate import trajectory
 
     tr = trajectory(p, u0, periods=4, samples_per_period=1024, settings=settings, transient=100)
     return float(tr.state[:, 0].min())
@@ -179,9 +180,8 @@ def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monke
     import json
     from dataclasses import replace
 
-    import gearsim.fidelity_fit as ff
-    from gearsim.cli import main
-    from gearsim.parameters import ModelParameters
+    import gearsim.calibration.fidelity_fit as ff
+    from gearsim.cli.main import main
 
     st = replace(ff.FINAL, w_min=0.55, w_max=0.80, dw=0.01)
     grid = st.grid()
@@ -192,7 +192,7 @@ def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monke
     rec = json.loads((tmp_path / "today.json").read_text())
     m = rec["measured"]
     # the same parameters, written out here (the search scale: Fm 0.1, b 1; the start shape)
-    p = ModelParameters.standard().with_(model="1dof", Fm=0.1, Fe=0.17854, eps=0.3175,
+    p = standard_parameters().with_(model="1dof", Fm=0.1, Fe=0.17854, eps=0.3175,
                                          phi_e=math.radians(-41.59), xi=0.0609, friction=0.0,
                                          b=1.0)
     assert rec["best"] == {"Fe_over_Fm": 1.7854, "eps": 0.3175, "phi_e_deg": -41.59,
@@ -248,8 +248,8 @@ def test_unfinished_form_stream_log_and_tradeoff_evidence(tmp_path):
     the evidence names, for a target hit within tolerance, the landmarks missing there."""
     import json
 
-    from gearsim.fidelity import form_summary_lines, landmarks_within
-    from gearsim.fidelity_fit import FORMS, best_per_target, partial_record, stream_runs
+    from gearsim.calibration.fidelity import form_summary_lines, landmarks_within
+    from gearsim.calibration.fidelity_fit import FORMS, best_per_target, partial_record, stream_runs
 
     logs = tmp_path / "logs"
     logs.mkdir()

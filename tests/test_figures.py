@@ -20,13 +20,13 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
-from gearsim.classify import Classification  # noqa: E402
-from gearsim.cli import main  # noqa: E402
-from gearsim.figures import bifurcation, phase, planes, schematic, spectra, style  # noqa: E402
-from gearsim.figures.data import PointMotion, plane_axes, spectrum  # noqa: E402
-from gearsim.figures.registry import FIGURES, Context, build, sweep_title  # noqa: E402
-from gearsim.parameters import ModelParameters  # noqa: E402
-from gearsim.simulate import CellResult, IntegrationSettings, Trajectory  # noqa: E402
+from gearsim.cell.classify import Classification  # noqa: E402
+from gearsim.cell.simulate import CellResult, IntegrationSettings, Trajectory  # noqa: E402
+from gearsim.cli.main import main  # noqa: E402
+from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.presentation.figures import bifurcation, phase, planes, schematic, spectra, style  # noqa: E402
+from gearsim.presentation.figures.data import PointMotion, plane_axes, spectrum  # noqa: E402
+from gearsim.presentation.figures.registry import FIGURES, Context, build, sweep_title  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = IntegrationSettings(rtol=1e-7, atol=1e-10, transient=20, transient_continuation=8,

@@ -12,9 +12,9 @@ import pytest
 from tiny_study import CONFIGS, tiny_study
 from workflow_helpers import make_workdir, smk
 
-from gearsim.catalogue import CatalogueError
-from gearsim.cli import main
-from gearsim.report import analyse, load_plane, to_markdown
+from gearsim.cli.main import main
+from gearsim.presentation.report import analyse, load_plane, to_markdown
+from gearsim.results.catalogue import CatalogueError
 
 
 @pytest.fixture(scope="module")

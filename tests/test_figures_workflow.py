@@ -9,8 +9,8 @@ import re
 import pytest
 from workflow_helpers import make_workdir, smk
 
-from gearsim.figures import registry
-from gearsim.figures import rules as gfr
+from gearsim.presentation.figures import registry
+from gearsim.presentation.figures import rules as gfr
 
 
 def _jobs(stdout: str) -> dict[str, int]:

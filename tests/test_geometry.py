@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from gearsim.geometry import GearGeometry, iso_flexibility, iso_single_stiffness
-from gearsim.parameters import ModelParameters, ParameterError
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.physical.geometry import GearGeometry, iso_flexibility, iso_single_stiffness
 
 
 def test_iso_flexibility_hand_computed():

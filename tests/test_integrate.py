@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from reference import solve_ivp_reference
 
-from gearsim.integrate import METHOD_DP5
-from gearsim.model import static_state
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, run_periods
+from gearsim.cell.simulate import IntegrationSettings, run_periods
+from gearsim.dynamics.model import static_state
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics.integrate import METHOD_DP5
 
 # impacting cells: one-sided at b = 1 (1-1-0, 2-2-0), double-sided at b = 0.15 / 0.3
 CELLS = [
@@ -103,7 +103,7 @@ def test_trajectory_mesh_force_is_the_force_of_the_model_form(form):
     """The recorded mesh force, written out from the equations (docs/model.md, Model forms):
     ``(1 + eps cos w tau) f(x, b) + 2 xi (1 - delta [inside the backlash]) (x' - (1 - beta) Fe w
     sin(w tau + phi_e))``; in today's form (beta = 1, delta = 0) bit for bit the old formula."""
-    from gearsim.simulate import trajectory
+    from gearsim.cell.simulate import trajectory
 
     p = ModelParameters(w=0.8, b=0.15, **form)
     tr = trajectory(p, periods=3, samples_per_period=16, transient=5,

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gearsim.landmarks import (
+from gearsim.analysis.landmarks import (
     PAPER_LANDMARKS,
     find_landmarks,
     is_subsequence,
@@ -142,9 +142,9 @@ def test_empty_and_backward():
 
 def test_refine_landmarks_bisects_with_simulations():
     """A real grazing of the single-DOF model, refined by bisection (a few cells)."""
-    from gearsim.parameters import ModelParameters
-    from gearsim.simulate import IntegrationSettings
-    from gearsim.sweep import orbit_diagram
+    from gearsim.cell.simulate import IntegrationSettings
+    from gearsim.cell.sweep import orbit_diagram
+    from gearsim.dynamics.parameters import ModelParameters
 
     p = ModelParameters(model="1dof")
     st = IntegrationSettings(rtol=1e-8, transient=80, max_periods=64)

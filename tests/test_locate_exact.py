@@ -20,8 +20,8 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from gearsim.fidelity import locate_exact
-from gearsim.parameters import ModelParameters
+from gearsim.calibration.fidelity import locate_exact
+from gearsim.dynamics.parameters import ModelParameters
 
 BASE = dict(model="1dof", Fm=0.1, b=1.0, xi=0.05, phi_e=0.0, friction=0.0, var_ratio=0.0)
 

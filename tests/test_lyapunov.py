@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from gearsim.config_io import load_standard_parameters
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, simulate_cell
-from gearsim.variational import lyapunov_spectrum, monodromy, tangent_map, trace_mean
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics.variational import lyapunov_spectrum, monodromy, tangent_map, trace_mean
+from gearsim.study.config_io import load_standard_parameters
 
 ROOT = Path(__file__).resolve().parents[1]
 RK4 = IntegrationSettings(method="rk4")

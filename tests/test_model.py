@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from reference import linear_steady_state
 
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, trajectory
+from gearsim.cell.simulate import IntegrationSettings, trajectory
+from gearsim.dynamics.parameters import ModelParameters
 
 
 def _linear_params(**kw):
@@ -74,7 +74,7 @@ def test_single_dof_is_the_rigid_bearing_limit():
 
 def test_static_equilibrium_is_steady_without_forcing():
     p = ModelParameters(Fe=0.0, eps=0.0, w=1.0, b=0.5)
-    from gearsim.model import static_state
+    from gearsim.dynamics.model import static_state
 
     y0 = static_state(p.to_array())
     tr = trajectory(p, y0, periods=3)

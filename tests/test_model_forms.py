@@ -1,7 +1,7 @@
 """Model-form options of the one field (issue 15.1) against independent references.
 
 Each option is checked against scipy's DOP853 on the equations written out here, *not* calling
-``gearsim.model``: the reference integrates the stiffness-path form of Eq 2-3 in the mesh
+``gearsim.dynamics.model``: the reference integrates the stiffness-path form of Eq 2-3 in the mesh
 coordinate ``q`` (rotations and bearing projections, without the transmission error), where the
 error enters only through the mesh force ``K(t) f(q - e, b) + C (q' - beta e')`` and there is no
 inertial forcing; the model integrates the deflection ``x = q - e`` (docs/model.md, "Model
@@ -29,15 +29,16 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.linalg import eigh
 
-from gearsim import model as m
-from gearsim.batch import run_periods_batched
-from gearsim.parameters import (
+from gearsim.cell.simulate import IntegrationSettings, run_periods
+from gearsim.dynamics import model as m
+from gearsim.dynamics.parameters import (
     ModelParameters,
     ParameterError,
     at_axis_w,
     mesh_mode_ratio,
 )
-from gearsim.simulate import IntegrationSettings, run_periods
+from gearsim.numerics.batch import run_periods_batched
+from gearsim.study.config import standard_parameters
 
 ROOT = Path(__file__).resolve().parents[1]
 N_PER = 10  # mesh periods compared
@@ -249,7 +250,7 @@ def test_tangent_is_the_jacobian(name, region):
 
 
 def test_default_options_pack_exact_zeros():
-    p = ModelParameters.standard().to_array()
+    p = standard_parameters().to_array()
     assert p[m.P_VTE] == 0.0 and p[m.P_XIO] == 0.0 and p[m.P_GAM1] == 0.0
 
 
@@ -332,8 +333,8 @@ def test_unknown_frequency_scale():
 # ---------------------------------------------------------------- the sweep method
 def test_sweep_from_a_fixed_start_is_independent_cells():
     """``sweeps.<name>.start: rest``: every cell from the static state (no continuation)."""
-    from gearsim.commands.sweep import sweep_frame
-    from gearsim.simulate import simulate_cell
+    from gearsim.cell.simulate import simulate_cell
+    from gearsim.cli.commands.sweep import sweep_frame
 
     st = IntegrationSettings(method="rk4", transient=30, transient_continuation=10, chunk=8,
                              max_periods=16, tangent_lead=0)
@@ -377,8 +378,8 @@ def test_mesh_force_helpers_follow_the_reference(name):
 
 
 def test_sweep_start_is_validated(tmp_path):
-    from gearsim import config as gcfg
     from gearsim.errors import ConfigError
+    from gearsim.study import config as gcfg
 
     f = tmp_path / "s.yaml"
     f.write_text("sweeps:\n  s1: {name: w, min: 0.5, max: 0.9, n: 3, start: rest}\n")
@@ -395,7 +396,7 @@ def test_monodromy_with_contact_damping_matches_dop853_finite_differences(model)
     """Damping only in contact makes the field jump at x = +/-b: the monodromy needs the
     saltation matrix at each mesh switch. Reference: central finite differences of the
     DOP853 section map of the equations written out above (no gearsim integrator)."""
-    from gearsim.variational import monodromy
+    from gearsim.numerics.variational import monodromy
 
     p = BASE.with_(mesh_damping_contact=1.0, model=model)
     r = run_periods(p, _start(p), 30, DP5, event_capacity=1000)
@@ -422,7 +423,7 @@ def test_monodromy_with_contact_damping_matches_dop853_finite_differences(model)
 def test_kmax_tracker_records_the_mesh_force_of_the_form(method):
     """The per-period force extremes (Kmax) follow the form's force: against the maximum of the
     reference force over a finely sampled trajectory of the same cell."""
-    from gearsim.simulate import trajectory
+    from gearsim.cell.simulate import trajectory
 
     p = BASE.with_(te_damping=0.0, mesh_damping_contact=0.5, model="1dof")
     st = RK4 if method == "rk4" else DP5

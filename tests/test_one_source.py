@@ -27,10 +27,10 @@ K3 = 0.05
 SCRIPT = r"""
 import json, sys
 import numpy as np
-from gearsim.batch import simulate_cells
-from gearsim.model import static_state
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, run_periods
+from gearsim.cell.chains import simulate_cells
+from gearsim.dynamics.model import static_state
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.cell.simulate import IntegrationSettings, run_periods
 p = ModelParameters(w=0.8, b=1.0, xi=0.1, Fe=0.05, Fm=0.1, eps=0.0, phi_e=0.0, friction=0.0,
                     model="1dof")
 y0 = static_state(p.to_array())
@@ -40,7 +40,7 @@ for method in ("dp5", "rk4"):
     out[method] = run_periods(p, y0, 30, st).summaries.section[:, :2].tolist()
 st = IntegrationSettings(method="rk4", transient=30, transient_continuation=10, chunk=8,
                          max_periods=16, tangent_lead=0)
-from gearsim.simulate import simulate_cell
+from gearsim.cell.simulate import simulate_cell
 a = simulate_cells([p], settings=st)[0]
 b = simulate_cell(p, settings=st)
 out["batched_equals_scalar"] = bool(np.array_equal(a.poincare, b.poincare))
@@ -94,7 +94,7 @@ def _scipy_sections(k3: float, n: int = 30) -> np.ndarray:
 def test_a_toy_nonlinearity_in_one_place_reaches_every_path(tmp_path):
     src = tmp_path / "src"
     shutil.copytree(ROOT / "src", src, ignore=shutil.ignore_patterns("__pycache__"))
-    _add_cubic_term(src / "gearsim" / "model.py")
+    _add_cubic_term(src / "gearsim" / "dynamics" / "model.py")
     got = _run(src, tmp_path)
     ref = _scipy_sections(K3)
     plain = _scipy_sections(0.0)

@@ -17,8 +17,7 @@ import pytest
 import scipy.linalg
 from scipy.integrate import solve_ivp
 
-from gearsim.config_io import load_standard_parameters
-from gearsim.orbits import (
+from gearsim.analysis.orbits import (
     SHOOTING,
     OrbitError,
     find_periodic_orbit,
@@ -26,9 +25,10 @@ from gearsim.orbits import (
     multiplier_kind,
     section_map,
 )
-from gearsim.parameters import ModelParameters, ParameterError
-from gearsim.simulate import IntegrationSettings, simulate_cell
-from gearsim.variational import monodromy
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics.variational import monodromy
+from gearsim.study.config_io import load_standard_parameters
 
 STANDARD = ModelParameters.from_mapping(load_standard_parameters("config/standard_parameters.yaml"))
 ONE = STANDARD.with_(model="1dof")
@@ -83,7 +83,8 @@ def test_linear_6dof_monodromy_is_matrix_exponential():
     A = _linear_6dof_matrix(p)
     T = 2 * math.pi / p.w
     E = scipy.linalg.expm(A * T)
-    # the shooting path puts the tangent into DP5's error norm (gearsim.orbits.TANGENT_ERROR):
+    # the shooting path puts the tangent into DP5's error norm
+    # (gearsim.analysis.orbits.TANGENT_ERROR):
     # the monodromy is then as accurate as the state (~2e-11 here)
     assert np.max(np.abs(orbit.monodromy - E)) < 1e-9
     mu = np.linalg.eigvals(E)
@@ -175,10 +176,10 @@ def test_monodromy_against_scipy_finite_differences(w, n):
 
 def _dop853_section_map_6dof(params: ModelParameters, y0, n: int, rtol=1e-13, atol=1e-15):
     """P^n of the 6-DOF model by scipy DOP853 (mesh switches x = +/- b located as events and
-    restarted, friction flip at T/2); the field values come from gearsim.model.rhs with the
+    restarted, friction flip at T/2); the field values come from gearsim.dynamics.model.rhs with the
     region frozen between events, so this checks the integrator and the variational solution,
     not the field (tests/test_one_source.py checks that)."""
-    from gearsim.model import MODE_FRICTION, N_MODE, rhs
+    from gearsim.dynamics.model import MODE_FRICTION, N_MODE, rhs
 
     p = params.to_array()
     w, b = params.w, params.b
@@ -321,7 +322,7 @@ def test_newton_fails_loudly_when_it_cannot_converge():
 def test_refine_cells_flags_disagreement_with_the_simulation():
     import pandas as pd
 
-    from gearsim.orbit_cells import refine_cells
+    from gearsim.analysis.orbit_cells import refine_cells
 
     rows = []
     for i, (w, n_claim) in enumerate([(0.86, None), (1.02, None), (1.02, 1)]):
@@ -340,7 +341,7 @@ def test_refine_cells_flags_disagreement_with_the_simulation():
 def test_cli_orbit_json_and_bad_input(capsys):
     import json
 
-    from gearsim.cli import main
+    from gearsim.cli.main import main
 
     assert main(["orbit", "--omega", "1.02", "--period", "2", "--set", "model=1dof",
                  "--json"]) == 0
@@ -361,7 +362,7 @@ def test_cli_continue_writes_branches_points_and_figure(tmp_path, capsys):
 
     import pandas as pd
 
-    from gearsim.cli import main
+    from gearsim.cli.main import main
 
     out = tmp_path / "c.parquet"
     assert main(["continue", "--name", "w", "--from", "0.95", "--to", "1.05", "--period", "1",

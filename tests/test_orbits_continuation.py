@@ -20,10 +20,10 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from gearsim.config_io import load_standard_parameters
-from gearsim.continuation import Continuation, continue_orbit
-from gearsim.parameters import ModelParameters, ParameterError
-from gearsim.simulate import IntegrationSettings, simulate_cell
+from gearsim.analysis.continuation import Continuation, continue_orbit
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.study.config_io import load_standard_parameters
 
 STANDARD = ModelParameters.from_mapping(load_standard_parameters("config/standard_parameters.yaml"))
 ONE = STANDARD.with_(model="1dof")
@@ -141,7 +141,7 @@ def test_bad_parameter_name():
 def test_exact_landmarks_pair_grid_intervals_with_located_points():
     import pandas as pd
 
-    from gearsim.exact_landmarks import exact_landmarks, report_lines
+    from gearsim.analysis.exact_landmarks import exact_landmarks, report_lines
 
     def lm(kind, lo, hi, fr, to, n_from, n_to, direction=1):
         return {"kind": kind, "value": 0.5 * (lo + hi), "lo": lo, "hi": hi, "from_npq": fr,
@@ -174,7 +174,7 @@ def test_cli_bifurcation_curves_follow_the_period_doubling(tmp_path):
     import pandas as pd
     import yaml
 
-    from gearsim.cli import main
+    from gearsim.cli.main import main
 
     cfg = tmp_path / "c.yaml"
     cfg.write_text(yaml.safe_dump({

@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from gearsim.parameters import _RANGES, ModelParameters, ParameterError
-from gearsim.simulate import IntegrationSettings
+from gearsim.cell.simulate import IntegrationSettings
+from gearsim.dynamics.parameters import _RANGES, ModelParameters, ParameterError
 
 BAD_COMMON = [float("nan"), float("inf"), -float("inf"), "abc", None, True]
 

@@ -15,8 +15,8 @@ import pytest
 import yaml
 from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk, targets
 
-from gearsim import config as gcfg
-from gearsim.simulate import simulate_cell
+from gearsim.cell.simulate import simulate_cell
+from gearsim.study import config as gcfg
 
 PIPELINE_RULES = {"compile", "simulate_tile", "plane_cells", "audit", "sweep", "points",
                   "catalogue"}

@@ -13,7 +13,7 @@ import yaml
 from test_pipeline import job_counts
 from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir
 
-from gearsim import config as gcfg
+from gearsim.study import config as gcfg
 
 STUDY = {
     "study": "weps",
@@ -104,8 +104,8 @@ def test_same_content_under_another_name_reruns_nothing(study):
 
 def test_torque_sweep_in_newton_metres(study):
     """A study's sweep given in N m at a speed in rpm (with a gear file) is converted once, when
-    the configuration is loaded, by gearsim.units; the physical form stays for labels."""
-    from gearsim.units import axis_factor, load_gear
+    the configuration is loaded, by gearsim.physical.units; the physical form stays for labels."""
+    from gearsim.physical.units import axis_factor, load_gear
 
     doc = {"study": "torque", "gear": "config/gears/standard.yaml", "planes": {}, "points": {},
            "sweeps": {"torque": {"name": "torque_Nm", "min": 4.0, "max": 40.0, "n": 91,

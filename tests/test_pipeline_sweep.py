@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gearsim import config as gcfg
-from gearsim.commands.sweep import _point_list, sweep_frame
-from gearsim.parameters import ModelParameters
-from gearsim.sweep import continuation_chain, orbit_diagram
+from gearsim.cell.sweep import continuation_chain, orbit_diagram
+from gearsim.cli.commands.sweep import _point_list, sweep_frame
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study import config as gcfg
 
 ROOT = Path(__file__).resolve().parents[1]
 

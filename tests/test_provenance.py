@@ -1,4 +1,4 @@
-"""The code version covers every module that decides a result (gearsim.provenance)."""
+"""The code version covers every module that decides a result (gearsim.study.provenance)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import gearsim
-from gearsim import provenance as gprov
+from gearsim.study import provenance as gprov
 
 PKG = Path(gearsim.__file__).resolve().parent
 
@@ -28,72 +28,90 @@ def _flip_one_byte(path: Path) -> bytes:
 
 
 def test_copy_has_the_same_version(copy_of_package):
-    assert gprov.code_version(copy_of_package) == gprov.code_version()
-    assert len(gprov.code_version()) == 16
+    for scope in gprov.CODE_SCOPES:
+        assert gprov.code_version(scope, copy_of_package) == gprov.code_version(scope)
+        assert len(gprov.code_version(scope)) == 16
 
 
 @pytest.mark.parametrize(
     "rel",
     [
-        "commands/catalogue.py",  # the audit (was missed by the hand-kept module list)
-        "commands/sweep.py",  # sweeps and named points (was missed)
-        "commands/simulate_tile.py",
-        "tiles.py",
-        "grid.py",
-        "config.py",
-        "model.py",
-        "batch.py",
-        "catalogue.py",
+        "study/tiles.py",
+        "study/grid.py",
+        "study/config.py",
+        "dynamics/model.py",
+        "numerics/batch.py",
+        "cell/chains.py",
+        "cell/classify.py",
+        "physical/units.py",
+        "errors.py",
     ],
 )
-def test_one_byte_in_a_deciding_module_changes_the_version(copy_of_package, rel):
-    before = gprov.code_version(copy_of_package)
+def test_one_byte_in_a_deciding_module_changes_every_version(copy_of_package, rel):
+    before = {s: gprov.code_version(s, copy_of_package) for s in gprov.CODE_SCOPES}
     original = _flip_one_byte(copy_of_package / rel)
     try:
-        assert gprov.code_version(copy_of_package) != before
+        for scope in gprov.CODE_SCOPES:
+            assert gprov.code_version(scope, copy_of_package) != before[scope]
     finally:
         (copy_of_package / rel).write_bytes(original)
-    assert gprov.code_version(copy_of_package) == before
+    assert {s: gprov.code_version(s, copy_of_package) for s in gprov.CODE_SCOPES} == before
 
 
-def test_every_deciding_module_is_hashed():
-    """Every .py file outside the presentation-only list is in code_files, commands/ included."""
-    files = {f.relative_to(PKG).as_posix() for f in gprov.code_files()}
-    every = {
-        f.relative_to(PKG).as_posix() for f in PKG.rglob("*.py") if "__pycache__" not in f.parts
-    }
-    presentation = {
-        r
-        for r in every
-        if any(r == ex or (ex.endswith("/") and r.startswith(ex)) for ex in gprov.PRESENTATION_ONLY)
-    }
-    assert files == every - presentation
-    assert {"commands/catalogue.py", "commands/sweep.py", "cli.py", "tiles.py"} <= files
-    assert not any(r.startswith("figures/") for r in files)
+@pytest.mark.parametrize(
+    ("rel", "unchanged", "changed"),
+    [
+        ("presentation/figures/style.py", ("tiles", "analysis", "catalogue"), ("presentation",)),
+        ("presentation/report.py", ("tiles", "analysis", "catalogue"), ("presentation",)),
+        ("calibration/fidelity.py", ("tiles", "analysis", "catalogue"), ("presentation",)),
+        ("cli/commands/figures.py", tuple(gprov.CODE_SCOPES), ()),
+        ("analysis/attractors.py", ("tiles",), ("analysis", "catalogue", "presentation")),
+        ("results/catalogue.py", ("tiles", "analysis"), ("catalogue", "presentation")),
+    ],
+)
+def test_a_layer_edit_changes_only_the_scopes_that_name_it(copy_of_package, rel, unchanged,
+                                                            changed):
+    before = {s: gprov.code_version(s, copy_of_package) for s in gprov.CODE_SCOPES}
+    original = _flip_one_byte(copy_of_package / rel)
+    try:
+        for scope in unchanged:
+            assert gprov.code_version(scope, copy_of_package) == before[scope]
+        for scope in changed:
+            assert gprov.code_version(scope, copy_of_package) != before[scope]
+    finally:
+        (copy_of_package / rel).write_bytes(original)
+
+
+def test_every_module_of_a_scope_is_hashed():
+    """code_files of a scope are exactly the .py files of its layers and of the package root."""
+    every = {f.relative_to(PKG).as_posix() for f in PKG.rglob("*.py")
+             if "__pycache__" not in f.parts}
+    for scope, layers in gprov.CODE_SCOPES.items():
+        files = {f.relative_to(PKG).as_posix() for f in gprov.code_files(scope)}
+        expected = {r for r in every if "/" not in r or r.split("/", 1)[0] in layers}
+        assert files == expected
+    tiles = {f.relative_to(PKG).as_posix() for f in gprov.code_files("tiles")}
+    assert {"study/tiles.py", "cell/chains.py", "numerics/batch.py", "errors.py"} <= tiles
+    assert not any(r.startswith(("presentation/", "calibration/", "cli/")) for r in tiles)
+
+
+def test_an_unknown_scope_is_refused():
+    with pytest.raises(ValueError, match="code scope"):
+        gprov.code_version("everything")
 
 
 def test_a_new_module_and_a_rename_change_the_version(copy_of_package):
-    before = gprov.code_version(copy_of_package)
-    new = copy_of_package / "nonlinearity.py"
+    before = gprov.code_version("tiles", copy_of_package)
+    new = copy_of_package / "dynamics" / "nonlinearity.py"
     new.write_text("GAIN = 1.0\n")
     try:
-        assert gprov.code_version(copy_of_package) != before
+        assert gprov.code_version("tiles", copy_of_package) != before
     finally:
         new.unlink()
-    src, dst = copy_of_package / "grid.py", copy_of_package / "grids.py"
+    src, dst = copy_of_package / "study" / "grid.py", copy_of_package / "study" / "grids.py"
     src.rename(dst)
     try:
-        assert gprov.code_version(copy_of_package) != before
+        assert gprov.code_version("tiles", copy_of_package) != before
     finally:
         dst.rename(src)
-    assert gprov.code_version(copy_of_package) == before
-
-
-def test_presentation_module_does_not_change_the_version(copy_of_package):
-    before = gprov.code_version(copy_of_package)
-    target = copy_of_package / "figures" / "style.py"
-    original = _flip_one_byte(target)
-    try:
-        assert gprov.code_version(copy_of_package) == before
-    finally:
-        target.write_bytes(original)
+    assert gprov.code_version("tiles", copy_of_package) == before

@@ -11,9 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gearsim import catalogue as gc
-from gearsim.cli import main
-from gearsim.commands.query import EXAMPLES, execute
+from gearsim.cli.commands.query import EXAMPLES, execute
+from gearsim.cli.main import main
+from gearsim.results import catalogue as gc
 
 ROOT = Path(__file__).resolve().parents[1]
 

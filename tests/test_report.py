@@ -5,8 +5,8 @@ import pandas as pd
 import pytest
 from test_landmarks import paper_like, row
 
-from gearsim.cli import main
-from gearsim.report import (
+from gearsim.cli.main import main
+from gearsim.presentation.report import (
     analyse,
     build_report,
     double_sided,
@@ -125,7 +125,7 @@ def test_report_lists_exact_landmarks_from_the_standard_continuation(tmp_path):
 
 
 def test_exact_landmark_table_names_the_model_form_from_the_sweep_provenance(tmp_path):
-    from gearsim import catalogue
+    from gearsim.results import catalogue
 
     (tmp_path / "sweeps").mkdir()
     subtree = {"sweep": {"name": "w", "fixed": {}, "start": "rest"},

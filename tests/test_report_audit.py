@@ -2,8 +2,8 @@
 
 import pandas as pd
 
-from gearsim.catalogue import PROVENANCE_KEY, write_parquet
-from gearsim.report import Report, load_audits, to_markdown
+from gearsim.presentation.report import Report, load_audits, to_markdown
+from gearsim.results.catalogue import PROVENANCE_KEY, write_parquet
 
 
 def _audit_file(root, plane, agreement, threshold=0.95):

@@ -2,9 +2,10 @@
 
 import numpy as np
 
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, simulate_cell
-from gearsim.sweep import continuation_chain, orbit_diagram
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.cell.sweep import continuation_chain, orbit_diagram
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study.config import study_settings
 
 
 def test_early_stop_for_period_one_and_full_budget_for_chaos():
@@ -66,8 +67,8 @@ def test_step_budget_ends_a_cell_and_the_chain_goes_on():
     """w -> 0: a period costs T / hmax steps; over the budget the cell is 'budget', at once."""
     import time
 
-    from gearsim.batch import simulate_rows
-    from gearsim.sweep import continuation_chain
+    from gearsim.cell.chains import simulate_rows
+    from gearsim.cell.sweep import continuation_chain
 
     st = IntegrationSettings(method="rk4", max_steps=200_000)
     cells = [ModelParameters(w=0.8), ModelParameters(w=1e-4), ModelParameters(w=0.9)]
@@ -101,17 +102,17 @@ def test_step_budget_during_measurement():
 def test_batched_lanes_compacted_as_cells_finish_give_the_same_results(monkeypatch):
     """simulate_cells packs the unfinished lanes into fewer SIMD blocks as cells finish (issue
     16): every cell's result equals its own single-lane run, bit for bit."""
-    from gearsim import batch
-    from gearsim.batch import simulate_cells
+    from gearsim.cell import chains
+    from gearsim.cell.chains import simulate_cells
 
     sizes = []
-    compact = batch._compact
+    compact = chains._compact
 
     def counted(lanes, chains):
         sizes.append((lanes.n_blocks, len(chains)))
         return compact(lanes, chains)
 
-    monkeypatch.setattr(batch, "_compact", counted)
+    monkeypatch.setattr(chains, "_compact", counted)
 
     st = IntegrationSettings(method="rk4", transient=30, max_periods=96)
     ws = np.linspace(0.5, 2.2, 19)  # periodic cells finish early, chaotic ones use the budget
@@ -161,7 +162,7 @@ def test_transient_recurrence_bad_values_exit_2_with_one_line(tmp_path):
 
     import pytest
 
-    from gearsim.parameters import ParameterError
+    from gearsim.dynamics.parameters import ParameterError
 
     for bad in (8, 16, -1, True, 2.5):
         with pytest.raises(ParameterError, match="transient_recurrence"):
@@ -181,16 +182,16 @@ def test_transient_recurrence_bad_values_exit_2_with_one_line(tmp_path):
 def test_audit_tighten_bad_value_is_one_config_error_and_sets_the_dp5_reference(tmp_path):
     import pytest
 
-    from gearsim.commands.catalogue import audit_settings
-    from gearsim.config import study_config
+    from gearsim.cli.commands.catalogue import audit_settings
     from gearsim.errors import ConfigError
+    from gearsim.study.config import study_config
 
     f = tmp_path / "bad.yaml"
     f.write_text("audit: {tighten: 0.5}\n")
     with pytest.raises(ConfigError, match="tighten"):
         study_config([f])
     cfg = study_config()
-    st = IntegrationSettings.from_config(cfg)
+    st = study_settings(cfg)
     for k in (1, 10, 100):
         ref = audit_settings({**cfg, "audit": {**cfg["audit"], "tighten": k}})
         assert ref.method == "dp5" and ref.rtol == st.rtol / k and ref.hmax == st.hmax / 2

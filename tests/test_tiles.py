@@ -1,4 +1,4 @@
-"""Config validation, grids, tiles and row simulation (gearsim.tiles)."""
+"""Config validation, grids, tiles and row simulation (gearsim.study.tiles)."""
 
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 import yaml
 
-from gearsim import config as gcfg
-from gearsim import grid as ggrid
-from gearsim import provenance as gprov
-from gearsim import tiles as gt
-from gearsim.parameters import ModelParameters
-from gearsim.simulate import IntegrationSettings, simulate_cell
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study import config as gcfg
+from gearsim.study import grid as ggrid
+from gearsim.study import provenance as gprov
+from gearsim.study import tiles as gt
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "config/config.yaml"
@@ -189,8 +189,9 @@ def test_row_is_a_continuation_chain(tiny):
 
 
 def test_rk4_tiles_use_the_batched_kernel(tiny):
-    """With method rk4 a tile runs gearsim.batch; rows equal the scalar RK4 continuation chain."""
-    from gearsim.sweep import continuation_chain
+    """With method rk4 a tile runs gearsim.numerics.batch; rows equal the scalar RK4 continuation
+    chain."""
+    from gearsim.cell.sweep import continuation_chain
 
     cfg = copy.deepcopy(tiny)
     cfg["integration"]["method"] = "rk4"
@@ -223,7 +224,7 @@ def test_tile_records_do_not_depend_on_the_worker_split(tiny, tmp_path, capsys):
     `simulate-tile --workers 1` without a scheduler runs in-process (no LocalCluster)."""
     import pandas as pd
 
-    from gearsim.cli import main
+    from gearsim.cli.main import main
 
     cfg = copy.deepcopy(tiny)
     cfg["integration"].update(method="rk4", transient=40, transient_continuation=8, chunk=16,

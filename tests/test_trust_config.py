@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gearsim import config as gcfg
-from gearsim.commands._common import json_safe
-from gearsim.config_io import MAX_YAML_BYTES, MAX_YAML_NODES, load_yaml
+from gearsim.cli.commands._common import json_safe
+from gearsim.dynamics.parameters import ParameterError, check_value
 from gearsim.errors import ConfigError
-from gearsim.parameters import ParameterError, check_value
+from gearsim.safe_yaml import MAX_YAML_BYTES, MAX_YAML_NODES, load_yaml
+from gearsim.study import config as gcfg
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "config/config.yaml"

@@ -90,7 +90,7 @@ def test_unreachable_scheduler_fails_fast(tmp_path):
 
 @pytest.fixture()
 def catalogue(tmp_path):
-    from gearsim.catalogue import build_catalogue
+    from gearsim.results.catalogue import build_catalogue
 
     db = tmp_path / "catalogue.sqlite"
     build_catalogue(db)  # an empty catalogue of the current schema (readers refuse others)

@@ -10,11 +10,11 @@ import pandas as pd
 import pytest
 import yaml
 
-from gearsim import units
-from gearsim.cli import main
-from gearsim.config_io import load_standard_parameters
-from gearsim.geometry import GearGeometry
-from gearsim.parameters import ModelParameters, ParameterError
+from gearsim.cli.main import main
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.physical import units
+from gearsim.physical.geometry import GearGeometry
+from gearsim.study.config_io import load_standard_parameters
 
 ROOT = Path(__file__).resolve().parents[1]
 STANDARD_GEAR = ROOT / "config/gears/standard.yaml"
@@ -293,7 +293,7 @@ def test_pipeline_config_in_physical_units_converts_in_place():
 
 def test_torque_sweep_study_example_loads_in_dimensionless_units(tmp_path, capsys):
     """config/torque_sweep.yaml (the README's example) through the pipeline's config loader."""
-    from gearsim.config import ConfigError, base_parameters, study_config
+    from gearsim.study.config import ConfigError, base_parameters, study_config
 
     config = study_config([ROOT / "config/torque_sweep.yaml"], root=ROOT)
     assert config["study"] == "torque" and list(config["sweeps"]) == ["torque"]

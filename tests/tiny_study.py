@@ -8,7 +8,7 @@ from pathlib import Path
 
 from workflow_helpers import make_workdir, smk
 
-from gearsim.cli import main
+from gearsim.cli.main import main
 
 STUDY = """\
 # tiny.yaml plus a plane of an axis pair the paper does not map, with its coexisting attractors

@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from gearsim import config as gcfg
+from gearsim.study import config as gcfg
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = Path(sys.executable).parent / "snakemake"

@@ -1,6 +1,6 @@
 """gearsim: nonlinear dynamics of a curve-face gear pair over two-parameter planes."""
 
-from ._numba_cache import invalidate_stale_cache
+from gearsim.numerics.cache import invalidate_stale_cache
 
 __version__ = "0.1.0"
 

@@ -1,5 +1,5 @@
 """``python -m gearsim`` runs the CLI."""
 
-from .cli import main
+from gearsim.cli.main import main
 
 raise SystemExit(main())

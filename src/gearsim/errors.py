@@ -1,12 +1,15 @@
 """Exceptions that the CLI turns into one-line errors with exit status 2.
 
-Library modules raise these (never import :mod:`gearsim.cli`); :func:`gearsim.cli.main` prints
-``gearsim <command>: error: <message>`` and exits with status 2.
+Library modules raise these (never import :mod:`gearsim.cli`); :func:`gearsim.cli.main.main` prints
+``gearsim <command>: error: <message>`` and exits with status 2. This module imports nothing of
+the package: every layer may raise these.
 """
 
 from __future__ import annotations
 
-from .parameters import ParameterError
+
+class ParameterError(ValueError):
+    """A parameter is outside its allowed range. The message names the parameter and the range."""
 
 
 class UsageError(Exception):

@@ -5,15 +5,15 @@ import os
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
-from gearsim import config as gcfg
-from gearsim import grid as ggrid
-from gearsim import provenance as gprov
+from gearsim.study import config as gcfg
+from gearsim.study import grid as ggrid
+from gearsim.study import provenance as gprov
 
 SCHEMA = Path(workflow.basedir) / "workflow/schemas/config.schema.yaml"
 
 # 1. The study's configuration, resolved as the gearsim CLI resolves it
-#    (gearsim.config.study_config): the config files in Snakemake's order, then the `--config`
-#    overrides, merged by gearsim.config.merge_study (a file that names a `study` brings its own
+#    (gearsim.study.config.study_config): the config files in Snakemake's order, then the `--config`
+#    overrides, merged by gearsim.study.config.merge_study (a file that names a `study` brings its own
 #    planes, sweeps and points instead of adding them to the paper's), validated with one clear
 #    line naming a bad key, schema defaults filled. It replaces Snakemake's own merge.
 STUDY_ROOT = Path.cwd().resolve()
@@ -70,9 +70,9 @@ if STUDY is not None:
     workdir: f"studies/{STUDY}"
 
 
-# 3. What the jobs depend on. code_version hashes every module that decides results
-#    (gearsim.provenance.code_files): Snakemake does not see edits to a package.
-CODE_VERSION = gprov.code_version()
+# 3. What the jobs depend on. CODE_VERSION[scope] hashes the layers a kind of job depends on
+#    (gearsim.study.provenance.CODE_SCOPES): Snakemake does not see edits to a package.
+CODE_VERSION = {scope: gprov.code_version(scope) for scope in gprov.CODE_SCOPES}
 PLANES = list(config["planes"])
 SWEEPS = list(config["sweeps"])
 POINT_SETS = list(config["points"])

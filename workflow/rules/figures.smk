@@ -1,11 +1,11 @@
 # Figures of the study (figures owner). One rule per figure group, generated from the one figure
-# table gearsim.figures.registry.FIGURES (inputs, CLI arguments, outputs, captions); a figure
+# table gearsim.presentation.figures.registry.FIGURES (inputs, CLI arguments, outputs, captions); a figure
 # whose tables are not configured is left out. Every plane, whatever its axes, also gets its
 # maps (pattern, DC, Kmax, and any registered later) from rule plane_maps.
 # Outputs: results/figures/figNN.{png,pdf,json}, results/figures/planes/<plane>-<kind>.*, and
 # the index results/figures/README.md.
-from gearsim.bifcurves import pipeline_orbit_tables
-from gearsim.figures import rules as gfr
+from gearsim.analysis.bifcurves import pipeline_orbit_tables
+from gearsim.presentation.figures import rules as gfr
 
 FIGURE_PARAMS = gfr.figure_params(config)
 # continuation tables made by workflow/rules/orbits.smk (config `orbits:`)
@@ -37,7 +37,7 @@ for _spec in FIGURE_GROUPS:
             args=gfr.cli_args(_spec, ORBIT_TABLES),
             caption=gfr.caption_params(_spec),
             figure=FIGURE_PARAMS,
-            code_version=CODE_VERSION,
+            code_version=CODE_VERSION["presentation"],
         shell:
             "gearsim figures {params.args} --configfile {input.config} "
             "--outdir results/figures > {log} 2>&1"
@@ -62,7 +62,7 @@ rule plane_maps:
         GEARSIM_ENV
     threads: 1
     params:
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["presentation"],
     shell:
         "gearsim figures --maps --plane {wildcards.plane}={input.cells} "
         "--configfile {input.config} --outdir results/figures > {log} 2>&1"
@@ -103,7 +103,7 @@ rule explorer:
     conda:
         GEARSIM_ENV
     params:
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["presentation"],
     shell:
         "gearsim explorer --results results --catalogue {input.catalogue} "
         "--configfile {input.config} --out {output} > {log} 2>&1"

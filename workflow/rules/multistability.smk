@@ -3,7 +3,7 @@
 # forward-continuation states seed the finder), into the catalogue's `attractors` table.
 MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
 # the finder's source decides the attractor tiles too (CODE_VERSION covers the simulation)
-import gearsim.attractors as _ga
+import gearsim.analysis.attractors as _ga
 
 ATTRACTOR_CODE = hashlib.sha256(Path(_ga.__file__).read_bytes()).hexdigest()[:16]
 ATTRACTOR_FILES = [
@@ -32,7 +32,7 @@ rule attractor_tile:
     threads: 1
     params:
         config=plane_params,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["analysis"],
         attractor_code=ATTRACTOR_CODE,
     shell:
         "gearsim attractor-tile --plane {wildcards.plane} --tile {wildcards.tile} "

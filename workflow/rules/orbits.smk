@@ -12,8 +12,8 @@
 #   snakemake --cores 2 results/wb/orbits.parquet
 
 
-from gearsim.bifcurves import pipeline_orbit_tables
-from gearsim.exact_landmarks import sweep_set_arguments
+from gearsim.analysis.bifcurves import pipeline_orbit_tables
+from gearsim.study.config import sweep_set_arguments
 
 ORBIT_TABLES = pipeline_orbit_tables(config)  # config `orbits: {continuation, curves}`
 ORBITS_STANDARD = "standard" in ORBIT_TABLES
@@ -38,7 +38,7 @@ rule refine_orbits:
         GEARSIM_ENV
     params:
         config=plane_params,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["analysis"],
     shell:
         "gearsim refine-orbits --plane {wildcards.plane} --cells {input.cells} "
         "--configfile {input.config} --out {output} > {log} 2>&1"
@@ -64,7 +64,7 @@ rule standard_continuation:
         sets=sweep_set_arguments(config, "standard") if ORBITS_STANDARD else "",
         start=config["sweeps"]["standard"]["min"] if ORBITS_STANDARD else 0,
         stop=config["sweeps"]["standard"]["max"] if ORBITS_STANDARD else 0,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["analysis"],
     shell:
         "gearsim continue --name w --from {params.start} --to {params.stop} --period 1 "
         "{params.sets} --sweep {input.sweep} --out {output.branches} "
@@ -92,7 +92,7 @@ rule bifurcation_curves:
     params:
         config=plane_params,
         points=lambda wildcards, input: f"--points {input.points}" if input.points else "",
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["analysis"],
     shell:
         "gearsim bifurcation-curves --plane {wildcards.plane} --cells {input.cells} "
         "{params.points} --workers {threads} --configfile {input.config} "

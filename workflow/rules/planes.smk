@@ -17,7 +17,7 @@ rule compile:
         GEARSIM_ENV
     priority: 10  # the planes wait for it
     params:
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["tiles"],
     shell:
         "gearsim compile --stamp {output} > {log} 2>&1"
 
@@ -43,7 +43,7 @@ rule simulate_tile:
     priority: 10
     params:
         config=plane_params,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["tiles"],
     shell:
         "gearsim simulate-tile --plane {wildcards.plane} --tile {wildcards.tile} "
         "--configfile {input.config} --workers {threads} --out {output} > {log} 2>&1"
@@ -62,7 +62,7 @@ rule plane_cells:
     priority: 10
     params:
         config=plane_params,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["tiles"],
     shell:
         "gearsim catalogue cells --plane {wildcards.plane} --tiles {input.tiles} "
         "--configfile {input.config} --out {output} > {log} 2>&1"
@@ -83,7 +83,7 @@ rule audit:
     priority: 10
     params:
         config=audit_params,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["tiles"],
     shell:
         "gearsim catalogue audit --plane {wildcards.plane} --cells {input.cells} "
         "--configfile {input.config} --out {output} > {log} 2>&1"

@@ -17,7 +17,7 @@ rule points:
     threads: 1
     params:
         config=point_params,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["tiles"],
     shell:
         "gearsim sweep --points {wildcards.fig} --configfile {input.config} --out {output} > {log} 2>&1"
 

@@ -39,7 +39,7 @@ rule report:
         GEARSIM_ENV
     params:
         calibration=lambda wildcards, input: input.calibration or "",
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["presentation"],
     shell:
         "gearsim report --sweeps results/sweeps --catalogue {input.catalogue} "
         "--results results --calibration {params.calibration:q} --configfile {input.config} "

@@ -16,7 +16,7 @@ rule sweep:
     threads: 1
     params:
         config=sweep_params,
-        code_version=CODE_VERSION,
+        code_version=CODE_VERSION["tiles"],
     shell:
         "gearsim sweep --name {wildcards.sweep} --configfile {input.config} --out {output} > {log} 2>&1"
 

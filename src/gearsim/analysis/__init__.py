@@ -1,0 +1,2 @@
+"""Beyond one trajectory: coexisting attractors and basins, periodic orbits (shooting, Floquet
+multipliers), continuation, bifurcation curves, landmarks."""

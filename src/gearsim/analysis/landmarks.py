@@ -1,0 +1,544 @@
+"""Landmarks of a one-parameter orbit diagram: grazings, jumps, period doublings, chaos.
+
+Input is the DataFrame of :func:`gearsim.cell.sweep.orbit_diagram` (one row per parameter value with
+the columns ``value, motion, I, n, p, q, label, label_npq, dc, kmax*``; ``poincare_x`` is not
+needed). Output is a tidy DataFrame, one row per landmark, that the figures annotate (``G Bif``,
+``PD Bif``, ``Jump``) and the report compares with the paper.
+
+Landmark kinds (:data:`KINDS`), each located *between* two neighbouring grid values ``lo`` and
+``hi`` (``value`` is their midpoint unless refined by :func:`refine_landmarks`):
+
+``grazing``
+    Impact state I 0 -> 1 at period 1 (``1-0-0 -> 1-1-0``), or at a fixed period ``n`` a change of
+    the impact counts p / q (``2-2-0 -> 2-1-0``, ``4-2-0 -> 4-3-0``). Also I 1 -> 0 (``exit``
+    grazing, ``direction = -1``).
+``jump``
+    A discontinuity of the disengagement duty cycle: ``|DC_hi - DC_lo| >= jump_dc`` with the same
+    pattern on both sides or a pattern change that is not a period doubling.
+``period_doubling``
+    ``n -> 2 n`` between periodic cells.
+``inverse_period_doubling``
+    ``2 n -> n`` between periodic cells, and ``chaos -> n`` at the final exit from chaos (from the
+    last chaos cell to the first periodic cell after it, across any quasi-periodic cells).
+``chaos_onset``
+    The first periodic -> chaos transition (chaos must persist ``min_chaos_run`` cells); a run of
+    quasi-periodic / unsettled cells between the last periodic cell and the chaos belongs to the
+    route into chaos (the onset is placed at its start).
+``period_one``
+    The last entry into period 1: from there on the motion stays ``n = 1`` (return to period 1).
+``other``
+    Any remaining pattern change (e.g. ``1 -> 3``), so nothing is silently lost.
+
+Isolated ``quasi-periodic`` / ``unsettled`` cells (runs up to ``bridge`` cells long, flanked by
+periodic cells) are classifier indecision next to a bifurcation, not dynamics: by default they are
+bridged, and the landmark spans the whole gap (``lo`` and ``hi`` are the flanking periodic
+cells). Set ``bridge=0`` to keep them.
+
+The paper's landmark table for the standard sweep is :data:`PAPER_LANDMARKS`;
+:func:`match_paper` pairs it with the extracted landmarks in sweep order.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+KINDS = (
+    "grazing",
+    "jump",
+    "period_doubling",
+    "inverse_period_doubling",
+    "chaos_onset",
+    "period_one",
+    "other",
+)
+
+#: short annotations for figures
+SHORT = {
+    "grazing": "G Bif",
+    "jump": "Jump",
+    "period_doubling": "PD Bif",
+    "inverse_period_doubling": "PD Bif",
+    "chaos_onset": "Chaos",
+    "period_one": "PD Bif",
+    "other": "",
+}
+
+COLUMNS = (
+    "kind",
+    "value",
+    "lo",
+    "hi",
+    "i_lo",
+    "i_hi",
+    "from_label",
+    "to_label",
+    "from_npq",
+    "to_npq",
+    "n_from",
+    "n_to",
+    "direction",
+    "dc_lo",
+    "dc_hi",
+    "kmax_lo",
+    "kmax_hi",
+    "refined",
+    "annotation",
+)
+
+_NONPERIODIC_BRIDGEABLE = ("quasi-periodic", "unsettled")
+
+
+@dataclass(frozen=True)
+class PaperLandmark:
+    """One row of the paper's landmark table (standard parameters, forward sweep in w)."""
+
+    key: str
+    kind: str
+    w: float
+    w_range: tuple[float, float]  # interval the paper gives (w, w) when a single value
+    from_npq: str | None  # pattern before ('chaos' for chaos); None = any
+    to_npq: str | None
+    text: str
+
+    def error(self, w: float) -> float:
+        """Signed distance of ``w`` from the paper's interval (0 inside it)."""
+        lo, hi = self.w_range
+        if w < lo:
+            return w - lo
+        if w > hi:
+            return w - hi
+        return 0.0
+
+
+def _pl(key, kind, w, fr, to, text, w_range=None) -> PaperLandmark:
+    return PaperLandmark(key, kind, w, w_range or (w, w), fr, to, text)
+
+
+#: The paper's landmarks, in sweep order (MODEL.md table; paper Sect 3.1).
+PAPER_LANDMARKS: tuple[PaperLandmark, ...] = (
+    _pl("grazing_1", "grazing", 0.569, "1-0-0", "1-1-0", "grazing 1-0-0 -> 1-1-0 (I 0 -> 1)"),
+    _pl("jump", "jump", 0.66, None, None, "jump: DC -> 0.66, Kmax -> 1.311"),
+    _pl("pd_1_2", "period_doubling", 0.988, "1-1-0", "2-2-0", "period doubling 1-1-0 -> 2-2-0"),
+    _pl("grazing_2", "grazing", 1.072, "2-2-0", "2-1-0", "grazing 2-2-0 -> 2-1-0"),
+    _pl("pd_2_4", "period_doubling", 1.33, "2-1-0", "4-2-0", "period doubling 2-1-0 -> 4-2-0"),
+    _pl("grazing_4", "grazing", 1.354, "4-2-0", "4-3-0", "grazing 4-2-0 -> 4-3-0"),
+    _pl(
+        "pd_4_8",
+        "period_doubling",
+        1.377,
+        None,
+        "8-6-0",
+        "period doubling -> 8-6-0 (1.37-1.384)",
+        w_range=(1.37, 1.384),
+    ),
+    _pl("chaos_onset", "chaos_onset", 1.396, None, "chaos", "chaos onset"),
+    _pl("ipd_chaos_8", "inverse_period_doubling", 1.642, "chaos", "8-6-0", "chaos -> 8-6-0"),
+    _pl("ipd_8_4", "inverse_period_doubling", 1.672, "8-6-0", "4-3-0", "8-6-0 -> 4-3-0"),
+    _pl("ipd_4_2", "inverse_period_doubling", 1.714, "4-3-0", "2-2-0", "4-3-0 -> 2-2-0"),
+    _pl("period_one", "period_one", 1.864, "2-2-0", "1-1-0", "back to period 1 (2-2-0 -> 1-1-0)"),
+)
+
+#: paper values at the jump (Sect 3.1)
+PAPER_JUMP_DC = 0.66
+PAPER_JUMP_KMAX = 1.311
+
+
+# ---------------------------------------------------------------------------- extraction
+def _state(row: pd.Series) -> str:
+    motion = row.get("motion", "periodic")
+    if motion == "periodic" and int(row.get("n", 0) or 0) > 0:
+        return str(row["label_npq"]) if row.get("label_npq") else f"{int(row['n'])}"
+    return str(motion)
+
+
+def _kmax_col(df: pd.DataFrame, kmax: str) -> np.ndarray:
+    if kmax in df.columns:
+        return df[kmax].to_numpy(dtype=float)
+    return np.full(len(df), np.nan)
+
+
+def _bridged_indices(states: list[str], motions: list[str], bridge: int) -> list[int]:
+    """Indices of rows kept after bridging short non-periodic runs between periodic cells."""
+    keep = []
+    i = 0
+    m = len(states)
+    while i < m:
+        if motions[i] in _NONPERIODIC_BRIDGEABLE and bridge > 0:
+            j = i
+            while j < m and motions[j] in _NONPERIODIC_BRIDGEABLE:
+                j += 1
+            run = j - i
+            flanked = i > 0 and j < m and motions[i - 1] == "periodic" and motions[j] == "periodic"
+            if run <= bridge and flanked:
+                i = j
+                continue
+            keep.extend(range(i, j))
+            i = j
+            continue
+        keep.append(i)
+        i += 1
+    return keep
+
+
+def find_landmarks(
+    df: pd.DataFrame,
+    *,
+    jump_dc: float = 0.15,
+    bridge: int = 2,
+    min_chaos_run: int = 2,
+    kmax: str = "kmax_peak_static",
+) -> pd.DataFrame:
+    """Extract the landmarks of an orbit diagram.
+
+    Parameters
+    ----------
+    df
+        Output of :func:`gearsim.cell.sweep.orbit_diagram` (any sweep direction; rows are sorted by
+        ``value`` in the order swept, so a backward sweep yields landmarks in decreasing value).
+    jump_dc
+        Smallest DC step between neighbouring cells that counts as a jump.
+    bridge
+        Longest run of quasi-periodic / unsettled cells between periodic cells that is treated
+        as classifier indecision and bridged (0 keeps every cell).
+    min_chaos_run
+        Cells of chaos needed after a periodic cell for ``chaos_onset``.
+    kmax
+        Column used for ``kmax_lo`` / ``kmax_hi``.
+
+    Returns
+    -------
+    DataFrame with columns :data:`COLUMNS`, one row per landmark in sweep order. ``value`` is
+    the midpoint of ``lo`` and ``hi`` (the neighbouring grid values); ``direction`` is +1 for
+    I 0 -> 1 or increasing p (+q), -1 otherwise (grazings), and the sign of the DC step (jumps).
+    """
+    if len(df) == 0:
+        return pd.DataFrame(columns=list(COLUMNS))
+    d = df.reset_index(drop=True)
+    if "motion" not in d.columns:
+        d = d.assign(motion=np.where(d["n"].fillna(0).astype(int) > 0, "periodic", "chaos"))
+    states = [_state(r) for _, r in d.iterrows()]
+    motions = [str(m) for m in d["motion"]]
+    values = d["value"].to_numpy(dtype=float)
+    dcs = d["dc"].to_numpy(dtype=float) if "dc" in d.columns else np.full(len(d), np.nan)
+    km = _kmax_col(d, kmax)
+    ns = d["n"].fillna(0).astype(int).to_numpy()
+    Is = d["I"].fillna(0).astype(int).to_numpy() if "I" in d.columns else np.zeros(len(d), int)
+    labels = [str(x) for x in d["label"]] if "label" in d.columns else states
+    keep = _bridged_indices(states, motions, bridge)
+
+    chaos_idx = [i for i in keep if motions[i] == "chaos"]
+    last_chaos = chaos_idx[-1] if chaos_idx else None
+    # the final exit from the chaotic band: the first periodic cell after the last chaos cell
+    # (quasi-periodic / unsettled cells between them belong to the route out of chaos)
+    exit_to = None
+    if last_chaos is not None:
+        exit_to = next((i for i in keep if i > last_chaos and motions[i] == "periodic"), None)
+    # last entry into period 1 that is never left again (among kept cells)
+    last_n1_entry = None
+    if keep and motions[keep[-1]] == "periodic" and ns[keep[-1]] == 1:
+        k = len(keep) - 1
+        while k > 0 and motions[keep[k - 1]] == "periodic" and ns[keep[k - 1]] == 1:
+            k -= 1
+        if k > 0:
+            last_n1_entry = keep[k]
+
+    rows: list[dict[str, Any]] = []
+    onset_done = False
+    in_onset = False
+
+    def add(kind, a, b, direction=0):
+        rows.append(
+            {
+                "kind": kind,
+                "value": 0.5 * (values[a] + values[b]),
+                "lo": float(values[a]),
+                "hi": float(values[b]),
+                "i_lo": int(a),
+                "i_hi": int(b),
+                "from_label": labels[a],
+                "to_label": labels[b],
+                "from_npq": states[a],
+                "to_npq": states[b],
+                "n_from": int(ns[a]) if motions[a] == "periodic" else 0,
+                "n_to": int(ns[b]) if motions[b] == "periodic" else 0,
+                "direction": int(direction),
+                "dc_lo": float(dcs[a]),
+                "dc_hi": float(dcs[b]),
+                "kmax_lo": float(km[a]),
+                "kmax_hi": float(km[b]),
+                "refined": False,
+                "annotation": SHORT[kind],
+            }
+        )
+
+    for a, b in zip(keep[:-1], keep[1:], strict=True):
+        sa, sb = states[a], states[b]
+        ma, mb = motions[a], motions[b]
+        ddc = dcs[b] - dcs[a]
+        is_jump = math.isfinite(ddc) and abs(ddc) >= jump_dc
+        if sa == sb:
+            if is_jump:
+                add("jump", a, b, np.sign(ddc))
+            continue
+        if ma == "periodic" and mb == "periodic":
+            na, nb = ns[a], ns[b]
+            if nb == 2 * na:
+                add("period_doubling", a, b)
+            elif na == 2 * nb:
+                if nb == 1 and b == last_n1_entry:
+                    add("period_one", a, b)
+                else:
+                    add("inverse_period_doubling", a, b)
+            elif na == nb:
+                pa = int(d.at[a, "p"] or 0) + int(d.at[a, "q"] or 0)
+                pb = int(d.at[b, "p"] or 0) + int(d.at[b, "q"] or 0)
+                if is_jump and (Is[a] == Is[b]):
+                    add("jump", a, b, np.sign(ddc))
+                else:
+                    add("grazing", a, b, 1 if (Is[b] > Is[a] or pb > pa) else -1)
+                    if is_jump:
+                        add("jump", a, b, np.sign(ddc))
+            else:
+                if nb == 1 and b == last_n1_entry:
+                    add("period_one", a, b)
+                else:
+                    add("other", a, b)
+                if is_jump:
+                    add("jump", a, b, np.sign(ddc))
+            continue
+        if ma == "periodic" and (mb == "chaos" or mb in _NONPERIODIC_BRIDGEABLE):
+            # chaos onset: periodic -> chaos, possibly through quasi-periodic / unsettled cells
+            run = 0
+            entered = False
+            for k in keep[keep.index(b) :]:
+                if motions[k] in _NONPERIODIC_BRIDGEABLE and not entered:
+                    continue
+                if motions[k] != "chaos":
+                    break
+                entered = True
+                run += 1
+            if not onset_done and run >= min_chaos_run:
+                add("chaos_onset", a, b)
+                onset_done = True
+                in_onset = True
+            else:
+                add("other", a, b)
+            continue
+        if in_onset and ma in _NONPERIODIC_BRIDGEABLE and mb in ("chaos",) + \
+                _NONPERIODIC_BRIDGEABLE:
+            continue  # inside the route to chaos already marked by chaos_onset
+        in_onset = False
+        if last_chaos is not None and last_chaos <= a and exit_to is not None and b < exit_to:
+            continue  # chaos -> quasi-periodic on the way out: part of the exit below
+        if ma != "periodic" and mb == "periodic" and b == exit_to:
+            add("period_one" if (ns[b] == 1 and b == last_n1_entry) else
+                "inverse_period_doubling", last_chaos, b)
+            continue
+        if ma == "chaos" and mb == "periodic":
+            if a == last_chaos:
+                add("period_one" if (ns[b] == 1 and b == last_n1_entry) else
+                    "inverse_period_doubling", a, b)
+            else:
+                add("other", a, b)
+            continue
+        add("other", a, b)
+    out = pd.DataFrame(rows, columns=list(COLUMNS))
+    return out
+
+
+# ---------------------------------------------------------------------------- refinement
+def _criterion(kind: str, lo_row: dict[str, Any], jump_dc: float) -> Callable[[dict], bool]:
+    """A test 'this cell is still on the lo side of the landmark'."""
+    lo_state = lo_row["label_npq"] or lo_row["motion"]
+    dc_lo = lo_row["dc"]
+    if kind == "jump":
+        return lambda r: abs(r["dc"] - dc_lo) < 0.5 * jump_dc
+    return lambda r: (r["label_npq"] or r["motion"]) == lo_state
+
+
+def refine_landmarks(
+    landmarks: pd.DataFrame,
+    params,
+    name: str = "w",
+    *,
+    settings=None,
+    tol: float = 1e-3,
+    lookback: int = 3,
+    step: float | None = None,
+    jump_dc: float = 0.15,
+    max_iter: int = 20,
+) -> pd.DataFrame:
+    """Locate each landmark between its ``lo`` and ``hi`` by bisection with extra simulations.
+
+    For each landmark a short continuation chain (``lookback`` cells of spacing ``step``,
+    default ``hi - lo``) ending at ``lo`` re-creates the lo-side attractor; bisection then
+    continues from the lo side in shrinking steps (each trial starts from the last lo-side
+    state), so hysteretic landmarks (jumps) are located on the branch the sweep followed.
+    Works for forward and backward sweeps (``lo`` is the side swept first).
+
+    Parameters
+    ----------
+    landmarks
+        Output of :func:`find_landmarks`.
+    params
+        :class:`gearsim.dynamics.parameters.ModelParameters` of the sweep (``name`` is varied).
+    tol
+        Bisection stops when ``|hi - lo| <= tol``.
+
+    Returns
+    -------
+    A copy with ``lo``, ``hi``, ``value`` narrowed and ``refined = True`` where it succeeded.
+    """
+    from gearsim.cell.simulate import (
+        simulate_cell,  # local: keep this module importable without numba
+    )
+
+    out = landmarks.copy()
+    for idx, lm in landmarks.iterrows():
+        lo, hi = float(lm["lo"]), float(lm["hi"])
+        h = step if step is not None else hi - lo
+        u = None
+        period = 0
+        res = None
+        for k in range(lookback, -1, -1):
+            v = lo - math.copysign(k * abs(h), hi - lo)
+            res = simulate_cell(params.with_(**{name: v}), u, settings=settings,
+                                start_period=period)
+            u, period = res.final_state, res.final_period
+        if res is None:
+            continue
+        lo_row = res.row()
+        same = _criterion(str(lm["kind"]), lo_row, jump_dc)
+        if not same(lo_row):  # the lo side did not reproduce: keep the midpoint
+            continue
+        it = 0
+        while abs(hi - lo) > tol and it < max_iter:
+            mid = 0.5 * (lo + hi)
+            r = simulate_cell(params.with_(**{name: mid}), u, settings=settings,
+                              start_period=period)
+            if same(r.row()):
+                lo, u, period = mid, r.final_state, r.final_period
+            else:
+                hi = mid
+            it += 1
+        out.at[idx, "lo"] = lo
+        out.at[idx, "hi"] = hi
+        out.at[idx, "value"] = 0.5 * (lo + hi)
+        out.at[idx, "refined"] = True
+    return out
+
+
+# ---------------------------------------------------------------------------- paper matching
+def _matches(pl: PaperLandmark, lm: pd.Series) -> bool:
+    kind = lm["kind"]
+    fr = lm["from_npq"]
+    if pl.kind == "grazing":
+        if kind != "grazing":
+            return False
+        n_pl = int(pl.from_npq.split("-")[0])
+        if lm["n_from"] != n_pl or lm["n_to"] != n_pl:
+            return False
+        if pl.key == "grazing_1":
+            return fr.endswith("-0-0") and lm["direction"] > 0
+        # p changes in the paper's direction
+        p_from, p_to = int(pl.from_npq.split("-")[1]), int(pl.to_npq.split("-")[1])
+        return int(lm["direction"]) == (1 if p_to > p_from else -1)
+    if pl.kind == "jump":
+        return kind == "jump" and lm["direction"] > 0
+    if pl.kind == "period_doubling":
+        n_to = int(pl.to_npq.split("-")[0])
+        return kind == "period_doubling" and lm["n_to"] == n_to
+    if pl.kind == "chaos_onset":
+        return kind == "chaos_onset"
+    if pl.kind == "inverse_period_doubling":
+        n_to = int(pl.to_npq.split("-")[0])
+        if pl.from_npq == "chaos":
+            return fr == "chaos" and kind in ("inverse_period_doubling", "period_one")
+        return kind == "inverse_period_doubling" and lm["n_to"] == n_to and lm["n_from"] == 2 * n_to
+    if pl.kind == "period_one":
+        return kind == "period_one"
+    return False
+
+
+def match_paper(
+    landmarks: pd.DataFrame,
+    paper: Sequence[PaperLandmark] = PAPER_LANDMARKS,
+) -> pd.DataFrame:
+    """Pair the paper's landmarks with extracted ones, in sweep order.
+
+    Each paper landmark takes the first extracted landmark of the same kind (and the same
+    period change / impact-count direction) that lies after the previously matched one; a paper
+    landmark with no partner is reported as missing (``ours`` NaN). Pattern names are compared
+    by kind and period, not by exact ``n-p-q`` (``exact_pattern`` says whether they agree).
+
+    Returns
+    -------
+    DataFrame: ``key, kind, text, paper, paper_lo, paper_hi, ours, lo, hi, error, found,
+    exact_pattern, ours_from, ours_to``.
+    """
+    rows = []
+    pos = 0
+    lms = landmarks.reset_index(drop=True)
+    for pl in paper:
+        hit = None
+        for j in range(pos, len(lms)):
+            if _matches(pl, lms.loc[j]):
+                hit = j
+                break
+        row: dict[str, Any] = {
+            "key": pl.key,
+            "kind": pl.kind,
+            "text": pl.text,
+            "paper": pl.w,
+            "paper_lo": pl.w_range[0],
+            "paper_hi": pl.w_range[1],
+        }
+        if hit is None:
+            row.update(ours=float("nan"), lo=float("nan"), hi=float("nan"), error=float("nan"),
+                       found=False, exact_pattern=False, ours_from="", ours_to="")
+        else:
+            lm = lms.loc[hit]
+            to_ok = pl.to_npq in (None, lm["to_npq"]) or (
+                pl.to_npq == "chaos" and lm["to_npq"] in ("quasi-periodic", "unsettled"))
+            exact = (pl.from_npq in (None, lm["from_npq"])) and to_ok
+            row.update(ours=float(lm["value"]), lo=float(lm["lo"]), hi=float(lm["hi"]),
+                       error=pl.error(float(lm["value"])), found=True, exact_pattern=bool(exact),
+                       ours_from=lm["from_npq"], ours_to=lm["to_npq"])
+            pos = hit + 1
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def pattern_sequence(df: pd.DataFrame, *, bridge: int = 2, use_npq: bool = False) -> list[str]:
+    """The sequence of distinct patterns along a sweep (``I/nT`` labels, or ``n-p-q``).
+
+    Short runs of quasi-periodic / unsettled cells are bridged as in :func:`find_landmarks`;
+    consecutive duplicates are merged.
+    """
+    if len(df) == 0:
+        return []
+    d = df.reset_index(drop=True)
+    states = [_state(r) for _, r in d.iterrows()]
+    motions = [str(m) for m in d["motion"]]
+    keep = _bridged_indices(states, motions, bridge)
+    seq: list[str] = []
+    for i in keep:
+        if motions[i] == "periodic":
+            lab = states[i] if use_npq else str(d.at[i, "label"])
+        else:
+            lab = motions[i]
+        if not seq or seq[-1] != lab:
+            seq.append(lab)
+    return seq
+
+
+def is_subsequence(expected: Sequence[str], seq: Sequence[str]) -> bool:
+    """Whether ``expected`` appears in ``seq`` in order (other patterns may lie between)."""
+    it = iter(seq)
+    return all(any(x == y for y in it) for x in expected)

@@ -1,0 +1,1 @@
+"""The fits of the reconstructed model to the paper's landmarks."""

@@ -1,0 +1,342 @@
+"""Classification of a steady motion from per-period summaries of the integrator.
+
+Everything here works on what :func:`gearsim.numerics.integrate.integrate_periods` records once per
+mesh
+period ``T = 2 pi / w``: the Poincare section state, the number of entries into face / back
+contact (counted at *located* switches, never from samples), the time spent inside the backlash
+(integrated between located switches), force and displacement extremes and the log growth of the
+tangent vector.
+
+Definitions
+-----------
+period ``n``
+    Smallest ``n <= n_max`` such that the section points repeat after ``n`` samples over a
+    confirmation window of ``max(2 n, min_confirm)`` consecutive comparisons, with tolerance
+    ``period_rtol * scale`` where ``scale`` is the displacement range of the orbit (velocity
+    tolerance scaled by ``w``). Scale-aware: the same relative test for tiny and large orbits.
+    Or (:func:`_converges_geometrically`): the differences ``P_k - P_{k-n}`` decay at one
+    steady geometric rate over the measured tail and extrapolate to below that tolerance --
+    the sequence converges onto a period-``n`` orbit whose Floquet multiplier is real and near
+    the unit circle (next to a period doubling ``mu -> -1``: the transient alternates, repeats
+    after ``2 n`` samples within the tolerance and the repeat test alone takes it for period
+    ``2 n``; docs/orbits.md, "Simulated labels next to a period doubling").
+``p``, ``q``
+    Face (x crosses +b upward) and back (x crosses -b downward) impacts per motion period.
+``I``
+    0 no disengagement; 1 face impacts only; -1 back impacts only; 2 both; -2 never in contact.
+``DC``
+    Fraction of time inside the backlash (``|x| < b``) over the analysed window.
+``Kmax``
+    Four readings (see :data:`KMAX_READINGS`): peak of the mesh force over the whole window or
+    the largest value at the Poincare section, each divided by the mean load ``Fm`` or by the
+    total static excitation ``Fm + Fe w^2``.
+Lyapunov exponent
+    Largest exponent per unit dimensionless time from the variational equations (exact across
+    the switches because the field is continuous), averaged over the analysed window.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from gearsim.numerics.integrate import PeriodSummaries
+
+KMAX_READINGS = {
+    "kmax_peak_mean": "max over the steady motion of F / Fm",
+    "kmax_peak_static": "max over the steady motion of F / (Fm + Fe w^2)",
+    "kmax_section_mean": "max over the Poincare samples of F / Fm",
+    "kmax_section_static": "max over the Poincare samples of F / (Fm + Fe w^2)",
+}
+DEFAULT_KMAX = "kmax_peak_static"
+
+MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
+
+
+@njit(cache=True, nogil=True)
+def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, min_confirm=16):
+    """Smallest period ``n`` (in mesh periods) of the section sequence, or 0 if none ``<= n_max``.
+
+    Compiled (the one period test: the scalar driver, the batched driver and every diagnostic
+    call it).
+
+    Parameters
+    ----------
+    section_x, section_v
+        Poincare samples of ``x`` and ``x'`` (oldest first).
+    scale
+        Displacement scale of the orbit (its range ``xmax - xmin``); tolerances are relative to it.
+    w
+        Dimensionless mesh frequency; scales the velocity tolerance.
+    """
+    m = len(section_x)
+    scale = max(scale, 1e-9)
+    tol_x = period_rtol * scale
+    tol_v = period_rtol * scale * max(w, 1e-3)
+    for n in range(1, n_max + 1):
+        window = max(2 * n, min_confirm)
+        if window + n > m:
+            return 0
+        ok = True
+        for i in range(m - window, m):
+            dx = abs(section_x[i] - section_x[i - n])
+            dv = abs(section_v[i] - section_v[i - n])
+            if not (dx <= tol_x and dv <= tol_v):  # NaN fails the test
+                ok = False
+                break
+        if ok:
+            if n > 1 and _spread_decays(section_x, m, window, n, tol_x):
+                return 0  # a decaying transient mimics period n: integrate on
+            return n
+        if _converges_geometrically(section_x, section_v, m, n, scale, tol_x, min_confirm):
+            if n > 1 and _lower_period_transient(section_x, m, n, min_confirm):
+                return 0  # the lag-d differences decay as well: a lower period's transient
+            return n
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def _lower_period_transient(section_x, m, n, min_confirm, max_window=96, share=0.5):
+    """True if, over the window of :func:`_converges_geometrically`, the differences at some lag
+    ``d`` dividing ``n`` (``d < n``) shrink by at least ``share`` of the relative decay of the
+    lag-``n`` differences: the points converge onto a period-``d`` orbit (e.g. a 1T orbit with a
+    complex multiplier whose square is nearly real and negative: ``P_k - P_{k-2}`` decays
+    steadily). Approaching a true period-``n`` orbit of amplitude ``A`` with a residual ``c``,
+    the lag-``d`` differences shrink only by ``~c / A`` of that."""
+    j0 = m - 1 - 4 * _quarter_window(m, n, max_window)
+    sn0 = _tail_spread(section_x, j0, 2 * n, n)
+    sn4 = _tail_spread(section_x, m - 1, 2 * n, n)
+    if not sn0 > 0.0:
+        return False
+    rel_n = (sn0 - sn4) / sn0
+    for d in range(1, n):
+        if n % d != 0:
+            continue
+        sd0 = _tail_spread(section_x, j0, 2 * n, d)
+        sd4 = _tail_spread(section_x, m - 1, 2 * n, d)
+        if sd0 > 0.0 and (sd0 - sd4) / sd0 >= share * rel_n:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _quarter_window(m, n, max_window):
+    """A quarter of the geometric rule's window: whole pairs of motion periods, the window
+    ``4 * quarter <= min(m - 3 n, max_window)`` (shared by both rules so they read one window)."""
+    return (min(m - 3 * n, max_window) // 4) // (2 * n) * (2 * n)
+
+
+@njit(cache=True, nogil=True)
+def _tail_spread(a, j, n, lag):
+    """Sum over ``i = j-n+1 .. j`` of ``|a[i] - a[i-lag]|`` (one motion period of differences)."""
+    s = 0.0
+    for i in range(j - n + 1, j + 1):
+        s += abs(a[i] - a[i - lag])
+    return s
+
+
+@njit(cache=True, nogil=True)
+def _converges_geometrically(section_x, section_v, m, n, scale, tol_x, min_confirm,
+                             max_window=96, steady=0.2, resolved=0.02, limit_rtol=0.05,
+                             near=1e-2):
+    """True if the section sequence converges geometrically onto a period-``n`` orbit.
+
+    ``S_j`` = sum of ``|P_i - P_{i-n}|`` (x component) over the ``2 n`` samples ending at
+    ``j``. Over the longest window
+    ``W <= min(m - 3 n, max_window)`` (a multiple of ``8 n``, at least ``min_confirm``) take
+    ``S`` at its five quarter points. A linear transient onto a period-``n`` orbit with one
+    dominant real multiplier ``mu`` of ``P^n`` gives ``S_j ~ |mu|^(j / n)``: the four quarter
+    ratios are equal and below 1 (sums over pairs of motion periods: a smaller second mode makes
+    ``|P_i - P_{i-n}|`` alternate in size under an alternating dominant one). Accepted when
+
+    - every quarter ratio is below 1 and they agree to ``steady`` times the decay rate
+      ``1 - mean ratio`` (one steady geometric rate: a quasi-periodic or chaotic sequence, or
+      a complex multiplier whose rotation is not a multiple of ``2 pi / n``, fails);
+    - the decay over the window is resolved (``S`` falls by at least ``resolved``);
+    - Aitken's extrapolation of ``S`` from the first, middle and last point is zero within
+      ``max(2 n tol_x, limit_rtol * S_end)`` (the points repeat after ``n`` in the limit; a
+      spread that levels off at a finite value ``A``, e.g. a period-``n`` sequence approaching
+      a period-``2 n`` orbit, extrapolates to ``A`` and fails unless the motion is still 20
+      times farther from that orbit than its amplitude -- then ``near`` bounds ``A`` to 5e-4
+      of the scale, an orbit within ``~A^2`` of its doubling). The relative part absorbs the
+      weak nonlinearity of a transient of 1e-3 of the scale (its rate drifts with its
+      amplitude);
+    - the motion is near its limit (``S_end / 2 n <= near * scale``) and the velocity
+      differences do not grow.
+    """
+    # quarters of whole pairs of motion periods: an alternating dominant mode plus a smaller
+    # non-alternating one makes |P_i - P_{i-n}| alternate in size; pairs average it out
+    w4 = _quarter_window(m, n, max_window)
+    W = 4 * w4
+    if W < max(8 * n, min_confirm):
+        return False
+    j0 = m - 1 - W
+    # the cheap necessary conditions first (most aperiodic sequences stop here)
+    s0 = _tail_spread(section_x, j0, 2 * n, n)
+    s4 = _tail_spread(section_x, j0 + 4 * w4, 2 * n, n)
+    if not (s0 > 0.0 and s4 <= (1.0 - resolved) * s0 and s4 <= near * scale * 2 * n):
+        return False  # no resolved decay, not near the limit, or NaN
+    S = np.empty(5)
+    S[0] = s0
+    S[4] = s4
+    for k in range(1, 4):
+        S[k] = _tail_spread(section_x, j0 + k * w4, 2 * n, n)
+    if not np.all(np.isfinite(S)):
+        return False
+    rsum = 0.0
+    rmin = 2.0
+    rmax = -1.0
+    for k in range(4):
+        r = S[k + 1] / S[k] if S[k] > 0.0 else 2.0
+        rsum += r
+        rmin = min(rmin, r)
+        rmax = max(rmax, r)
+    rate = 1.0 - rsum / 4.0
+    if not (rmax < 1.0 and rmax - rmin <= steady * rate):
+        return False
+    d1 = S[4] - S[2]
+    d0 = S[2] - S[0]
+    if d1 - d0 == 0.0:
+        return False
+    limit = S[4] - d1 * d1 / (d1 - d0)
+    if abs(limit) > max(2 * n * tol_x, limit_rtol * S[4]):
+        return False
+    v_early = _tail_spread(section_v, j0, 2 * n, n)
+    v_late = _tail_spread(section_v, m - 1, 2 * n, n)
+    return v_late <= v_early
+
+
+@njit(cache=True, nogil=True)
+def _spread_decays(section_x, m, window, n, tol_x):
+    """True if the spread of the n section points shrinks over the window.
+
+    Next to a period doubling a period-1 orbit has a Floquet multiplier near -1 (near a
+    rotation angle 2 pi / n in general): its transient alternates and decays slowly, repeats after
+    n samples to within the tolerance and would pass for period n. A true period-n orbit keeps
+    its spread (mean |P_k - P_{k-1}| over a motion period); a transient's spread decays.
+    """
+    early = _tail_spread(section_x, m - window + n - 1, n, 1) / n
+    late = _tail_spread(section_x, m - 1, n, 1) / n
+    return early - late > max(2.0 * tol_x, 1e-3 * early)
+
+
+def impact_state(face: int, back: int, disengaged_time: float, total_time: float) -> int:
+    """Impact state I from impact counts and disengagement over a window."""
+    if face > 0 and back > 0:
+        return 2
+    if face > 0:
+        return 1
+    if back > 0:
+        return -1
+    if disengaged_time >= total_time * (1.0 - 1e-12) and total_time > 0:
+        return -2
+    return 0
+
+
+@dataclass
+class Classification:
+    """The steady motion of one cell."""
+
+    motion: str  # one of MOTIONS
+    status: str  # ok | not_converged | diverged
+    I: int
+    n: int  # 0 when no period <= n_max
+    p: int | None
+    q: int | None
+    label: str  # I/nT, or 'chaos' / 'quasi-periodic' / 'unsettled' / 'diverged'
+    label_npq: str  # n-p-q or ''
+    dc: float
+    kmax_peak_mean: float
+    kmax_peak_static: float
+    kmax_section_mean: float
+    kmax_section_static: float
+    kmin_peak_mean: float
+    lyapunov: float
+    x_min: float
+    x_max: float
+    converged: bool
+    window_periods: int
+
+    @property
+    def kmax(self) -> float:
+        return getattr(self, DEFAULT_KMAX)
+
+
+def classify_motion(
+    s: PeriodSummaries,
+    *,
+    w: float,
+    b: float,
+    eps: float,
+    xi: float,
+    Fm: float,
+    Fe: float,
+    n: int,
+    lyap_threshold: float = 0.005,
+    settled: bool = True,
+) -> Classification:
+    """Classify the motion recorded in ``s`` given its period ``n`` (0 if none was found)."""
+    T = 2.0 * math.pi / w
+    if n > 0:
+        reps = max(1, len(s) // n)
+        win = s.tail(reps * n)
+        last = s.tail(n)
+        p = int(last.nface.sum())
+        q = int(last.nback.sum())
+    else:
+        win = s
+        p = q = None
+    m = len(win)
+    total = m * T
+    dis = float(win.tdis.sum())
+    face_any = int(win.nface.sum())
+    back_any = int(win.nback.sum())
+    I = impact_state(face_any if n == 0 else p, back_any if n == 0 else q, dis, total)
+    dc = dis / total if total > 0 else 0.0
+    # mesh force at the section: cos(w k T) = 1 there
+    xs = win.section[:, 0]
+    vs = win.section[:, 1]
+    f_dead = np.where(xs > b, xs - b, np.where(xs < -b, xs + b, 0.0))
+    f_sec = (1.0 + eps) * f_dead + 2.0 * xi * vs
+    static = Fm + Fe * w * w
+    fm = Fm if Fm > 0 else float("nan")
+    lyap = float(win.lyap.sum() / total) if total > 0 else float("nan")
+    if n > 0:
+        motion = "periodic"
+        status = "ok" if settled else "not_converged"
+        label = f"{I}/{n}T"
+        label_npq = f"{n}-{p}-{q}"
+    else:
+        if lyap > lyap_threshold:
+            motion = "chaos"
+        elif lyap >= -lyap_threshold:
+            motion = "quasi-periodic"
+        else:
+            motion = "unsettled"
+        status = "ok" if motion != "unsettled" else "not_converged"
+        label = motion
+        label_npq = ""
+    return Classification(
+        motion=motion,
+        status=status,
+        I=I,
+        n=n,
+        p=p,
+        q=q,
+        label=label,
+        label_npq=label_npq,
+        dc=dc,
+        kmax_peak_mean=float(win.fmax.max() / fm),
+        kmax_peak_static=float(win.fmax.max() / static),
+        kmax_section_mean=float(f_sec.max() / fm),
+        kmax_section_static=float(f_sec.max() / static),
+        kmin_peak_mean=float(win.fmin.min() / fm),
+        lyapunov=lyap,
+        x_min=float(win.xmin.min()),
+        x_max=float(win.xmax.max()),
+        converged=(n > 0 and settled) or motion in ("chaos", "quasi-periodic"),
+        window_periods=m,
+    )

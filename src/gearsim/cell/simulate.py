@@ -1,0 +1,335 @@
+"""Drivers: integrate a cell to its steady motion and classify it; record trajectories.
+
+``simulate_cell`` runs a transient (its last ``tangent_lead`` periods with the tangent vector;
+with ``transient_recurrence`` a continued cell's transient ends early when its start recurs),
+then measures in chunks of mesh periods and stops as soon as a period ``n <= n_max`` is
+established and confirmed, or when the budget ``max_periods`` is spent (then chaos,
+quasi-periodic or unsettled is decided by the Lyapunov exponent).
+"""
+
+from __future__ import annotations
+
+import functools
+import typing
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from gearsim.cell.classify import Classification, classify_motion, estimate_period
+from gearsim.dynamics.model import (
+    N_STATE,
+    mesh_force_series,
+    pack_parameters,
+    project_tangent,
+    static_state,
+)
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics.integrate import (
+    STATUS_OK,
+    IntegrationSettings,
+    PeriodSummaries,
+    Run,
+    run_periods,
+    steps_lower_bound,
+)
+from gearsim.numerics.variational import Spectrum, lyapunov_spectrum
+
+__all__ = [
+    "TANGENT_SEED",
+    "IntegrationSettings",
+    "Run",
+    "run_periods",
+    "CellResult",
+    "result_columns",
+    "simulate_cell",
+    "finish_cell",
+    "diverged_result",
+    "seeds_continuation",
+    "period_of",
+    "recurrence_probe",
+    "initial_tangent",
+    "Trajectory",
+    "trajectory",
+]
+
+TANGENT_SEED = 20251022  # fixed seed of the initial tangent vector (recorded in provenance)
+_CLASSIFICATION_FIELDS = tuple(f.name for f in fields(Classification))
+
+
+@dataclass
+class CellResult:
+    """Outcome of :func:`simulate_cell`: the classification plus what continuation needs."""
+
+    classification: Classification
+    final_state: np.ndarray  # (10,) state on the section at the end
+    final_period: int  # absolute period index of final_state (tau = final_period T)
+    poincare: np.ndarray  # (k, 10) section states of the analysed window (k <= 2 n_max)
+    periods: int  # mesh periods integrated in all
+    steps: int  # integrator steps taken
+    params: ModelParameters = field(repr=False)
+    spectrum: Spectrum | None = field(default=None, repr=False)  # with simulate_cell(spectrum=)
+
+    def row(self) -> dict[str, Any]:
+        """Flat record for tables (the catalogue's cell columns: :func:`result_columns`)."""
+        cls = self.classification
+        c = {name: getattr(cls, name) for name in _CLASSIFICATION_FIELDS}  # flat: no deepcopy
+        c["kmax"] = self.classification.kmax
+        c["periods"] = self.periods
+        c["steps"] = self.steps
+        return c
+
+
+def result_columns() -> dict[str, tuple[type, bool]]:
+    """Name -> (Python type, optional) of every column of :meth:`CellResult.row`, in order.
+
+    Derived from the fields of :class:`~gearsim.cell.classify.Classification` (a new field there is
+    a
+    new column in the tiles and the catalogue), plus ``kmax``, ``periods``, ``steps``. Floats are
+    optional (NaN is stored as NULL), as are the fields typed ``X | None`` (``p``, ``q``).
+    """
+    hints = typing.get_type_hints(Classification)
+    cols: dict[str, tuple[type, bool]] = {}
+    for f in fields(Classification):
+        t = hints[f.name]
+        args = [a for a in typing.get_args(t) if a is not type(None)]
+        base = args[0] if args else t
+        cols[f.name] = (base, bool(args) or base is float)
+    cols.update(kmax=(float, True), periods=(int, False), steps=(int, False))
+    return cols
+
+
+def initial_tangent(params: ModelParameters) -> np.ndarray:
+    """The fixed (seeded) initial tangent vector, on the states the model evolves.
+
+    In the single-DOF model the bearing states are frozen: their tangent components are zero, so
+    the Lyapunov exponent measures the mesh mode (a frozen component would never decay and pull
+    the estimate to zero).
+    """
+    return project_tangent(_tangent_unit(), pack_parameters(params))
+
+
+@functools.cache
+def _tangent_unit() -> np.ndarray:
+    v = np.random.default_rng(TANGENT_SEED).standard_normal(N_STATE)
+    v = v / np.linalg.norm(v)
+    v.flags.writeable = False
+    return v
+
+
+def diverged_result(params: ModelParameters, k: int, steps: int,
+                    status: str = "diverged") -> CellResult:
+    """The record of a cell that did not reach a steady motion.
+
+    ``status`` ``"diverged"`` (the state left the divergence bound, or the step collapsed) or
+    ``"budget"`` (the cell needs more than ``IntegrationSettings.max_steps`` steps; its motion
+    is ``unsettled``).
+    """
+    nan = float("nan")
+    values = {f.name: nan for f in fields(Classification)}
+    values.update(motion="diverged" if status == "diverged" else "unsettled", status=status,
+                  I=0, n=0, p=None, q=None, label=status, label_npq="", converged=False,
+                  window_periods=0)
+    final = static_state(pack_parameters(params))
+    return CellResult(Classification(**values), final, 0, np.zeros((0, N_STATE)), k, steps,
+                      params)
+
+
+def seeds_continuation(res: CellResult) -> bool:
+    """Whether a cell's final state may start the next cell of a continuation chain."""
+    return res.classification.status not in ("diverged", "budget")
+
+
+def period_of(s: PeriodSummaries, params: ModelParameters, st: IntegrationSettings) -> int:
+    """The period test on recorded periods ``s`` (:func:`~gearsim.cell.classify.estimate_period`,
+    tolerances relative to the orbit's x range): the motion's period ``n``, 0 if none.
+    The one call of the scalar and the batched driver, for measuring chunks and the probe."""
+    scale = float(s.xmax.max() - s.xmin.min())
+    return estimate_period(s.section[:, 0], s.section[:, 1], scale, params.w, st.n_max,
+                           st.period_rtol)
+
+
+def recurrence_probe(st: IntegrationSettings, continued: bool, transient: int) -> int:
+    """Periods of the recurrence probe of a cell (``transient_recurrence``), 0 for none: only a
+    continued cell whose transient is longer than the probe has one."""
+    k = st.transient_recurrence
+    return k if continued and 0 < k < transient else 0
+
+
+def finish_cell(
+    params: ModelParameters,
+    summaries: PeriodSummaries,
+    n: int,
+    st: IntegrationSettings,
+    final_state: np.ndarray,
+    k: int,
+    start_period: int,
+    steps: int,
+) -> CellResult:
+    """Classify the measured periods of a cell (period ``n``, 0 if none) into its result.
+
+    Whole motion periods only are analysed; the early part of a long measurement is dropped.
+    The one tail of :func:`simulate_cell` and of the batched driver.
+    """
+    if n > 0:
+        keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
+        window = summaries.tail(keep)
+    else:
+        window = summaries
+    cls = classify_motion(
+        window, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
+        Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold,
+    )  # fmt: skip
+    n_keep = n if n > 0 else min(len(window), 2 * st.n_max)
+    poincare = window.section[-n_keep:].copy()
+    return CellResult(cls, np.asarray(final_state, dtype=float)[:N_STATE].copy(), k, poincare,
+                      k - start_period, steps, params)
+
+
+def simulate_cell(
+    params: ModelParameters,
+    u0: np.ndarray | None = None,
+    *,
+    settings: IntegrationSettings | None = None,
+    transient: int | None = None,
+    samples: int | None = None,
+    start_period: int = 0,
+    spectrum: bool | int = False,
+) -> CellResult:
+    """Integrate one parameter cell to its steady motion and classify it.
+
+    Parameters
+    ----------
+    params
+        Dimensionless model parameters.
+    u0
+        Initial state (10 entries) on the section, e.g. the previous cell's ``final_state``
+        (continuation). Default: the static equilibrium.
+    settings
+        Numerical settings; ``transient`` and ``samples`` override its ``transient`` and
+        ``max_periods``.
+    start_period
+        Absolute period index of ``u0`` (matters only for the slow variable-ratio forcing).
+    spectrum
+        Also compute all Lyapunov exponents
+        (:func:`gearsim.numerics.variational.lyapunov_spectrum`) on
+        the steady motion: ``True`` over ``max(200, analysed window)`` periods, an integer over
+        that many periods. Stored in ``CellResult.spectrum`` (sum checked against the trace).
+    """
+    st = settings or IntegrationSettings()
+    if transient is None:
+        transient = st.transient if u0 is None else st.transient_continuation
+    max_periods = st.max_periods if samples is None else int(samples)
+    p = params.to_array()
+    y = static_state(p) if u0 is None else np.asarray(u0, dtype=float)[:N_STATE].copy()
+    if y.shape != (N_STATE,) or not np.all(np.isfinite(y)):
+        raise ParameterError("initial state 'u0' must be 10 finite numbers")
+    k = start_period
+    steps = 0
+    h = 0.0
+    status = STATUS_OK
+    if steps_lower_bound(params, st, transient + min(st.chunk, max_periods)) > st.max_steps:
+        return diverged_result(params, k, 0, status="budget")
+    lead = min(st.tangent_lead, transient)
+    yt = None
+    probe = recurrence_probe(st, u0 is not None, transient)
+    if probe:
+        # the start of the transient with the tangent on, recorded: if it already recurs (on
+        # the attractor) measuring starts at once; else the cell restarts from u0 with the
+        # plan below, so a cell the probe does not cut is the plan without it to the bit
+        r = run_periods(params, np.concatenate([y, initial_tangent(params)]), probe, st,
+                        start_period=k, tangent=True, parray=p)
+        steps, status = r.n_steps, r.status
+        if status != STATUS_OK or period_of(r.summaries, params, st) > 0:
+            yt, k, h, lead, transient = r.state, k + r.periods_done, r.h_last, 0, 0
+    if transient - lead > 0:
+        r = run_periods(params, y, transient - lead, st, start_period=k, parray=p)
+        y, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
+        steps += r.n_steps
+    parts: list[PeriodSummaries] = []
+    if yt is None:
+        yt = np.concatenate([y, initial_tangent(params)])
+    if lead > 0 and status == STATUS_OK:
+        # the tangent vector aligns during the end of the transient (not recorded)
+        r = run_periods(params, yt, lead, st, start_period=k, tangent=True, h_init=h, parray=p)
+        yt, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
+        steps += r.n_steps
+    n = 0
+    measured = 0
+    while status == STATUS_OK and measured < max_periods:
+        m = min(st.chunk, max_periods - measured)
+        r = run_periods(params, yt, m, st, start_period=k, tangent=True, h_init=h, parray=p)
+        parts.append(r.summaries)
+        yt, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
+        steps += r.n_steps
+        measured += r.periods_done
+        if status != STATUS_OK:
+            break
+        n = period_of(PeriodSummaries.concat(parts), params, st)
+        if n > 0:
+            break
+        if steps > st.max_steps:
+            return diverged_result(params, k, steps, status="budget")
+    summaries = PeriodSummaries.concat(parts) if parts else None
+    if status != STATUS_OK or summaries is None or len(summaries) == 0:
+        return diverged_result(params, k, steps)
+    res = finish_cell(params, summaries, n, st, yt, k, start_period, steps)
+    if spectrum:
+        periods = (max(200, res.classification.window_periods) if spectrum is True
+                   else int(spectrum))
+        res.spectrum = lyapunov_spectrum(params, res.final_state, periods, st,
+                                         start_period=res.final_period)
+    return res
+
+
+@dataclass
+class Trajectory:
+    """A recorded stretch of motion: uniform samples and located switch events."""
+
+    tau: np.ndarray  # (m,) dimensionless time
+    state: np.ndarray  # (m, 10)
+    mesh_force: np.ndarray  # (m,) F / (Km b_c), every model form (model.mesh_force_series)
+    events_tau: np.ndarray  # switch times
+    events_code: np.ndarray  # 4 * channel + new region + 1
+    section: np.ndarray  # (periods, 10)
+
+
+def trajectory(
+    params: ModelParameters,
+    u0: np.ndarray | None = None,
+    *,
+    periods: int = 64,
+    samples_per_period: int = 64,
+    settings: IntegrationSettings | None = None,
+    transient: int = 0,
+    start_period: int = 0,
+    event_capacity: int = 100_000,
+) -> Trajectory:
+    """Record ``periods`` mesh periods at ``samples_per_period`` uniform points per period.
+
+    The integrator lands exactly on every output time, so spectra can use the samples directly.
+    """
+    st = settings or IntegrationSettings()
+    p = params.to_array()
+    y = static_state(p) if u0 is None else np.asarray(u0, dtype=float)[:N_STATE].copy()
+    k = start_period
+    if transient > 0:
+        r = run_periods(params, y, transient, st, start_period=k, parray=p)
+        y, k = r.state, k + r.periods_done
+    r = run_periods(
+        params,
+        y,
+        periods,
+        st,
+        start_period=k,
+        substeps=samples_per_period,
+        record=True,
+        event_capacity=event_capacity,
+        parray=p,
+    )
+    T = params.mesh_period
+    m = r.periods_done * samples_per_period + 1
+    tau = k * T + np.arange(m) * (T / samples_per_period)
+    states = r.trajectory[:m]
+    force = mesh_force_series(p, tau, states[:, 0], states[:, 1])
+    return Trajectory(tau, states, force, r.events_t, r.events_code, r.summaries.section)

@@ -1,0 +1,1 @@
+"""The ``gearsim`` command: parse arguments, call the library."""

@@ -1,0 +1,134 @@
+"""``gearsim attractor-tile``: coexisting attractors of every cell of one plane tile."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from gearsim.cli.commands.simulate_tile import Progress, add_config_arguments, config_from_args
+from gearsim.errors import UsageError
+
+NAME = "attractor-tile"
+HELP = (
+    "find the coexisting attractors of every cell of one plane tile (the plane's "
+    "`multistability: {starts, seed}`) and write results/<plane>/attractors/<tile>.parquet"
+)
+
+#: cells per task (x starts = SIMD lanes of one batched call)
+CELLS_PER_TASK = 64
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
+    p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
+    p.add_argument("--tile-file", metavar="PARQUET", default=None,
+                   help="the plane's simulated tile (forward-continuation states; default "
+                   "results/<plane>/tiles/<tile>.parquet)")  # fmt: skip
+    add_config_arguments(p)
+    p.add_argument("--workers", type=int, default=1,
+                   help="LocalCluster worker processes (1 without a scheduler address: in this "
+                   "process, no dask)")  # fmt: skip
+    p.add_argument("--no-cluster", action="store_true", help="run in this process (no dask)")
+    p.add_argument("--out", default=None,
+                   help="output (default results/<plane>/attractors/<tile>.parquet)")
+
+
+def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
+    """Plain-data tasks of :func:`gearsim.analysis.attractors.cell_group_records` for one tile."""
+    from gearsim.study import tiles
+
+    ms = config["planes"][plane]["multistability"]
+    rows = tiles.row_specs(config, plane, tile)
+    fwd = {}
+    if tile_df is not None:
+        for i, j, s in zip(tile_df["i"], tile_df["j"], tile_df["final_state"], strict=True):
+            fwd[(int(i), int(j))] = None if s is None else [float(v) for v in s]
+    every = int(ms.get("every", 1))
+    cells = [
+        (i, r["j"], float(x), float(r["y_value"]), fwd.get((i, r["j"])))
+        for r in rows
+        if r["j"] % every == 0
+        for i, x in enumerate(r["x_values"])
+        if i % every == 0
+    ]
+    base = rows[0] if rows else {}
+    return [
+        {
+            "plane": plane, "tile": tile, "params": base["params"],
+            "settings": base["settings"], "x_name": base["x_name"], "y_name": base["y_name"],
+            "cells": cells[k : k + CELLS_PER_TASK], "starts": int(ms["starts"]),
+            "seed": int(ms.get("seed", 0)),
+        }  # fmt: skip
+        for k in range(0, len(cells), CELLS_PER_TASK)
+    ]
+
+
+def run(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from gearsim.analysis.attractors import TILE_COLUMNS, cell_group_records
+    from gearsim.results import catalogue
+    from gearsim.study import grid as ggrid
+    from gearsim.study import provenance as gprov
+    from gearsim.study.cluster import describe, map_unordered, open_client
+
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(
+            f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
+        )
+    if not config["planes"][args.plane].get("multistability"):
+        raise UsageError(f"plane '{args.plane}' has no 'multistability' (starts, seed) set")
+    rows = ggrid.tile_rows(config, args.plane, args.tile)
+    tile_file = Path(args.tile_file or f"results/{args.plane}/tiles/{args.tile}.parquet")
+    tile_df = None
+    if tile_file.exists():
+        tile_df = pd.read_parquet(tile_file, columns=["i", "j", "final_state"])
+    else:
+        print(f"note: {tile_file} not found: no forward-continuation states", file=sys.stderr)
+    specs = task_specs(config, args.plane, args.tile, tile_df)
+    total = sum(len(s["cells"]) for s in specs)
+    out = Path(args.out or f"results/{args.plane}/attractors/{args.tile}.parquet")
+    label = f"{args.plane}/attractor tile {args.tile}"
+    progress = Progress(label, total)
+    started = catalogue.now_iso()
+    t0 = time.perf_counter()
+    records: list[dict] = []
+    done = 0
+
+    def collect(results):
+        nonlocal done
+        for recs in results:
+            records.extend(recs)
+            done += len({(r["i"], r["j"]) for r in recs})
+            progress(done, total, time.perf_counter() - t0)
+
+    address = config["cluster"].get("scheduler_address")
+    if args.no_cluster or (args.workers == 1 and not address):
+        workers = "in-process"
+        collect(map(cell_group_records, specs))
+    else:
+        with open_client(args.workers, address) as client:
+            workers = describe(client)
+            collect(map_unordered(client, cell_group_records, specs))
+    progress.close()
+    wall = time.perf_counter() - t0
+    df = pd.DataFrame.from_records(records, columns=list(TILE_COLUMNS))
+    for c in ("p", "q"):
+        df[c] = pd.array([None if v is None or v != v else int(v) for v in df[c]], dtype="Int64")
+    df = df.sort_values(["j", "i", "attractor"], kind="stable").reset_index(drop=True)
+    ms = config["planes"][args.plane]["multistability"]
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, args.plane), kind="attractors", name=args.plane,
+        scope="analysis",
+        config=config, tile=args.tile, rows=[rows.start, rows.stop], workers=workers,
+        started=started, finished=catalogue.now_iso(), wall_s=wall, cells=total,
+        starts=int(ms["starts"]), seed=int(ms.get("seed", 0)), every=int(ms.get("every", 1)),
+        forward_states=tile_df is not None,
+    )  # fmt: skip
+    catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})
+    print(f"{label}: wrote {out} ({total} cells, {len(df)} attractor rows in {wall:.1f} s)",
+          file=sys.stderr, flush=True)  # fmt: skip
+    return 0

@@ -1,0 +1,261 @@
+"""``gearsim catalogue``: combine tiles, audit a plane, build the SQLite catalogue.
+
+Subcommands (each is one Snakemake rule):
+
+* ``gearsim catalogue cells --plane wb --tiles T0 T1 ... --out results/wb/cells.parquet``
+* ``gearsim catalogue audit --plane wb --cells results/wb/cells.parquet
+  --out results/wb/audit.parquet``
+* ``gearsim catalogue build --cells C1 C2 --sweeps S1 S2 [--audits A1 A2]
+  --out results/catalogue.d/build.sqlite --publish results/catalogue.sqlite``
+* ``gearsim catalogue publish --from results/catalogue.d/build.sqlite
+  --to results/catalogue.sqlite`` (restore the published copy by hand)
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.errors import UsageError
+
+NAME = "catalogue"
+HELP = "combine a plane's tiles, audit it, or build results/catalogue.sqlite"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    sub = p.add_subparsers(dest="action", required=True, parser_class=type(p))
+    c = sub.add_parser("cells", help="combine a plane's tile files into cells.parquet")
+    c.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
+    c.add_argument("--tiles", nargs="+", required=True, help="the plane's tile Parquet files")
+    c.add_argument("--out", required=True, help="the plane's cells.parquet to write")
+    add_config_arguments(c)
+    a = sub.add_parser("audit", help="re-simulate a sample of cells at tightened tolerance")
+    a.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
+    a.add_argument("--cells", required=True, help="the plane's cells.parquet")
+    a.add_argument("--out", required=True, help="the plane's audit.parquet to write")
+    add_config_arguments(a)
+    b = sub.add_parser("build", help="build the SQLite catalogue (one transaction, atomic)")
+    b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
+    b.add_argument("--sweeps", nargs="*", default=[], help="sweep Parquet files")
+    b.add_argument("--audits", nargs="*", default=[], help="audit Parquet files")
+    b.add_argument("--attractors", nargs="*", default=[],
+                   help="attractor tile files (gearsim attractor-tile)")
+    b.add_argument("--orbits", nargs="*", default=[],
+                   help="bifurcation points / curves and refine-orbits Parquet files "
+                   "(docs/orbits.md)")
+    b.add_argument("--out", required=True, help="the catalogue file to write (the rule's output)")
+    b.add_argument(
+        "--publish",
+        metavar="PATH",
+        help="then replace PATH atomically by the new catalogue (results/catalogue.sqlite: "
+        "readers never see it missing or partial, a failed build keeps the last good one)",
+    )
+    pub = sub.add_parser(
+        "publish", help="check a built catalogue and atomically replace --to by it"
+    )
+    pub.add_argument("--from", dest="source", required=True, help="a built catalogue")
+    pub.add_argument("--to", required=True, help="e.g. results/catalogue.sqlite")
+
+
+def plane_record(config: dict, plane: str) -> dict:
+    from gearsim.study import config as gcfg
+    from gearsim.study import provenance
+
+    pl = config["planes"][plane]
+    return {
+        "name": plane,
+        "x": dict(pl["x"]),
+        "y": dict(pl["y"]),
+        "fixed": dict(pl.get("fixed", {})),
+        "parameters": gcfg.plane_base(config, plane).to_dict(),
+        "config_hash": provenance.config_hash(provenance.plane_subtree(config, plane)),
+        "code_version": provenance.code_version(),
+        "integration": gcfg.integration_settings(config).to_dict(),
+    }
+
+
+def _cells(args) -> int:
+    from gearsim.results import catalogue
+
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(f"unknown plane '{args.plane}'")
+    out = catalogue.combine_tiles(args.tiles, args.out, plane_record(config, args.plane))
+    print(f"plane {args.plane}: {len(args.tiles)} tiles -> {out}", file=sys.stderr)
+    return 0
+
+
+def audit_settings(config: dict):
+    """The audit's reference: the adaptive DP5 integrator, whatever method produced the cells
+    (an independent integrator, not just a finer step of the same one), at ``audit.tighten``
+    times the configuration's DP5 tolerances and half its step cap; the cell plan (transient,
+    chunks, period test, ``transient_recurrence``) is the configuration's. ``tighten: 100`` is
+    :meth:`IntegrationSettings.tightened`; the evidence for the default is in
+    benchmarks/README.md (l)."""
+    from gearsim.study import config as gcfg
+
+    st = gcfg.integration_settings(config).with_(method="dp5")
+    return st.tightened(float(config["audit"].get("tighten", 10)))
+
+
+def audit_frame(config: dict, plane: str, cells, progress=None):
+    """Re-simulate a deterministic sample of cells with DP5 at tightened tolerance
+    (:func:`audit_settings`).
+
+    Each audited cell starts exactly where the pipeline started it: from the final state of its
+    left neighbour in the row (continuation), or from rest for the first cell of a row.
+    """
+    import numpy as np
+    import pandas as pd
+
+    from gearsim.cell.simulate import simulate_cell
+    from gearsim.study import config as gcfg
+
+    aud = config["audit"]
+    n = len(cells)
+    k = int(round(aud["fraction"] * n))
+    if aud["fraction"] > 0:
+        k = max(k, 1)
+    rng = np.random.default_rng(int(aud["seed"]))
+    pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
+    base = gcfg.plane_base(config, plane)
+    pl = config["planes"][plane]
+    tight = audit_settings(config)
+    index = {
+        (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
+    }
+    rows = []
+    t0 = time.perf_counter()
+    for m, r in enumerate(pick):
+        c = cells.iloc[r]
+        i, j = int(c["i"]), int(c["j"])
+        params = base.with_(**{pl["x"]["name"]: float(c["x"]), pl["y"]["name"]: float(c["y"])})
+        u0, start = None, 0
+        left = index.get((i - 1, j))
+        if left is not None and cells.iloc[left]["status"] != "diverged":
+            u0 = np.asarray(cells.iloc[left]["final_state"], dtype=float)
+            start = int(cells.iloc[left]["final_period"])
+        res = simulate_cell(params, u0, settings=tight, start_period=start)
+        t = res.row()
+        rows.append(
+            {
+                "plane": plane,
+                "i": i,
+                "j": j,
+                "x": float(c["x"]),
+                "y": float(c["y"]),
+                "label": c["label"],
+                "label_npq": c["label_npq"],
+                "tight_label": t["label"],
+                "tight_label_npq": t["label_npq"],
+                "tight_I": t["I"],
+                "tight_dc": t["dc"],
+                "tight_kmax": t["kmax"],
+                "tight_lyapunov": t["lyapunov"],
+                "agree": bool(t["label"] == c["label"] and t["label_npq"] == c["label_npq"]),
+            }
+        )
+        if progress:
+            progress(m + 1, len(pick), time.perf_counter() - t0)
+    return pd.DataFrame(
+        rows,
+        columns=[
+            "plane",
+            "i",
+            "j",
+            "x",
+            "y",
+            "label",
+            "label_npq",
+            "tight_label",
+            "tight_label_npq",
+            "tight_I",
+            "tight_dc",
+            "tight_kmax",
+            "tight_lyapunov",
+            "agree",
+        ],
+    )
+
+
+def _audit(args) -> int:
+    import pandas as pd
+
+    from gearsim.cli.commands.simulate_tile import Progress
+    from gearsim.results import catalogue
+    from gearsim.study import provenance
+
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(f"unknown plane '{args.plane}'")
+    cells = pd.read_parquet(args.cells)
+    started = catalogue.now_iso()
+    t0 = time.perf_counter()
+    progress = Progress(
+        f"audit {args.plane}", max(1, int(config["audit"]["fraction"] * len(cells)))
+    )
+    df = audit_frame(config, args.plane, cells, progress)
+    progress.close()
+    agreement = float(df["agree"].mean()) if len(df) else float("nan")
+    threshold = float(config["audit"]["threshold"])
+    subtree = {**provenance.plane_subtree(config, args.plane), "audit": dict(config["audit"])}
+    prov = provenance.provenance(
+        subtree,
+        kind="audit",
+        name=args.plane,
+        config=config,
+        started=started,
+        finished=catalogue.now_iso(),
+        wall_s=time.perf_counter() - t0,
+        cells=len(df),
+        audit_seed=int(config["audit"]["seed"]),
+        agreement=agreement,
+        threshold=threshold,
+        settings=audit_settings(config).to_dict(),
+        workers="in-process",
+    )
+    catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})
+    verdict = "PASS" if len(df) == 0 or agreement >= threshold else "BELOW THRESHOLD"
+    print(
+        f"audit {args.plane}: {len(df)} cells, agreement {agreement:.3f} "
+        f"(threshold {threshold}) {verdict}",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def _build(args) -> int:
+    from gearsim.results import catalogue
+
+    for f in [*args.cells, *args.sweeps, *args.audits, *args.orbits]:
+        if not Path(f).is_file():
+            raise UsageError(f"input file not found: {f}")
+    t0 = time.perf_counter()
+    counts = catalogue.build_catalogue(
+        args.out, args.cells, args.sweeps, args.audits, publish_to=args.publish,
+        attractor_files=args.attractors,
+        orbit_files=args.orbits,
+    )
+    summary = ", ".join(f"{k}={v}" for k, v in counts.items())
+    where = f" -> {args.publish}" if args.publish else ""
+    print(
+        f"catalogue {args.out}{where}: {summary} ({time.perf_counter() - t0:.1f} s)",
+        file=sys.stderr,
+    )
+    return 0
+
+
+def _publish(args) -> int:
+    from gearsim.results import catalogue
+
+    catalogue.publish(args.source, args.to)
+    print(f"catalogue {args.source} -> {args.to}", file=sys.stderr)
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish}
+    return actions[args.action](args)

@@ -1,0 +1,69 @@
+"""``gearsim explorer``: the study in the browser, one static page (no server, no network).
+
+Example::
+
+    gearsim explorer --configfile config/config.yaml --out results/explorer/index.html
+
+Reads ``results/<plane>/cells.parquet`` of the config's planes, ``results/sweeps/<sweep>.parquet``
+of its sweeps and the catalogue's ``attractors`` table when it has one
+(:mod:`gearsim.presentation.explorer`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.errors import UsageError
+
+NAME = "explorer"
+HELP = "write the interactive explorer page (static HTML: maps, cells, Poincare points, sweeps)"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--results", default="results",
+                   help="results directory (<plane>/cells.parquet, sweeps/<sweep>.parquet)")
+    p.add_argument("--catalogue", default="results/catalogue.sqlite",
+                   help="SQLite catalogue (its attractors table is shown when present)")
+    p.add_argument("--out", default="results/explorer/index.html", help="the page (HTML)")
+    p.add_argument("--plane", nargs="+", default=None, metavar="NAME",
+                   help="only these planes of the config (default: every one)")
+    p.add_argument("--sweep", nargs="+", default=None, metavar="NAME",
+                   help="only these sweeps of the config (default: every one)")
+    add_config_arguments(p)
+
+
+def run(args: argparse.Namespace) -> int:
+    from gearsim.presentation.explorer import write_explorer
+    from gearsim.presentation.report import study_from_config
+
+    config = config_from_args(args)
+    planes, sweeps = study_from_config(config)
+    for flag, chosen, known in (("--plane", args.plane, list(planes)),
+                                ("--sweep", args.sweep, sweeps)):
+        bad = [n for n in chosen or [] if n not in known]
+        if bad:
+            raise UsageError(f"{flag} {bad[0]}: not in the config; allowed: "
+                             f"{', '.join(known) or 'none configured'}")
+    if args.plane is not None:
+        planes = {n: planes[n] for n in args.plane}
+    if args.sweep is not None:
+        sweeps = list(args.sweep)
+    results = Path(args.results)
+    missing = [str(results / p / "cells.parquet") for p in planes
+               if not (results / p / "cells.parquet").is_file()]
+    missing += [str(results / "sweeps" / f"{s}.parquet") for s in sweeps
+                if not (results / "sweeps" / f"{s}.parquet").is_file()]
+    if missing:
+        raise UsageError(f"--results {results}: missing {', '.join(missing[:3])}"
+                         + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
+                         + " (run the pipeline first)")
+    fixed = {k: dict(v.get("fixed") or {}) for k, v in (config.get("sweeps") or {}).items()}
+    out = write_explorer(args.out, planes=planes, sweeps=sweeps, results=results,
+                         catalogue=args.catalogue, sweep_fixed=fixed)
+    size = out.stat().st_size
+    print(f"wrote {out} ({size / 1e6:.1f} MB; {len(planes)} planes, {len(sweeps)} sweeps)",
+          file=sys.stderr)
+    return 0

@@ -1,0 +1,181 @@
+"""``gearsim figures``: draw figures of the study from the pipeline's tables.
+
+Examples::
+
+    gearsim figures --fig 4 --sweep standard=results/sweeps/standard.parquet
+    gearsim figures --fig 7 12 13 --plane wb=results/wb/cells.parquet
+    gearsim figures --fig 9 10 11 --sweep b015=results/sweeps/b015.parquet
+    gearsim figures --maps --plane weps=results/weps/cells.parquet   # any axes
+    gearsim figures --index
+
+Each figure is written as ``<outdir>/figNN.png`` (200 dpi) and ``.pdf`` plus ``figNN.json``
+(captions and differences from the paper) that ``--index`` collects into ``README.md``. The
+figures and what they read: :data:`gearsim.presentation.figures.registry.FIGURES`. ``--maps`` draws
+every
+registered plane map (pattern, DC, Kmax, ...) of each ``--plane``, whatever its two axes, as
+``<outdir>/planes/<plane>-<kind>.{png,pdf,json}``. A paper figure of one plane (e.g. Fig 7)
+given one ``--plane`` of another name draws that plane (the paper comparison then says "not
+applicable" when the paper has no plane of those axes).
+Parameters and integration settings come from the pipeline config (``--configfile``), exactly
+as the simulation rules see them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.errors import UsageError
+
+NAME = "figures"
+HELP = "draw figures of the study (PNG + PDF + caption record) or the figure index"
+
+
+def _pairs(items: list[str], flag: str) -> dict[str, str]:
+    out = {}
+    for item in items:
+        name, sep, path = item.partition("=")
+        if not sep or not name or not path:
+            raise UsageError(f"{flag} expects NAME=PATH, got {item!r}")
+        if not Path(path).is_file():
+            raise UsageError(f"{flag} {name}: file not found: {path}")
+        out[name] = path
+    return out
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fig", type=int, nargs="+", action="extend", default=[], metavar="N",
+                   help="figure number(s): 1-17 of the paper, higher for later analyses "
+                   "(9, 10, 11 are built together)")
+    p.add_argument("--all", action="store_true", help="every figure whose inputs are given")
+    p.add_argument("--sweep", action="append", default=[], metavar="NAME=PATH",
+                   help="a sweep table (results/sweeps/NAME.parquet), repeatable")
+    p.add_argument("--plane", action="append", default=[], metavar="NAME=PATH",
+                   help="a plane cells table (results/NAME/cells.parquet), repeatable")
+    p.add_argument("--points", action="append", default=[], metavar="NAME=PATH",
+                   help="a recorded point set (results/points/NAME.parquet), repeatable")
+    p.add_argument("--outdir", default="results/figures", help="output directory")
+    p.add_argument("--orbits", action="append", default=[], metavar="NAME=PATH",
+                   help="a continuation table (results/orbits/standard.parquet, "
+                   "results/orbits/wb_curves.parquet), repeatable; for 'standard' the located "
+                   "points are read from *_points.parquet beside it")
+    p.add_argument("--maps", action="store_true",
+                   help="draw the maps of every --plane (any two axes) into OUTDIR/planes/")
+    p.add_argument("--map", nargs="+", default=None, metavar="KIND",
+                   help="with --maps: only these maps (default every registered one: "
+                   "pattern, dc, kmax, ...)")
+    p.add_argument("--index", action="store_true",
+                   help="write OUTDIR/README.md from the figure records present")
+    add_config_arguments(p)
+
+
+def _context(args, config):
+    from gearsim.dynamics.parameters import ModelParameters
+    from gearsim.presentation.figures.data import read_table
+    from gearsim.presentation.figures.registry import Context
+    from gearsim.study.config import base_parameters, integration_settings
+
+    values, _source = base_parameters(config)
+    ctx = Context(
+        params=ModelParameters.from_mapping(values),
+        settings=integration_settings(config),
+        point_specs=dict(config.get("points") or {}),
+        sweep_fixed={k: dict(v.get("fixed") or {}) for k, v in
+                     (config.get("sweeps") or {}).items()},
+    )
+    for name, path in _pairs(args.sweep, "--sweep").items():
+        ctx.sweeps[name] = read_table(path)
+    for name, path in _pairs(args.plane, "--plane").items():
+        ctx.planes[name] = read_table(path)
+    for name, path in _pairs(args.points, "--points").items():
+        ctx.points[name] = read_table(path)
+    for name, path in _pairs(args.orbits, "--orbits").items():
+        ctx.orbits[name] = read_table(path)
+        pts = Path(path).with_name(Path(path).stem + "_points.parquet")
+        if not name.endswith("_curves") and pts.is_file():
+            ctx.orbits[f"{name}_points"] = read_table(pts)
+    return ctx
+
+
+def _bind_single_plane(numbers, ctx, table) -> dict[str, str]:
+    """A figure of one plane (e.g. Fig 7 of ``wb``) given exactly one plane of another name
+    draws that one: returns ``{paper's plane: given plane}``."""
+    bound: dict[str, str] = {}
+    if len(ctx.planes) != 1:
+        return bound
+    (given, df), = ctx.planes.items()
+    for n in numbers:
+        wanted = table[n].inputs.planes if n in table else ()
+        if len(wanted) == 1 and wanted[0] not in ctx.planes:
+            ctx.planes[wanted[0]] = df
+            bound[wanted[0]] = given
+    return bound
+
+
+def _write_record(path: Path, rec: dict) -> None:
+    path.write_text(json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
+
+
+def run(args: argparse.Namespace) -> int:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from gearsim.presentation.figures import registry
+    from gearsim.presentation.figures.index import write_index
+    from gearsim.presentation.figures.style import save_figure
+
+    outdir = Path(args.outdir)
+    table = registry.figures()
+    numbers = list(dict.fromkeys(args.fig))
+    if args.all:
+        numbers = list(table)
+    if args.map and not args.maps:
+        raise UsageError("--map KIND needs --maps")
+    if not numbers and not args.index and not args.maps:
+        raise UsageError("nothing to do: give --fig N, --all, --maps or --index")
+    if args.maps and not args.plane:
+        raise UsageError("--maps needs at least one --plane NAME=PATH")
+    if numbers or args.maps:
+        config = config_from_args(args)
+        ctx = _context(args, config)
+        if args.maps:
+            for plane, df in ctx.planes.items():
+                for spec, fig, caption, notes in registry.build_maps(plane, df, args.map):
+                    stem = outdir / "planes" / f"{plane}-{spec.kind}"
+                    stem.parent.mkdir(parents=True, exist_ok=True)
+                    files = [str(f) for f in save_figure(fig, stem)]
+                    plt.close(fig)
+                    _write_record(stem.with_suffix(".json"), {
+                        "plane": plane, "map": spec.kind, "title": spec.title,
+                        "axes": list(registry._axes(df)), "files": files, "caption": caption,
+                        "notes": notes, "inputs": [f"{plane}/cells"],
+                        "parameters": ctx.params.to_dict(),
+                        "integration": ctx.settings.to_dict()})
+                    print(f"plane {plane} map {spec.kind}: wrote {', '.join(files)}",
+                          file=sys.stderr)
+        if args.all:  # keep the figures whose tables are present (or that simulate without)
+            numbers = [n for n in numbers if not table[n].tables_required or all(
+                name in getattr(ctx, kind) for kind, names in table[n].inputs.tables().items()
+                for name in names)]
+        bound = {} if args.all else _bind_single_plane(numbers, ctx, table)
+        for b in registry.build(numbers, ctx):
+            for paper, given in bound.items():
+                if f"{paper}/cells" in b.inputs:
+                    b.inputs = [f"{given}/cells" if i == f"{paper}/cells" else i
+                                for i in b.inputs]
+                    b.differences.insert(0, f"Drawn for the plane '{given}' (the paper's "
+                                         f"figure shows the plane '{paper}').")
+                    print(f"figure {b.number}: drawn for plane '{given}'", file=sys.stderr)
+            files = [str(f) for f in save_figure(b.figure, outdir / f"fig{b.number:02d}")]
+            plt.close(b.figure)
+            _write_record(outdir / f"fig{b.number:02d}.json", registry.record(b, files, ctx))
+            print(f"figure {b.number}: wrote {', '.join(files)}", file=sys.stderr)
+    if args.index:
+        path = write_index(outdir)
+        print(f"wrote {path}", file=sys.stderr)
+    return 0

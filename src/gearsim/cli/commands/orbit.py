@@ -1,0 +1,80 @@
+"""``gearsim orbit``: a periodic orbit by Newton shooting, its Floquet multipliers and margins."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+from gearsim.analysis.orbits import find_periodic_orbit, shooting_settings
+from gearsim.cell.simulate import simulate_cell
+from gearsim.cli.commands._common import orbit_parameters
+
+NAME = "orbit"
+HELP = (
+    "find a periodic orbit by Newton shooting: section state, Floquet multipliers, stability, "
+    "grazing margin"
+)
+
+
+def add_orbit_parameter_arguments(p: argparse.ArgumentParser) -> None:
+    """``--params``, ``--set``, ``--rtol`` shared by ``orbit``, ``continue``, ``refine-orbits``."""
+    p.add_argument(
+        "--params",
+        metavar="YAML",
+        help="standard parameters file (default: config/standard_parameters.yaml of the "
+        "repository; the built-in defaults if it is absent)",
+    )
+    p.add_argument(
+        "--set",
+        metavar="NAME=VALUE",
+        action="append",
+        default=[],
+        help="override a model parameter (repeatable), e.g. --set model=1dof",
+    )
+    p.add_argument("--rtol", type=float, default=None,
+                   help="DP5 relative tolerance of the shooting integrator (default 1e-12)")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--omega", "-w", type=float, required=True,
+                   help="dimensionless mesh frequency w")
+    p.add_argument("--period", "-n", type=int, default=None,
+                   help="period in mesh periods (default: the period simulated from rest)")
+    add_orbit_parameter_arguments(p)
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+
+
+def run(args: argparse.Namespace) -> int:
+    params, source = orbit_parameters(args.params, args.set, w=args.omega)
+    st = shooting_settings(args.rtol)
+    t0 = time.perf_counter()
+    sim = simulate_cell(params)
+    n = args.period if args.period is not None else max(sim.classification.n, 1)
+    if args.period is None and sim.classification.n < 1:
+        print(f"note: the simulation from rest found no period ({sim.classification.label});"
+              " shooting for period 1")
+    orbit = find_periodic_orbit(params, n, sim.final_state, st)
+    elapsed = time.perf_counter() - t0
+    d = orbit.to_dict()
+    d.update(parameters_source=source, simulated_label=sim.classification.label,
+             elapsed_s=elapsed)
+    if args.json:
+        print(json.dumps(d, default=float))
+        return 0
+    print(f"parameters: {source} (model {params.model}), w = {params.w:g}")
+    print(f"period-{n} orbit (minimal period {orbit.minimal_period}; simulated from rest: "
+          f"{sim.classification.label}), Newton {orbit.iterations} iterations, "
+          f"residual {orbit.residual:.2e}")
+    print("section state (tau = 0): x = {:.10f}, x' = {:.10f}".format(*orbit.state[:2]))
+    print(f"Floquet multipliers (per {n} mesh periods):")
+    for m in orbit.multipliers:
+        print(f"  {m.real:+.8f} {m.imag:+.8f}i   |mu| = {abs(m):.8f}")
+    print(f"{'stable' if orbit.stable else 'UNSTABLE'}: |mu|max = {orbit.mu_max:.8f}, critical "
+          f"multiplier kind: {orbit.critical_kind}")
+    g = orbit.grazing
+    margins = ", ".join(f"{k}: {v:.6g}" for k, v in g.margins.items())
+    print(f"grazing margin {g.smallest:.6g} (turning point to boundary, units of b_c; {margins});"
+          f" {g.switches} contact switches per orbit")
+    print(f"({elapsed * 1e3:.0f} ms including the simulation from rest)")
+    return 0

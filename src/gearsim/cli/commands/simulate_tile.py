@@ -1,0 +1,172 @@
+"""``gearsim simulate-tile``: simulate one tile of a plane and write its Parquet file."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from gearsim.cli.commands._common import check_new_file
+from gearsim.errors import UsageError
+from gearsim.results import catalogue
+from gearsim.study import provenance, tiles
+from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
+from gearsim.study.config import results_dir, study_config
+from gearsim.study.grid import tile_rows
+
+NAME = "simulate-tile"
+HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and write its Parquet file"
+
+
+# ----------------------------------------------------------- shared by pipeline commands
+def add_config_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--configfile",
+        metavar="YAML",
+        nargs="+",
+        action="extend",
+        default=[],
+        help="study config file(s) (YAML or JSON) merged over config/config.yaml in order, "
+        "like `snakemake --configfile`",
+    )
+    p.add_argument(
+        "--config-json",
+        metavar="JSON",
+        default=None,
+        help="overrides merged last, like `snakemake --config` (a JSON mapping)",
+    )
+
+
+def config_from_args(args: argparse.Namespace) -> dict:
+    """config/config.yaml, then ``--configfile`` files, then ``--config-json`` (Snakemake's
+    order; :func:`gearsim.study.config.study_config`)."""
+    overrides = None
+    if args.config_json:
+        try:
+            overrides = json.loads(args.config_json)
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise UsageError(f"--config-json is not valid JSON ({exc})") from None
+        if not isinstance(overrides, dict):
+            raise UsageError("--config-json must be a JSON mapping of config keys")
+    return study_config(args.configfile, overrides)
+
+
+class Progress:
+    """Per-tile log lines (cells done/total, cells per second) and a tqdm bar on a terminal."""
+
+    def __init__(self, label: str, total: int, *, stream=None, every_s: float = 0.0) -> None:
+        self.label = label
+        self.stream = stream or sys.stderr
+        self.bar = None
+        if sys.stdout.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc=label, unit="cell", file=sys.stdout)
+        self.last = 0
+        self.every_s = every_s
+
+    def __call__(self, done: int, total: int, elapsed: float) -> None:
+        rate = done / elapsed if elapsed > 0 else float("nan")
+        if self.bar is not None:
+            self.bar.update(done - self.last)
+        self.last = done
+        print(
+            f"[{time.strftime('%H:%M:%S')}] {self.label}: {done}/{total} cells "
+            f"({100 * done / max(total, 1):.0f}%), {rate:.2f} cells/s, {elapsed:.1f} s",
+            file=self.stream,
+            flush=True,
+        )
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
+    p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
+    add_config_arguments(p)
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help=f"LocalCluster worker processes, 1..{MAX_WORKERS} (one thread each; 1 without a "
+        "scheduler address: in this process, no dask)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        default=None,
+        help="dask scheduler address (default: cluster.scheduler_address of the config)",
+    )
+    p.add_argument(
+        "--no-cluster",
+        action="store_true",
+        help="run the rows in this process (no dask); the default with --workers 1 and no "
+        "scheduler address",
+    )
+    p.add_argument(
+        "--out",
+        default=None,
+        help="output Parquet file (default <results>/<plane>/tiles/<tile>.parquet)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    config = config_from_args(args)
+    if args.plane not in config["planes"]:
+        raise UsageError(
+            f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
+        )
+    rows = tile_rows(config, args.plane, args.tile)
+    out = Path(args.out or results_dir(config) / args.plane / "tiles" / f"{args.tile}.parquet")
+    check_new_file(out)
+    nx = int(config["planes"][args.plane]["x"]["n"])
+    label = f"{args.plane}/tile {args.tile}"
+    progress = Progress(label, nx * len(rows))
+    address = args.scheduler or config["cluster"].get("scheduler_address")
+    # one worker and no scheduler: this process is the worker (a LocalCluster would only add
+    # its start-up, ~3-7 s per job: two processes importing gearsim and loading the kernels)
+    in_process = args.no_cluster or (args.workers == 1 and not address)
+    if not in_process:
+        if address:
+            check_address(address)
+        else:
+            check_workers(args.workers)
+    started = catalogue.now_iso()
+    t0 = time.perf_counter()
+    banner = f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells"
+    if in_process:
+        workers = "in-process"
+        print(f"{banner}, {workers}", file=sys.stderr, flush=True)
+        df = tiles.run_tile(config, args.plane, args.tile, client=None, progress=progress)
+    else:
+        # connect first: a bad scheduler address is then the only line on stderr
+        with open_client(args.workers, address) as client:
+            workers = describe(client)
+            print(f"{banner} on {workers}", file=sys.stderr, flush=True)
+            df = tiles.run_tile(config, args.plane, args.tile, client=client, progress=progress)
+    progress.close()
+    wall = time.perf_counter() - t0
+    prov = provenance.provenance(
+        provenance.plane_subtree(config, args.plane),
+        kind="tile",
+        name=args.plane,
+        config=config,
+        tile=args.tile,
+        rows=[rows.start, rows.stop],
+        workers=workers,
+        started=started,
+        finished=catalogue.now_iso(),
+        wall_s=wall,
+        cells=len(df),
+    )
+    catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})
+    print(
+        f"{label}: wrote {out} ({len(df)} cells in {wall:.1f} s, {len(df) / wall:.2f} cells/s)",
+        file=sys.stderr,
+        flush=True,
+    )
+    return 0

@@ -1,0 +1,76 @@
+"""The ``gearsim`` command line: one subcommand per module in :mod:`gearsim.cli.commands`.
+
+Each module there defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``;
+modules are discovered automatically, so a new subcommand is one new file.
+Bad input exits with status 2 and one line on stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import os
+import pkgutil
+import sys
+
+from gearsim import __version__
+from gearsim.cli import commands
+from gearsim.errors import USER_ERRORS, UsageError
+
+__all__ = ["UsageError", "build_parser", "main"]
+
+def _subcommand_modules(only: str | None = None):
+    if only is not None:
+        # the command named on the command line alone, when its module is commands/<name>.py:
+        # a pipeline job then imports what its command needs, not every command's libraries
+        # (scipy.optimize, SQLAlchemy, matplotlib: ~1 s of CPU per job); else all of them
+        name = only.replace("-", "_")
+        if name.isidentifier() and importlib.util.find_spec(f"{commands.__name__}.{name}"):
+            mod = importlib.import_module(f"{commands.__name__}.{name}")
+            if getattr(mod, "NAME", None) == only:
+                yield mod
+                return
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue
+        yield importlib.import_module(f"{commands.__name__}.{info.name}")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 2
+        sys.stderr.write(f"gearsim: error: {message}\n")
+        raise SystemExit(2)
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    parser = _Parser(prog="gearsim", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"gearsim {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for mod in _subcommand_modules(only):
+        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    if argv is None:
+        argv = sys.argv[1:]
+    only = argv[0] if argv and not argv[0].startswith("-") else None
+    parser = build_parser(only)
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except USER_ERRORS as exc:
+        sys.stderr.write(f"gearsim {args.command}: error: {exc}\n")
+        return 2
+    except BrokenPipeError:
+        # the reader went away (`gearsim ... | head`): stop quietly, as `cat` does
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

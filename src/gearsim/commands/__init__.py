@@ -1,1 +1,0 @@
-"""Subcommands of the ``gearsim`` CLI (one module each; see :mod:`gearsim.cli`)."""

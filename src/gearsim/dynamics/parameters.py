@@ -1,0 +1,263 @@
+"""Model parameters: the dimensionless set the equations use, validated on construction.
+
+All quantities here are dimensionless (see docs/model.md for the scalings):
+
+* lengths are divided by the nominal length ``b_c`` (so ``b`` is half the backlash over ``b_c``),
+* time is ``tau = w_n t`` with ``w_n = sqrt(Km / Me)``,
+* forces are divided by ``Km b_c`` (so ``Fm`` is the mean load, ``Fe`` the transmission-error
+  amplitude ``Em / b_c``; the error forcing is ``Fe w**2 cos(w tau + phi_e)``).
+
+The dimensional gear description and its conversion live in :mod:`gearsim.physical.geometry`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import asdict, dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from gearsim.dynamics import model as _m
+from gearsim.errors import ParameterError  # noqa: E402  (re-exported: raised by every check here)
+
+# name -> (lower, upper, lower inclusive, upper inclusive, meaning)
+_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
+    "w": (0.0, 100.0, False, True, "dimensionless mesh frequency w_h / w_n"),
+    "Fm": (0.0, 1e3, True, True, "mean load Tp / (Rp Km b_c)"),
+    "Fe": (0.0, 1e3, True, True, "transmission-error amplitude Em / b_c"),
+    "eps": (0.0, 1.0, True, False, "mesh-stiffness fluctuation Ka / Km"),
+    "xi": (0.0, 10.0, True, True, "mesh damping ratio"),
+    "b": (0.0, 1e3, True, True, "half backlash B / b_c"),
+    "phi_e": (-2 * math.pi, 2 * math.pi, True, True, "phase of the error forcing, rad"),
+    "friction": (0.0, 1.0, True, False, "friction factor gamma = mu L_p / R_p"),
+    "alpha": (0.0, math.pi / 2, True, True, "pitch-curve pressure angle, rad"),
+    "var_ratio": (0.0, 10.0, True, True, "variable-ratio inertial forcing amplitude"),
+    "var_ratio_order": (0.0, 10.0, False, True, "variable-ratio frequency / mesh frequency"),
+    "rho_p": (0.0, 1e3, True, True, "mass ratio Me / M_p"),
+    "rho_g": (0.0, 1e3, True, True, "mass ratio Me / M_g"),
+    "kappa_py": (0.0, 1e8, False, True, "pinion bearing stiffness (K_py / Km) rho_p"),
+    "kappa_pz": (0.0, 1e8, False, True, "pinion bearing stiffness (K_pz / Km) rho_p"),
+    "kappa_gy": (0.0, 1e8, False, True, "gear bearing stiffness (K_gy / Km) rho_g"),
+    "kappa_gz": (0.0, 1e8, False, True, "gear bearing stiffness (K_gz / Km) rho_g"),
+    "xi_py": (0.0, 10.0, True, True, "pinion bearing damping ratio (Y)"),
+    "xi_pz": (0.0, 10.0, True, True, "pinion bearing damping ratio (Z)"),
+    "xi_gy": (0.0, 10.0, True, True, "gear bearing damping ratio (Y)"),
+    "xi_gz": (0.0, 10.0, True, True, "gear bearing damping ratio (Z)"),
+    "b_py": (0.0, 1e3, True, True, "pinion bearing half clearance (Y) / b_c"),
+    "b_pz": (0.0, 1e3, True, True, "pinion bearing half clearance (Z) / b_c"),
+    "b_gy": (0.0, 1e3, True, True, "gear bearing half clearance (Y) / b_c"),
+    "b_gz": (0.0, 1e3, True, True, "gear bearing half clearance (Z) / b_c"),
+    # model-form options (docs/model.md, "Model forms"); the defaults are today's form
+    "te_damping": (0.0, 1.0, True, True,
+                   "fraction of the transmission-error rate the mesh damper follows "
+                   "(1: C (x' - e') of Eq 3, 0: C x')"),
+    "mesh_damping_contact": (0.0, 1.0, True, True,
+                             "fraction of the mesh damping acting only in contact "
+                             "(0: always, 1: only in contact)"),
+    "friction_arm_var": (0.0, 10.0, True, True,
+                         "friction-arm variation: half range of the sawtooth L_p of Eq 9 "
+                         "over its mean"),
+}
+
+MODELS = ("6dof", "1dof")
+
+
+def _range_text(name: str) -> str:
+    lo, hi, lo_in, hi_in, _ = _RANGES[name]
+    return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+
+
+def check_value(name: str, value: Any) -> float:
+    """Return ``value`` as a float if it is a finite number inside the range of ``name``.
+
+    Raises
+    ------
+    ParameterError
+        One line naming the parameter, the bad value and the allowed range.
+    """
+    if name not in _RANGES:
+        allowed = ", ".join(sorted(_RANGES))
+        raise ParameterError(f"unknown parameter '{name}'; allowed: {allowed}")
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(
+            f"parameter '{name}' must be a number in {_range_text(name)}, got {value!r}"
+        )
+    v = float(value)
+    lo, hi, lo_in, hi_in, meaning = _RANGES[name]
+    if v != 0.0 and abs(v) < sys.float_info.min:
+        raise ParameterError(
+            f"parameter '{name}' ({meaning}) = {value!r} is subnormal; allowed range "
+            f"{_range_text(name)} with |value| >= {sys.float_info.min:g} or 0"
+        )
+    ok = math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
+    if not ok:
+        raise ParameterError(
+            f"parameter '{name}' ({meaning}) = {value!r} is outside the allowed range "
+            f"{_range_text(name)}"
+        )
+    return v
+
+
+@dataclass(frozen=True)
+class ModelParameters:
+    """Dimensionless parameters of the curve-face gear model (immutable, validated).
+
+    Defaults are MODEL.md's starting reconstruction (single-DOF fit at xi = 0.05:
+    Fe/Fm = 1.724, eps = 0.371, phi_e = -45 deg) with stiff bearings; the calibrated
+    standard set lives in ``config/standard_parameters.yaml``.
+    """
+
+    w: float = 1.0
+    Fm: float = 0.1
+    Fe: float = 0.1724
+    eps: float = 0.371
+    xi: float = 0.05
+    b: float = 1.0
+    phi_e: float = -math.pi / 4
+    friction: float = 0.0
+    alpha: float = math.radians(20.0)
+    var_ratio: float = 0.0
+    var_ratio_order: float = 2.0 / 18.0
+    rho_p: float = 0.2
+    rho_g: float = 0.2
+    kappa_py: float = 20.0
+    kappa_pz: float = 20.0
+    kappa_gy: float = 20.0
+    kappa_gz: float = 20.0
+    xi_py: float = 0.03
+    xi_pz: float = 0.03
+    xi_gy: float = 0.03
+    xi_gz: float = 0.03
+    b_py: float = 0.0
+    b_pz: float = 0.0
+    b_gy: float = 0.0
+    b_gz: float = 0.0
+    te_damping: float = 1.0
+    mesh_damping_contact: float = 0.0
+    friction_arm_var: float = 0.0
+    model: str = "6dof"
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name == "model":
+                continue
+            object.__setattr__(self, f.name, check_value(f.name, getattr(self, f.name)))
+        if self.model not in MODELS:
+            raise ParameterError(
+                f"parameter 'model' = {self.model!r}; allowed: {', '.join(MODELS)}"
+            )
+
+    # ------------------------------------------------------------------ helpers
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """Names of all numeric parameters (what a plane axis or ``--set`` may name)."""
+        return tuple(_RANGES)
+
+    @classmethod
+    def from_mapping(cls, values: dict[str, Any]) -> ModelParameters:
+        """Build from a mapping, rejecting unknown keys with a clear error."""
+        known = {f.name for f in fields(cls)}
+        for key in values:
+            if key not in known:
+                raise ParameterError(
+                    f"unknown parameter '{key}'; allowed: {', '.join(sorted(known))}"
+                )
+        return cls(**values)
+
+    def with_(self, **changes: Any) -> ModelParameters:
+        """A copy with some parameters changed; only the changed values are validated again.
+
+        (A plane builds one copy per cell: re-validating all fields cost ~150 us each.)
+        """
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        for name, value in changes.items():
+            if name == "model":
+                if value not in MODELS:
+                    raise ParameterError(
+                        f"parameter 'model' = {value!r}; allowed: {', '.join(MODELS)}"
+                    )
+                object.__setattr__(new, name, value)
+            else:
+                object.__setattr__(new, name, check_value(name, value))
+        return new
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @property
+    def static_load(self) -> float:
+        """Total static excitation amplitude ``Fm + Fe w**2`` (a Kmax normaliser)."""
+        return self.Fm + self.Fe * self.w**2
+
+    @property
+    def mesh_period(self) -> float:
+        """Dimensionless mesh period ``T = 2 pi / w``."""
+        return 2.0 * math.pi / self.w
+
+    def to_array(self) -> np.ndarray:
+        """The float64 vector the Numba kernels read
+        (:func:`gearsim.dynamics.model.pack_parameters`)."""
+        return _m.pack_parameters(self)
+
+
+# ---------------------------------------------------------------- the frequency scale (a mapping)
+FREQUENCY_SCALES = ("mesh", "coupled")
+
+
+def mesh_mode_ratio(params: ModelParameters) -> float:
+    """``r = w_c / w_n``: the coupled mesh-mode frequency of the 6-DOF model over ``sqrt(Km / Me)``.
+
+    The undamped linear model in contact at the mean stiffness (``eps = 0``, every bearing in its
+    loaded region) has five modes; the mesh mode is the one with the largest share of its strain
+    energy in the mesh spring (``x^2`` against ``sum (K_ij / Km) u_ij^2 = sum kappa_ij / rho_i
+    u_ij^2``). Bearing compliance in series with the mesh lowers it below 1; the single-DOF model
+    (rigid bearings) has ``r = 1``. The matrix comes from the field's own Jacobian
+    (:func:`gearsim.dynamics.model.rhs` with the tangent), so it follows the equations as
+    implemented.
+
+    Reading the paper's ``w`` as ``w_h / w_c`` (docs/model.md, "Model forms") means simulating at
+    ``w = r w_paper`` (:func:`at_axis_w`).
+    """
+    if params.model != "6dof" or params.rho_p == 0.0 or params.rho_g == 0.0:
+        return 1.0  # rigid or decoupled bearings: the mesh mode is sqrt(Km / Me) itself
+    lin = params.with_(eps=0.0, xi=0.0, xi_py=0.0, xi_pz=0.0, xi_gy=0.0, xi_gz=0.0, friction=0.0,
+                       var_ratio=0.0, mesh_damping_contact=0.0)
+    p = lin.to_array()
+    mode = np.ones(_m.N_MODE, dtype=np.int64)  # mesh and bearings in their loaded region (+1)
+    y = np.zeros(2 * _m.N_STATE)
+    dy = np.zeros(2 * _m.N_STATE)
+    pos = (0, 2, 4, 6, 8)
+    A = np.zeros((5, 5))
+    for j, k in enumerate(pos):
+        y[_m.N_STATE:] = 0.0
+        y[_m.N_STATE + k] = 1.0
+        _m.rhs(0.0, y, p, mode, dy, True)
+        for i, kk in enumerate(pos):
+            A[i, j] = -dy[_m.N_STATE + kk + 1]
+    lam, vec = np.linalg.eig(A)
+    stiff = np.array([1.0] + [getattr(params, f"kappa_{n}") / rho
+                              for n, rho in zip(_m.BEARINGS, (params.rho_p, params.rho_p,
+                                                              params.rho_g, params.rho_g),
+                                                strict=True)])
+    v = np.real(vec)
+    share = stiff[0] * v[0] ** 2 / np.sum(stiff[:, None] * v**2, axis=0)
+    k = int(np.argmax(share))
+    return float(math.sqrt(float(np.real(lam[k]))))
+
+
+def at_axis_w(params: ModelParameters, w_axis: float, frequency_scale: str = "mesh"
+              ) -> ModelParameters:
+    """Parameters at the axis value ``w_axis`` under a frequency-scale reading.
+
+    ``"mesh"`` (today): ``w = w_axis`` (``w_h / sqrt(Km / Me)``); ``"coupled"``: the axis is
+    ``w_h / w_c`` and the model runs at ``w = mesh_mode_ratio(params) * w_axis``.
+    """
+    if frequency_scale not in FREQUENCY_SCALES:
+        raise ParameterError(
+            f"frequency_scale = {frequency_scale!r}; allowed: {', '.join(FREQUENCY_SCALES)}"
+        )
+    r = 1.0 if frequency_scale == "mesh" else mesh_mode_ratio(params)
+    return params.with_(w=r * float(w_axis))

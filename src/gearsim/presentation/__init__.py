@@ -1,0 +1,1 @@
+"""Figures, report and explorer: they read results and never run the integrators."""

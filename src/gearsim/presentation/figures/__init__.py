@@ -1,0 +1,1 @@
+"""The study's figures: one registry of figure builders, drawn from results."""

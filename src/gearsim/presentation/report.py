@@ -1,0 +1,619 @@
+"""The reproduction report: the paper's numbers beside ours, every one of ours computed here.
+
+Inputs (pipeline outputs, docs/TEAM.md): ``results/sweeps/<sweep>.parquet`` of the configured
+sweeps (orbit diagrams), the cells of the configured planes (``results/catalogue.sqlite``, or
+``results/<plane>/cells.parquet`` when the catalogue has no cell table), the planes' numerical
+audits ``results/<plane>/audit.parquet`` and optionally the calibration record
+``docs/calibration.json``; the rule ``report`` declares each of them. The planes and sweeps are
+those of the config: a plane is compared with the paper's thresholds when its axes are the
+paper's ((w, b) or (w, xi)); for any other plane, and for a paper sweep the study does not
+configure, the report says "not applicable". Output: Markdown (``results/report.md``).
+
+Sections
+--------
+1. Landmarks of the standard sweep: paper | ours | difference (:mod:`gearsim.analysis.landmarks`).
+2. DC and Kmax at the jump under each Kmax reading (:data:`gearsim.cell.classify.KMAX_READINGS`).
+3. Thresholds: the backlash above which no double-sided impact occurs (wb plane) and the damping
+   above which only 0/1T and 1/1T remain (wxi plane).
+4. Pattern sequences at b = 0.15, 0.25, 0.35 (Fig 8) and xi = 0.05, 0.09, 0.15 (Fig 15).
+5. What does not match, with the evidence (or that nothing was compared).
+6. Every plane of the study: axes, grid, the most frequent patterns, and what the paper has to
+   compare with it.
+
+Paper numbers appear only in the "paper" columns; a quantity we did not compute is reported as
+"not computed", never filled with the paper's value.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from gearsim.analysis.landmarks import (
+    PAPER_JUMP_DC,
+    PAPER_JUMP_KMAX,
+    find_landmarks,
+    is_subsequence,
+    match_paper,
+    pattern_sequence,
+)
+from gearsim.cell.classify import KMAX_READINGS
+
+NOT_APPLICABLE = "not applicable"
+PAPER_B_THRESHOLD = 0.4125
+PAPER_XI_THRESHOLD = 0.1436
+LANDMARK_TOL = 0.02
+THRESHOLD_TOL = 0.01
+
+#: Paper sequences (Sect 3.2 text of Fig 8, Sect 3.3 list of Fig 15). ``None`` = the paper gives
+#: only a qualitative description (quoted in ``PAPER_SEQUENCE_TEXT``).
+PAPER_SEQUENCES: dict[str, list[str] | None] = {
+    "b015": ["0/1T", "1/1T", "2/1T", "2/2T", "1/2T", "1/1T"],
+    "b025": None,
+    "b035": None,
+    "xi005": ["0/1T", "1/1T", "1/2T", "1/4T", "chaos", "1/8T", "1/4T", "1/2T", "1/1T"],
+    "xi009": ["0/1T", "1/1T", "1/2T", "1/4T", "1/2T", "1/1T"],
+    "xi015": ["0/1T", "1/1T"],
+}
+PAPER_SEQUENCE_TEXT = {
+    "b015": "0/1T -> 1/1T -> 2/1T -> 2/2T -> 1/2T -> 1/1T (Fig 8a)",
+    "b025": "non-impact interval unchanged; double-sided interval contracts, tooth-surface "
+            "interval expands; high-period double-sided motions (period 4, 8) appear (Fig 8b)",
+    "b035": "double-sided interval contracts further; double-sided motions degenerate to "
+            "2/4T and 2/2T (Fig 8c)",
+    "xi005": "0/1T -G-> 1/1T -PD-> 1/2T -PD-> 1/4T -PD-> ... chaos ... -PD-> 1/8T -> 1/4T -> "
+             "1/2T -> 1/1T (Fig 15a)",
+    "xi009": "0/1T -G-> 1/1T -PD-> 1/2T -PD-> 1/4T -PD-> 1/2T -PD-> 1/1T (Fig 15b)",
+    "xi015": "0/1T -G-> 1/1T (Fig 15c)",
+}
+SEQUENCE_SWEEPS = {"b015": ("b", 0.15), "b025": ("b", 0.25), "b035": ("b", 0.35),
+                   "xi005": ("xi", 0.05), "xi009": ("xi", 0.09), "xi015": ("xi", 0.15)}
+
+
+# ----------------------------------------------------------------------------- loading
+def load_sweeps(directory: str | Path, names: Sequence[str] | None = None
+                ) -> dict[str, pd.DataFrame]:
+    """The orbit diagrams ``<name>.parquet`` in ``directory`` of the sweeps ``names`` (default:
+    every one there), keyed by name; a missing file is left out."""
+    d = Path(directory)
+    if not d.is_dir():
+        return {}
+    paths = (sorted(d.glob("*.parquet")) if names is None else
+             [d / f"{n}.parquet" for n in names if (d / f"{n}.parquet").is_file()])
+    return {p.stem: pd.read_parquet(p) for p in paths}
+
+
+def _cells_from_catalogue(path: Path, plane: str) -> pd.DataFrame | None:
+    """Cells of ``plane`` from the pipeline's catalogue (``cells`` joined to ``planes`` by
+    ``plane_id``; the impact state is stored as ``impact``, the axes as ``x`` / ``y``), opened
+    through :func:`gearsim.results.catalogue.open_catalogue` (a file that is not a catalogue of our
+    schema is an error). ``None`` when there is no catalogue or the plane is not in it."""
+    if not path.is_file():
+        return None
+    from gearsim.results.catalogue import open_catalogue
+
+    con = open_catalogue(path)
+    try:
+        df = pd.read_sql_query(
+            "select c.* from cells c join planes p on c.plane_id = p.id where p.name = ?",
+            con, params=(plane,))
+    finally:
+        con.close()
+    if not len(df):
+        return None
+    if "I" not in df.columns and "impact" in df.columns:
+        df = df.rename(columns={"impact": "I"})
+    return df
+
+
+def load_plane(plane: str, *, catalogue: str | Path | None = None,
+               results: str | Path = "results") -> pd.DataFrame | None:
+    """Cells of ``plane`` from the catalogue, else from ``results/<plane>/cells.parquet``."""
+    if catalogue is not None:
+        df = _cells_from_catalogue(Path(catalogue), plane)
+        if df is not None:
+            return df
+    p = Path(results) / plane / "cells.parquet"
+    if p.is_file():
+        return pd.read_parquet(p)
+    return None
+
+
+def _axis_column(df: pd.DataFrame, name: str, which: str) -> str:
+    """Column holding the plane's ``which`` ('x' or 'y') axis named ``name``."""
+    for c in (name, f"{which}_value", which, f"value_{which}"):
+        if c in df.columns:
+            return c
+    raise KeyError(f"no column for the plane axis '{name}' ({which}); columns: {list(df.columns)}")
+
+
+# ----------------------------------------------------------------------------- thresholds
+@dataclass
+class Threshold:
+    """A threshold read off a plane: the last row that still shows the property and the next."""
+
+    name: str
+    value: float  # midpoint between last_with and first_without
+    last_with: float
+    first_without: float
+    rows: int
+    paper: float
+    note: str = ""
+
+    @property
+    def difference(self) -> float:
+        return self.value - self.paper
+
+
+def row_threshold(
+    cells: pd.DataFrame, y: str, has_property: pd.Series, *, name: str, paper: float,
+) -> Threshold | None:
+    """Smallest y above which no row has the property (rows are plane rows of constant y)."""
+    ys = np.sort(cells[y].unique())
+    flag = has_property.groupby(cells[y]).any().reindex(ys).fillna(False).to_numpy()
+    if not flag.any():
+        return Threshold(name, float("nan"), float("nan"), float(ys[0]), len(ys), paper,
+                         "no row has the property")
+    last = int(np.nonzero(flag)[0].max())
+    if last == len(ys) - 1:
+        return Threshold(name, float("inf"), float(ys[-1]), float("nan"), len(ys), paper,
+                         "the property persists to the top of the plane")
+    holes = int((~flag[: last + 1]).sum())
+    note = f"{holes} rows below it without the property" if holes else ""
+    return Threshold(name, 0.5 * (ys[last] + ys[last + 1]), float(ys[last]),
+                     float(ys[last + 1]), len(ys), paper, note)
+
+
+def double_sided(cells: pd.DataFrame) -> pd.Series:
+    """Cells with impacts on the tooth back (I = 2 or -1, or q > 0)."""
+    q = cells["q"].fillna(0) if "q" in cells.columns else 0
+    return (cells["I"].isin([2, -1])) | (q > 0)
+
+
+def not_period_one(cells: pd.DataFrame) -> pd.Series:
+    """Cells other than 0/1T and 1/1T (period n != 1, or not periodic)."""
+    periodic = cells["motion"] == "periodic" if "motion" in cells.columns else cells["n"] > 0
+    return ~(periodic & (cells["n"] == 1) & cells["I"].isin([0, 1]))
+
+
+# ----------------------------------------------------------------------------- report
+@dataclass
+class Report:
+    """Everything the report states, computed from the pipeline outputs."""
+
+    landmarks: pd.DataFrame | None = None
+    matched: pd.DataFrame | None = None
+    jump: dict[str, Any] | None = None
+    b_threshold: Threshold | None = None
+    xi_threshold: Threshold | None = None
+    sequences: dict[str, dict[str, Any]] = field(default_factory=dict)
+    misses: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    calibration: dict[str, Any] | None = None
+    audit: list[dict[str, Any]] = field(default_factory=list)
+    compared: int = 0  # comparisons with the paper actually made
+    thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
+    planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
+    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
+    exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
+    exact_form: dict | None = None  # provenance subtree of the standard sweep (its model form)
+
+
+def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
+    """The numerical audit of each plane (``results/<plane>/audit.parquet`` provenance)."""
+    from gearsim.results.catalogue import read_metadata
+
+    out = []
+    for plane in planes:
+        f = Path(results) / plane / "audit.parquet"
+        if f.is_file():
+            meta = read_metadata(f) or {}
+            out.append({"plane": plane, "cells": meta.get("cells"),
+                        "agreement": meta.get("agreement"), "threshold": meta.get("threshold")})
+    return out
+
+
+def _audit_lines(audits: list[dict[str, Any]]) -> list[str]:
+    if not audits:
+        return []
+    out = ["## Numerical audit", "",
+           "A seeded sample of every plane re-simulated with the adaptive DP5 integrator at "
+           "tightened tolerance (the configuration's DP5 tolerances divided by `audit.tighten`) "
+           "from the same start states; agreement = same label and n-p-q.", "",
+           "| plane | audited cells | agreement | threshold |", "|---|---|---|---|"]
+    low = []
+    for a in audits:
+        out.append(f"| {a['plane']} | {a['cells']} | {_f(a['agreement'], '.3f')} | "
+                   f"{_f(a['threshold'], '.2f')} |")
+        if a["agreement"] is not None and a["threshold"] is not None and (
+            a["agreement"] < a["threshold"]
+        ):
+            low.append(a["plane"])
+    out.append("")
+    if low:
+        out = [f"> **WARNING: the numerical audit is below its threshold on {', '.join(low)}: "
+               "the plane's classification depends on the integration settings. Tighten "
+               "`integration` before trusting these maps.**", ""] + out
+    return out
+
+
+def _table_axes(plane: str, df: pd.DataFrame | None) -> tuple[str, str]:
+    """(x, y) parameter names of a cells table (names of varying parameter columns)."""
+    known = {"wb": ("w", "b"), "wxi": ("w", "xi")}
+    if df is not None and len(df) and {"i", "j"} <= set(df.columns):
+        from gearsim.dynamics.parameters import ModelParameters
+
+        names = [c for c in df.columns if c in ModelParameters.names()]
+        x = [c for c in names if df.groupby("j")[c].nunique().max() > 1]
+        y = [c for c in names if df.groupby("i")[c].nunique().max() > 1]
+        if len(x) == 1 and len(y) == 1:
+            return x[0], y[0]
+    return known.get(plane, ("x", "y"))
+
+
+#: what the paper has for a plane of these axes
+PAPER_PLANES = {("w", "b"): "Figs 7, 12, 13 and the backlash threshold b = 0.4125",
+                ("w", "xi"): "Figs 14, 16, 17 and the damping threshold xi = 0.1436"}
+
+
+def plane_summary(plane: str, axes: tuple[str, str], cells: pd.DataFrame | None
+                  ) -> dict[str, Any]:
+    """A plane of the study in a few numbers: cells, grid, the most frequent patterns."""
+    out: dict[str, Any] = {"plane": plane, "axes": axes,
+                           "paper": PAPER_PLANES.get(axes, NOT_APPLICABLE)}
+    if cells is None or not len(cells):
+        out["cells"] = None
+        return out
+    out["cells"] = len(cells)
+    if {"i", "j"} <= set(cells.columns):
+        out["grid"] = (int(cells["i"].max()) + 1, int(cells["j"].max()) + 1)
+    if "label" in cells.columns:
+        counts = cells["label"].fillna("?").value_counts()
+        out["patterns"] = [(str(k), int(v)) for k, v in counts.head(6).items()]
+        out["n_patterns"] = int(len(counts))
+    return out
+
+
+def analyse(
+    sweeps: dict[str, pd.DataFrame],
+    planes: dict[str, pd.DataFrame | None],
+    *,
+    calibration: dict[str, Any] | None = None,
+    plane_axes: dict[str, tuple[str, str]] | None = None,
+    configured_sweeps: Sequence[str] | None = None,
+) -> Report:
+    """Compute the report's content (no formatting).
+
+    ``plane_axes``: the (x, y) parameter names of every plane of the study (the config's
+    ``planes``; default: read off the tables, ``wb`` = (w, b) and ``wxi`` = (w, xi) when
+    they cannot be). ``configured_sweeps``: the study's sweeps (default: the paper's and those
+    given); a paper sweep outside it is "not applicable" rather than "not computed".
+    """
+    rep = Report(calibration=calibration)
+    axes = dict(plane_axes) if plane_axes is not None else {
+        p: _table_axes(p, df) for p, df in planes.items()}
+    configured = ({"standard", *SEQUENCE_SWEEPS, *sweeps} if configured_sweeps is None
+                  else set(configured_sweeps))
+    std = sweeps.get("standard")
+    if "standard" not in configured:
+        rep.notes.append("this study has no sweep 'standard': the paper's landmarks are "
+                         f"{NOT_APPLICABLE}")
+    elif std is not None and len(std):
+        lms = find_landmarks(std)
+        rep.landmarks = lms
+        rep.matched = match_paper(lms)
+        rep.compared += len(rep.matched)
+        for r in rep.matched.itertuples():
+            if not r.found:
+                rep.misses.append(f"landmark '{r.text}' (paper w = {r.paper:g}) not found in "
+                                  "the standard sweep")
+            elif abs(r.error) > LANDMARK_TOL:
+                rep.misses.append(f"landmark '{r.text}': ours w = {r.ours:.4f} (between "
+                                  f"{r.lo:.4f} and {r.hi:.4f}), paper {r.paper:g}, difference "
+                                  f"{r.error:+.4f} > {LANDMARK_TOL}")
+            elif not r.exact_pattern:
+                rep.misses.append(f"landmark '{r.text}': found at w = {r.ours:.4f} but as "
+                                  f"{r.ours_from} -> {r.ours_to}")
+        jumps = lms[(lms["kind"] == "jump") & (lms["direction"] > 0)]
+        if len(jumps):
+            j = jumps.iloc[0]
+            after = std.reset_index(drop=True).loc[int(j["i_hi"])]
+            before = std.reset_index(drop=True).loc[int(j["i_lo"])]
+            rep.jump = {
+                "w_lo": float(j["lo"]), "w_hi": float(j["hi"]),
+                "dc_before": float(before["dc"]), "dc_after": float(after["dc"]),
+                "kmax_before": {k: float(before[k]) for k in KMAX_READINGS if k in before},
+                "kmax_after": {k: float(after[k]) for k in KMAX_READINGS if k in after},
+            }
+            if abs(rep.jump["dc_after"] - PAPER_JUMP_DC) > 0.03:
+                rep.misses.append(f"DC after the jump {rep.jump['dc_after']:.3f}, paper "
+                                  f"{PAPER_JUMP_DC}")
+        else:
+            rep.misses.append("no upward DC jump in the standard sweep")
+    else:
+        rep.notes.append("results/sweeps/standard.parquet missing: landmarks not computed")
+
+    hyst = sweeps.get("hysteresis")
+    if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
+        from gearsim.analysis.attractors import hysteresis
+
+        rep.hysteresis = hysteresis(hyst).lines()
+
+    for paper_axes, fn, name, paper in (
+        (("w", "b"), double_sided, "b above which no double-sided impact occurs",
+         PAPER_B_THRESHOLD),
+        (("w", "xi"), not_period_one, "xi above which only 0/1T and 1/1T remain",
+         PAPER_XI_THRESHOLD),
+    ):
+        standard = "w" + paper_axes[1]
+        names = sorted((p for p, ax in axes.items() if tuple(ax) == paper_axes),
+                       key=lambda p: p != standard)
+        if not names:
+            rep.thresholds_na[paper_axes[1]] = (f"this study has no ({paper_axes[0]}, "
+                                               f"{paper_axes[1]}) plane")
+            continue
+        plane = names[0]
+        cells = planes.get(plane)
+        if cells is None or len(cells) == 0:
+            rep.notes.append(f"plane {plane} not available: threshold not computed")
+            continue
+        try:
+            y = _axis_column(cells, paper_axes[1], "y")
+        except KeyError as exc:
+            rep.notes.append(f"plane {plane}: {exc}")
+            continue
+        th = row_threshold(cells, y, fn(cells), name=name, paper=paper)
+        th.note = (f"plane {plane}; " + th.note) if th.note else f"plane {plane}"
+        rep.compared += 1
+        if paper_axes[1] == "b":
+            rep.b_threshold = th
+        else:
+            rep.xi_threshold = th
+        if th is not None and not (abs(th.difference) <= THRESHOLD_TOL):
+            rep.misses.append(f"{name}: ours {th.value:.4f} (rows {th.last_with:.4f} / "
+                              f"{th.first_without:.4f}, plane {plane}), paper {paper}")
+
+    for plane, ax in axes.items():
+        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane)))
+
+    for key, (pname, pval) in SEQUENCE_SWEEPS.items():
+        df = sweeps.get(key)
+        entry: dict[str, Any] = {"parameter": pname, "value": pval,
+                                 "paper_text": PAPER_SEQUENCE_TEXT[key],
+                                 "paper": PAPER_SEQUENCES[key]}
+        if key not in configured:
+            entry.update(ours=None, in_order=None, exact=None, applicable=False)
+        elif df is None or len(df) == 0:
+            entry.update(ours=None, in_order=None, exact=None)
+            rep.notes.append(f"sweep {key} missing: sequence not computed")
+        else:
+            seq = pattern_sequence(df)
+            entry["ours"] = seq
+            entry["ours_npq"] = pattern_sequence(df, use_npq=True)
+            expected = PAPER_SEQUENCES[key]
+            if expected is not None:
+                rep.compared += 1
+                entry["in_order"] = is_subsequence(expected, seq)
+                entry["exact"] = list(seq) == list(expected)
+                if not entry["exact"]:
+                    extra = [x for x in dict.fromkeys(seq) if x not in expected]
+                    what = ("paper's patterns not in its order" if not entry["in_order"]
+                            else "paper's patterns in order, with extra patterns "
+                            + ", ".join(extra) if extra else "paper's patterns in order, "
+                            "repeated")
+                    rep.misses.append(f"sequence {key} ({pname} = {pval}): {what}; ours "
+                                      f"{' -> '.join(seq)}; paper {' -> '.join(expected)}")
+            else:
+                entry.update(in_order=None, exact=None)
+        rep.sequences[key] = entry
+    return rep
+
+
+def _f(x: Any, fmt: str = ".4f") -> str:
+    if x is None:
+        return "not computed"
+    if isinstance(x, float) and math.isnan(x):
+        return "—"
+    return format(x, fmt)
+
+
+def to_markdown(rep: Report) -> str:
+    """Format the report."""
+    out = ["# Reproduction report", "",
+           "Paper: Liu et al., PLOS ONE 2025 (doi 10.1371/journal.pone.0335920). Every 'ours' "
+           "value is computed from this run's outputs; the paper's values are quoted beside "
+           "them only.", ""]
+    if rep.calibration:
+        s = rep.calibration.get("search", {})
+        if s:
+            best = ", ".join(f"{k} = {v:.4g}" for k, v in s.get("best", {}).items())
+            out += ["## Calibration", "",
+                    f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
+                    f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
+                    "docs/calibration.md.", ""]
+    if rep.calibration and rep.calibration.get("forms"):
+        from gearsim.calibration.fidelity import form_report_lines
+
+        out += form_report_lines(rep.calibration["forms"])
+    out += _audit_lines(rep.audit)
+    out += ["## 1. Landmarks of the standard sweep", ""]
+    if any("no sweep 'standard'" in n for n in rep.notes):
+        out += ["Not applicable: this study has no sweep 'standard'.", ""]
+    elif rep.matched is not None:
+        out += ["| landmark | paper w | ours w | grid interval | difference | pattern (ours) |",
+                "|---|---|---|---|---|---|"]
+        errs = []
+        for r in rep.matched.itertuples():
+            paper = (f"{r.paper_lo:g}-{r.paper_hi:g}" if r.paper_lo != r.paper_hi
+                     else f"{r.paper:g}")
+            if r.found:
+                errs.append(r.error)
+                out.append(f"| {r.text} | {paper} | {r.ours:.4f} | [{r.lo:.4f}, {r.hi:.4f}] | "
+                           f"{r.error:+.4f} | {r.ours_from} -> {r.ours_to} |")
+            else:
+                out.append(f"| {r.text} | {paper} | not found | | | |")
+        if errs:
+            e = np.asarray(errs)
+            out += ["", f"Found {len(e)} of {len(rep.matched)}; RMS difference "
+                    f"{np.sqrt(np.mean(e**2)):.4f}, worst {np.max(np.abs(e)):.4f}; within "
+                    f"{LANDMARK_TOL}: {int((np.abs(e) <= LANDMARK_TOL).sum())}."]
+        out.append("")
+        if rep.landmarks is not None and len(rep.landmarks):
+            out += ["All landmarks found (sweep order):", "",
+                    "| kind | w | from | to | DC before / after |", "|---|---|---|---|---|"]
+            for r in rep.landmarks.itertuples():
+                out.append(f"| {r.kind} | {r.value:.4f} | {r.from_npq} | {r.to_npq} | "
+                           f"{r.dc_lo:.3f} / {r.dc_hi:.3f} |")
+            out.append("")
+    else:
+        out += ["Not computed (standard sweep missing).", ""]
+    if rep.exact is not None:
+        from gearsim.analysis.exact_landmarks import form_name, model_form, report_lines
+
+        out += ["Exact bifurcation points (Newton-Floquet continuation of the standard set, "
+                "located to 1e-8; docs/orbits.md). Each landmark is paired with the located "
+                "bifurcation of its kind and orbit period nearest the grid reading; \"in "
+                "interval\" says whether it lies between the two swept values where the "
+                "simulated labels change.", "",
+                f"Model form ({form_name(rep.exact_form)}): {model_form(rep.exact_form)}.", "",
+                *report_lines(rep.exact, form_name(rep.exact_form)), ""]
+    out += ["## 2. DC and Kmax at the jump", ""]
+    if any("no sweep 'standard'" in n for n in rep.notes):
+        out += ["Not applicable: this study has no sweep 'standard'.", ""]
+    elif rep.jump:
+        j = rep.jump
+        out += [f"Jump between w = {j['w_lo']:.4f} and {j['w_hi']:.4f}. DC {j['dc_before']:.3f}"
+                f" -> {j['dc_after']:.3f} (paper: DC -> {PAPER_JUMP_DC}).", "",
+                "| Kmax reading | before | after | paper |", "|---|---|---|---|"]
+        for k, text in KMAX_READINGS.items():
+            if k in j["kmax_after"]:
+                out.append(f"| {k}: {text} | {j['kmax_before'][k]:.3f} | "
+                           f"{j['kmax_after'][k]:.3f} | {PAPER_JUMP_KMAX} |")
+        best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
+                   default=None)
+        if best:
+            out += ["", f"Closest reading to the paper's {PAPER_JUMP_KMAX}: {best[0]} = "
+                    f"{best[1]:.3f}. (Paper Fig 17: Kmax 1.8-2.1 at the jump for small xi.)"]
+        out.append("")
+    else:
+        out += ["Not computed (no jump found or standard sweep missing).", ""]
+    if rep.hysteresis:
+        out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
+                *rep.hysteresis, ""]
+    out += ["## 3. Thresholds", "", "| threshold | paper | ours | rows (last with / first "
+            "without) | difference |", "|---|---|---|---|---|"]
+    for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
+                                   "impact above", "b"),
+                                  (rep.xi_threshold, PAPER_XI_THRESHOLD,
+                                   "xi: only 0/1T, 1/1T above", "xi")):
+        if key in rep.thresholds_na:
+            out.append(f"| {label} | {paper} | {NOT_APPLICABLE} ({rep.thresholds_na[key]}) "
+                       "| | |")
+        elif th is None:
+            out.append(f"| {label} | {paper} | not computed | | |")
+        else:
+            note = f"; {th.note}" if th.note else ""
+            out.append(f"| {label} | {paper} | {_f(th.value)} | {_f(th.last_with)} / "
+                       f"{_f(th.first_without)} ({th.rows} rows{note}) | "
+                       f"{_f(th.difference, '+.4f')} |")
+    out.append("")
+    out += ["## 4. Pattern sequences (Fig 8, Fig 15)", ""]
+    for key, e in rep.sequences.items():
+        out.append(f"**{e['parameter']} = {e['value']}** (sweep `{key}`)")
+        out.append("")
+        out.append(f"- paper: {e['paper_text']}")
+        if e.get("applicable") is False:
+            out.append(f"- ours: {NOT_APPLICABLE} (this study has no sweep `{key}`)")
+        elif e.get("ours") is None:
+            out.append("- ours: not computed")
+        else:
+            out.append(f"- ours: {' -> '.join(e['ours'])}")
+            out.append(f"- ours (n-p-q): {' -> '.join(e['ours_npq'])}")
+            if e.get("in_order") is not None:
+                out.append(f"- paper's patterns in order: {'yes' if e['in_order'] else 'no'}; "
+                           f"identical sequence: {'yes' if e['exact'] else 'no'}")
+        out.append("")
+    out += ["## 5. What does not match", ""]
+    if rep.misses:
+        out += [f"- {m}" for m in rep.misses]
+    elif rep.compared:
+        out += [f"- nothing beyond the tolerances ({LANDMARK_TOL} in w, {THRESHOLD_TOL} "
+                f"thresholds) in {rep.compared} comparisons with the paper"]
+    else:
+        out += [f"- {NOT_APPLICABLE}: nothing of this study was compared with the paper (it "
+                "has none of the paper's sweeps or planes, or they were not computed)"]
+    if rep.notes:
+        out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
+    out.append("")
+    out += _plane_lines(rep.planes)
+    return "\n".join(out)
+
+
+def _plane_lines(planes: list[dict[str, Any]]) -> list[str]:
+    if not planes:
+        return []
+    out = ["## 6. Planes of this study", "",
+           "| plane | axes (x, y) | cells (grid) | patterns (most frequent, cells) | "
+           "the paper has |", "|---|---|---|---|---|"]
+    for p in planes:
+        ax = f"({p['axes'][0]}, {p['axes'][1]})"
+        if p["cells"] is None:
+            out.append(f"| {p['plane']} | {ax} | not computed | | {p['paper']} |")
+            continue
+        grid = f" ({p['grid'][0]} x {p['grid'][1]})" if p.get("grid") else ""
+        pats = ", ".join(f"{k} {v}" for k, v in p.get("patterns", []))
+        more = p.get("n_patterns", 0) - len(p.get("patterns", []))
+        pats += f", {more} more" if more > 0 else ""
+        out.append(f"| {p['plane']} | {ax} | {p['cells']}{grid} | {pats} | {p['paper']} |")
+    out.append("")
+    return out
+
+
+def build_report(
+    *,
+    sweeps_dir: str | Path = "results/sweeps",
+    catalogue: str | Path | None = "results/catalogue.sqlite",
+    results: str | Path = "results",
+    calibration: str | Path | None = "docs/calibration.json",
+    planes: Sequence[str] | dict[str, tuple[str, str]] = ("wb", "wxi"),
+    sweeps: Sequence[str] | None = None,
+) -> tuple[Report, str]:
+    """Load the pipeline outputs, analyse and format. Returns (report, markdown).
+
+    ``planes``: the study's planes, by name, or ``{name: (x, y)}`` with their axes (the
+    config's ``planes``, :func:`study_from_config`); ``sweeps``: the study's sweeps (default:
+    every table in ``sweeps_dir``)."""
+    loaded = load_sweeps(sweeps_dir, sweeps)
+    names = list(planes)
+    cells = {p: load_plane(p, catalogue=catalogue, results=results) for p in names}
+    cal = None
+    if calibration is not None and Path(calibration).is_file():
+        cal = json.loads(Path(calibration).read_text())
+    axes = ({p: tuple(v) for p, v in planes.items()} if isinstance(planes, dict) else None)
+    rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
+                  configured_sweeps=sweeps)
+    rep.audit = load_audits(results, names)
+    # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
+    exact_points = Path(results) / "orbits" / "standard_points.parquet"
+    if exact_points.is_file() and "standard" in loaded:
+        from gearsim.analysis.exact_landmarks import exact_landmarks
+        from gearsim.results.catalogue import read_metadata
+
+        rep.exact = exact_landmarks(pd.read_parquet(exact_points), loaded["standard"])
+        prov = read_metadata(Path(sweeps_dir) / "standard.parquet")
+        rep.exact_form = (prov or {}).get("subtree")
+    return rep, to_markdown(rep)
+
+
+def study_from_config(config: dict[str, Any]) -> tuple[dict[str, tuple[str, str]], list[str]]:
+    """The planes ``{name: (x, y)}`` and sweep names of a pipeline config."""
+    planes = {name: (str(spec["x"]["name"]), str(spec["y"]["name"]))
+              for name, spec in (config.get("planes") or {}).items()}
+    return planes, list(config.get("sweeps") or {})

@@ -1,0 +1,232 @@
+"""Units and meanings of every catalogue column and of the model parameters (one source).
+
+The catalogue stores them as its ``column_dictionary`` table (:mod:`gearsim.results.catalogue`) and
+:mod:`gearsim.results.export` writes them as the ``units`` / ``long_name`` attributes of an exported
+plane. Every result is dimensionless (docs/model.md, "Coordinates and scalings"): lengths over
+the nominal length ``b_c``, time ``tau = w_n t``, forces over ``Km b_c``. A unit is written as
+``1`` for a pure number, followed by the scaling in brackets where there is one.
+"""
+
+from __future__ import annotations
+
+#: Model parameters: (unit, meaning). The names of :class:`gearsim.dynamics.parameters.ModelParameters`.
+PARAMETERS: dict[str, tuple[str, str]] = {
+    "model": ("", "model variant: 6dof (bearings elastic) or 1dof (rigid bearings)"),
+    "w": ("1 (w_h / w_n)", "mesh frequency over the natural frequency w_n = sqrt(Km / Me)"),
+    "Fm": ("1 (Tp / (Rp Km b_c))", "mean mesh load"),
+    "Fe": ("1 (Em / b_c)", "transmission-error amplitude"),
+    "eps": ("1 (Ka / Km)", "mesh stiffness fluctuation"),
+    "xi": ("1", "mesh damping ratio, C_n = 2 xi sqrt(Km Me)"),
+    "b": ("1 (B / b_c)", "half backlash"),
+    "phi_e": ("rad", "phase of the transmission error"),
+    "friction": ("1 (mu L_p / R_p)", "friction factor gamma"),
+    "alpha": ("rad", "pressure angle"),
+    "var_ratio": ("1", "variable-ratio forcing amplitude A_vr"),
+    "var_ratio_order": ("1", "variable-ratio frequency over the mesh frequency (nu)"),
+    "rho_p": ("1 (Me / M_p)", "pinion mass ratio"),
+    "rho_g": ("1 (Me / M_g)", "gear mass ratio"),
+    "kappa_py": ("1 ((K / Km) rho)", "pinion bearing stiffness, y"),
+    "kappa_pz": ("1 ((K / Km) rho)", "pinion bearing stiffness, z"),
+    "kappa_gy": ("1 ((K / Km) rho)", "gear bearing stiffness, y"),
+    "kappa_gz": ("1 ((K / Km) rho)", "gear bearing stiffness, z"),
+    "xi_py": ("1", "pinion bearing damping ratio, y"),
+    "xi_pz": ("1", "pinion bearing damping ratio, z"),
+    "xi_gy": ("1", "gear bearing damping ratio, y"),
+    "xi_gz": ("1", "gear bearing damping ratio, z"),
+    "b_py": ("1 (B_p / b_c)", "pinion bearing half clearance, y"),
+    "b_pz": ("1 (B_p / b_c)", "pinion bearing half clearance, z"),
+    "b_gy": ("1 (B_g / b_c)", "gear bearing half clearance, y"),
+    "b_gz": ("1 (B_g / b_c)", "gear bearing half clearance, z"),
+}
+
+#: Columns of a classified cell (``CellResult.row()``; ``I`` is stored as ``impact``).
+RESULT: dict[str, tuple[str, str]] = {
+    "motion": ("", "periodic | quasi-periodic | chaos | unsettled | diverged"),
+    "status": ("", "ok | not_converged | diverged (how the integration ended)"),
+    "impact": (
+        "",
+        "impact state I: 0 never disengaged, 1 face impacts only, -1 back impacts only, "
+        "2 both, -2 never in contact",
+    ),
+    "n": ("mesh periods", "period of the motion (0: no period <= n_max)"),
+    "p": ("1", "entries into face contact per motion period"),
+    "q": ("1", "entries into back contact per motion period"),
+    "label": ("", "pattern label I/nT, or chaos / quasi-periodic / unsettled / diverged"),
+    "label_npq": ("", "n-p-q label ('' without a period)"),
+    "dc": ("1", "fraction of time inside the backlash over the analysed window"),
+    "kmax": ("1", "dynamic load coefficient: the kmax_peak_static reading"),
+    "kmax_peak_mean": ("1", "peak mesh force over the motion / Fm"),
+    "kmax_peak_static": ("1", "peak mesh force over the motion / (Fm + Fe w^2)"),
+    "kmax_section_mean": ("1", "largest Poincare-section mesh force / Fm"),
+    "kmax_section_static": ("1", "largest Poincare-section mesh force / (Fm + Fe w^2)"),
+    "kmin_peak_mean": ("1", "smallest mesh force over the motion / Fm"),
+    "lyapunov": ("1/tau", "largest Lyapunov exponent per unit dimensionless time"),
+    "x_min": ("1 (X_n / b_c)", "smallest mesh displacement over the analysed window"),
+    "x_max": ("1 (X_n / b_c)", "largest mesh displacement over the analysed window"),
+    "converged": ("", "true when a period was found (or chaos / quasi-periodic decided)"),
+    "window_periods": ("mesh periods", "length of the analysed window"),
+    "periods": ("mesh periods", "mesh periods integrated in all for this cell"),
+    "steps": ("1", "integrator steps taken for this cell"),
+}
+
+_ID = ("", "row id")
+_JSON_PARAMS = ("JSON", "every model parameter value held fixed (the axes are not listed)")
+
+#: ``(table, column) -> (unit, meaning)`` for every table of the catalogue (tests check that
+#: every column created by the schema has an entry).
+CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
+    ("catalogue_info", "key"): ("", "name of the build fact"),
+    ("catalogue_info", "value"): (
+        "JSON",
+        "its value: schema_version, built (UTC), git_commit, git_dirty, gearsim_version, "
+        "code_versions, integration (when all planes and sweeps agree), counts",
+    ),
+    ("column_dictionary", "table_name"): ("", "table of the column"),
+    ("column_dictionary", "column_name"): ("", "column name"),
+    ("column_dictionary", "unit"): ("", "unit ('1' = dimensionless, scaling in brackets)"),
+    ("column_dictionary", "meaning"): ("", "what the column holds"),
+    ("runs", "id"): _ID,
+    ("runs", "kind"): ("", "tile | sweep | audit: the job that produced the data"),
+    ("runs", "name"): ("", "plane or sweep name"),
+    ("runs", "tile"): ("", "tile number within the plane (tiles only)"),
+    ("runs", "file"): ("", "the Parquet file the data came from"),
+    ("runs", "config_hash"): ("", "sha256 (16 hex) of the configuration subtree of the job"),
+    ("runs", "code_version"): ("", "sha256 (16 hex) of the sources that determine results"),
+    ("runs", "package_versions"): ("JSON", "python and package versions of the job"),
+    ("runs", "parameters_source"): ("", "standard-parameter file, or builtin-defaults"),
+    ("runs", "tangent_seed"): ("", "seed of the Lyapunov tangent vector"),
+    ("runs", "audit_seed"): ("", "seed of the audit sample (audits only)"),
+    ("runs", "host"): ("", "host name of the job"),
+    ("runs", "workers"): ("", "dask workers (or in-process) of the job"),
+    ("runs", "started"): ("UTC", "job start"),
+    ("runs", "finished"): ("UTC", "job end"),
+    ("runs", "wall_s"): ("s", "wall time of the job"),
+    ("runs", "cells"): ("1", "cells (or sweep points, audited cells) the job produced"),
+    ("planes", "id"): _ID,
+    ("planes", "name"): ("", "plane name (config key planes.<name>)"),
+    ("planes", "x_name"): ("", "parameter on the x axis (columns cells.x, cells.i)"),
+    ("planes", "x_min"): ("as x_name", "lower edge of the x axis"),
+    ("planes", "x_max"): ("as x_name", "upper edge of the x axis"),
+    ("planes", "x_n"): ("1", "cells along x; centres x_min + (i + 0.5)(x_max - x_min)/x_n"),
+    ("planes", "y_name"): ("", "parameter on the y axis (columns cells.y, cells.j)"),
+    ("planes", "y_min"): ("as y_name", "lower edge of the y axis"),
+    ("planes", "y_max"): ("as y_name", "upper edge of the y axis"),
+    ("planes", "y_n"): ("1", "cells along y; centres y_min + (j + 0.5)(y_max - y_min)/y_n"),
+    ("planes", "fixed"): ("JSON", "the plane's own overrides (config planes.<name>.fixed)"),
+    ("planes", "parameters"): _JSON_PARAMS,
+    ("planes", "config_hash"): ("", "hash of the plane's configuration subtree (= its tiles')"),
+    ("planes", "code_version"): ("", "code version of the plane's tiles"),
+    ("planes", "integration"): ("JSON", "integration settings (IntegrationSettings fields)"),
+    ("cells", "id"): _ID,
+    ("cells", "plane_id"): ("", "planes.id"),
+    ("cells", "run_id"): ("", "runs.id of the tile job"),
+    ("cells", "i"): ("1", "x index, 0 .. x_n - 1"),
+    ("cells", "j"): ("1", "y index, 0 .. y_n - 1"),
+    ("cells", "x"): ("as planes.x_name", "value of the x parameter at the cell centre"),
+    ("cells", "y"): ("as planes.y_name", "value of the y parameter at the cell centre"),
+    ("cells", "elapsed_s"): ("s", "wall time of the cell"),
+    ("sweeps", "id"): _ID,
+    ("sweeps", "name"): ("", "sweep name (config key sweeps.<name>)"),
+    ("sweeps", "run_id"): ("", "runs.id of the sweep job"),
+    ("sweeps", "parameter"): ("", "swept parameter"),
+    ("sweeps", "min"): ("as parameter", "first value"),
+    ("sweeps", "max"): ("as parameter", "last value"),
+    ("sweeps", "n"): ("1", "values, end points included"),
+    ("sweeps", "direction"): ("", "forward | backward continuation"),
+    ("sweeps", "fixed"): ("JSON", "the sweep's own parameter overrides (sweeps.<name>.fixed)"),
+    ("sweeps", "parameters"): ("JSON", "every parameter value held fixed (the swept one omitted)"),
+    ("sweeps", "config_hash"): ("", "hash of the sweep's configuration subtree"),
+    ("sweeps", "integration"): ("JSON", "integration settings (IntegrationSettings fields)"),
+    ("sweep_points", "id"): _ID,
+    ("sweep_points", "sweep_id"): ("", "sweeps.id"),
+    ("sweep_points", "k"): ("1", "position in the sweep order"),
+    ("sweep_points", "value"): ("as sweeps.parameter", "value of the swept parameter"),
+    ("sweep_points", "poincare_x"): ("JSON, 1 (X_n / b_c)", "Poincare-section displacements"),
+    ("sweep_points", "poincare_v"): ("JSON, 1 (X_n' / b_c)", "Poincare-section velocities"),
+    ("audits", "id"): _ID,
+    ("audits", "cell_id"): ("", "cells.id of the audited cell"),
+    ("audits", "run_id"): ("", "runs.id of the audit job"),
+    ("audits", "label"): RESULT["label"],
+    ("audits", "label_npq"): RESULT["label_npq"],
+    ("audits", "impact"): RESULT["impact"],
+    ("audits", "dc"): RESULT["dc"],
+    ("audits", "kmax"): RESULT["kmax"],
+    ("audits", "lyapunov"): RESULT["lyapunov"],
+    ("audits", "agree"): ("", "same label and n-p-q as the catalogue cell"),
+    ("sweep_points", "direction"): (
+        "", "forward | backward: the sweep order that reached the point (hysteresis)"
+    ),
+    ("cells", "n_attractors"): (
+        "1", "coexisting attractors found from the plane's multistability starts (NULL: off)"
+    ),
+    ("attractors", "id"): _ID,
+    ("attractors", "cell_id"): ("", "cells.id of the cell"),
+    ("attractors", "run_id"): ("", "runs.id of the attractor-tile job"),
+    ("attractors", "attractor"): ("", "index of the attractor in its cell (most starts first)"),
+    ("attractors", "motion"): RESULT["motion"],
+    ("attractors", "label"): RESULT["label"],
+    ("attractors", "label_npq"): RESULT["label_npq"],
+    ("attractors", "impact"): RESULT["impact"],
+    ("attractors", "n"): RESULT["n"],
+    ("attractors", "p"): RESULT["p"],
+    ("attractors", "q"): RESULT["q"],
+    ("attractors", "dc"): RESULT["dc"],
+    ("attractors", "kmax"): RESULT["kmax"],
+    ("attractors", "lyapunov"): RESULT["lyapunov"],
+    ("attractors", "basin_fraction"): ("1", "share of the cell's seeded starts that reach it"),
+    ("attractors", "n_starts"): ("1", "seeded starts that reach it"),
+    ("attractors", "n_early"): ("1", "of those, labelled early by recurrence"),
+    ("attractors", "found_by"): (
+        "", "who reached it: subset of forward (continuation state), backward, start"
+    ),
+}
+for _table in ("cells", "sweep_points"):
+    for _col, _doc in RESULT.items():
+        CATALOGUE[(_table, _col)] = _doc
+# periodic orbits (docs/orbits.md)
+for _t in ("bifurcation_points", "bifurcation_curves"):
+    CATALOGUE.update({
+        (_t, "id"): _ID,
+        (_t, "run_id"): ("", "runs.id of the continuation job"),
+        (_t, "plane"): ("", "plane the point belongs to"),
+        (_t, "kind"): ("", "fold | period_doubling | neimark_sacker | grazing"),
+        (_t, "period"): ("mesh periods", "period n of the orbit at the point"),
+        (_t, "boundary"): ("", "contact boundary that grazes (x=+b, x=-b, ...), else empty"),
+        (_t, "name"): ("", "continuation parameter"),
+        (_t, "value"): ("as the parameter", "its value at the point (located to 1e-8)"),
+        (_t, "name2"): ("", "second parameter"),
+        (_t, "value2"): ("as the parameter", "its value at the point"),
+        (_t, "x"): ("1 (X_n / b_c)", "section displacement x(tau = 0) of the orbit"),
+        (_t, "v"): ("1", "section velocity dx/dtau of the orbit"),
+        (_t, "mu_max"): ("1", "largest Floquet multiplier modulus (per n mesh periods)"),
+        (_t, "multipliers"): ("JSON", "all Floquet multipliers as [re, im], by modulus"),
+        (_t, "stable"): ("", "largest multiplier modulus below 1"),
+    })
+CATALOGUE[("bifurcation_curves", "curve")] = ("", "curve number (one located point followed)")
+CATALOGUE.update({
+    ("cell_orbits", "id"): _ID,
+    ("cell_orbits", "cell_id"): ("", "cells.id of the refined cell"),
+    ("cell_orbits", "run_id"): ("", "runs.id of the refine-orbits job"),
+    ("cell_orbits", "converged"): ("", "Newton reached residual 1e-10"),
+    ("cell_orbits", "residual"): ("1", "max |P^n(y) - y| at the refined orbit"),
+    ("cell_orbits", "mu_max"): ("1", "largest Floquet multiplier modulus (per n mesh periods)"),
+    ("cell_orbits", "kind"): ("", "kind of that multiplier: fold | period_doubling | "
+                              "neimark_sacker"),
+    ("cell_orbits", "grazing_margin"): ("1 (X_n / b_c)",
+                                        "smallest turning-point distance to a contact boundary"),
+    ("cell_orbits", "shift"): ("1", "max |orbit - simulated section point| over (x, x')"),
+    ("cell_orbits", "minimal_period"): ("mesh periods", "true period of the refined orbit"),
+    ("cell_orbits", "flag"): ("", "empty when Newton confirms the simulation, else "
+                              "no_convergence | unstable | period"),
+    ("cell_orbits", "ms"): ("ms", "wall time of the refinement"),
+})
+
+CATALOGUE[("plane_cells", "*")] = ("", "view: cells joined to planes (plane, x_name, y_name)")
+
+
+def unit(table: str, column: str) -> str:
+    return CATALOGUE[(table, column)][0]
+
+
+def meaning(table: str, column: str) -> str:
+    return CATALOGUE[(table, column)][1]

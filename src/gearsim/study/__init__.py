@@ -1,0 +1,2 @@
+"""The study: configuration and its defaults, grids, provenance, tiles, the dask cluster, integrity
+checks."""

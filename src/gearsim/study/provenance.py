@@ -1,0 +1,138 @@
+"""Provenance: canonical JSON, configuration hashes, the code version, package versions.
+
+Every tile, sweep and point set records :func:`provenance` (Parquet key-value metadata, then the
+catalogue's ``runs`` table); the Snakemake rules take :func:`plane_subtree` /
+:func:`sweep_subtree` and :func:`code_version` as params, so a change to either re-runs exactly
+the jobs it affects.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import platform
+from collections.abc import Mapping
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from gearsim.cell.simulate import TANGENT_SEED
+from gearsim.study.config import base_parameters, integration_settings, resolved_parameters
+
+#: Packages whose versions go into the provenance.
+PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "distributed")
+
+
+def canonical_json(obj: Any) -> str:
+    """JSON with sorted keys and no spaces (the text that is hashed and given to Snakemake)."""
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=float)
+
+
+def config_hash(obj: Any) -> str:
+    """sha256 (16 hex digits) of the canonical JSON of ``obj``."""
+    return hashlib.sha256(canonical_json(obj).encode()).hexdigest()[:16]
+
+
+#: What each kind of job's results depend on: the layers (subpackages of ``src/gearsim``) whose
+#: sources go into its :func:`code_version`. The package root's modules (``errors.py``,
+#: ``__init__.py``) count for every scope. Editing a layer re-runs exactly the jobs whose scope
+#: names it: a presentation or calibration edit re-runs no tile.
+SIMULATION = ("dynamics", "physical", "numerics", "cell", "study")
+CODE_SCOPES: dict[str, tuple[str, ...]] = {
+    "tiles": SIMULATION,
+    "analysis": SIMULATION + ("analysis",),
+    "catalogue": SIMULATION + ("analysis", "results"),
+    "presentation": SIMULATION + ("analysis", "results", "calibration", "presentation"),
+}
+
+
+def _package_dir() -> Path:
+    return Path(__file__).resolve().parents[1]
+
+
+def code_files(scope: str = "tiles", package: str | Path | None = None) -> list[Path]:
+    """The source files that decide the results of a ``scope`` of :data:`CODE_SCOPES`: every
+    ``*.py`` of its layers and of the package root, sorted by relative path."""
+    if scope not in CODE_SCOPES:
+        raise ValueError(f"code scope {scope!r}: one of {', '.join(CODE_SCOPES)}")
+    pkg = Path(package) if package is not None else _package_dir()
+    files = list(pkg.glob("*.py"))
+    for layer in CODE_SCOPES[scope]:
+        files += (pkg / layer).rglob("*.py")
+    rel = lambda f: f.relative_to(pkg).as_posix()  # noqa: E731
+    return sorted((f for f in files if "__pycache__" not in rel(f)), key=rel)
+
+
+def code_version(scope: str = "tiles", package: str | Path | None = None) -> str:
+    """sha256 (16 hex digits) over the relative path and bytes of every :func:`code_files` file
+    of ``scope``.
+
+    ``package`` is the ``gearsim`` package directory (default: this installation); editing,
+    adding, removing or renaming a module of one of the scope's layers changes the hash.
+    """
+    pkg = Path(package) if package is not None else _package_dir()
+    h = hashlib.sha256()
+    for f in code_files(scope, pkg):
+        rel = f.relative_to(pkg).as_posix().encode()
+        data = f.read_bytes()
+        h.update(len(rel).to_bytes(8, "little") + rel)
+        h.update(len(data).to_bytes(8, "little") + data)
+    return h.hexdigest()[:16]
+
+
+def package_versions() -> dict[str, str]:
+    """Versions of Python and of :data:`PACKAGES` (``absent`` when not installed)."""
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:  # pragma: no cover
+            out[name] = "absent"
+    return out
+
+
+def plane_subtree(config: Mapping, plane: str, root: str | Path | None = None) -> dict[str, Any]:
+    """What a plane's tiles depend on (the Snakemake params and the hashed provenance)."""
+    return {
+        "plane": copy.deepcopy(dict(config["planes"][plane])),
+        "parameters": resolved_parameters(config, root),
+        "integration": integration_settings(config).to_dict(),
+        "tile_rows": int(config["tile_rows"]),
+    }
+
+
+def sweep_subtree(config: Mapping, sweep: str, root: str | Path | None = None) -> dict[str, Any]:
+    """What a sweep depends on (its Snakemake params and hashed provenance)."""
+    return {
+        "sweep": copy.deepcopy(dict(config["sweeps"][sweep])),
+        "parameters": resolved_parameters(config, root),
+        "integration": integration_settings(config).to_dict(),
+    }
+
+
+def provenance(
+    subtree: Mapping,
+    *,
+    kind: str,
+    name: str,
+    root: str | Path | None = None,
+    config=None,
+    scope: str = "tiles",
+    **extra: Any,
+) -> dict[str, Any]:
+    """Provenance record (goes into Parquet key-value metadata and the catalogue's runs)."""
+    _, source = base_parameters(config, root) if config is not None else ({}, "unknown")
+    rec = {
+        "kind": kind,
+        "name": name,
+        "config_hash": config_hash(subtree),
+        "code_version": code_version(scope),
+        "package_versions": package_versions(),
+        "tangent_seed": TANGENT_SEED,
+        "parameters_source": source,
+        "subtree": subtree,
+        "host": platform.node(),
+    }
+    rec.update(extra)
+    return rec

@@ -1,0 +1,208 @@
+"""Running a tile: the rows of a plane simulated as continuation chains, in-process or on dask.
+
+A *row* is one forward continuation chain along ``x`` at fixed ``y``
+(:func:`gearsim.cell.sweep.continuation_chain`, or the batched RK4 kernel
+:mod:`gearsim.numerics.batch` that
+advances 8 rows per SIMD block). One Snakemake job simulates one tile; its rows are mapped over a
+dask cluster (:mod:`gearsim.study.cluster`). The grids are :mod:`gearsim.study.grid`'s, the
+parameters and
+settings :mod:`gearsim.study.config`'s. This module holds no file output (Parquet and SQLite live in
+:mod:`gearsim.results.catalogue`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from gearsim.cell.chains import simulate_rows
+from gearsim.cell.simulate import IntegrationSettings
+from gearsim.cell.sweep import continuation_chain
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics.batch import LANES
+from gearsim.study.cluster import map_unordered
+from gearsim.study.config import integration_settings, plane_base
+from gearsim.study.grid import axis_values, tile_rows
+
+#: Integer columns that may be missing (None) in CellResult.row().
+NULLABLE_INT = ("p", "q")
+
+
+def simulate_row(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Simulate one plane row: a forward continuation chain along ``x`` at fixed ``y``.
+
+    ``spec`` (plain data, so it pickles cheaply to dask workers): ``plane``, ``tile``, ``j``,
+    ``params`` (dict), ``settings`` (dict), ``x_name``, ``x_values``, ``y_name``, ``y_value``.
+    Returns one record per cell in increasing ``x``.
+    """
+    base = ModelParameters.from_mapping(dict(spec["params"]))
+    settings = IntegrationSettings(**spec["settings"])
+    xs = [float(v) for v in spec["x_values"]]
+    yname, yval = spec["y_name"], float(spec["y_value"])
+    plist = [base.with_(**{spec["x_name"]: x, yname: yval}) for x in xs]
+    stamps: list[float] = []
+    t0 = time.perf_counter()
+    results = continuation_chain(
+        plist, settings=settings, on_cell=lambda i, r: stamps.append(time.perf_counter())
+    )
+    return cell_records(spec, xs, results, stamps, t0)
+
+
+def cell_records(spec: Mapping[str, Any], xs, results, stamps, t0: float) -> list[dict[str, Any]]:
+    """The tile records of one plane row: grid indices, both parameter values, the cell's
+    classification row, Poincare samples, the continuation seed and the wall time per cell."""
+    yname, yval = spec["y_name"], float(spec["y_value"])
+    rows = []
+    prev = t0
+    for i, (x, res, t) in enumerate(zip(xs, results, stamps, strict=True)):
+        x = float(x)
+        row = {
+            "plane": spec["plane"],
+            "tile": int(spec["tile"]),
+            "i": i,
+            "j": int(spec["j"]),
+            "x": x,
+            "y": yval,
+            spec["x_name"]: x,
+            yname: yval,
+        }
+        row.update(res.row())
+        row["poincare_x"] = res.poincare[:, 0].tolist()
+        row["poincare_v"] = res.poincare[:, 1].tolist()
+        row["final_state"] = res.final_state.tolist()
+        row["final_period"] = int(res.final_period)
+        row["elapsed_s"] = t - prev
+        prev = t
+        rows.append(row)
+    return rows
+
+
+def simulate_rows_batched(specs: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Simulate several plane rows at once with the batched RK4 kernel (gearsim.numerics.batch).
+
+    Same records as :func:`simulate_row` for every spec (one lane per row; the rows advance
+    together, 8 per SIMD block). The integration is fixed-step RK4 at ``steps_per_period``.
+    """
+    settings = IntegrationSettings(**specs[0]["settings"])
+    chains = []
+    for spec in specs:
+        base = ModelParameters.from_mapping(dict(spec["params"]))
+        yname, yval = spec["y_name"], float(spec["y_value"])
+        chains.append(
+            [base.with_(**{spec["x_name"]: float(x), yname: yval}) for x in spec["x_values"]]
+        )
+    stamps: list[list[float]] = [[] for _ in specs]
+    t0 = time.perf_counter()
+    results = simulate_rows(
+        chains, settings=settings, on_cell=lambda r, i, res: stamps[r].append(time.perf_counter())
+    )
+    rows = []
+    for spec, res_row, st_row in zip(specs, results, stamps, strict=True):
+        rows += cell_records(spec, spec["x_values"], res_row, st_row, t0)
+    return rows
+
+
+def row_groups(specs: list[dict], workers: int) -> list[list[dict]]:
+    """Split a tile's rows into one group per worker, in multiples of the SIMD block (8 rows)."""
+    blocks = -(-len(specs) // LANES)
+    n_groups = max(1, min(workers, blocks))
+    # whole blocks per group: 80 rows on 8 workers are 5 groups of 16 (2 full blocks each), not
+    # 8 groups of 10 (2 blocks each, one with 2 of 8 lanes busy): the same wall, less CPU
+    size = LANES * max(1, -(-blocks // n_groups))
+    return [specs[k : k + size] for k in range(0, len(specs), size)]
+
+
+def row_specs(config: Mapping, plane: str, tile: int, root: str | Path | None = None) -> list[dict]:
+    """The dask tasks of a tile: one spec per row."""
+    pl = config["planes"][plane]
+    base = plane_base(config, plane, root).to_dict()
+    settings = integration_settings(config).to_dict()
+    xs = axis_values(pl["x"]).tolist()
+    ys = axis_values(pl["y"])
+    return [
+        {
+            "plane": plane,
+            "tile": tile,
+            "j": j,
+            "params": base,
+            "settings": settings,
+            "x_name": pl["x"]["name"],
+            "x_values": xs,
+            "y_name": pl["y"]["name"],
+            "y_value": float(ys[j]),
+        }
+        for j in tile_rows(config, plane, tile)
+    ]
+
+
+def records_to_frame(records: list[dict[str, Any]]) -> pd.DataFrame:
+    """Cell records -> DataFrame with stable dtypes (same schema for every tile)."""
+    df = pd.DataFrame.from_records(records)
+    for c in NULLABLE_INT:
+        if c in df:
+            df[c] = pd.array(
+                [
+                    None if v is None or (isinstance(v, float) and math.isnan(v)) else int(v)
+                    for v in df[c]
+                ],
+                dtype="Int64",
+            )
+    for c in ("I", "n", "window_periods", "periods", "steps", "final_period", "i", "j", "tile"):
+        if c in df:
+            df[c] = df[c].astype("int64")
+    if "converged" in df:
+        df["converged"] = df["converged"].astype(bool)
+    return df
+
+
+def run_tile(
+    config: Mapping,
+    plane: str,
+    tile: int,
+    *,
+    client=None,
+    root: str | Path | None = None,
+    progress: Callable[[int, int, float], None] | None = None,
+) -> pd.DataFrame:
+    """Simulate all cells of a tile (rows mapped over ``client``, or in-process when None).
+
+    ``progress(done_cells, total_cells, elapsed_s)`` is called after each finished row.
+    """
+    specs = row_specs(config, plane, tile, root)
+    nx = int(config["planes"][plane]["x"]["n"])
+    total = nx * len(specs)
+    t0 = time.perf_counter()
+    records: list[dict] = []
+    done = 0
+    if specs and specs[0]["settings"].get("method") == "rk4":
+        # fixed-step RK4: the batched kernel, rows advanced together (8 per SIMD block)
+        workers = 1 if client is None else max(1, len(client.nthreads()))
+        groups = row_groups(specs, workers)
+        if client is None:
+            results = map(simulate_rows_batched, groups)
+        else:
+            results = map_unordered(client, simulate_rows_batched, groups)
+        for recs in results:
+            records += recs
+            done += len(recs)
+            if progress:
+                progress(done, total, time.perf_counter() - t0)
+    elif client is None:
+        for spec in specs:
+            records += simulate_row(spec)
+            done += nx
+            if progress:
+                progress(done, total, time.perf_counter() - t0)
+    else:
+        for rows in map_unordered(client, simulate_row, specs):
+            records += rows
+            done += nx
+            if progress:
+                progress(done, total, time.perf_counter() - t0)
+    df = records_to_frame(records)
+    return df.sort_values(["j", "i"], kind="stable").reset_index(drop=True)
