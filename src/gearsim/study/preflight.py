@@ -18,7 +18,7 @@ from pathlib import Path
 
 from gearsim.errors import UsageError
 
-__all__ = ["check_output", "check_outputs", "free_bytes", "os_cause"]
+__all__ = ["check_output", "check_outputs", "free_bytes", "os_cause", "write_text_atomic"]
 
 #: Free space asked of a file system when the caller gives no estimate (bytes): room for a small
 #: result file and its temporary copy.
@@ -99,3 +99,18 @@ def check_outputs(paths: Iterable[str | Path], *, need: int = DEFAULT_NEED,
             continue
         check_output(p, need=need, what=what)
         seen.add(p.parent.resolve())
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` through a temporary file renamed into place: a full disk or a
+    killed process leaves the previous file whole and no temporary file behind."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
