@@ -256,11 +256,10 @@ def _fault(exc: BaseException) -> str:
     orig = getattr(exc, "orig", None)
     if isinstance(orig, BaseException):
         exc = orig
-    if isinstance(exc, OSError) and exc.strerror:
-        cause = exc.strerror
-        if exc.errno in (28, 122):  # ENOSPC, EDQUOT
-            cause += " (the disk is full)"
-        return cause
+    if isinstance(exc, OSError):
+        from gearsim.study.preflight import os_cause
+
+        return os_cause(exc)
     return _one_line(exc)
 
 
@@ -1133,6 +1132,11 @@ def open_catalogue(path: str | Path, *, check: bool = True) -> sqlite3.Connectio
     p = Path(path)
     if not p.is_file():
         raise CatalogueError(f"catalogue not found: {p} (build it with snakemake)")
+    try:
+        with open(p, "rb"):  # SQLite would say only "unable to open database file"
+            pass
+    except OSError as exc:
+        raise CatalogueError(f"{p}: cannot read the catalogue ({_fault(exc)})") from None
     try:
         con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
     except sqlite3.Error as exc:

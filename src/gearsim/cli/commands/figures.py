@@ -127,7 +127,9 @@ def _bind_single_plane(numbers, ctx, table) -> dict[str, str]:
 
 
 def _write_record(path: Path, rec: dict) -> None:
-    path.write_text(json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
+    from gearsim.study.preflight import write_text_atomic
+
+    write_text_atomic(path, json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
 
 
 def run(args: argparse.Namespace) -> int:
