@@ -11,7 +11,7 @@ from pathlib import Path
 from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
 from gearsim.analysis.orbits import find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
-from gearsim.cli.commands._common import orbit_parameters
+from gearsim.cli.commands._common import resolve_parameters
 from gearsim.cli.commands.orbit import add_orbit_parameter_arguments
 from gearsim.errors import UsageError
 
@@ -34,7 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-points", type=int, default=400, help="points per branch")
     p.add_argument("--switch-depth", type=int, default=2,
                    help="period doublings followed onto the doubled branch (0: none)")
-    p.add_argument("--out", metavar="PARQUET", default=None,
+    p.add_argument("--out", "-o", metavar="PARQUET", default=None,
                    help="branch table (default results/orbits/continue_NAME_FROM_TO_pN.parquet)")
     p.add_argument("--figure", metavar="PNG", default=None,
                    help="branch figure (default: the Parquet path with .png)")
@@ -42,6 +42,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a simulated sweep of the same parameter set (results/sweeps/*.parquet): "
                    "write the exact landmarks (paper, grid-read, continuation) beside the branches")
     p.add_argument("--json", action="store_true", help="print the events as JSON")
+
+
+def resolve(args: argparse.Namespace):
+    """The start point's parameters: the shared resolution with the continued parameter at
+    ``--from``."""
+    return resolve_parameters(args, **{args.name: args.start})
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--switch-depth = {args.switch_depth} must be in [0, 6]")
     if args.start == args.stop:
         raise UsageError(f"--from and --to are equal ({args.start}): empty range")
-    params, source = orbit_parameters(args.params, args.set, **{args.name: args.start})
+    r = resolve(args)
+    params, source = r.params, r.source
     st = shooting_settings(args.rtol)
     t0 = time.perf_counter()
     sim = simulate_cell(params)

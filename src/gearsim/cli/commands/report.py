@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.presentation.report import build_report, study_from_config
 
 NAME = "report"
@@ -25,7 +25,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="results directory (<plane>/audit.parquet, fallback <plane>/cells.parquet)")
     p.add_argument("--calibration", default="docs/calibration.json",
                    help="calibration record (read when the file exists; '' for none)")
-    p.add_argument("--out", default="results/report.md", help="the report (Markdown)")
+    p.add_argument("--out", "-o", default="results/report.md", help="the report (Markdown)")
     add_config_arguments(p)
 
 
