@@ -1,0 +1,1 @@
+"""Stored results: Parquet tiles, the SQLite catalogue, the column dictionary, exports."""
