@@ -1,1 +1,1 @@
-"""Stored results: Parquet tiles, the SQLite catalogue, the column dictionary, exports."""
+"""Results: Parquet files with provenance, the SQLite catalogue (schema, migrations), export."""

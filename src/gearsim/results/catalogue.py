@@ -48,22 +48,36 @@ from sqlalchemy import (
 from sqlalchemy.exc import DBAPIError as SQLAlchemyDBAPIError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
+from gearsim.errors import UsageError
 from gearsim.study.integrity import CatalogueError, _one_line
 from gearsim.cell.simulate import result_columns
 from gearsim.results.views import create_views
 
-__all__ = ["CatalogueError", "build_catalogue", "combine_tiles", "open_catalogue", "publish"]
+__all__ = [
+    "CatalogueError",
+    "build_catalogue",
+    "combine_tiles",
+    "migrate_catalogue",
+    "open_catalogue",
+    "publish",
+]
 
 PROVENANCE_KEY = b"gearsim.study.provenance"
 PLANE_KEY = b"gearsim.plane"
 TILES_KEY = b"gearsim.study.tiles"
-#: ``PRAGMA user_version`` of the catalogue this code writes and reads (2: column dictionary,
-#: catalogue_info, integration settings of planes and sweeps).
-SCHEMA_VERSION = 2
+#: ``PRAGMA user_version`` of the catalogue this code writes and reads. It rises with every
+#: change of the schema, and :data:`MIGRATIONS` brings an older catalogue up to it.
+#: 1: runs, planes, cells, sweeps, sweep_points, audits;
+#: 2: column dictionary, catalogue_info, integration settings of planes and sweeps;
+#: 3: attractors, bifurcation_points, bifurcation_curves, cell_orbits, cells.n_attractors (some
+#:    catalogues of version 2 already have them) and runs.status (ok, budget, skipped).
+SCHEMA_VERSION = 3
+#: The oldest version :func:`migrate_catalogue` brings up to date (older: rebuild).
+OLDEST_MIGRATABLE = 2
 #: ``PRAGMA application_id``: "GEAR"; tells a gearsim catalogue from any other SQLite file.
 APPLICATION_ID = 0x47454152
-#: Tables and views a reader may rely on.
-REQUIRED = frozenset(
+#: Tables and views a reader may rely on (version 2; :data:`REQUIRED`: this version).
+REQUIRED_2 = frozenset(
     {
         "runs",
         "planes",
@@ -76,6 +90,16 @@ REQUIRED = frozenset(
         "plane_cells",
     }
 )
+REQUIRED = REQUIRED_2 | frozenset(
+    {
+        "attractors",
+        "bifurcation_points",
+        "bifurcation_curves",
+        "cell_orbits",
+    }
+)
+#: How to rebuild a catalogue, for messages.
+REBUILD = "rebuild it: snakemake --cores 2 --forcerun catalogue"
 
 
 # ------------------------------------------------------------------------------ Parquet
@@ -83,13 +107,26 @@ def _tmp_name(path: Path) -> Path:
     return path.with_name(f".{path.name}.tmp-{os.getpid()}")
 
 
-def _prepare_dir(out: Path) -> None:
-    """Create ``out``'s directory and clear dead writers' temporary files, or one line."""
+def _prepare_dir(out: Path, need: int = 0) -> None:
+    """Create ``out``'s directory, clear dead writers' temporary files and check that a file
+    can be written there with ``need`` bytes free (:func:`gearsim.study.preflight.check_output`),
+    or one line."""
+    from gearsim.study.preflight import check_output
+
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         _remove_stale_tmp(out)
     except OSError as exc:
-        raise CatalogueError(f"cannot write {out} ({_one_line(exc)})") from None
+        raise CatalogueError(f"cannot write {out} ({_fault(exc)})") from None
+    try:
+        check_output(out, need=need, what="output")
+    except UsageError as exc:
+        raise CatalogueError(str(exc)) from None
+
+
+def _size(paths: Iterable[str | Path]) -> int:
+    """Bytes of the files ``paths`` (missing ones count 0): the estimate of an output's size."""
+    return sum(Path(p).stat().st_size for p in paths if Path(p).is_file())
 
 
 def _remove_stale_tmp(path: Path) -> None:
@@ -175,7 +212,7 @@ def combine_tiles(paths: Iterable[str | Path], out: str | Path, plane_record: Ma
     schema = schema.with_metadata(meta)
     coverage = Coverage(plane_record)
     out = Path(out)
-    _prepare_dir(out)
+    _prepare_dir(out, need=_size(t.path for t in infos))
     tmp = _tmp_name(out)
     try:
         with pq.ParquetWriter(tmp, schema) as writer:
@@ -207,11 +244,25 @@ def combine_tiles(paths: Iterable[str | Path], out: str | Path, plane_record: Ma
         coverage.finish(f"plane {plane_record['name']!r}")
         os.replace(tmp, out)
     except OSError as exc:  # full disk, vanished directory: one line, the old file stays
-        raise CatalogueError(f"cannot write {out} ({_one_line(exc)})") from None
+        raise CatalogueError(f"cannot write {out} ({_fault(exc)})") from None
     finally:
         if tmp.exists():
             tmp.unlink()
     return out
+
+
+def _fault(exc: BaseException) -> str:
+    """The cause of a write fault in a few words: SQLite's own message without SQLAlchemy's
+    statement and link, an OSError's cause without its errno."""
+    orig = getattr(exc, "orig", None)
+    if isinstance(orig, BaseException):
+        exc = orig
+    if isinstance(exc, OSError) and exc.strerror:
+        cause = exc.strerror
+        if exc.errno in (28, 122):  # ENOSPC, EDQUOT
+            cause += " (the disk is full)"
+        return cause
+    return _one_line(exc)
 
 
 # ---------------------------------------------------------------------- SQLite catalogue
@@ -249,6 +300,8 @@ class Run(Base):
     finished: Mapped[datetime | None] = mapped_column(DateTime)
     wall_s: Mapped[float | None] = mapped_column(Float)
     cells: Mapped[int | None] = mapped_column(Integer)
+    # ok | budget (a job stopped at its budget: its results are partial) | skipped
+    status: Mapped[str | None] = mapped_column(String(16))
 
 
 class Plane(Base):
@@ -549,6 +602,7 @@ def _run_row(prov: Mapping[str, Any]) -> dict[str, Any]:
         "finished": _when(prov.get("finished")),
         "wall_s": prov.get("wall_s"),
         "cells": prov.get("cells"),
+        "status": prov.get("status", "ok"),
     }
 
 
@@ -982,7 +1036,13 @@ def build_catalogue(
     is then published there atomically (:func:`publish`). Returns row counts.
     """
     out = Path(out)
-    _prepare_dir(out)
+    plane_files, sweep_files, audit_files, attractor_files, orbit_files = (
+        list(f) for f in (plane_files, sweep_files, audit_files, attractor_files, orbit_files)
+    )
+    # a lower bound (cells are stored once more, with their indexes): catches a folder that
+    # cannot hold the catalogue at all before the build
+    _prepare_dir(out, need=_size([*plane_files, *sweep_files, *audit_files, *attractor_files,
+                                  *orbit_files]))
     tmp = _tmp_name(out)
     if tmp.exists():
         tmp.unlink()
@@ -1022,7 +1082,7 @@ def build_catalogue(
         os.replace(tmp, out)
     except (OSError, sqlite3.Error, SQLAlchemyDBAPIError) as exc:
         # full disk, read-only or vanished directory: one line; the previous files stay
-        raise CatalogueError(f"catalogue {out}: cannot write it ({_one_line(exc)})") from None
+        raise CatalogueError(f"catalogue {out}: cannot write it ({_fault(exc)})") from None
     finally:
         engine.dispose()
         if tmp.exists():
@@ -1044,7 +1104,7 @@ def publish(built: str | Path, target: str | Path) -> Path:
 
     built, target = Path(built), Path(target)
     open_catalogue(built).close()  # never publish a file that readers would refuse
-    _prepare_dir(target)
+    _prepare_dir(target, need=0)  # a hard link needs no room (a copy: checked as it goes)
     tmp = _tmp_name(target)
     try:
         if tmp.exists():
@@ -1064,43 +1124,212 @@ def publish(built: str | Path, target: str | Path) -> Path:
     return target
 
 
-def open_catalogue(path: str | Path) -> sqlite3.Connection:
+def open_catalogue(path: str | Path, *, check: bool = True) -> sqlite3.Connection:
     """Open a catalogue read-only (``sqlite3``), refusing anything that is not one of our schema.
 
-    Checks ``PRAGMA application_id`` (gearsim), ``PRAGMA user_version`` (= :data:`SCHEMA_VERSION`)
-    and the tables readers rely on; raises :class:`CatalogueError` with one line otherwise. Every
-    reader (query, export, report, figures) opens the catalogue through this function.
+    Checks SQLite's own ``PRAGMA quick_check`` (with ``check``: a damaged page or index),
+    ``PRAGMA application_id`` (gearsim), ``PRAGMA user_version`` (= :data:`SCHEMA_VERSION`;
+    an older one names ``gearsim catalogue migrate``) and the tables readers rely on; raises
+    :class:`CatalogueError` with one line otherwise. Every reader (query, export, report,
+    figures, explorer) and the workflow open the catalogue through this function.
     """
     p = Path(path)
     if not p.is_file():
         raise CatalogueError(f"catalogue not found: {p} (build it with snakemake)")
-    con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
+    try:
+        con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise CatalogueError(f"{p}: cannot open the catalogue ({_one_line(exc)})") from None
+    problem = _catalogue_problem(con, check=check)
+    if problem:
+        con.close()
+        raise CatalogueError(f"{p}: {problem}".replace("{path}", str(p)))
+    return con
+
+
+def _catalogue_problem(con: sqlite3.Connection, *, check: bool = True,
+                       version: int = SCHEMA_VERSION, required=REQUIRED) -> str | None:
+    """What makes the open database ``con`` not a sound gearsim catalogue of ``version``
+    (with the tables and views ``required``); ``{path}`` in the line stands for its file."""
     try:
         app = con.execute("PRAGMA application_id").fetchone()[0]
-        version = con.execute("PRAGMA user_version").fetchone()[0]
+        have = con.execute("PRAGMA user_version").fetchone()[0]
         names = {
             r[0]
             for r in con.execute("SELECT name FROM sqlite_master WHERE type IN ('table', 'view')")
         }
     except sqlite3.DatabaseError as exc:
-        con.close()
-        raise CatalogueError(
-            f"{p}: not a database of the gearsim catalogue schema ({_one_line(exc)})"
-        ) from None
-    problem = None
+        return f"not a gearsim catalogue, or damaged ({_one_line(exc)}; {REBUILD})"
     if app != APPLICATION_ID:
-        problem = f"not a gearsim catalogue (application_id {app:#x}, expected {APPLICATION_ID:#x})"
-    elif version != SCHEMA_VERSION:
-        problem = (
-            f"catalogue schema version {version}, this gearsim reads version "
-            f"{SCHEMA_VERSION} (rebuild it: snakemake --forcerun catalogue)"
+        return f"not a gearsim catalogue (application_id {app:#x}, expected {APPLICATION_ID:#x})"
+    if have < version:
+        how = (f"migrate it: gearsim catalogue migrate {{path}}, or {REBUILD}"
+               if have >= OLDEST_MIGRATABLE else REBUILD)
+        return (f"catalogue schema version {have}, this gearsim reads version {version} "
+                f"({how})")
+    if have > version:
+        return (f"catalogue schema version {have} was written by a newer gearsim, this one "
+                f"reads version {version} (update gearsim, or {REBUILD})")
+    if check:
+        try:
+            rows = con.execute("PRAGMA quick_check").fetchall()
+        except sqlite3.DatabaseError as exc:
+            return f"damaged ({_one_line(exc)}; {REBUILD})"
+        if [r[0] for r in rows] != ["ok"]:
+            return f"damaged (SQLite quick_check: {_one_line(rows[0][0])}; {REBUILD})"
+    missing = sorted(required - names)
+    if missing:
+        return f"catalogue lacks table {missing[0]!r} (damaged; {REBUILD})"
+    return None
+
+
+def catalogue_problem(path: str | Path) -> str | None:
+    """One line saying why ``path`` is not a sound catalogue of this schema, or ``None``
+    (a missing file is ``None``: there is nothing to refuse)."""
+    p = Path(path)
+    if not p.exists():
+        return None
+    try:
+        open_catalogue(p).close()
+    except CatalogueError as exc:
+        return str(exc)
+    return None
+
+
+def set_aside_damaged(published: str | Path, built: str | Path, *,
+                      dry_run: bool = False) -> list[str]:
+    """Make the workflow rebuild a catalogue that readers would refuse. Returns a line for each.
+
+    ``published`` is what readers open (``results/catalogue.sqlite``), ``built`` the catalogue
+    rule's output it is published from. When either is damaged, foreign or of another schema
+    version (:func:`catalogue_problem`), ``built`` is moved into ``damaged/`` beside it (kept
+    for inspection, never deleted): its rule then rebuilds it from the verified Parquet files
+    and publishes it over ``published``. ``dry_run``: only say so.
+    """
+    published, built = Path(published), Path(built)
+    lines, seen = [], []
+    for p in (published, built):
+        if not p.exists() or any(os.path.samefile(p, q) for q in seen):
+            continue  # the built file is mostly the published one (a hard link)
+        seen.append(p)
+        why = catalogue_problem(p)
+        if why:
+            for tail, keep in ((f"; {REBUILD})", ")"), (f", or {REBUILD})", ")"),
+                               (f" ({REBUILD})", "")):
+                why = why.replace(tail, keep)
+            lines.append(why)
+    if not lines:
+        return []
+    what = "the next run rebuilds it" if dry_run else "rebuilding it from the Parquet files"
+    lines = [f"{line}: {what}" for line in lines]
+    if not dry_run and built.exists():
+        stamp = now_iso().replace(":", "")
+        aside = built.parent / "damaged" / f"{built.stem}-{stamp}.sqlite"
+        k = 0
+        while aside.exists():
+            k += 1
+            aside = built.parent / "damaged" / f"{built.stem}-{stamp}-{k}.sqlite"
+        try:
+            aside.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(built, aside)
+        except OSError as exc:
+            raise CatalogueError(f"cannot move {built} aside ({_one_line(exc)})") from None
+        lines.append(f"{built} kept as {aside}")
+    return lines
+
+
+# ---------------------------------------------------------------------------- migrations
+def _migrate_2_to_3(op, con) -> None:
+    """Version 3: the attractor and orbit tables, ``cells.n_attractors``, ``runs.status``."""
+    import sqlalchemy as sa
+
+    have = set(sa.inspect(con).get_table_names())
+    for name in ("attractors", "bifurcation_points", "bifurcation_curves", "cell_orbits"):
+        if name not in have:
+            Base.metadata.tables[name].create(con)  # with its indexes
+    cols = {c["name"] for c in sa.inspect(con).get_columns("cells")}
+    if "n_attractors" not in cols:
+        op.add_column("cells", sa.Column("n_attractors", sa.Integer(), nullable=True))
+    cols = {c["name"] for c in sa.inspect(con).get_columns("runs")}
+    if "status" not in cols:
+        op.add_column("runs", sa.Column("status", sa.String(16), nullable=True))
+    con.exec_driver_sql("UPDATE runs SET status = 'ok' WHERE status IS NULL")
+
+
+#: ``{version: step}``: the step takes a catalogue of ``version`` to ``version + 1``
+#: (Alembic operations on one connection, inside one transaction).
+MIGRATIONS = {2: _migrate_2_to_3}
+
+
+def migrate_catalogue(path: str | Path) -> tuple[int, int]:
+    """Bring the catalogue ``path`` up to :data:`SCHEMA_VERSION`, atomically.
+
+    The steps of :data:`MIGRATIONS` (Alembic operations) run on a copy in ``path``'s folder, in
+    one transaction; the column dictionary and ``catalogue_info`` are rewritten for the new
+    schema, the copy is checked like every catalogue (:func:`open_catalogue`) and only then
+    renamed over ``path``. A failure leaves ``path`` as it was. Returns ``(old, new)`` versions.
+    """
+    import shutil
+
+    from alembic.migration import MigrationContext
+    from alembic.operations import Operations
+    from sqlalchemy import delete
+
+    p = Path(path)
+    if not p.is_file():
+        raise CatalogueError(f"catalogue not found: {p}")
+    try:
+        con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise CatalogueError(f"{p}: cannot open the catalogue ({_one_line(exc)})") from None
+    try:
+        old = con.execute("PRAGMA user_version").fetchone()[0]
+    except sqlite3.DatabaseError:
+        old = 0
+    if OLDEST_MIGRATABLE <= old < SCHEMA_VERSION:  # sound as a catalogue of its own version
+        problem = _catalogue_problem(con, version=old, required=REQUIRED_2)
+    else:
+        problem = _catalogue_problem(con)
+    con.close()
+    if problem is None and old == SCHEMA_VERSION:
+        return old, old
+    if problem is not None and not (0 < old < OLDEST_MIGRATABLE):
+        raise CatalogueError(f"{p}: {problem}".replace("{path}", str(p)))
+    if old < OLDEST_MIGRATABLE:
+        raise CatalogueError(
+            f"{p}: catalogue schema version {old} is too old to migrate (oldest "
+            f"{OLDEST_MIGRATABLE}); {REBUILD}"
         )
-    elif not REQUIRED <= names:
-        problem = f"catalogue lacks table {sorted(REQUIRED - names)[0]!r} (damaged)"
-    if problem:
-        con.close()
-        raise CatalogueError(f"{p}: {problem}")
-    return con
+    _prepare_dir(p, need=2 * p.stat().st_size)
+    tmp = _tmp_name(p)
+    engine = make_engine(f"sqlite:///{tmp}")
+    try:
+        shutil.copyfile(p, tmp)
+        with engine.begin() as conn:
+            op = Operations(MigrationContext.configure(conn))
+            for v in range(old, SCHEMA_VERSION):
+                MIGRATIONS[v](op, conn)
+            with Session(bind=conn) as session:
+                session.execute(delete(ColumnDoc))
+                session.execute(insert(ColumnDoc), _column_rows())
+                session.execute(
+                    CatalogueInfo.__table__.update()
+                    .where(CatalogueInfo.key == "schema_version")
+                    .values(value=json.dumps(SCHEMA_VERSION))
+                )
+                session.flush()
+            conn.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
+        engine.dispose()
+        open_catalogue(tmp).close()
+        _fsync(tmp)
+        os.replace(tmp, p)
+    except (OSError, sqlite3.Error, SQLAlchemyDBAPIError) as exc:
+        raise CatalogueError(f"catalogue {p}: cannot migrate it ({_fault(exc)})") from None
+    finally:
+        engine.dispose()
+        if tmp.exists():
+            tmp.unlink()
+    return old, SCHEMA_VERSION
 
 
 def now_iso() -> str:

@@ -102,6 +102,8 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("runs", "finished"): ("UTC", "job end"),
     ("runs", "wall_s"): ("s", "wall time of the job"),
     ("runs", "cells"): ("1", "cells (or sweep points, audited cells) the job produced"),
+    ("runs", "status"): ("", "ok | budget (stopped at its budget: partial results) | "
+                         "skipped (nothing to follow: e.g. a plane of mostly diverged cells)"),
     ("planes", "id"): _ID,
     ("planes", "name"): ("", "plane name (config key planes.<name>)"),
     ("planes", "x_name"): ("", "parameter on the x axis (columns cells.x, cells.i)"),

@@ -275,10 +275,14 @@ def settings_from_args(args: argparse.Namespace) -> IntegrationSettings:
     return settings.with_(**kw) if kw else settings
 
 
-def check_new_file(path: str | Path, *, create_parent: bool = True) -> Path:
+def check_new_file(path: str | Path, *, create_parent: bool = True, need: int | None = None
+                   ) -> Path:
     """An output file path that can be written, checked before any computation (one line,
     exit 2): not a directory; its directory exists (or, with ``create_parent``, can be made:
-    no file stands in the way)."""
+    no file stands in the way); a file can be created there and ``need`` bytes are free
+    (:func:`gearsim.study.preflight.check_output`)."""
+    from gearsim.study.preflight import DEFAULT_NEED, check_output
+
     out = Path(path)
     if out.is_dir():
         raise UsageError(f"{out}: is a directory, expected a file name")
@@ -290,7 +294,7 @@ def check_new_file(path: str | Path, *, create_parent: bool = True) -> Path:
             if not anc.is_dir():
                 raise UsageError(f"{out}: {anc} is a file, not a directory")
             break
-    return out
+    return check_output(out, need=DEFAULT_NEED if need is None else need)
 
 
 def check_output_path(path: str | Path) -> Path:

@@ -9,6 +9,8 @@ Subcommands (each is one Snakemake rule):
   --out results/catalogue.d/build.sqlite --publish results/catalogue.sqlite``
 * ``gearsim catalogue publish --from results/catalogue.d/build.sqlite
   --to results/catalogue.sqlite`` (restore the published copy by hand)
+* ``gearsim catalogue migrate results/catalogue.sqlite`` (bring a catalogue of an older schema
+  version up to this one, in place and atomically)
 """
 
 from __future__ import annotations
@@ -59,6 +61,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     pub.add_argument("--from", dest="source", required=True, help="a built catalogue")
     pub.add_argument("--to", required=True, help="e.g. results/catalogue.sqlite")
+    mig = sub.add_parser(
+        "migrate", help="bring a catalogue of an older schema version up to this gearsim's"
+    )
+    mig.add_argument("path", nargs="+", help="catalogue file(s), e.g. results/catalogue.sqlite")
 
 
 def plane_record(config: dict, plane: str) -> dict:
@@ -257,6 +263,17 @@ def _publish(args) -> int:
     return 0
 
 
+def _migrate(args) -> int:
+    from gearsim.results import catalogue
+
+    for path in args.path:
+        old, new = catalogue.migrate_catalogue(path)
+        done = "already at" if old == new else f"migrated from version {old} to"
+        print(f"catalogue {path}: {done} schema version {new}", file=sys.stderr)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
-    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish}
+    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish,
+               "migrate": _migrate}
     return actions[args.action](args)

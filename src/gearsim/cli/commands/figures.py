@@ -47,6 +47,17 @@ def _pairs(items: list[str], flag: str) -> dict[str, str]:
     return out
 
 
+def _read(read_table, path: str, what: str):
+    """A table from ``path``, or one line naming it when it is not a readable Parquet file."""
+    try:
+        return read_table(path)
+    except OSError:
+        raise  # full disk, permission: the CLI names the file and the cause
+    except Exception as exc:  # pyarrow: ArrowInvalid, ArrowTypeError, ... for a foreign file
+        cause = " ".join(str(exc).split()) or type(exc).__name__
+        raise UsageError(f"{what}: {path} is not a readable Parquet table ({cause})") from None
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fig", type=int, nargs="+", action="extend", default=[], metavar="N",
                    help="figure number(s): 1-17 of the paper, higher for later analyses "
@@ -91,13 +102,13 @@ def _context(args, config):
                      (config.get("sweeps") or {}).items()},
     )
     for name, path in _pairs(args.sweep, "--sweep").items():
-        ctx.sweeps[name] = read_table(path)
+        ctx.sweeps[name] = _read(read_table, path, f"--sweep {name}")
     for name, path in _pairs(args.plane, "--plane").items():
-        ctx.planes[name] = read_table(path)
+        ctx.planes[name] = _read(read_table, path, f"--plane {name}")
     for name, path in _pairs(args.points, "--points").items():
-        ctx.points[name] = read_table(path)
+        ctx.points[name] = _read(read_table, path, f"--points {name}")
     for name, path in _pairs(args.orbits, "--orbits").items():
-        ctx.orbits[name] = read_table(path)
+        ctx.orbits[name] = _read(read_table, path, f"--orbits {name}")
         pts = Path(path).with_name(Path(path).stem + "_points.parquet")
         if not name.endswith("_curves") and pts.is_file():
             ctx.orbits[f"{name}_points"] = read_table(pts)

@@ -89,8 +89,10 @@ def run(args: argparse.Namespace) -> int:
         )
     rows = tile_rows(config, args.plane, args.tile)
     out = Path(args.out or results_dir(config) / args.plane / "tiles" / f"{args.tile}.parquet")
-    check_new_file(out)
     nx = int(config["planes"][args.plane]["x"]["n"])
+    # before any simulation: the folder is writable and has room for the tile and its
+    # temporary copy (a tile takes ~350 bytes per cell; 1 kB per cell leaves a margin)
+    check_new_file(out, need=2 * 1024 * nx * len(rows) + (64 << 10))
     label = f"{args.plane}/tile {args.tile}"
     progress = Progress(label, nx * len(rows))
     address = args.scheduler or config["cluster"].get("scheduler_address")
