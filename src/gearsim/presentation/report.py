@@ -204,6 +204,28 @@ class Report:
     hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
     exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
     exact_form: dict | None = None  # provenance subtree of the standard sweep (its model form)
+    curves: list[str] = field(default_factory=list)  # bifurcation curves skipped or cut short
+
+
+def load_curve_status(results: str | Path, planes: Sequence[str]) -> list[str]:
+    """A line for each plane whose bifurcation curves (``results/orbits/<plane>_curves.parquet``)
+    were skipped or stopped at the job's budget, from the file's provenance."""
+    from gearsim.results.catalogue import read_metadata
+
+    out = []
+    for plane in planes:
+        f = Path(results) / "orbits" / f"{plane}_curves.parquet"
+        if not f.is_file():
+            continue
+        meta = read_metadata(f) or {}
+        status = meta.get("status", "ok")
+        if status == "skipped":
+            why = "; ".join(meta.get("reasons") or []) or "curves skipped"
+            out.append(f"plane {plane}: {why}")
+        elif status == "budget":
+            out.append(f"plane {plane}: the bifurcation curves stopped at the job's budget "
+                       f"({meta.get('budget_s', '?')} s); they are partial")
+    return out
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -553,6 +575,9 @@ def to_markdown(rep: Report) -> str:
         out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
     out.append("")
     out += _plane_lines(rep.planes)
+    if rep.curves:
+        out += ["## Bifurcation curves not followed in full", "",
+                *[f"- {line}" for line in rep.curves], ""]
     return "\n".join(out)
 
 
@@ -600,6 +625,7 @@ def build_report(
     rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
                   configured_sweeps=sweeps)
     rep.audit = load_audits(results, names)
+    rep.curves = load_curve_status(results, names)
     # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
     exact_points = Path(results) / "orbits" / "standard_points.parquet"
     if exact_points.is_file() and "standard" in loaded:
