@@ -369,6 +369,23 @@ def test_missing_permission_is_one_line(tmp_path, study):
     assert list(locked.iterdir()) == []
 
 
+@needs_root
+def test_workflow_in_a_read_only_results_folder_is_one_line(tmp_path, mounts):
+    """A fresh run whose results/ is a read-only mount stops before any job, in one line."""
+    from workflow_helpers import make_workdir, smk
+
+    wd = make_workdir(tmp_path / "wd")
+    read_only(mounts, tmp_path / "src", wd / "results")
+    r = smk(wd, "--cores", "1", "--configfile", "config/tiny.yaml", check=False,
+            timeout=600)
+    assert r.returncode == 2, r.stderr[-3000:]
+    last = r.stderr.strip().splitlines()[-1]
+    assert last == f"gearsim: error: output folder {wd / 'results'}: cannot write in it " \
+                   "(read-only file system)", r.stderr[-3000:]
+    assert "Traceback" not in r.stderr and "File " not in r.stderr
+    assert not (wd / "logs").exists() or not any((wd / "logs").iterdir())
+
+
 # ------------------------------------------------------------------ files not what they say
 def test_files_that_are_not_what_their_name_says(tmp_path, gearsim):
     junk = tmp_path / "junk.parquet"
@@ -397,3 +414,125 @@ def test_os_error_line_names_file_and_cause():
     line = os_error_line(OSError(errno.EROFS, "Read-only file system", "results/.compiled"))
     assert "results/.compiled" in line and "read-only" in line
     assert time  # noqa: B018 - keeps the import for the kill tests below
+
+
+# ------------------------------------------------------------------ messages
+def test_axis_message_names_the_key_and_value_written(tmp_path):
+    f = tmp_path / "big.yaml"
+    f.write_text("planes:\n  wb:\n    x: {name: w, min: 0.1, max: 2.5, n: 8}\n"
+                 "    y: {name: b, min: 0.0, max: 1.0e8, n: 8}\n    fixed: {}\n")
+    with pytest.raises(gcfg.ConfigError) as e:
+        gcfg.load_config([ROOT / "config/config.yaml", ROOT / "config/tiny.yaml", f],
+                         root=ROOT)
+    msg = str(e.value)
+    assert "'planes.wb.y.max': 1.0e8" in msg and "[0, 1000]" in msg
+    assert "6250000" not in msg and "100000000.0" not in msg
+
+
+# ------------------------------------------------------------------ bounded jobs
+def _point(params):
+    """A located period-doubling row as bifurcation_points gives it (values irrelevant: the
+    budget is spent before the first relocation)."""
+    return {"kind": "period_doubling", "period": 1, "boundary": "", "name": "w", "value": 1.0,
+            "x": 0.1, "v": 0.0, "mu_max": 1.0, "mu_re": [-1.0], "mu_im": [0.0],
+            "stable": True}
+
+
+def test_spent_budget_stops_curve_and_continuation_before_any_work(monkeypatch):
+    from gearsim.analysis import bifcurves, continuation
+    from gearsim.analysis.continuation import Continuation
+    from gearsim.dynamics.parameters import ModelParameters
+
+    params = ModelParameters()
+    spent = Continuation(deadline=time.monotonic() - 1.0)
+
+    def no_work(*a, **k):
+        raise AssertionError("worked past the budget")
+
+    monkeypatch.setattr(bifcurves, "_relocate", no_work)
+    monkeypatch.setattr(bifcurves, "_relocate_secant", no_work)
+    c = bifcurves.follow_curve(params, _point(params), "b", 0.9, step2=0.1, config=spent)
+    assert len(c) == 1 and c.attrs["status"] == "budget"
+    assert c.attrs["reason"].startswith("budget: wall-clock budget spent at b = ")
+    curves = bifcurves.follow_curves(params, __import__("pandas").DataFrame([_point(params)]),
+                                     "b", (0.0, 0.9), step2=0.1, config=spent)
+    assert curves.attrs["status"] == "budget"
+    assert all("budget" in r for r in curves.attrs["reasons"])
+    # the continuation: its first branch job is not started
+    from gearsim.analysis.orbits import find_periodic_orbit
+
+    orbit = find_periodic_orbit(params.with_(w=1.2), 1, None, grazing=False)
+    monkeypatch.setattr(continuation, "_run_branch", no_work)
+    df = continuation.continue_orbit(params, "w", 1.2, 1.5, orbit, config=spent)
+    assert df.attrs["status"] == "budget" and len(df) == 0
+    assert df.attrs["reasons"][0].startswith("budget: wall-clock budget spent")
+
+
+def _diverged_cells(study, d: Path) -> Path:
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(study["cells"])
+    df = t.to_pandas()
+    df["status"] = "diverged"
+    df.loc[0, "status"] = "ok"  # 15 of 16 diverged
+    out = d / "cells.parquet"
+    gc.write_parquet(df, out, {k: v for k, v in (t.schema.metadata or {}).items()
+                               if k != b"pandas"})
+    return out
+
+
+def test_plane_of_diverged_cells_skips_its_curves(tmp_path, gearsim, study):
+    cells = _diverged_cells(study, tmp_path)
+    out = tmp_path / "orbits/wb_curves.parquet"
+    code, err = gearsim(["bifurcation-curves", "--plane", "wb", "--cells", cells,
+                         "--configfile", *study["files"][1:], "--out", out], tmp_path)
+    assert code == 0, err
+    assert "curves skipped: 15 of 16 cells diverged" in err
+    prov = gc.read_metadata(out)
+    assert prov["status"] == "skipped" and "15 of 16" in prov["reasons"][0]
+    for f in (out, tmp_path / "orbits/wb_curves_points.parquet",
+              tmp_path / "orbits/wb_curves_branches.parquet", out.with_suffix(".png")):
+        assert f.is_file(), f
+    # the catalogue records the skipped job, the report says it
+    db = tmp_path / "catalogue.sqlite"
+    gc.build_catalogue(db, [study["cells"]],
+                       orbit_files=[tmp_path / "orbits/wb_curves_points.parquet", out])
+    con = gc.open_catalogue(db)
+    try:
+        assert con.execute("SELECT status FROM runs WHERE kind = 'curves'").fetchall() == [
+            ("skipped",), ("skipped",)]
+    finally:
+        con.close()
+    from gearsim.presentation.report import load_curve_status
+
+    lines = load_curve_status(tmp_path, ["wb"])
+    assert lines == [f"plane wb: {prov['reasons'][0]}"]
+
+
+@pytest.mark.slow
+def test_curve_job_stops_at_its_budget_and_a_killed_one_leaves_nothing(tmp_path, study):
+    """A real seeding continuation: --budget-s 15 ends it with status budget (exit 0, partial
+    tables written); the same job killed mid-run leaves the previous outputs and no temporary
+    file."""
+    import signal
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    out = tmp_path / "orbits/wb_curves.parquet"
+    base = [sys.executable, "-m", "gearsim.cli.main", "bifurcation-curves", "--plane", "wb",
+            "--configfile", *map(str, study["files"][1:]), "--out", str(out)]
+    r = subprocess.run([*base, "--budget-s", "15"], capture_output=True, text=True, env=env,
+                       cwd=tmp_path, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    prov = gc.read_metadata(out)
+    assert prov["status"] == "budget", prov.get("reasons")
+    assert "status budget" in r.stderr
+    before = {p: p.read_bytes() for p in out.parent.iterdir()}
+    p = subprocess.Popen(base, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+                         cwd=tmp_path)
+    time.sleep(8)
+    assert p.poll() is None
+    p.send_signal(signal.SIGKILL)
+    p.wait(30)
+    after = {q: q.read_bytes() for q in out.parent.iterdir()}
+    assert after == before

@@ -84,14 +84,17 @@ _DRY_RUN = any(
 def _preflight():
     from gearsim.errors import UsageError
     from gearsim.results.catalogue import set_aside_damaged
-    from gearsim.study.preflight import check_output
+    from gearsim.study.preflight import check_folder
 
     if not _DRY_RUN:
         for folder in ("results", "logs"):
             try:
-                check_output(Path(folder) / ".snakemake-preflight", what="output folder")
+                check_folder(Path(folder).resolve())
             except UsageError as exc:
-                raise WorkflowError(f"cannot run: {exc}") from None
+                # one line and exit 2, as the gearsim commands (a WorkflowError would add
+                # Snakemake's file and line of this check)
+                print(f"gearsim: error: {exc}", file=sys.stderr)
+                raise SystemExit(2) from None
     for line in set_aside_damaged(
         "results/catalogue.sqlite", "results/catalogue.d/build.sqlite", dry_run=_DRY_RUN
     ):

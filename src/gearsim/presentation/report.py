@@ -209,13 +209,35 @@ class Report:
     sweep_summaries: list[dict[str, Any]] = field(default_factory=list)  # every sweep
     point_summaries: list[dict[str, Any]] = field(default_factory=list)  # every point set
     multistable: list[dict[str, Any]] = field(default_factory=list)  # per plane with attractors
-
+    curves: list[str] = field(default_factory=list)  # bifurcation curves skipped or cut short
     paper_material: bool = False  # the study configures a paper sweep or plane
 
     @property
     def paper_study(self) -> bool:
         """Whether any of the paper's material is in this study (then the scorecard leads)."""
         return self.paper_material or self.compared > 0 or self.matched is not None
+
+
+
+def load_curve_status(results: str | Path, planes: Sequence[str]) -> list[str]:
+    """A line for each plane whose bifurcation curves (``results/orbits/<plane>_curves.parquet``)
+    were skipped or stopped at the job's budget, from the file's provenance."""
+    from gearsim.results.catalogue import read_metadata
+
+    out = []
+    for plane in planes:
+        f = Path(results) / "orbits" / f"{plane}_curves.parquet"
+        if not f.is_file():
+            continue
+        meta = read_metadata(f) or {}
+        status = meta.get("status", "ok")
+        if status == "skipped":
+            why = "; ".join(meta.get("reasons") or []) or "curves skipped"
+            out.append(f"plane {plane}: {why}")
+        elif status == "budget":
+            out.append(f"plane {plane}: the bifurcation curves stopped at the job's budget "
+                       f"({meta.get('budget_s', '?')} s); they are partial")
+    return out
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -752,6 +774,9 @@ def to_markdown(rep: Report) -> str:
         out += [*warning, ""] if warning else []
         out += _study_lines(rep, heading=None)
         out += audit
+    if rep.curves:
+        out += ["## Bifurcation curves not followed in full", "",
+                *[f"- {line}" for line in rep.curves], ""]
     return "\n".join(out).rstrip() + "\n"
 
 
@@ -927,6 +952,7 @@ def build_report(
         if f.is_file():
             rep.point_summaries.append(point_summary(name, pd.read_parquet(f)))
     rep.multistable = [m for m in (multistable_summary(p, cells.get(p)) for p in names) if m]
+    rep.curves = load_curve_status(results, names)
     # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
     exact_points = Path(results) / "orbits" / "standard_points.parquet"
     if exact_points.is_file() and "standard" in loaded:

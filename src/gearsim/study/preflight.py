@@ -18,7 +18,9 @@ from pathlib import Path
 
 from gearsim.errors import UsageError
 
-__all__ = ["check_output", "check_outputs", "free_bytes", "os_cause", "write_text_atomic"]
+__all__ = [
+    "check_folder", "check_output", "check_outputs", "free_bytes", "os_cause", "write_text_atomic"
+]
 
 #: Free space asked of a file system when the caller gives no estimate (bytes): room for a small
 #: result file and its temporary copy.
@@ -85,6 +87,20 @@ def check_output(path: str | Path, *, need: int = DEFAULT_NEED, what: str = "out
             "(free space and re-run)"
         )
     return path
+
+
+def check_folder(folder: str | Path, *, need: int = DEFAULT_NEED,
+                 what: str = "output folder") -> Path:
+    """:func:`check_output` for a folder: it exists or can be made, a file can be created in it
+    and ``need`` bytes are free. The message names the folder."""
+    folder = Path(folder)
+    try:
+        check_output(folder / ".gearsim-probe", need=need, what=what)
+    except UsageError as exc:
+        msg = str(exc).replace(f"{what} {folder / '.gearsim-probe'}: ", f"{what} {folder}: ")
+        raise UsageError(msg.replace(f"cannot write in {folder} ", "cannot write in it ")
+                         ) from None
+    return folder
 
 
 def check_outputs(paths: Iterable[str | Path], *, need: int = DEFAULT_NEED,

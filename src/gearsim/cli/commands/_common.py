@@ -294,6 +294,8 @@ def check_new_file(path: str | Path, *, create_parent: bool = True, need: int | 
             if not anc.is_dir():
                 raise UsageError(f"{out}: {anc} is a file, not a directory")
             break
+    if need == 0 and not parent.exists():
+        return out  # shape only: the folder is made (and probed) by a later call
     return check_output(out, need=DEFAULT_NEED if need is None else need)
 
 

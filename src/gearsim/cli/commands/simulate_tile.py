@@ -89,10 +89,8 @@ def run(args: argparse.Namespace) -> int:
         )
     rows = tile_rows(config, args.plane, args.tile)
     out = Path(args.out or results_dir(config) / args.plane / "tiles" / f"{args.tile}.parquet")
+    check_new_file(out, need=0)  # not a folder, no file in the way (the folder not yet made)
     nx = int(config["planes"][args.plane]["x"]["n"])
-    # before any simulation: the folder is writable and has room for the tile and its
-    # temporary copy (a tile takes ~350 bytes per cell; 1 kB per cell leaves a margin)
-    check_new_file(out, need=2 * 1024 * nx * len(rows) + (64 << 10))
     label = f"{args.plane}/tile {args.tile}"
     progress = Progress(label, nx * len(rows))
     address = args.scheduler or config["cluster"].get("scheduler_address")
@@ -104,6 +102,9 @@ def run(args: argparse.Namespace) -> int:
             check_address(address)
         else:
             check_workers(args.workers)
+    # every argument checked; before any simulation: the folder is writable and has room for
+    # the tile and its temporary copy (~350 bytes per cell; 1 kB per cell leaves a margin)
+    check_new_file(out, need=2 * 1024 * nx * len(rows) + (64 << 10))
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     banner = f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells"
