@@ -53,6 +53,7 @@ from gearsim.calibration.search import (
 from gearsim.calibration.sweeps import (
     CALIBRATION_SIM,
     PLANE_W_GRID,
+    THRESHOLD_W_GRID,
     SweepSettings,
     backlash_threshold,
     damping_threshold,
@@ -119,7 +120,6 @@ class ObjectiveSettings(SweepSettings):
     xi_w_max: float = 2.5
     xi_penalty: float = 0.02
     xi_gate: float = 0.08  # the xi check runs only when the landmark part is below this
-    b: float = 1.0
 
 
 @dataclass
@@ -210,7 +210,7 @@ class SearchPoint:
     base: ModelParameters
 
     def __call__(self, x: np.ndarray) -> tuple[float, dict[str, Any]]:
-        params = search_params(x, self.free, Fm=self.st.Fm, b=self.st.b, model=self.st.model,
+        params = search_params(x, self.free, Fm=self.st.Fm, b=self.st.b0, model=self.st.model,
                                base=self.base)
         ev = evaluate(params, self.st)
         return ev.J, ev.summary()
@@ -298,8 +298,7 @@ def verify(params: ModelParameters, *, dw: float, model: str,
                             grid=PLANE_W_GRID, settings=settings, tol=0.001)
     Fm = PAPER_B_THRESHOLD / b1 if math.isfinite(b1) and b1 > 0 else float("nan")
     log(f"verify: b*(Fm=1) = {b1:.4f} -> Fm = {Fm:.5f}")
-    xi_thr = damping_threshold(params, grid=np.linspace(0.1, 2.5, 241), settings=settings,
-                               tol=0.001)
+    xi_thr = damping_threshold(params, grid=THRESHOLD_W_GRID, settings=settings, tol=0.001)
     log(f"verify: xi threshold = {xi_thr:.4f}")
     jump = refined[refined["kind"] == "jump"]
     return {

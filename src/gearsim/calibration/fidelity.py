@@ -59,7 +59,6 @@ class FidelitySettings(SweepSettings):
 
     seq_dw: float = 0.02
     xi_bisect: int = 3  # bisection steps of the xi threshold after the 0.09 / 0.15 bracket
-    b0: float = 1.0  # standard backlash of the search scale (must exceed b*)
     attractor_starts: int = 16
     gate: float = 4.0  # landmark RMS in tolerances above which the other targets are not run
     exact: bool = False  # locate bifurcation landmarks by continuation

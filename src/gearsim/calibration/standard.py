@@ -82,10 +82,44 @@ def write_standard_parameters(path, doc: dict[str, Any]) -> None:
     tmp.replace(path)
 
 
-#: the values the paper gives
-PAPER = {
-    "module_mm": "paper: m = 4 mm", "zp": "paper", "zg": "paper", "n1": "paper", "n2": "paper",
-    "pressure_angle_deg": "paper: 20 deg", "mesh_factor": "paper Eq 8: 1.5 x single-tooth",
+#: provenance and note of every value the calibration does not set, by provenance
+FIXED_PROVENANCE: dict[str, dict[str, str]] = {
+    "paper": {
+        "module_mm": "paper: m = 4 mm", "zp": "paper", "zg": "paper", "n1": "paper", "n2": "paper",
+        "pressure_angle_deg": "paper: 20 deg", "mesh_factor": "paper Eq 8: 1.5 x single-tooth",
+        "alpha": "normal pressure angle 20 deg, rad",
+    },
+    "ISO formula": {
+        "c_m": "ISO 6336-1 C_M = 0.8",
+        "iso_flexibility_q": "q' = C1 + C2/zp + C3/zg (beta = 0, x = 0)",
+        "single_stiffness_per_width": "c' = C_M / q'",
+        "single_tooth_stiffness": "k_s = c' b_w (tooth-width factor)",
+        "mesh_stiffness": "Km = 1.5 k_s (Eq 8)",
+    },
+    "assumed": {
+        "w": "sweep variable; every sweep overrides it",
+        "b": "standard backlash: any b above 0.4125 gives the same patterns (paper Sect 3.2); "
+             "Table 1's value is lost",
+        "var_ratio": "variable-ratio inertial term off: its 9-mesh-period cycle would turn the "
+                     "paper's 1T motions into 9T (MODEL.md)",
+        "model": "6-DOF bending-torsional model",
+        "face_width_mm": "Table 1 lost; 20 mm = 5 modules",
+        "density_kg_per_m3": "steel blanks",
+        "mass_p": "solid steel disk, pitch radius x face width",
+        "mass_g": "solid steel disk, pitch radius x face width",
+        "inertia_p": "solid steel disk M R^2 / 2",
+        "inertia_g": "solid steel disk M R^2 / 2",
+        "bearing_clearance_um": "no clearance",
+        "nominal_length_um": "b_c = 10 um",
+        **{f"b_{g}{j}": "no bearing clearance" for j in ("y", "z") for g in ("p", "g")},
+    },
+    "derived": {
+        "var_ratio_order": "n1 / zp",
+        "rho_p": "Me / M_p with solid steel disks on the pitch radii (assumed)",
+        "rho_g": "Me / M_g with solid steel disks on the pitch radii (assumed)",
+        "bearing_damping_p_Ns_per_m": "C = 2 xi_pj M_p w_n",
+        "bearing_damping_g_Ns_per_m": "C = 2 xi_gj M_g w_n",
+    },
 }
 
 
@@ -93,7 +127,8 @@ def standard_from_record(record: Mapping[str, Any], *, bearing_ratio: float,
                          bearing_xi: float) -> dict[str, Any]:
     """The standard-parameter document from a calibration record (docs/calibration.json: the
     round-1 search's vector, the scale ``Fm`` from the backlash threshold), or MODEL.md's set
-    when the record has no search."""
+    when the record has no search; bearings ``K_ij = bearing_ratio Km`` with damping ratio
+    ``bearing_xi``."""
     geo = GearGeometry()
     rho_p = geo.equivalent_mass / geo.mass_p
     rho_g = geo.equivalent_mass / geo.mass_g
@@ -117,64 +152,31 @@ def standard_from_record(record: Mapping[str, Any], *, bearing_ratio: float,
         fm_prov = ("derived", f"Fm = 0.4125 / b*(Fm=1), b*(Fm=1) = "
                    f"{verify_['b_threshold_at_Fm1']:.4f} (gearsim calibrate --stage verify)")
     params = search_params(x, DEFAULT_FREE, Fm=Fm, b=1.0, model="6dof")
-    kw = {"rho_p": rho_p, "rho_g": rho_g}
-    ratio = bearing_ratio
-    xi_g = bearing_xi
+    kw: dict[str, Any] = {"rho_p": rho_p, "rho_g": rho_g}
     for j in ("y", "z"):
-        kw[f"kappa_p{j}"] = ratio * rho_p
-        kw[f"kappa_g{j}"] = ratio * rho_g
-        kw[f"xi_p{j}"] = bearing_xi
-        kw[f"xi_g{j}"] = xi_g
+        kw[f"kappa_p{j}"] = bearing_ratio * rho_p
+        kw[f"kappa_g{j}"] = bearing_ratio * rho_g
+        kw[f"xi_p{j}"] = kw[f"xi_g{j}"] = bearing_xi
     params = params.with_(**kw)
     geo = GearGeometry.from_dimensionless(params, geo)
+    prov = {k: (kind, note) for kind, notes in FIXED_PROVENANCE.items()
+            for k, note in notes.items()}
     cal = ("calibrated", src)
-    prov = {
-        "w": ("assumed", "sweep variable; every sweep overrides it"),
-        "Fm": fm_prov,
-        "Fe": ("calibrated", f"Fe/Fm = {params.Fe / params.Fm:.4f}; " + src),
-        "eps": cal, "phi_e": ("calibrated", "rad; " + src), "xi": cal, "friction": cal,
-        "b": ("assumed", "standard backlash: any b above 0.4125 gives the same patterns "
-              "(paper Sect 3.2); Table 1's value is lost"),
-        "alpha": ("paper", "normal pressure angle 20 deg, rad"),
-        "var_ratio": ("assumed", "variable-ratio inertial term off: its 9-mesh-period cycle "
-                      "would turn the paper's 1T motions into 9T (MODEL.md)"),
-        "var_ratio_order": ("derived", "n1 / zp"),
-        "rho_p": ("derived", "Me / M_p with solid steel disks on the pitch radii (assumed)"),
-        "rho_g": ("derived", "Me / M_g with solid steel disks on the pitch radii (assumed)"),
-        "model": ("assumed", "6-DOF bending-torsional model"),
-    }
+    prov.update({k: cal for k in ("eps", "xi", "friction", "mesh_damping_ratio",
+                                  "te_phase_deg")})
+    prov.update(Fm=fm_prov, Fe=("calibrated", f"Fe/Fm = {params.Fe / params.Fm:.4f}; " + src),
+                phi_e=("calibrated", "rad; " + src),
+                eps_stiffness=("calibrated", "Ka / Km = eps"),
+                bearing_stiffness_N_per_m=("assumed", f"stiff bearings, {bearing_ratio:g} Km "
+                                           "(MODEL.md: soft bearings put bearing modes inside "
+                                           "the w range)"))
     for j in ("y", "z"):
         for g in ("p", "g"):
             prov[f"kappa_{g}{j}"] = ("derived", f"(K_ij / Km) rho_{g} with K_ij = "
-                                     f"{ratio:g} Km (assumed stiff bearings)")
+                                     f"{bearing_ratio:g} Km (assumed stiff bearings)")
             prov[f"xi_{g}{j}"] = ("assumed", f"bearing damping ratio {bearing_xi:g} on both gears: "
                                   "with one C_ij for both the gear's lighter-damped bearing mode "
                                   "(0.0075) rings and breaks the sequence (docs/calibration.md)")
-            prov[f"b_{g}{j}"] = ("assumed", "no bearing clearance")
-    for k, note in PAPER.items():
-        prov[k] = ("paper", note)
-    prov.update({
-        "face_width_mm": ("assumed", "Table 1 lost; 20 mm = 5 modules"),
-        "c_m": ("ISO formula", "ISO 6336-1 C_M = 0.8"),
-        "eps_stiffness": ("calibrated", "Ka / Km = eps"),
-        "density_kg_per_m3": ("assumed", "steel blanks"),
-        "mass_p": ("assumed", "solid steel disk, pitch radius x face width"),
-        "mass_g": ("assumed", "solid steel disk, pitch radius x face width"),
-        "inertia_p": ("assumed", "solid steel disk M R^2 / 2"),
-        "inertia_g": ("assumed", "solid steel disk M R^2 / 2"),
-        "bearing_stiffness_N_per_m": ("assumed", f"stiff bearings, {ratio:g} Km (MODEL.md: soft "
-                                      "bearings put bearing modes inside the w range)"),
-        "bearing_clearance_um": ("assumed", "no clearance"),
-        "bearing_damping_p_Ns_per_m": ("derived", "C = 2 xi_pj M_p w_n"),
-        "bearing_damping_g_Ns_per_m": ("derived", "C = 2 xi_gj M_g w_n"),
-        "mesh_damping_ratio": cal,
-        "te_phase_deg": cal,
-        "nominal_length_um": ("assumed", "b_c = 10 um"),
-        "iso_flexibility_q": ("ISO formula", "q' = C1 + C2/zp + C3/zg (beta = 0, x = 0)"),
-        "single_stiffness_per_width": ("ISO formula", "c' = C_M / q'"),
-        "single_tooth_stiffness": ("ISO formula", "k_s = c' b_w (tooth-width factor)"),
-        "mesh_stiffness": ("ISO formula", "Km = 1.5 k_s (Eq 8)"),
-    })
     header = ("Reconstructed Table 1 of Liu et al. (PLOS ONE 2025). Written by "
               "`gearsim calibrate --stage standard`; provenance per value: paper / ISO formula / "
               "calibrated / assumed / derived. See docs/calibration.md.")

@@ -25,6 +25,8 @@ CALIBRATION_SIM = IntegrationSettings(method="dp5", rtol=1e-7, max_periods=256,
 
 #: the paper's plane grid in w: 400 cell centres on [0.1, 2.5] (the backlash thresholds' grid)
 PLANE_W_GRID = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400
+#: the thresholds' default grid: 241 points on [0.1, 2.5]
+THRESHOLD_W_GRID = np.linspace(0.1, 2.5, 241)
 
 
 @dataclass(frozen=True)
@@ -38,6 +40,7 @@ class SweepSettings:
     dw: float = 0.01
     sim: IntegrationSettings = CALIBRATION_SIM
     Fm: float = 0.1  # scale of the search (the shape is scale-free; Fm is derived afterwards)
+    b0: float = 1.0  # backlash of the search scale (above the backlash threshold)
     xi_w_min: float = 0.6
     xi_dw: float = 0.03
 
@@ -128,7 +131,7 @@ def backlash_threshold(
     Assumes monotonicity in ``b`` (checked at the bracket ends). ``hi`` defaults to
     ``10 (Fm + Fe)`` which is far above the motion amplitude.
     """
-    grid = np.linspace(0.1, 2.5, 241) if grid is None else grid
+    grid = THRESHOLD_W_GRID if grid is None else grid
     settings = settings or CALIBRATION_SIM
     hi = 10.0 * (params.Fm + params.Fe) if hi is None else hi
 
@@ -152,7 +155,7 @@ def damping_threshold(
     tol: float = 0.001,
 ) -> float:
     """Smallest ``xi`` above which only period-1 motion (0/1T, 1/1T) remains (bisection)."""
-    grid = np.linspace(0.1, 2.5, 241) if grid is None else grid
+    grid = THRESHOLD_W_GRID if grid is None else grid
     settings = settings or CALIBRATION_SIM
 
     def sub(x):

@@ -22,6 +22,10 @@ from gearsim.errors import USER_ERRORS, UsageError
 
 __all__ = ["UsageError", "build_parser", "main"]
 
+#: what `gearsim --help` says first (plain words: it is printed, not rendered)
+DESCRIPTION = ("gearsim: the nonlinear dynamics of a curve-face gear pair over parameter planes, "
+               "sweeps and points. `gearsim COMMAND --help` describes one command.")
+
 def _subcommand_modules(only: str | None = None):
     if only is not None:
         # the command named on the command line alone, when its module is commands/<name>.py:
@@ -46,7 +50,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    parser = _Parser(prog="gearsim", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="gearsim", description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"gearsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for mod in _subcommand_modules(only):

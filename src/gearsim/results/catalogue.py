@@ -51,6 +51,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 from gearsim.errors import UsageError
 from gearsim.study.integrity import CatalogueError, _one_line
 from gearsim.cell.simulate import result_columns
+from gearsim.results.views import create_views
 
 __all__ = [
     "CatalogueError",
@@ -1071,6 +1072,8 @@ def build_catalogue(
         with engine.begin() as con:
             for ix in cell_indexes:
                 ix.create(con)
+            create_views(con, [read_metadata(f, PLANE_KEY) for f in plane_files],
+                         [read_metadata(f) for f in sweep_files])  # one per plane and sweep
             con.exec_driver_sql(f"PRAGMA application_id = {APPLICATION_ID}")
             con.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
         engine.dispose()
