@@ -1322,6 +1322,9 @@ def migrate_catalogue(path: str | Path) -> tuple[int, int]:
                     .values(value=json.dumps(SCHEMA_VERSION))
                 )
                 session.flush()
+            # the views of the planes and sweeps, as a build makes them (axes in physical units
+            # are known only to the Parquet files: a rebuild adds those columns)
+            create_views(conn)
             conn.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
         engine.dispose()
         open_catalogue(tmp).close()
