@@ -325,7 +325,8 @@ def test_tile_on_a_tiny_disk_is_refused_before_simulating(tmp_path, gearsim, mou
 
 # ------------------------------------------------------------------ read-only folders
 @needs_root
-@pytest.mark.parametrize("command", ["simulate-tile", "table1", "export", "catalogue-build"])
+@pytest.mark.parametrize("command", ["simulate-tile", "table1", "export", "catalogue-build",
+                                     "catalogue-audit", "refine-orbits", "figures"])
 def test_read_only_folder_is_one_line_before_any_work(tmp_path, gearsim, study, mounts,
                                                      monkeypatch, command):
     from gearsim.study import tiles
@@ -341,6 +342,12 @@ def test_read_only_folder_is_one_line_before_any_work(tmp_path, gearsim, study, 
                    "--out", ro / "wb.csv"],
         "catalogue-build": ["catalogue", "build", "--cells", study["cells"],
                             "--out", ro / "build.sqlite"],
+        "catalogue-audit": ["catalogue", "audit", "--plane", "wb", "--cells", study["cells"],
+                            "--configfile", *study["files"][1:], "--out", ro / "audit.parquet"],
+        "refine-orbits": ["refine-orbits", "--plane", "wb", "--cells", study["cells"],
+                          "--configfile", *study["files"][1:], "--out", ro / "orbits.parquet"],
+        "figures": ["figures", "--fig", "4", "--sweep", f"standard={study['cells']}",
+                    "--outdir", ro / "figures"],
     }[command]
     code, err = gearsim(args, tmp_path)
     one_line(code, err, str(ro), "read-only")

@@ -181,6 +181,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--sweep-diagrams needs at least one --sweep NAME=PATH")
     if args.maps and not args.plane:
         raise UsageError("--maps needs at least one --plane NAME=PATH")
+    from gearsim.study.preflight import check_folder
+
+    check_folder(outdir, what="--outdir")  # writable, with room, before any drawing
     if args.sweep_diagrams:
         _sweep_diagrams(args, outdir)
     if numbers or args.maps:
