@@ -10,7 +10,6 @@ naming the file and the cause, never a traceback.
 from __future__ import annotations
 
 import argparse
-import errno
 import importlib
 import importlib.util
 import os
@@ -22,6 +21,10 @@ from gearsim.cli import commands
 from gearsim.errors import USER_ERRORS, UsageError
 
 __all__ = ["UsageError", "build_parser", "main"]
+
+#: what `gearsim --help` says first (plain words: it is printed, not rendered)
+DESCRIPTION = ("gearsim: the nonlinear dynamics of a curve-face gear pair over parameter planes, "
+               "sweeps and points. `gearsim COMMAND --help` describes one command.")
 
 def _subcommand_modules(only: str | None = None):
     if only is not None:
@@ -47,7 +50,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    parser = _Parser(prog="gearsim", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="gearsim", description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"gearsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for mod in _subcommand_modules(only):
@@ -87,27 +90,17 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-#: What a user can do about an OSError, by errno.
-_HINTS = {
-    errno.ENOSPC: "the disk is full: free space and re-run",
-    errno.EDQUOT: "the disk quota is exceeded: free space and re-run",
-    errno.EROFS: "the file system is read-only: choose a writable output folder",
-    errno.EACCES: "no permission: check the owner and mode of the file or folder",
-    errno.EPERM: "no permission: check the owner and mode of the file or folder",
-}
-
-
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def os_error_line(exc: OSError) -> str:
-    """``<file>: <cause> (<what to do>)`` of an OSError, on one line."""
+    """``<file>: <cause>`` of an OSError, on one line."""
+    from gearsim.study.preflight import os_cause
+
     names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
-    cause = exc.strerror or _one_line(exc)
-    hint = _HINTS.get(exc.errno or 0)
     where = f"{' -> '.join(names)}: " if names else ""
-    return f"{where}{cause}" + (f" ({hint})" if hint else "")
+    return f"{where}{os_cause(exc)}"
 
 
 def _file_fault_line(exc: Exception) -> str | None:

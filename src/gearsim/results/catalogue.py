@@ -51,6 +51,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 from gearsim.errors import UsageError
 from gearsim.study.integrity import CatalogueError, _one_line
 from gearsim.cell.simulate import result_columns
+from gearsim.results.views import create_views
 
 __all__ = [
     "CatalogueError",
@@ -256,11 +257,10 @@ def _fault(exc: BaseException) -> str:
     orig = getattr(exc, "orig", None)
     if isinstance(orig, BaseException):
         exc = orig
-    if isinstance(exc, OSError) and exc.strerror:
-        cause = exc.strerror
-        if exc.errno in (28, 122):  # ENOSPC, EDQUOT
-            cause += " (the disk is full)"
-        return cause
+    if isinstance(exc, OSError):
+        from gearsim.study.preflight import os_cause
+
+        return os_cause(exc)
     return _one_line(exc)
 
 
@@ -1072,6 +1072,8 @@ def build_catalogue(
         with engine.begin() as con:
             for ix in cell_indexes:
                 ix.create(con)
+            create_views(con, [read_metadata(f, PLANE_KEY) for f in plane_files],
+                         [read_metadata(f) for f in sweep_files])  # one per plane and sweep
             con.exec_driver_sql(f"PRAGMA application_id = {APPLICATION_ID}")
             con.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
         engine.dispose()
@@ -1133,6 +1135,11 @@ def open_catalogue(path: str | Path, *, check: bool = True) -> sqlite3.Connectio
     p = Path(path)
     if not p.is_file():
         raise CatalogueError(f"catalogue not found: {p} (build it with snakemake)")
+    try:
+        with open(p, "rb"):  # SQLite would say only "unable to open database file"
+            pass
+    except OSError as exc:
+        raise CatalogueError(f"{p}: cannot read the catalogue ({_fault(exc)})") from None
     try:
         con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
     except sqlite3.Error as exc:

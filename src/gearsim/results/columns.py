@@ -223,6 +223,13 @@ CATALOGUE.update({
     ("cell_orbits", "ms"): ("ms", "wall time of the refinement"),
 })
 
+#: the views of :mod:`gearsim.results.views` (one per plane, one per sweep), as documented in the
+#: ``column_dictionary`` row ``(view, '*')``; their columns keep the meanings above
+VIEWS = {
+    "plane": "view of plane {name}: its cells with the axes as columns {x} and {y} (and their "
+             "physical units when the axis was given in them)",
+    "sweep": "view of sweep {name}: its points with the swept value as column {parameter}",
+}
 CATALOGUE[("plane_cells", "*")] = ("", "view: cells joined to planes (plane, x_name, y_name)")
 
 

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 from gearsim.study.preflight import check_outputs
 
@@ -57,7 +57,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("secant", "window"), default="secant",
                    help="re-location of a curve point: direct secant solve (default), or a "
                    "windowed continuation (the slower reference; also the secant's fallback)")
-    p.add_argument("--out", required=True,
+    p.add_argument("--out", "-o", required=True,
                    help="curves Parquet (results/orbits/PLANE_curves.parquet); the located "
                    "points go to *_points.parquet beside it, the figure to *.png")
     p.add_argument("--budget-s", type=float, default=DEFAULT_BUDGET_S,

@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="bearing stiffness over mesh stiffness K_ij / Km (stage standard)")
     p.add_argument("--bearing-xi", type=float, default=0.03,
                    help="pinion bearing damping ratio (stage standard)")
-    p.add_argument("--out", default="docs/calibration.json", help="result JSON")
+    p.add_argument("--out", "-o", default="docs/calibration.json", help="result JSON")
     p.add_argument("--log-dir", default="results/calibration", help="per-evaluation logs")
     p.add_argument("--seed", type=int, default=20251122,
                    help="random seed of the differential evolution")

@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 
 NAME = "catalogue"
@@ -32,12 +32,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     c = sub.add_parser("cells", help="combine a plane's tile files into cells.parquet")
     c.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     c.add_argument("--tiles", nargs="+", required=True, help="the plane's tile Parquet files")
-    c.add_argument("--out", required=True, help="the plane's cells.parquet to write")
+    c.add_argument("--out", "-o", required=True, help="the plane's cells.parquet to write")
     add_config_arguments(c)
     a = sub.add_parser("audit", help="re-simulate a sample of cells at tightened tolerance")
     a.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     a.add_argument("--cells", required=True, help="the plane's cells.parquet")
-    a.add_argument("--out", required=True, help="the plane's audit.parquet to write")
+    a.add_argument("--out", "-o", required=True, help="the plane's audit.parquet to write")
     add_config_arguments(a)
     b = sub.add_parser("build", help="build the SQLite catalogue (one transaction, atomic)")
     b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
@@ -48,7 +48,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("--orbits", nargs="*", default=[],
                    help="bifurcation points / curves and refine-orbits Parquet files "
                    "(docs/orbits.md)")
-    b.add_argument("--out", required=True, help="the catalogue file to write (the rule's output)")
+    b.add_argument("--out", "-o", required=True,
+                   help="the catalogue file to write (the rule's output)")
     b.add_argument(
         "--publish",
         metavar="PATH",

@@ -11,7 +11,7 @@ from pathlib import Path
 from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
 from gearsim.analysis.orbits import find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
-from gearsim.cli.commands._common import orbit_parameters
+from gearsim.cli.commands._common import resolve_parameters
 from gearsim.cli.commands.orbit import add_orbit_parameter_arguments
 from gearsim.errors import UsageError
 from gearsim.study.preflight import check_outputs
@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-points", type=int, default=400, help="points per branch")
     p.add_argument("--switch-depth", type=int, default=2,
                    help="period doublings followed onto the doubled branch (0: none)")
-    p.add_argument("--out", metavar="PARQUET", default=None,
+    p.add_argument("--out", "-o", metavar="PARQUET", default=None,
                    help="branch table (default results/orbits/continue_NAME_FROM_TO_pN.parquet)")
     p.add_argument("--figure", metavar="PNG", default=None,
                    help="branch figure (default: the Parquet path with .png)")
@@ -49,6 +49,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--budget-s", type=float, default=DEFAULT_BUDGET_S,
                    help="wall-clock budget in seconds: the continuation stops there, keeps "
                    f"its branches and records status 'budget' (default {DEFAULT_BUDGET_S:g})")
+
+
+def resolve(args: argparse.Namespace):
+    """The start point's parameters: the shared resolution with the continued parameter at
+    ``--from``."""
+    return resolve_parameters(args, **{args.name: args.start})
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--from and --to are equal ({args.start}): empty range")
     if not 0 < args.budget_s <= 7 * 86400:
         raise UsageError(f"--budget-s = {args.budget_s:g} must be in (0, 604800]")
-    params, source = orbit_parameters(args.params, args.set, **{args.name: args.start})
+    r = resolve(args)
+    params, source = r.params, r.source
     st = shooting_settings(args.rtol)
     out = Path(args.out or
                f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p"
