@@ -157,6 +157,14 @@ def test_previous_release_catalogue_is_refused_then_migrated(tmp_path, gearsim, 
         con.close()
     # the data are those of the release, and the same as a fresh build of the same tiles
     assert _cells(db) == before == _cells(study["cat"])
+    # the plane's view, as a build makes it
+    con = gc.open_catalogue(db)
+    try:
+        assert con.execute("SELECT COUNT(*), MIN(w), MAX(b) FROM wb").fetchone() == \
+            gc.open_catalogue(study["cat"]).execute(
+                "SELECT COUNT(*), MIN(w), MAX(b) FROM wb").fetchone()
+    finally:
+        con.close()
     # a second migration has nothing to do; the file is unchanged
     data = db.read_bytes()
     code, err = gearsim(["catalogue", "migrate", db], tmp_path)
