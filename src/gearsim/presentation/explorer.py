@@ -14,9 +14,11 @@ The page needs no server and no network, and loads in about a second: no plottin
 the data are one gzip-compressed binary block (base64) of typed arrays that the browser inflates
 with its own ``DecompressionStream``. Per cell: pattern, label and n-p-q indices, impact state,
 period (one or two bytes each), DC, Kmax, Lyapunov exponent and Floquet margin as 16-bit steps
-over their range (resolution range / 65534), the number of section points; the section points
-themselves as 16-bit steps over the plane's range, at most :data:`MAX_POINTS` per cell (the last
-``n`` only for a periodic cell of period ``n``: they are its distinct points).
+over their range (resolution range / 65534; stored as differences of neighbours, high bytes
+then low bytes), the number of section points; the section points themselves as 16-bit steps
+over the plane's range, at most :data:`MAX_POINTS` per cell (the last ``n`` only for a periodic
+cell of period ``n``: they are its distinct points; fewer per chaotic cell when a page would hold
+more than :data:`POINTS_BUDGET` bytes of them).
 
 Every quantity is dimensionless as in the catalogue (docs/model.md): x = X_n / b_c,
 x' = dx/dtau with tau = omega_n t; DC is a fraction of the mesh period; Kmax = F_n / F_m; the
@@ -40,6 +42,11 @@ from gearsim.presentation.figures import style
 
 #: Poincare points kept per cell (chaotic / unsettled cells); a periodic cell keeps its n points.
 MAX_POINTS = 16
+#: At most this many bytes of section points on a page (4 per point): on planes with many
+#: chaotic cells the cap per cell drops (to no fewer than :data:`MIN_POINTS`), so that the page
+#: of the default run stays under 5 MB whatever its share of chaos (benchmarks/README.md, (m)).
+POINTS_BUDGET = 2_000_000
+MIN_POINTS = 4
 #: Poincare points kept per swept value in the bifurcation diagrams.
 MAX_SWEEP_POINTS = 64
 #: columns that hold a cell's Floquet margin max|mu| (the first present is shown)
@@ -79,8 +86,13 @@ class Block:
                                                                        else 1.0)
         step = (hi - lo) / (MISSING - 1) if hi > lo else 1.0
         q = np.where(np.isfinite(v), np.clip(np.round((v - lo) / step), 0, MISSING - 1),
-                     MISSING)
-        return {"array": self.add(q, "<u2"), "lo": lo, "step": step}
+                     MISSING).astype(np.uint16)
+        # neighbours differ little: store the differences (mod 2^16), high bytes then low
+        # bytes, which gzip packs far better than the values themselves
+        d = np.diff(q, prepend=np.uint16(0)).astype(np.uint16)
+        planes = np.concatenate([(d >> 8).astype(np.uint8), (d & 0xFF).astype(np.uint8)])
+        return {"array": self.add(planes, "u1"), "n": int(q.size), "coding": "delta16",
+                "lo": lo, "step": step}
 
     def encoded(self) -> str:
         """gzip + base64 of the whole buffer."""
@@ -88,10 +100,23 @@ class Block:
                                               mtime=0)).decode()
 
 
+def quantised_of(buffer: bytes, enc: Mapping[str, Any]) -> np.ndarray:
+    """The 16-bit steps of a :meth:`Block.quantised` array in a decoded buffer."""
+    planes = array_of(buffer, enc["array"])
+    n = enc["n"]
+    d = (planes[:n].astype(np.uint16) << 8) | planes[n:2 * n].astype(np.uint16)
+    return np.cumsum(d, dtype=np.uint16)
+
+
 def dequantise(q: np.ndarray, lo: float, step: float) -> np.ndarray:
-    """The inverse of :meth:`Block.quantised` (what the page shows)."""
+    """The values of 16-bit steps (what the page shows)."""
     q = np.asarray(q)
     return np.where(q == MISSING, np.nan, lo + q.astype(float) * step)
+
+
+def values_of(buffer: bytes, enc: Mapping[str, Any]) -> np.ndarray:
+    """A :meth:`Block.quantised` array back as values (NaN where missing)."""
+    return dequantise(quantised_of(buffer, enc), enc["lo"], enc["step"])
 
 
 def decode_block(encoded: str) -> bytes:
@@ -273,7 +298,19 @@ def _indexed(values: pd.Series) -> tuple[list[str], np.ndarray]:
     return names, np.array([idx[s] for s in values], dtype=np.int64)
 
 
-def plane_payload(plane: PlaneData, block: Block) -> dict[str, Any]:
+def points_cap(planes: Sequence[PlaneData]) -> int:
+    """Section points kept per non-periodic cell on a page of these planes: :data:`MAX_POINTS`,
+    fewer when the planes' non-periodic cells would exceed :data:`POINTS_BUDGET`."""
+    free = sum(int((p.cells["motion"].fillna("") != "periodic").sum()) for p in planes)
+    periodic = sum(int(np.minimum(_int_or(p.cells.loc[p.cells["motion"] == "periodic", "n"],
+                                          0), MAX_POINTS).sum()) for p in planes)
+    room = POINTS_BUDGET / 4 - periodic
+    if free == 0 or room >= free * MAX_POINTS:
+        return MAX_POINTS
+    return int(max(MIN_POINTS, min(MAX_POINTS, room // free)))
+
+
+def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict[str, Any]:
     """Everything the page shows of one plane: metadata, and typed arrays in row-major (j, i)
     order added to ``block``."""
     df = plane.cells.reset_index(drop=True)
@@ -297,7 +334,7 @@ def plane_payload(plane: PlaneData, block: Block) -> dict[str, Any]:
     npqs, npq = _indexed(df["label_npq"].fillna("").astype(str))
     n = _int_or(df["n"])
     periodic = np.where(df["motion"].fillna("").astype(str).to_numpy() == "periodic", n, 0)
-    counts, px, pv = _poincare(df, rows, present, MAX_POINTS, periodic)
+    counts, px, pv = _poincare(df, rows, present, cap, periodic)
     kmax_col = "kmax" if "kmax" in df.columns else "kmax_peak_mean"
     kmax = grid(kmax_col)
     from gearsim.presentation.figures.planes import robust_max
@@ -420,16 +457,17 @@ def render(planes: Sequence[PlaneData], sweeps: Mapping[str, pd.DataFrame], *,
            scorecard: Sequence[Mapping[str, Any]] | None = None) -> str:
     """The page (one HTML string)."""
     block = Block()
+    cap = points_cap(planes)
     data = {
         "title": title,
-        "planes": [plane_payload(p, block) for p in planes],
+        "planes": [plane_payload(p, block, cap) for p in planes],
         "sweeps": [sweep_payload(n, df, block, (sweep_fixed or {}).get(n),
                                  (sweep_physical or {}).get(n),
                                  (sweep_fixed_physical or {}).get(n))
                    for n, df in sweeps.items()],
         "provenance": dict(provenance or {}),
         "scorecard": list(scorecard or []),
-        "max_points": MAX_POINTS,
+        "max_points": cap,
         "missing": MISSING,
         "turbo": _colorscale("turbo"),
         "magma": _colorscale("magma"),
