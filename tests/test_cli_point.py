@@ -42,7 +42,7 @@ def test_bad_input_is_one_line_exit_2():
         assert r.stdout == ""
 
 
-# ----------------------------------------------------------- the study's defaults (issue 13.1)
+# ----------------------------------------------------------- the study's defaults
 def _strict_json(text):
     def refuse(c):
         raise ValueError(f"not JSON: {c}")
