@@ -19,9 +19,13 @@ from gearsim.cell.sweep import sweep_records
 from gearsim.dynamics.parameters import ModelParameters
 
 #: the integration of every calibration sweep: DP5 at rtol 1e-7 and 40 periods of transient on
-#: continuation (the cell default, 16, flips 1T/2T next to a period doubling)
-CALIBRATION_SIM = IntegrationSettings(method="dp5", rtol=1e-7, max_periods=256,
-                                      transient_continuation=40, chunk=32)
+#: continuation (16 flips 1T/2T next to a period doubling). Every field that decides a result is
+#: given, so the calibration's recorded numbers do not move with the cell defaults.
+CALIBRATION_SIM = IntegrationSettings(
+    method="dp5", rtol=1e-7, atol=1e-12, hmax=0.2, steps_per_period=256, transient=150,
+    transient_continuation=40, chunk=32, max_periods=256, n_max=64, period_rtol=1e-5,
+    lyap_threshold=0.005, divergence_bound=1.0e6, tangent_lead=24, max_steps=5_000_000,
+    transient_recurrence=0)
 
 #: the paper's plane grid in w: 400 cell centres on [0.1, 2.5] (the backlash thresholds' grid)
 PLANE_W_GRID = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400

@@ -10,7 +10,6 @@ naming the file and the cause, never a traceback.
 from __future__ import annotations
 
 import argparse
-import errno
 import importlib
 import importlib.util
 import os
@@ -91,27 +90,17 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-#: What a user can do about an OSError, by errno.
-_HINTS = {
-    errno.ENOSPC: "the disk is full: free space and re-run",
-    errno.EDQUOT: "the disk quota is exceeded: free space and re-run",
-    errno.EROFS: "the file system is read-only: choose a writable output folder",
-    errno.EACCES: "no permission: check the owner and mode of the file or folder",
-    errno.EPERM: "no permission: check the owner and mode of the file or folder",
-}
-
-
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def os_error_line(exc: OSError) -> str:
-    """``<file>: <cause> (<what to do>)`` of an OSError, on one line."""
+    """``<file>: <cause>`` of an OSError, on one line."""
+    from gearsim.study.preflight import os_cause
+
     names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
-    cause = exc.strerror or _one_line(exc)
-    hint = _HINTS.get(exc.errno or 0)
     where = f"{' -> '.join(names)}: " if names else ""
-    return f"{where}{cause}" + (f" ({hint})" if hint else "")
+    return f"{where}{os_cause(exc)}"
 
 
 def _file_fault_line(exc: Exception) -> str | None:

@@ -92,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
     specs = task_specs(config, args.plane, args.tile, tile_df)
     total = sum(len(s["cells"]) for s in specs)
     out = Path(args.out or f"results/{args.plane}/attractors/{args.tile}.parquet")
+    from gearsim.study.preflight import check_output
+
+    check_output(out)  # writable, with room, before any simulation
     label = f"{args.plane}/attractor tile {args.tile}"
     progress = Progress(label, total)
     started = catalogue.now_iso()

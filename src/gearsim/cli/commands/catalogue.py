@@ -198,6 +198,9 @@ def _audit(args) -> int:
     config = config_from_args(args)
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'")
+    from gearsim.study.preflight import check_output
+
+    check_output(args.out)  # writable, with room, before any simulation
     cells = pd.read_parquet(args.cells)
     started = catalogue.now_iso()
     t0 = time.perf_counter()

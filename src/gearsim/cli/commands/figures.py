@@ -131,7 +131,9 @@ def _bind_single_plane(numbers, ctx, table) -> dict[str, str]:
 
 
 def _write_record(path: Path, rec: dict) -> None:
-    path.write_text(json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
+    from gearsim.study.preflight import write_text_atomic
+
+    write_text_atomic(path, json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
 
 
 def _sweep_diagrams(args: argparse.Namespace, outdir: Path) -> None:
@@ -179,6 +181,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--sweep-diagrams needs at least one --sweep NAME=PATH")
     if args.maps and not args.plane:
         raise UsageError("--maps needs at least one --plane NAME=PATH")
+    from gearsim.study.preflight import check_folder
+
+    check_folder(outdir, what="--outdir")  # writable, with room, before any drawing
     if args.sweep_diagrams:
         _sweep_diagrams(args, outdir)
     if numbers or args.maps:

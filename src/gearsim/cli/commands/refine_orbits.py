@@ -51,6 +51,9 @@ def run(args: argparse.Namespace) -> int:
     base = gcfg.plane_base(config, args.plane)
     pl = config["planes"][args.plane]
     st = shooting_settings(args.rtol)
+    from gearsim.study.preflight import check_output
+
+    check_output(args.out)  # writable, with room, before any Newton solve
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     todo = int(((cells["n"] >= 1) & (cells["status"] != "diverged")).sum())
