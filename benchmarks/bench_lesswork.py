@@ -1,8 +1,9 @@
-"""(l) Less work per cell (issue 16.4): the evidence behind each numerical shortcut.
+"""(l) Less work per cell: the evidence behind each numerical shortcut.
 
 Subcommands (results as JSON in benchmarks/results/, plane frames in benchmarks/.scratch/):
 
-* ``cells --spp 128 160 192 256``: the 30-cell convergence set (tests/test_convergence.py) with
+* ``cells --spp 128 160 192 256``: the 30-cell convergence set
+  (tests/integration/test_convergence.py) with
   RK4 at each steps-per-period value: labels, and the section-point error of a fixed 200-period
   run from the static state against DP5 at ``IntegrationSettings.tightened()`` (periodic cells;
   relative to the orbit's x range).

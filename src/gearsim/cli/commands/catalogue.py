@@ -94,7 +94,7 @@ def audit_settings(config: dict):
     times the configuration's DP5 tolerances and half its step cap; the cell plan (transient,
     chunks, period test, ``transient_recurrence``) is the configuration's. ``tighten: 100`` is
     :meth:`IntegrationSettings.tightened`; the evidence for the default is in
-    benchmarks/README.md (l)."""
+    benchmarks/CHANGELOG.md (l)."""
     from gearsim.study import config as gcfg
 
     st = gcfg.integration_settings(config).with_(method="dp5")
