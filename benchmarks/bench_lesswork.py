@@ -139,7 +139,7 @@ def cmd_plane(args) -> dict:
 
 def _dp5_label(config, plane, ref, r):
     """The audit's reference (DP5 at tightened tolerance) for row ``r`` of frame ``ref``."""
-    from gearsim.cli.commands.catalogue import audit_frame
+    from gearsim.study.audit import audit_frame
 
     config = dict(config, audit={**config["audit"], "fraction": 1.0, "seed": 0})
     sub = ref.iloc[[r]]
@@ -203,7 +203,7 @@ def cmd_compare(args) -> dict:
 def cmd_audit(args) -> dict:
     import pandas as pd
 
-    from gearsim.cli.commands.catalogue import audit_frame
+    from gearsim.study.audit import audit_frame
 
     config = _config(args.config, {})
     if args.audit:
@@ -227,7 +227,7 @@ def cmd_audit_ab(args) -> dict:
     variants alternated ``--repeats`` times in one process (load recorded)."""
     import pandas as pd
 
-    from gearsim.cli.commands.catalogue import audit_frame
+    from gearsim.study.audit import audit_frame
 
     config = _config(args.config, {})
     cells = pd.read_parquet(args.frame)
@@ -294,7 +294,6 @@ def cmd_landmarks(args) -> dict:
     import pandas as pd
 
     from gearsim.analysis.landmarks import find_landmarks, match_paper
-    from gearsim.cli.commands.sweep import sweep_frame
     from gearsim.dynamics.parameters import ModelParameters
     from gearsim.presentation.report import (
         PAPER_B_THRESHOLD,
@@ -305,6 +304,7 @@ def cmd_landmarks(args) -> dict:
     )
     from gearsim.study.config import base_parameters, integration_settings
     from gearsim.study.grid import sweep_values
+    from gearsim.study.sweeps import sweep_frame
 
     config = _config(args.config, _sets(args.set))
     sw = config["sweeps"]["standard"]

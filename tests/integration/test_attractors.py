@@ -213,8 +213,8 @@ def test_forward_backward_sweeps_differ_only_inside_fold_band():
     from pathlib import Path
 
     from gearsim.analysis.attractors import hysteresis
-    from gearsim.cli.commands.sweep import sweep_frame
     from gearsim.study.config_io import load_standard_parameters
+    from gearsim.study.sweeps import sweep_frame
 
     root = Path(__file__).resolve().parents[2]
     base = ModelParameters.from_mapping(

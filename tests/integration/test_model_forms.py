@@ -335,7 +335,7 @@ def test_unknown_frequency_scale():
 def test_sweep_from_a_fixed_start_is_independent_cells():
     """``sweeps.<name>.start: rest``: every cell from the static state (no continuation)."""
     from gearsim.cell.simulate import simulate_cell
-    from gearsim.cli.commands.sweep import sweep_frame
+    from gearsim.study.sweeps import sweep_frame
 
     st = reference_settings(method="rk4", transient=30, transient_continuation=10, chunk=8,
                              max_periods=16, tangent_lead=0)

@@ -12,12 +12,13 @@ import pyarrow.parquet as pq
 import pytest
 
 from gearsim.cell.simulate import CellResult
-from gearsim.cli.commands.catalogue import audit_frame, plane_record
 from gearsim.results import catalogue as gc
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
 from gearsim.study import tiles as gt
+from gearsim.study.audit import audit_frame
+from gearsim.study.provenance import plane_record
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -39,8 +40,8 @@ def small(tmp_path_factory):
                              cells=len(df), workers="in-process")
         files.append(gc.write_parquet(df, d / f"tiles/{t}.parquet", {gc.PROVENANCE_KEY: prov}))
     cells = gc.combine_tiles(files, d / "cells.parquet", plane_record(cfg, "wb"))
-    from gearsim.cli.commands.sweep import sweep_frame
     from gearsim.dynamics.parameters import ModelParameters
+    from gearsim.study.sweeps import sweep_frame
 
     sw = sweep_frame(ModelParameters(b=0.15), "w", np.array([0.5, 1.0, 1.5]), "forward",
                      gcfg.integration_settings(cfg))

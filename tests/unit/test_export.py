@@ -16,7 +16,6 @@ import pytest
 import xarray as xr
 from synthetic_tiles import tile_frame, write_tile
 
-from gearsim.cli.commands.catalogue import plane_record
 from gearsim.cli.main import main
 from gearsim.results import catalogue as gc
 from gearsim.results.export import VARIABLES
@@ -24,6 +23,7 @@ from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
 from gearsim.study import tiles as gt
+from gearsim.study.provenance import plane_record
 
 ROOT = Path(__file__).resolve().parents[2]
 NX, NY = 5, 4

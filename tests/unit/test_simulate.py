@@ -180,8 +180,8 @@ def test_transient_recurrence_bad_values_exit_2_with_one_line(tmp_path):
 def test_audit_tighten_bad_value_is_one_config_error_and_sets_the_dp5_reference(tmp_path):
     import pytest
 
-    from gearsim.cli.commands.catalogue import audit_settings
     from gearsim.errors import ConfigError
+    from gearsim.study.audit import audit_settings
     from gearsim.study.config import study_config
 
     f = tmp_path / "bad.yaml"

@@ -22,10 +22,10 @@ import pytest
 import yaml
 from synthetic_tiles import tile_frame, write_tile
 
-from gearsim.cli.commands.catalogue import plane_record
 from gearsim.results import catalogue as gc
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
+from gearsim.study.provenance import plane_record
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from gearsim.cell.sweep import continuation_chain, orbit_diagram
-from gearsim.cli.commands.sweep import _point_list, sweep_frame
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.study import config as gcfg
+from gearsim.study.sweeps import point_list as _point_list
+from gearsim.study.sweeps import sweep_frame
 
 ROOT = Path(__file__).resolve().parents[2]
 
