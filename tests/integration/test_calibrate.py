@@ -8,6 +8,8 @@ import pytest
 from test_landmarks import paper_like
 
 import gearsim.calibration.calibrate as cal
+import gearsim.calibration.standard as std
+import gearsim.calibration.sweeps as thr
 from gearsim.analysis.landmarks import find_landmarks
 from gearsim.cli.main import main
 from gearsim.dynamics.parameters import ModelParameters
@@ -16,12 +18,12 @@ from gearsim.study.config_io import load_standard_parameters
 
 
 def test_params_from_vector_maps_free_parameters():
-    p = cal.params_from_vector([1.5, 0.2, -30.0, 0.06, 0.01], Fm=0.2, b=2.0)
+    p = cal.search_params([1.5, 0.2, -30.0, 0.06, 0.01], Fm=0.2, b=2.0)
     assert p.Fe == pytest.approx(0.3) and p.Fm == 0.2 and p.b == 2.0
     assert p.phi_e == pytest.approx(math.radians(-30.0)) and p.model == "1dof"
     assert (p.eps, p.xi, p.friction) == (0.2, 0.06, 0.01)
     free = (cal.FreeParameter("kappa", 1, 100), cal.FreeParameter("rho", 0.1, 1))
-    q = cal.params_from_vector([50.0, 0.3], free, model="6dof")
+    q = cal.search_params([50.0, 0.3], free, model="6dof")
     assert q.kappa_gz == 50.0 and q.rho_g == 0.3 and q.model == "6dof"
 
 
@@ -52,19 +54,19 @@ def test_backlash_threshold_bisection(monkeypatch):
         calls.append(params.b)
         return params.b < 0.3 * params.Fm / 0.1
 
-    monkeypatch.setattr(cal, "double_sided_anywhere", fake)
-    b1 = cal.backlash_threshold(ModelParameters(Fm=0.1, Fe=0.17), tol=1e-3)
+    monkeypatch.setattr(thr, "double_sided_anywhere", fake)
+    b1 = thr.backlash_threshold(ModelParameters(Fm=0.1, Fe=0.17), tol=1e-3)
     assert b1 == pytest.approx(0.3, abs=1e-3)
     # the threshold scales with Fm: Fm = 0.4125 / b*(Fm=1) gives b* = 0.4125
-    b_at_1 = cal.backlash_threshold(ModelParameters(Fm=1.0, Fe=1.7), tol=1e-4)
+    b_at_1 = thr.backlash_threshold(ModelParameters(Fm=1.0, Fe=1.7), tol=1e-4)
     assert b_at_1 == pytest.approx(3.0, abs=1e-3)
 
 
 def test_damping_threshold_bisection(monkeypatch):
-    monkeypatch.setattr(cal, "has_subharmonics", lambda df: bool(df.attrs["xi"] < 0.1436))
-    monkeypatch.setattr(cal, "orbit_diagram",
-                        lambda p, name, grid, settings=None: _frame(p.xi))
-    assert cal.damping_threshold(ModelParameters(), tol=1e-4) == pytest.approx(0.1436, abs=1e-4)
+    monkeypatch.setattr(thr, "has_subharmonics", lambda df: bool(df.attrs["xi"] < 0.1436))
+    monkeypatch.setattr(thr, "w_sweep",
+                        lambda p, grid, settings=None: _frame(p.xi))
+    assert thr.damping_threshold(ModelParameters(), tol=1e-4) == pytest.approx(0.1436, abs=1e-4)
 
 
 def _frame(xi):
@@ -88,9 +90,9 @@ def test_differential_evolution_smoke(tmp_path):
 def test_standard_file_round_trip_and_table1(tmp_path, capsys):
     p = ModelParameters(Fm=0.2, Fe=0.35)
     g = GearGeometry.from_dimensionless(p)
-    doc = cal.standard_document(p, g, {"Fe": ("calibrated", "fit")})
+    doc = std.standard_document(p, g, {"Fe": ("calibrated", "fit")})
     path = tmp_path / "std.yaml"
-    cal.write_standard_parameters(path, doc)
+    std.write_standard_parameters(path, doc)
     values = load_standard_parameters(path)
     assert values["Fe"] == pytest.approx(0.35) and values["model"] == "6dof"
     assert doc["dimensionless"]["Fe"]["provenance"] == "calibrated"
@@ -101,7 +103,7 @@ def test_standard_file_round_trip_and_table1(tmp_path, capsys):
     assert "| Fe | 0.35 | - | calibrated | fit |" in text and "mesh_stiffness" in text
     assert csv.read_text().startswith("section,name,value,unit,provenance,note")
     with pytest.raises(ValueError):
-        cal.standard_document(p, g, {"Fe": ("guessed", "")})
+        std.standard_document(p, g, {"Fe": ("guessed", "")})
 
 
 def test_committed_standard_file_is_valid():
@@ -126,7 +128,7 @@ def test_calibrate_cli_bad_workers():
 
 
 def test_bisect_bool_finds_a_known_threshold():
-    from gearsim.calibration.calibrate import bisect_bool
+    from gearsim.calibration.search import bisect_bool
 
     calls = []
 
@@ -140,10 +142,14 @@ def test_bisect_bool_finds_a_known_threshold():
 
 
 def test_fidelity_and_objective_settings_share_one_grid_and_integration():
-    from gearsim.calibration.calibrate import ObjectiveSettings, SweepSettings
-    from gearsim.calibration.fidelity import FidelitySettings
+    from dataclasses import replace
 
-    f, o = FidelitySettings(dw=0.02, rtol=1e-8), ObjectiveSettings(dw=0.02, rtol=1e-8)
+    from gearsim.calibration.calibrate import ObjectiveSettings
+    from gearsim.calibration.fidelity import FidelitySettings
+    from gearsim.calibration.sweeps import CALIBRATION_SIM, SweepSettings
+
+    sim = replace(CALIBRATION_SIM, rtol=1e-8)
+    f, o = FidelitySettings(dw=0.02, sim=sim), ObjectiveSettings(dw=0.02, sim=sim)
     assert isinstance(f, SweepSettings) and isinstance(o, SweepSettings)
     np.testing.assert_array_equal(f.grid(), o.grid())
     g = f.grid()

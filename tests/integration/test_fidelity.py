@@ -9,18 +9,18 @@ import pandas as pd
 import pytest
 
 from gearsim.analysis.landmarks import PAPER_LANDMARKS
-from gearsim.calibration.fidelity import (
+from gearsim.calibration.search import refine, run_de, sobol_population
+from gearsim.calibration.sweeps import backlash_from_sweep
+from gearsim.calibration.targets import (
     CAP,
     PAPER_COEXIST,
     PAPER_SEQUENCES,
     TARGETS,
     Measured,
-    backlash_from_sweep,
     score,
     sequence_distance,
     target_errors,
 )
-from gearsim.calibration.fidelity_fit import refine, run_de, sobol_population
 from gearsim.study.config import standard_parameters
 
 
@@ -129,7 +129,7 @@ def test_sobol_population_seeded_in_bounds_with_start():
 
 
 def test_form_table_and_report_lines_show_every_target():
-    from gearsim.calibration.fidelity import form_report_lines, form_table_lines
+    from gearsim.calibration.tables import form_report_lines, form_table_lines
 
     m = perfect()
     m.landmark_source = {pl.key: "exact" for pl in PAPER_LANDMARKS}
@@ -180,7 +180,7 @@ def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monke
     import json
     from dataclasses import replace
 
-    import gearsim.calibration.fidelity_fit as ff
+    import gearsim.calibration.forms as ff
     from gearsim.cli.main import main
 
     st = replace(ff.FINAL, w_min=0.55, w_max=0.80, dw=0.01)
@@ -248,8 +248,8 @@ def test_unfinished_form_stream_log_and_tradeoff_evidence(tmp_path):
     the evidence names, for a target hit within tolerance, the landmarks missing there."""
     import json
 
-    from gearsim.calibration.fidelity import form_summary_lines, landmarks_within
-    from gearsim.calibration.fidelity_fit import FORMS, best_per_target, partial_record, stream_runs
+    from gearsim.calibration.forms import FORMS, best_per_target, partial_record, stream_runs
+    from gearsim.calibration.tables import form_summary_lines, landmarks_within
 
     logs = tmp_path / "logs"
     logs.mkdir()

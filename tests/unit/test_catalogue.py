@@ -141,7 +141,7 @@ def test_catalogue_replaced_atomically(small, tmp_path):
 # ------------------------------------------------------------------------- metadata (13.4)
 def test_schema_version_and_application_id(small):
     con = sqlite3.connect(small["db"])
-    assert con.execute("PRAGMA user_version").fetchone()[0] == gc.SCHEMA_VERSION == 2
+    assert con.execute("PRAGMA user_version").fetchone()[0] == gc.SCHEMA_VERSION == 3
     assert con.execute("PRAGMA application_id").fetchone()[0] == 0x47454152
     con.close()
     gc.open_catalogue(small["db"]).close()
@@ -169,7 +169,7 @@ def test_catalogue_info_and_integration(small):
 
     con = sqlite3.connect(small["db"])
     info = {k: json.loads(v) for k, v in con.execute("SELECT key, value FROM catalogue_info")}
-    assert info["schema_version"] == 2
+    assert info["schema_version"] == gc.SCHEMA_VERSION == 3
     assert info["code_versions"] == [gprov.code_version()]
     want = gcfg.integration_settings(small["cfg"]).to_dict()
     assert info["integration"] == json.loads(json.dumps(want))

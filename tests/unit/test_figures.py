@@ -301,7 +301,8 @@ def test_cli_fig1_and_index(tmp_path, monkeypatch):
     rec = json.loads((tmp_path / "fig01.json").read_text())
     assert rec["paper_caption"] == FIGURES[1].paper_caption and rec["differences"]
     index = (tmp_path / "README.md").read_text()
-    assert "## Fig 1" in index and "## Fig 17" in index and "Not built yet" in index
+    # only what was drawn: Fig 1, not the figures of this study that were not drawn
+    assert "## Fig 1\n" in index and "## Fig 17" not in index and "Not built" not in index
 
 
 def test_cli_sweep_figure(tmp_path, monkeypatch):

@@ -265,3 +265,43 @@ def test_closed_pipe_is_quiet(db, fmt):
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=60) == 0
     assert err == "", err
+
+
+def test_plane_and_sweep_views_speak_the_study_names(tmp_path):
+    """A view per plane named after it with its axis names as columns, holding exactly the
+    plane's cells; a view per sweep with the swept parameter's name; both in the column
+    dictionary; an axis given in physical units gets its physical column."""
+    d = tmp_path
+    files = [_plane(d, "wb", "b", 0.0, 1.0), _plane(d, "wxi", "xi", 0.04, 0.16)]
+    out = d / "catalogue.sqlite"
+    gc.build_catalogue(out, files)
+    con = sqlite3.connect(out)
+    got = con.execute("select w, b, label from wb where w between 0.3 and 0.6 and b > 0.5 "
+                      "order by b").fetchall()
+    ref = con.execute("select c.x, c.y, c.label from cells c join planes p on p.id = "
+                      "c.plane_id where p.name = 'wb' and c.x between 0.3 and 0.6 and c.y > 0.5 "
+                      "order by c.y").fetchall()
+    assert got == ref and len(got) == 4  # i = 1 (w = 0.58), rows j = 4..7
+    assert con.execute("select count(*) from wxi").fetchone()[0] == NX * NY
+    assert con.execute("select min(xi), max(xi) from wxi").fetchone() == pytest.approx(
+        (0.04 + 0.5 * 0.12 / NY, 0.16 - 0.5 * 0.12 / NY))
+    docs = dict(con.execute("select column_name, unit from column_dictionary "
+                            "where table_name = 'wb'").fetchall())
+    assert docs["b"] == "1 (B / b_c)" and docs["label"] == "" and "*" in docs
+    con.close()
+    assert main(["query", "select w, b, label from wb where w between 0.3 and 0.6 and b > 0.5",
+                 "--catalogue", str(out)]) == 0
+
+
+def test_view_names_never_shadow_a_table(tmp_path):
+    """A plane named like a table or view of the catalogue gets the prefix plane_ (again, while
+    the name is taken)."""
+    g = _plane(tmp_path, "cells", "b", 0.0, 1.0)
+    out = tmp_path / "c.sqlite"
+    gc.build_catalogue(out, [g])
+    con = sqlite3.connect(out)
+    names = {r[0] for r in con.execute("select name from sqlite_master where type = 'view'")}
+    assert "plane_cells" in names  # the existing joined view keeps its name
+    assert con.execute("select count(*), min(b) >= 0 from plane_plane_cells").fetchone() == (
+        NX * NY, 1)
+    con.close()

@@ -74,7 +74,17 @@ def test_analyse_full_and_markdown():
     md = to_markdown(rep)
     assert "| grazing 1-0-0 -> 1-1-0 (I 0 -> 1) | 0.569 | 0.5550 |" in md
     assert "not computed" in md  # b025 / b035 sweeps absent
-    assert "## 5. What does not match" in md
+    assert "## What does not match, and why" in md
+    # the scorecard leads: within the first screen, one row per paper result
+    head = md.splitlines()[:40]
+    assert head[0] == "# Reproduction report" and "## Scorecard" in head
+    rows = [line for line in head if line.startswith("| w: ")]
+    assert len(rows) == len(rep.matched) == 12
+    assert any(line.startswith("| b above which no double-sided impact occurs | 0.4125 | 0.4000")
+               and line.endswith("| **no** |") for line in head)  # 0.0125 > 0.01 off
+    assert any(line.startswith("| sequence xi = 0.15 (xi015) |") and line.endswith("| yes |")
+               for line in head)
+    assert "issue" not in md.lower()
 
 
 def test_missing_inputs_never_use_paper_values(tmp_path):
@@ -141,3 +151,53 @@ def test_exact_landmark_table_names_the_model_form_from_the_sweep_provenance(tmp
     assert "Model form (1dof+fixed_start): 1DOF; rigid bearings;" in md
     assert "sweep start: rest; RK4, 256 steps per period." in md
     assert "| 1dof+fixed_start |" in md
+
+
+def test_scorecard_counts_and_verdicts():
+    """Every judged row counts once; a landmark off by more than the tolerance is 'no'."""
+    from gearsim.presentation.report import LANDMARK_TOL, scorecard
+
+    std = paper_like()
+    rep = analyse({"standard": std}, {}, plane_axes={}, configured_sweeps=["standard"])
+    rows = scorecard(rep)
+    marks = [r for r in rows if r.item.startswith("w: ")]
+    assert len(marks) == 12 and all(r.ok for r in marks)  # paper_like lies within 0.02
+    shifted = std.assign(value=std["value"] + 3 * LANDMARK_TOL)
+    bad = scorecard(analyse({"standard": shifted}, {}, plane_axes={},
+                            configured_sweeps=["standard"]))
+    assert not any(r.ok for r in bad if r.item.startswith("w: "))
+
+
+def test_a_study_of_ones_own_gets_a_report_about_itself(tmp_path):
+    """No paper material: the report is titled by the study, opens with its plane and sweep,
+    gives the sweep's transitions in its own units and links the sweep's diagram."""
+    from gearsim.results import catalogue
+
+    (tmp_path / "sweeps").mkdir()
+    sweep = seq_sweep(["1-0-0", "1-1-0", "2-2-0"]).assign(parameter="Fm")
+    spec = {"name": "Fm", "min": 0.05, "max": 0.1, "n": len(sweep),
+            "physical": {"name": "torque_Nm", "unit": "N m", "min": 5.0, "max": 10.0}}
+    catalogue.write_parquet(sweep, tmp_path / "sweeps" / "torque.parquet",
+                            {catalogue.PROVENANCE_KEY: {"subtree": {"sweep": spec}}})
+    (tmp_path / "figures" / "sweeps").mkdir(parents=True)
+    (tmp_path / "figures" / "sweeps" / "torque.png").write_bytes(b"png")
+    (tmp_path / "weps").mkdir()
+    plane = plane_wb().rename(columns={"b": "eps"})
+    plane.to_parquet(tmp_path / "weps" / "cells.parquet")
+    rep, md = build_report(sweeps_dir=tmp_path / "sweeps", catalogue=None, results=tmp_path,
+                           calibration=None, planes={"weps": ("w", "eps")},
+                           sweeps=["torque"], study="weps")
+    lines = md.splitlines()
+    assert lines[0] == "# Study report: weps"
+    assert "Scorecard" not in md and "Landmarks of the standard sweep" not in md
+    assert "paper" not in lines[2] or "nothing is compared" in lines[2]
+    assert lines.index("## Planes") < lines.index("## Sweeps")
+    assert "| weps | (w, eps) | 480 |" in md
+    assert "**torque**: torque_Nm [N m]" in md
+    assert "![bifurcation diagram of sweep torque](figures/sweeps/torque.png)" in md
+    # transitions in N m: Fm 0.05..0.1 maps to 5..10 N m (factor 100)
+    t = [line for line in lines if line.strip().startswith("- grazing between")]
+    assert t, md
+    lo = float(t[0].split("between ")[1].split(" and")[0])
+    assert 5.0 <= lo <= 10.0
+    assert "issue" not in md.lower()

@@ -256,7 +256,7 @@ READER_FILES = [
     ("garbage", lambda p: p.write_bytes(b"not a database" * 300) and p,
      ["not a database"]),
     ("other-sqlite", _other_sqlite, ["not a gearsim catalogue", "application_id"]),
-    ("old-schema", _old_version, ["schema version 1", "reads version 2"]),
+    ("old-schema", _old_version, ["schema version 1", "reads version 3", "rebuild"]),
     ("damaged", _dropped_table, ["lacks table 'column_dictionary'"]),
 ]
 
@@ -399,3 +399,30 @@ def test_snakemake_rebuilds_keep_the_catalogue_readable(tiny_run, tmp_path):
     assert reader.errors == []
     assert set(reader.counts) == {n_cells} and len(reader.counts) > 20
     assert gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0] == n_cells
+
+
+@pytest.mark.slow
+def test_snakemake_rebuilds_a_damaged_catalogue(tiny_run, tmp_path):
+    """results/catalogue.sqlite overwritten in place with random bytes (the build file, its
+    hard link, with it): the next run says so in one line, keeps the damaged file aside and
+    rebuilds the catalogue from the verified Parquet files; readers refuse it meanwhile."""
+    from workflow_helpers import smk
+
+    wd = tmp_path / "wd"
+    shutil.copytree(tiny_run[0], wd, symlinks=True,
+                    ignore=shutil.ignore_patterns(".snakemake"))
+    pub = wd / "results/catalogue.sqlite"
+    target = "results/catalogue.d/build.sqlite"
+    n_cells = gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0]
+    os.link(wd / target, pub.with_suffix(".tmp-link"))
+    os.replace(pub.with_suffix(".tmp-link"), pub)  # published = built, as the rule leaves it
+    with open(pub, "r+b") as f:
+        f.write(os.urandom(pub.stat().st_size))
+    with pytest.raises(gc.CatalogueError, match="damaged"):
+        gc.open_catalogue(pub)
+    smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml")  # parse + no-op run
+    r = smk(wd, target, "--cores", "1", "--configfile", "config/tiny.yaml", "-n")
+    assert "damaged" not in r.stderr  # the first run already rebuilt it
+    assert gc.open_catalogue(pub).execute("SELECT COUNT(*) FROM cells").fetchone()[0] == n_cells
+    kept = list((wd / "results/catalogue.d/damaged").iterdir())
+    assert len(kept) == 1

@@ -1,6 +1,7 @@
 # Config validation, tile list, shared helpers. Everything here runs once when the workflow is
 # parsed, before any job starts.
 import os
+import sys
 
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
@@ -70,7 +71,40 @@ if STUDY is not None:
     workdir: f"studies/{STUDY}"
 
 
-# 3. What the jobs depend on. CODE_VERSION[scope] hashes the layers a kind of job depends on
+# 3. Before any job: the output folders can be written (a read-only or full disk is one line
+#    now, not a traceback after minutes of simulation), and a catalogue that readers would
+#    refuse (damaged, foreign, of another schema version) is set aside so that the catalogue
+#    rule rebuilds it from the verified Parquet files; readers never fall back silently.
+_DRY_RUN = any(
+    a in ("--dry-run", "--dryrun") or (a.startswith("-") and not a.startswith("--") and "n" in a)
+    for a in sys.argv[1:]
+)
+
+
+def _preflight():
+    from gearsim.errors import UsageError
+    from gearsim.results.catalogue import set_aside_damaged
+    from gearsim.study.preflight import check_folder
+
+    if not _DRY_RUN:
+        for folder in ("results", "logs"):
+            try:
+                check_folder(Path(folder).resolve())
+            except UsageError as exc:
+                # one line and exit 2, as the gearsim commands (a WorkflowError would add
+                # Snakemake's file and line of this check)
+                print(f"gearsim: error: {exc}", file=sys.stderr)
+                raise SystemExit(2) from None
+    for line in set_aside_damaged(
+        "results/catalogue.sqlite", "results/catalogue.d/build.sqlite", dry_run=_DRY_RUN
+    ):
+        print(f"gearsim: {line}", file=sys.stderr)
+
+
+_preflight()
+
+
+# 4. What the jobs depend on. CODE_VERSION[scope] hashes the layers a kind of job depends on
 #    (gearsim.study.provenance.CODE_SCOPES): Snakemake does not see edits to a package.
 CODE_VERSION = {scope: gprov.code_version(scope) for scope in gprov.CODE_SCOPES}
 PLANES = list(config["planes"])

@@ -107,5 +107,5 @@ ORBIT_CATALOGUE_FILES = [
 ]
 ORBIT_REPORT_INPUTS = (
     ["results/orbits/standard_points.parquet"] if ORBITS_STANDARD else []
-)
+) + list(ORBIT_CURVES.values())  # the report says which planes' curves were skipped or cut
 ALL_TARGETS += ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS

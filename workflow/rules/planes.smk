@@ -6,6 +6,7 @@
 # link renamed into place): readers of results/catalogue.sqlite never see it missing or partial,
 # and a failed rebuild keeps the last good one (docs/pipeline.md, Guarantees).
 CATALOGUE = "results/catalogue.d/build.sqlite"
+PUBLISHED_CATALOGUE = "results/catalogue.sqlite"
 
 
 rule compile:
@@ -98,7 +99,11 @@ rule catalogue:
         # bifurcation points / curves (workflow/rules/orbits.smk, included later)
         orbits=lambda wildcards: globals().get("ORBIT_CATALOGUE_FILES", []),
     output:
-        CATALOGUE,
+        build=CATALOGUE,
+        # the file users query, a target of its own (`snakemake results/catalogue.sqlite`);
+        # update(): Snakemake neither deletes it before the job nor leaves it deleted after a
+        # failed one, so the last good catalogue survives a failed rebuild
+        published=update(PUBLISHED_CATALOGUE),
     log:
         "logs/catalogue.log",
     conda:
@@ -106,7 +111,7 @@ rule catalogue:
     shell:
         "gearsim catalogue build --cells {input.cells} --sweeps {input.sweeps} "
         "--audits {input.audits} --attractors {input.attractors} --orbits {input.orbits} "
-        "--out {output} --publish results/catalogue.sqlite "
+        "--out {output.build} --publish {output.published} "
         "> {log} 2>&1"
 
 

@@ -1,24 +1,21 @@
-"""The reproduction report: the paper's numbers beside ours, every one of ours computed here.
+"""The study's report: what a reader wants first, then the evidence.
 
-Inputs (pipeline outputs, docs/TEAM.md): ``results/sweeps/<sweep>.parquet`` of the configured
-sweeps (orbit diagrams), the cells of the configured planes (``results/catalogue.sqlite``, or
-``results/<plane>/cells.parquet`` when the catalogue has no cell table), the planes' numerical
-audits ``results/<plane>/audit.parquet`` and optionally the calibration record
-``docs/calibration.json``; the rule ``report`` declares each of them. The planes and sweeps are
-those of the config: a plane is compared with the paper's thresholds when its axes are the
-paper's ((w, b) or (w, xi)); for any other plane, and for a paper sweep the study does not
-configure, the report says "not applicable". Output: Markdown (``results/report.md``).
+Inputs (pipeline outputs): ``results/sweeps/<sweep>.parquet`` of the configured sweeps (orbit
+diagrams), the cells of the configured planes (``results/catalogue.sqlite``, or
+``results/<plane>/cells.parquet``), the planes' numerical audits ``results/<plane>/audit.parquet``,
+the figure point sets ``results/points/<set>.parquet`` and optionally the calibration record
+``docs/calibration.json``; the rule ``report`` declares each of them. Output: Markdown
+(``results/report.md``).
 
-Sections
---------
-1. Landmarks of the standard sweep: paper | ours | difference (:mod:`gearsim.analysis.landmarks`).
-2. DC and Kmax at the jump under each Kmax reading (:data:`gearsim.cell.classify.KMAX_READINGS`).
-3. Thresholds: the backlash above which no double-sided impact occurs (wb plane) and the damping
-   above which only 0/1T and 1/1T remain (wxi plane).
-4. Pattern sequences at b = 0.15, 0.25, 0.35 (Fig 8) and xi = 0.05, 0.09, 0.15 (Fig 15).
-5. What does not match, with the evidence (or that nothing was compared).
-6. Every plane of the study: axes, grid, the most frequent patterns, and what the paper has to
-   compare with it.
+A study that holds any of the paper's material (the standard sweep, a (w, b) or (w, xi) plane, the
+paper's sequence sweeps) gets the reproduction report: a one-screen **scorecard** first (each
+landmark, threshold, sequence, the DC/Kmax reading at the jump and the multistability summary:
+paper, ours, the located bifurcation beside the grid reading, difference, within tolerance or
+not), then what does not match and why, then the study's own planes, sweeps and points, then the
+details, the numerical audit and, as an appendix, the model-form search of the calibration.
+Any other study (``study:`` of one's own) gets a report about itself: its planes (pattern areas,
+where each pattern ends along each axis), its sweeps (the pattern sequence, the transitions in
+the sweep's own units, the bifurcation diagram), its points.
 
 Paper numbers appear only in the "paper" columns; a quantity we did not compute is reported as
 "not computed", never filled with the paper's value.
@@ -28,6 +25,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +37,7 @@ import pandas as pd
 from gearsim.analysis.landmarks import (
     PAPER_JUMP_DC,
     PAPER_JUMP_KMAX,
+    PAPER_LANDMARKS,
     find_landmarks,
     is_subsequence,
     match_paper,
@@ -51,6 +50,7 @@ PAPER_B_THRESHOLD = 0.4125
 PAPER_XI_THRESHOLD = 0.1436
 LANDMARK_TOL = 0.02
 THRESHOLD_TOL = 0.01
+JUMP_DC_TOL = 0.03
 
 #: Paper sequences (Sect 3.2 text of Fig 8, Sect 3.3 list of Fig 15). ``None`` = the paper gives
 #: only a qualitative description (quoted in ``PAPER_SEQUENCE_TEXT``).
@@ -201,9 +201,43 @@ class Report:
     compared: int = 0  # comparisons with the paper actually made
     thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
     planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
-    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
+    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down of the fold
+    hysteresis_band: tuple[float, float] | None = None
     exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
     exact_form: dict | None = None  # provenance subtree of the standard sweep (its model form)
+    study: str | None = None  # the config's ``study`` name (a study of one's own)
+    sweep_summaries: list[dict[str, Any]] = field(default_factory=list)  # every sweep
+    point_summaries: list[dict[str, Any]] = field(default_factory=list)  # every point set
+    multistable: list[dict[str, Any]] = field(default_factory=list)  # per plane with attractors
+    curves: list[str] = field(default_factory=list)  # bifurcation curves skipped or cut short
+    paper_material: bool = False  # the study configures a paper sweep or plane
+
+    @property
+    def paper_study(self) -> bool:
+        """Whether any of the paper's material is in this study (then the scorecard leads)."""
+        return self.paper_material or self.compared > 0 or self.matched is not None
+
+
+
+def load_curve_status(results: str | Path, planes: Sequence[str]) -> list[str]:
+    """A line for each plane whose bifurcation curves (``results/orbits/<plane>_curves.parquet``)
+    were skipped or stopped at the job's budget, from the file's provenance."""
+    from gearsim.results.catalogue import read_metadata
+
+    out = []
+    for plane in planes:
+        f = Path(results) / "orbits" / f"{plane}_curves.parquet"
+        if not f.is_file():
+            continue
+        meta = read_metadata(f) or {}
+        status = meta.get("status", "ok")
+        if status == "skipped":
+            why = "; ".join(meta.get("reasons") or []) or "curves skipped"
+            out.append(f"plane {plane}: {why}")
+        elif status == "budget":
+            out.append(f"plane {plane}: the bifurcation curves stopped at the job's budget "
+                       f"({meta.get('budget_s', '?')} s); they are partial")
+    return out
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -275,9 +309,21 @@ def plane_summary(plane: str, axes: tuple[str, str], cells: pd.DataFrame | None
     if {"i", "j"} <= set(cells.columns):
         out["grid"] = (int(cells["i"].max()) + 1, int(cells["j"].max()) + 1)
     if "label" in cells.columns:
-        counts = cells["label"].fillna("?").value_counts()
+        labels = cells["label"].fillna("?")
+        counts = labels.value_counts()
         out["patterns"] = [(str(k), int(v)) for k, v in counts.head(6).items()]
         out["n_patterns"] = int(len(counts))
+        try:
+            xc, yc = _axis_column(cells, axes[0], "x"), _axis_column(cells, axes[1], "y")
+        except KeyError:
+            return out
+        x, y = cells[xc].astype(float), cells[yc].astype(float)
+        out["extents"] = [
+            {"label": str(k), "cells": int(v), "share": v / len(cells),
+             "x": (float(x[labels == k].min()), float(x[labels == k].max())),
+             "y": (float(y[labels == k].min()), float(y[labels == k].max()))}
+            for k, v in counts.head(8).items()]
+        out["range"] = ((float(x.min()), float(x.max())), (float(y.min()), float(y.max())))
     return out
 
 
@@ -301,6 +347,8 @@ def analyse(
         p: _table_axes(p, df) for p, df in planes.items()}
     configured = ({"standard", *SEQUENCE_SWEEPS, *sweeps} if configured_sweeps is None
                   else set(configured_sweeps))
+    rep.paper_material = bool(({"standard", *SEQUENCE_SWEEPS} & configured) or any(
+        tuple(ax) in PAPER_PLANES for ax in axes.values()))
     std = sweeps.get("standard")
     if "standard" not in configured:
         rep.notes.append("this study has no sweep 'standard': the paper's landmarks are "
@@ -332,7 +380,7 @@ def analyse(
                 "kmax_before": {k: float(before[k]) for k in KMAX_READINGS if k in before},
                 "kmax_after": {k: float(after[k]) for k in KMAX_READINGS if k in after},
             }
-            if abs(rep.jump["dc_after"] - PAPER_JUMP_DC) > 0.03:
+            if abs(rep.jump["dc_after"] - PAPER_JUMP_DC) > JUMP_DC_TOL:
                 rep.misses.append(f"DC after the jump {rep.jump['dc_after']:.3f}, paper "
                                   f"{PAPER_JUMP_DC}")
         else:
@@ -344,7 +392,9 @@ def analyse(
     if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
         from gearsim.analysis.attractors import hysteresis
 
-        rep.hysteresis = hysteresis(hyst).lines()
+        h = hysteresis(hyst)
+        rep.hysteresis = h.lines()
+        rep.hysteresis_band = None if h.band is None else (float(h.band[0]), float(h.band[1]))
 
     for paper_axes, fn, name, paper in (
         (("w", "b"), double_sided, "b above which no double-sided impact occurs",
@@ -424,26 +474,153 @@ def _f(x: Any, fmt: str = ".4f") -> str:
     return format(x, fmt)
 
 
-def to_markdown(rep: Report) -> str:
-    """Format the report."""
-    out = ["# Reproduction report", "",
-           "Paper: Liu et al., PLOS ONE 2025 (doi 10.1371/journal.pone.0335920). Every 'ours' "
-           "value is computed from this run's outputs; the paper's values are quoted beside "
-           "them only.", ""]
-    if rep.calibration:
-        s = rep.calibration.get("search", {})
-        if s:
-            best = ", ".join(f"{k} = {v:.4g}" for k, v in s.get("best", {}).items())
-            out += ["## Calibration", "",
-                    f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
-                    f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
-                    "docs/calibration.md.", ""]
-    if rep.calibration and rep.calibration.get("forms"):
-        from gearsim.calibration.fidelity import form_report_lines
+def _f_or(x: Any, fmt: str, missing: str = "not computed") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return missing
+    return format(x, fmt)
 
-        out += form_report_lines(rep.calibration["forms"])
-    out += _audit_lines(rep.audit)
-    out += ["## 1. Landmarks of the standard sweep", ""]
+
+@dataclass
+class ScoreRow:
+    """One line of the scorecard: a paper result beside ours."""
+
+    item: str
+    paper: str
+    ours: str
+    located: str = "—"  # the located bifurcation (continuation), where there is one
+    difference: str = "—"
+    ok: bool | None = None  # within tolerance; None: no tolerance applies
+    tolerance: str = "—"
+
+    @property
+    def verdict(self) -> str:
+        return {True: "yes", False: "**no**", None: "—"}[self.ok]
+
+
+def scorecard(rep: Report) -> list[ScoreRow]:
+    """The paper's results beside ours, one row each (the report's and the explorer's head)."""
+    rows: list[ScoreRow] = []
+    exact = {}
+    if rep.exact is not None and len(rep.exact):
+        exact = {r["key"]: r for _, r in rep.exact.iterrows()}
+    if rep.matched is None and rep.paper_material and not any(
+            "no sweep 'standard'" in n for n in rep.notes):
+        rows.append(ScoreRow(f"w of the {len(PAPER_LANDMARKS)} landmarks of the standard sweep",
+                             "Sect 3.1", "not computed"))
+    if rep.matched is not None:
+        for r in rep.matched.itertuples():
+            paper = (f"{r.paper_lo:g}-{r.paper_hi:g}" if r.paper_lo != r.paper_hi
+                     else f"{r.paper:g}")
+            ex = exact.get(r.key)
+            located = ("—" if ex is None or not math.isfinite(ex["exact"])
+                       else f"{ex['exact']:.4f}")
+            if r.found:
+                ok = bool(abs(r.error) <= LANDMARK_TOL)
+                rows.append(ScoreRow(f"w: {r.text}", paper,
+                                     f"{r.ours:.4f} [{r.lo:.3f}, {r.hi:.3f}]", located,
+                                     f"{r.error:+.4f}", ok, f"{LANDMARK_TOL} in w"))
+            else:
+                rows.append(ScoreRow(f"w: {r.text}", paper, "not found", located, "—", False,
+                                     f"{LANDMARK_TOL} in w"))
+    if rep.jump:
+        j = rep.jump
+        rows.append(ScoreRow("DC after the jump", f"{PAPER_JUMP_DC}", f"{j['dc_after']:.3f}",
+                             difference=f"{j['dc_after'] - PAPER_JUMP_DC:+.3f}",
+                             ok=bool(abs(j["dc_after"] - PAPER_JUMP_DC) <= JUMP_DC_TOL),
+                             tolerance=f"{JUMP_DC_TOL}"))
+        best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
+                   default=None)
+        if best:
+            rows.append(ScoreRow("Kmax after the jump (closest reading)", f"{PAPER_JUMP_KMAX}",
+                                 f"{best[1]:.3f} ({best[0]})",
+                                 difference=f"{best[1] - PAPER_JUMP_KMAX:+.3f}",
+                                 tolerance="none (the paper's Kmax is not defined exactly)"))
+    for th, label, key, paper in (
+            (rep.b_threshold, "b above which no double-sided impact occurs", "b",
+             PAPER_B_THRESHOLD),
+            (rep.xi_threshold, "xi above which only 0/1T and 1/1T remain", "xi",
+             PAPER_XI_THRESHOLD)):
+        if th is None:
+            if key not in rep.thresholds_na:
+                rows.append(ScoreRow(label, f"{paper}", "not computed"))
+            continue
+        ok = bool(abs(th.difference) <= THRESHOLD_TOL) if math.isfinite(th.difference) else False
+        if math.isinf(th.value):
+            ours = f"above the plane (still at {th.last_with:.4g})"
+        elif math.isnan(th.value):
+            ours = "no row has the property"
+        else:
+            ours = f"{th.value:.4f} [{th.last_with:.3f}, {th.first_without:.3f}]"
+        rows.append(ScoreRow(label, f"{th.paper}", ours,
+            difference=_f_or(th.difference, "+.4f", "—"), ok=ok,
+            tolerance=f"{THRESHOLD_TOL}"))
+    for key, e in rep.sequences.items():
+        if e.get("paper") is None or e.get("applicable") is False:
+            continue
+        if e.get("ours") is None:
+            rows.append(ScoreRow(f"sequence {e['parameter']} = {e['value']} ({key})",
+                                 " -> ".join(e["paper"]), "not computed", ok=None))
+            continue
+        extra = [x for x in dict.fromkeys(e["ours"]) if x not in e["paper"]]
+        ours = ("identical" if e["exact"] else "paper's patterns in order" if e["in_order"]
+                else "not in the paper's order")
+        if extra and not e["exact"]:
+            ours += "; extra " + ", ".join(extra)
+        rows.append(ScoreRow(f"sequence {e['parameter']} = {e['value']} ({key})",
+                             " -> ".join(e["paper"]), ours, ok=bool(e["exact"]),
+                             tolerance="same sequence"))
+    if rep.hysteresis_band is not None:
+        lo, hi = rep.hysteresis_band
+        rows.append(ScoreRow("hysteresis of the fold (Fig 18)", "jump up and down differ",
+                             f"band {lo:.4f} <= w <= {hi:.4f}", ok=hi > lo,
+                             tolerance="a band exists"))
+    for m in rep.multistable:
+        rows.append(ScoreRow(f"coexisting attractors, plane {m['plane']}",
+                             "coexistence near the fold",
+                             f"{m['multi']} of {m['searched']} searched cells"))
+    return rows
+
+
+def _scorecard_lines(rep: Report) -> list[str]:
+    rows = scorecard(rep)
+    if not rows:
+        return []
+    judged = [r for r in rows if r.ok is not None]
+    out = ["## Scorecard", "",
+           f"{sum(r.ok for r in judged)} of {len(judged)} results within tolerance. Grid "
+           "readings are the midpoint of the two swept values where the labels change "
+           "[interval]; \"located\" is the bifurcation found by continuation.", "",
+           "| result | paper | ours (grid) | located | difference | within |",
+           "|---|---|---|---|---|---|"]
+    out += [f"| {r.item} | {r.paper} | {r.ours} | {r.located} | {r.difference} | {r.verdict} |"
+            for r in rows]
+    out.append("")
+    return out
+
+
+def _misses_lines(rep: Report) -> list[str]:
+    out = ["## What does not match, and why", ""]
+    if rep.misses:
+        out += [f"- {m}" for m in rep.misses]
+        out += ["", "Why: the paper's equations and Table 1 are reconstructed (docs/model.md); "
+                "the standard parameters are a fit to the paper's landmarks "
+                "(docs/calibration.md); grid readings carry half a grid spacing of error."]
+    elif rep.compared:
+        out += [f"- nothing beyond the tolerances ({LANDMARK_TOL} in w, {THRESHOLD_TOL} "
+                f"thresholds) in {rep.compared} comparisons with the paper"]
+    else:
+        out += [f"- {NOT_APPLICABLE}: nothing of this study was compared with the paper (it "
+                "has none of the paper's sweeps or planes, or they were not computed)"]
+    if rep.notes:
+        out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
+    out.append("")
+    return out
+
+
+def _detail_lines(rep: Report) -> list[str]:
+    """The paper comparison in full (landmarks, DC/Kmax, thresholds, sequences)."""
+    out: list[str] = []
+    out += ["### Landmarks of the standard sweep", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
     elif rep.matched is not None:
@@ -484,7 +661,7 @@ def to_markdown(rep: Report) -> str:
                 "simulated labels change.", "",
                 f"Model form ({form_name(rep.exact_form)}): {model_form(rep.exact_form)}.", "",
                 *report_lines(rep.exact, form_name(rep.exact_form)), ""]
-    out += ["## 2. DC and Kmax at the jump", ""]
+    out += ["### DC and Kmax at the jump", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
     elif rep.jump:
@@ -507,7 +684,7 @@ def to_markdown(rep: Report) -> str:
     if rep.hysteresis:
         out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
                 *rep.hysteresis, ""]
-    out += ["## 3. Thresholds", "", "| threshold | paper | ours | rows (last with / first "
+    out += ["### Thresholds", "", "| threshold | paper | ours | rows (last with / first "
             "without) | difference |", "|---|---|---|---|---|"]
     for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
                                    "impact above", "b"),
@@ -524,7 +701,7 @@ def to_markdown(rep: Report) -> str:
                        f"{_f(th.first_without)} ({th.rows} rows{note}) | "
                        f"{_f(th.difference, '+.4f')} |")
     out.append("")
-    out += ["## 4. Pattern sequences (Fig 8, Fig 15)", ""]
+    out += ["### Pattern sequences (Fig 8, Fig 15)", ""]
     for key, e in rep.sequences.items():
         out.append(f"**{e['parameter']} = {e['value']}** (sweep `{key}`)")
         out.append("")
@@ -540,26 +717,81 @@ def to_markdown(rep: Report) -> str:
                 out.append(f"- paper's patterns in order: {'yes' if e['in_order'] else 'no'}; "
                            f"identical sequence: {'yes' if e['exact'] else 'no'}")
         out.append("")
-    out += ["## 5. What does not match", ""]
-    if rep.misses:
-        out += [f"- {m}" for m in rep.misses]
-    elif rep.compared:
-        out += [f"- nothing beyond the tolerances ({LANDMARK_TOL} in w, {THRESHOLD_TOL} "
-                f"thresholds) in {rep.compared} comparisons with the paper"]
+    return out
+
+
+def _appendix_lines(rep: Report) -> list[str]:
+    """The calibration search and its model-form tables: evidence behind the standard set."""
+    out: list[str] = []
+    if rep.calibration:
+        s = rep.calibration.get("search", {})
+        if s:
+            best = ", ".join(f"{k} = {v:.4g}" for k, v in s.get("best", {}).items())
+            out += ["### Calibration", "",
+                    f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
+                    f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
+                    "docs/calibration.md.", ""]
+    if rep.calibration and rep.calibration.get("forms"):
+        from gearsim.calibration.fidelity import form_report_lines
+
+        out += [_demote(line) for line in form_report_lines(rep.calibration["forms"])]
+    return (["## Appendix: calibration and model forms", ""] + out) if out else []
+
+
+_WORK_NOTE = re.compile(r"\s*\((?:see )?issues? \d+[^)]*\)", re.IGNORECASE)
+
+
+def _demote(line: str) -> str:
+    """A heading of an embedded section one level down (it sits inside the appendix), without
+    notes on how the work was organised."""
+    line = _WORK_NOTE.sub("", line)
+    return "#" + line if line.startswith("#") else line
+
+
+def to_markdown(rep: Report) -> str:
+    """Format the report: the scorecard first for a study with the paper's material, else a
+    report about the study itself."""
+    audit = _audit_lines(rep.audit)
+    warning = [line for line in audit[:2] if line.startswith("> **WARNING")]
+    audit = audit[len(warning) + (1 if warning else 0):] if warning else audit
+    if rep.paper_study:
+        out = ["# Reproduction report", "",
+               "Paper: Liu et al., PLOS ONE 2025 (doi 10.1371/journal.pone.0335920). Every "
+               "'ours' value is computed from this run's outputs.", ""]
+        out += [*warning, ""] if warning else []
+        out += _scorecard_lines(rep)
+        out += _misses_lines(rep)
+        out += _study_lines(rep, heading="## This study")
+        out += ["## Details of the paper comparison", ""]
+        out += _detail_lines(rep)
+        out += audit
+        out += _appendix_lines(rep)
     else:
-        out += [f"- {NOT_APPLICABLE}: nothing of this study was compared with the paper (it "
-                "has none of the paper's sweeps or planes, or they were not computed)"]
-    if rep.notes:
-        out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
-    out.append("")
-    out += _plane_lines(rep.planes)
-    return "\n".join(out)
+        name = rep.study or "this study"
+        out = [f"# Study report: {name}", "",
+               "What this study computed: its planes, sweeps and points. None of the paper's "
+               "sweeps or planes is part of it, so nothing is compared with the paper.", ""]
+        out += [*warning, ""] if warning else []
+        out += _study_lines(rep, heading=None)
+        out += audit
+    if rep.curves:
+        out += ["## Bifurcation curves not followed in full", "",
+                *[f"- {line}" for line in rep.curves], ""]
+    return "\n".join(out).rstrip() + "\n"
 
 
-def _plane_lines(planes: list[dict[str, Any]]) -> list[str]:
+def _study_lines(rep: Report, heading: str | None) -> list[str]:
+    out: list[str] = [heading, ""] if heading else []
+    out += _plane_lines(rep.planes, "###" if heading else "##")
+    out += _sweep_lines(rep.sweep_summaries, "###" if heading else "##")
+    out += _point_lines(rep.point_summaries, "###" if heading else "##")
+    return out
+
+
+def _plane_lines(planes: list[dict[str, Any]], h: str = "##") -> list[str]:
     if not planes:
         return []
-    out = ["## 6. Planes of this study", "",
+    out = [f"{h} Planes", "",
            "| plane | axes (x, y) | cells (grid) | patterns (most frequent, cells) | "
            "the paper has |", "|---|---|---|---|---|"]
     for p in planes:
@@ -573,7 +805,110 @@ def _plane_lines(planes: list[dict[str, Any]]) -> list[str]:
         pats += f", {more} more" if more > 0 else ""
         out.append(f"| {p['plane']} | {ax} | {p['cells']}{grid} | {pats} | {p['paper']} |")
     out.append("")
+    for p in planes:
+        if not p.get("extents"):
+            continue
+        (x0, x1), (y0, y1) = p["range"]
+        xn, yn = p["axes"]
+        out += [f"Plane {p['plane']}: where each pattern lies (cell centres; the plane spans "
+                f"{xn} {x0:.4g}-{x1:.4g}, {yn} {y0:.4g}-{y1:.4g}). A pattern that ends inside "
+                "the plane ends at the edge of its range.", "",
+                f"| pattern | area | {xn} from | {xn} to | {yn} from | {yn} to |",
+                "|---|---|---|---|---|---|"]
+        for e in p["extents"]:
+            out.append(f"| {e['label']} | {100 * e['share']:.1f} % ({e['cells']} cells) | "
+                       f"{e['x'][0]:.4g} | {e['x'][1]:.4g} | {e['y'][0]:.4g} | "
+                       f"{e['y'][1]:.4g} |")
+        out.append("")
     return out
+
+
+def sweep_summary(name: str, df: pd.DataFrame, spec: dict[str, Any] | None = None,
+                  figure: str | None = None) -> dict[str, Any]:
+    """A sweep in a few lines: its parameter (in the sweep's own units when it was given in
+    physical ones), range, pattern sequence and transitions (grid intervals), per direction."""
+    from gearsim.physical.units import axis_label_values
+
+    spec = dict(spec or {})
+    param = (str(df["parameter"].iloc[0]) if "parameter" in df.columns and len(df)
+             else str(spec.get("name", "value")))
+    spec.setdefault("name", param)
+    label, factor = axis_label_values(spec, 1.0) if spec.get("physical") else (param, 1.0)
+    out: dict[str, Any] = {"name": name, "parameter": param, "label": label, "factor": factor,
+                           "points": len(df), "figure": figure, "directions": []}
+    if not len(df):
+        return out
+    dirs = (list(dict.fromkeys(df["direction"])) if "direction" in df.columns
+            else ["forward"])
+    for d in dirs:
+        sub = df[df["direction"] == d] if "direction" in df.columns else df
+        lms = find_landmarks(sub.reset_index(drop=True))
+        v = sub["value"].astype(float) * factor
+        out["directions"].append({
+            "direction": d, "min": float(v.min()), "max": float(v.max()), "n": len(sub),
+            "sequence": pattern_sequence(sub),
+            "transitions": [{"kind": r.kind, "lo": r.lo * factor, "hi": r.hi * factor,
+                             "from": r.from_label, "to": r.to_label} for r in lms.itertuples()],
+        })
+    return out
+
+
+def _sweep_lines(sweeps: list[dict[str, Any]], h: str = "##") -> list[str]:
+    if not sweeps:
+        return []
+    out = [f"{h} Sweeps", ""]
+    for s in sweeps:
+        out += [f"**{s['name']}**: {s['label']}, {s['points']} points.", ""]
+        if s.get("figure"):
+            out += [f"![bifurcation diagram of sweep {s['name']}]({s['figure']})", ""]
+        for d in s["directions"]:
+            head = f"- {d['direction']}: " if len(s["directions"]) > 1 else "- "
+            out.append(f"{head}{s['label']} {d['min']:.5g} to {d['max']:.5g}: "
+                       + " -> ".join(d["sequence"]))
+            for t in d["transitions"]:
+                out.append(f"  - {t['kind'].replace('_', ' ')} between {t['lo']:.5g} and "
+                           f"{t['hi']:.5g}: {t['from']} -> {t['to']}")
+        out.append("")
+    return out
+
+
+def point_summary(name: str, df: pd.DataFrame) -> dict[str, Any]:
+    """A recorded point set: each point's parameters, start and pattern."""
+    from gearsim.dynamics.parameters import ModelParameters
+
+    params = [c for c in df.columns if c in ModelParameters.names()
+              and df[c].nunique(dropna=True) > 1] or (["w"] if "w" in df.columns else [])
+    rows = []
+    for r in df.to_dict("records"):
+        rows.append({"point": ", ".join(f"{k} = {float(r[k]):.4g}" for k in params),
+                     "start": r.get("start", ""), "label": r.get("label", ""),
+                     "npq": r.get("label_npq", "") or "", "dc": r.get("dc"),
+                     "kmax": r.get("kmax")})
+    return {"name": name, "rows": rows}
+
+
+def _point_lines(points: list[dict[str, Any]], h: str = "##") -> list[str]:
+    if not points:
+        return []
+    out = [f"{h} Points", "", "| set | point | start | pattern | DC | Kmax |",
+           "|---|---|---|---|---|---|"]
+    for s in points:
+        for r in s["rows"]:
+            pat = f"{r['label']} ({r['npq']})" if r["npq"] else str(r["label"])
+            out.append(f"| {s['name']} | {r['point']} | {r['start']} | {pat} | "
+                       f"{_f_or(r['dc'], '.3f', '—')} | {_f_or(r['kmax'], '.3f', '—')} |")
+    out.append("")
+    return out
+
+
+def multistable_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] | None:
+    """Cells searched for coexisting attractors and those with more than one."""
+    if cells is None or "n_attractors" not in cells.columns:
+        return None
+    n = pd.to_numeric(cells["n_attractors"], errors="coerce")
+    if not n.notna().any():
+        return None
+    return {"plane": plane, "searched": int(n.notna().sum()), "multi": int((n > 1).sum())}
 
 
 def build_report(
@@ -584,12 +919,17 @@ def build_report(
     calibration: str | Path | None = "docs/calibration.json",
     planes: Sequence[str] | dict[str, tuple[str, str]] = ("wb", "wxi"),
     sweeps: Sequence[str] | None = None,
+    study: str | None = None,
+    sweep_specs: dict[str, dict[str, Any]] | None = None,
+    point_sets: Sequence[str] | None = None,
 ) -> tuple[Report, str]:
     """Load the pipeline outputs, analyse and format. Returns (report, markdown).
 
     ``planes``: the study's planes, by name, or ``{name: (x, y)}`` with their axes (the
     config's ``planes``, :func:`study_from_config`); ``sweeps``: the study's sweeps (default:
-    every table in ``sweeps_dir``)."""
+    every table in ``sweeps_dir``); ``study``: the config's study name; ``sweep_specs``: the
+    sweeps' config entries (their units; default: read from each table's provenance);
+    ``point_sets``: the recorded point sets under ``results/points``."""
     loaded = load_sweeps(sweeps_dir, sweeps)
     names = list(planes)
     cells = {p: load_plane(p, catalogue=catalogue, results=results) for p in names}
@@ -600,6 +940,19 @@ def build_report(
     rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
                   configured_sweeps=sweeps)
     rep.audit = load_audits(results, names)
+    rep.study = study
+    for name, df in loaded.items():
+        png = Path(results) / "figures" / "sweeps" / f"{name}.png"
+        spec = ((sweep_specs or {}).get(name)
+                or _sweep_spec(Path(sweeps_dir) / f"{name}.parquet"))
+        rep.sweep_summaries.append(sweep_summary(
+            name, df, spec, f"figures/sweeps/{name}.png" if png.is_file() else None))
+    for name in point_sets or ():
+        f = Path(results) / "points" / f"{name}.parquet"
+        if f.is_file():
+            rep.point_summaries.append(point_summary(name, pd.read_parquet(f)))
+    rep.multistable = [m for m in (multistable_summary(p, cells.get(p)) for p in names) if m]
+    rep.curves = load_curve_status(results, names)
     # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
     exact_points = Path(results) / "orbits" / "standard_points.parquet"
     if exact_points.is_file() and "standard" in loaded:
@@ -610,6 +963,16 @@ def build_report(
         prov = read_metadata(Path(sweeps_dir) / "standard.parquet")
         rep.exact_form = (prov or {}).get("subtree")
     return rep, to_markdown(rep)
+
+
+def _sweep_spec(path: Path) -> dict[str, Any] | None:
+    """A sweep's config entry from its table's provenance (``subtree.sweep``)."""
+    if not path.is_file():
+        return None
+    from gearsim.results.catalogue import read_metadata
+
+    sub = (read_metadata(path) or {}).get("subtree") or {}
+    return sub.get("sweep") if isinstance(sub, dict) else None
 
 
 def study_from_config(config: dict[str, Any]) -> tuple[dict[str, tuple[str, str]], list[str]]:

@@ -26,6 +26,7 @@ import numpy as np
 
 from gearsim.results.columns import PARAMETERS, RESULT
 from gearsim.study.integrity import CatalogueError
+from gearsim.study.preflight import check_output, os_cause
 from gearsim.cell.simulate import result_columns
 
 FORMATS = ("netcdf", "zarr", "csv", "parquet")
@@ -159,12 +160,12 @@ def check_out(out: str | Path, fmt: str) -> Path:
     out = Path(out)
     if not out.parent.is_dir():
         raise CatalogueError(f"--out: directory {out.parent} does not exist")
-    if not os.access(out.parent, os.W_OK):
-        raise CatalogueError(f"--out: directory {out.parent} is not writable")
     if fmt != "zarr" and out.is_dir():
         raise CatalogueError(f"--out: {out} is a directory (expected a file name)")
     if fmt == "zarr" and out.exists() and not out.is_dir():
         raise CatalogueError(f"--out: {out} is a file (a Zarr store is a directory)")
+    # a probe file and free space (read-only mounts, permissions, a full disk)
+    check_output(out.with_name(out.name + ".probe") if fmt == "zarr" else out, what="--out")
     return out
 
 
@@ -211,7 +212,7 @@ def write(ds, out: str | Path, fmt: str) -> Path:
         else:
             os.replace(tmp, out)
     except OSError as exc:
-        raise CatalogueError(f"--out {out}: {exc.strerror or exc}") from None
+        raise CatalogueError(f"--out {out}: {os_cause(exc)}") from None
     finally:
         if tmp.is_dir():
             shutil.rmtree(tmp)

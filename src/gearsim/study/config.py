@@ -143,7 +143,20 @@ def _check_names(mapping: Mapping[str, Any], where: str) -> None:
         try:
             check_value(name, value)
         except ParameterError as exc:
-            raise ConfigError(f"config key '{where}.{name}': {exc}") from None
+            text = str(exc).replace(f"= {value!r}", f"= {as_written(value)}")
+            raise ConfigError(f"config key '{where}.{name}': {text}") from None
+
+
+def as_written(v: Any) -> str:
+    """A config value as a user would write it in YAML: ``1.0e8``, ``0.25``, ``400``."""
+    if isinstance(v, bool) or not isinstance(v, float) or not math.isfinite(v):
+        return repr(v)
+    if v != 0 and not 1e-4 <= abs(v) < 1e6:
+        mant, exp = f"{v:.15e}".split("e")
+        mant = mant.rstrip("0")
+        mant = mant + "0" if mant.endswith(".") else mant
+        return f"{mant}e{int(exp)}"
+    return repr(v)
 
 
 def _check_axis(axis: Mapping[str, Any], where: str, *, centres: bool) -> None:
@@ -162,11 +175,26 @@ def _check_axis(axis: Mapping[str, Any], where: str, *, centres: bool) -> None:
     if int(axis["n"]) < 1:
         raise ConfigError(f"config key '{where}.n': resolution must be positive, got {axis['n']}")
     vals = axis_values(axis) if centres else sweep_values(axis)
-    for v in (vals[0], vals[-1]):
+    # the ends as the user wrote them first: a message names the key and value in the file
+    # (a plane's cells lie inside [min, max], so an end outside the range but with its cells
+    # inside, e.g. b: min 0 of an open range, is allowed)
+    bad_ends = {}
+    for key in ("min", "max"):
+        try:
+            check_value(name, float(axis[key]))
+        except ParameterError as exc:
+            bad_ends[key] = exc
+    for v, key in ((vals[0], "min"), (vals[-1], "max")):
         try:
             check_value(name, float(v))
         except ParameterError as exc:
-            raise ConfigError(f"config key '{where}': {exc}") from None
+            end = key if key in bad_ends else next(iter(bad_ends), None)
+            if end is None:  # both ends allowed, a cell centre not (cannot happen for a range)
+                raise ConfigError(f"config key '{where}': {exc}") from None
+            text = str(bad_ends[end]).replace(f"= {float(axis[end])!r}",
+                                              f"= {as_written(axis[end])}")
+            raise ConfigError(f"config key '{where}.{end}': {as_written(axis[end])}: {text}"
+                              ) from None
 
 
 def _physical_units(config: dict, root: str | Path | None) -> None:

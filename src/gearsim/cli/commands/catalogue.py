@@ -9,6 +9,8 @@ Subcommands (each is one Snakemake rule):
   --out results/catalogue.d/build.sqlite --publish results/catalogue.sqlite``
 * ``gearsim catalogue publish --from results/catalogue.d/build.sqlite
   --to results/catalogue.sqlite`` (restore the published copy by hand)
+* ``gearsim catalogue migrate results/catalogue.sqlite`` (bring a catalogue of an older schema
+  version up to this one, in place and atomically)
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 from gearsim.study.audit import audit_frame, audit_settings
 from gearsim.study.provenance import plane_record
@@ -32,12 +34,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     c = sub.add_parser("cells", help="combine a plane's tile files into cells.parquet")
     c.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     c.add_argument("--tiles", nargs="+", required=True, help="the plane's tile Parquet files")
-    c.add_argument("--out", required=True, help="the plane's cells.parquet to write")
+    c.add_argument("--out", "-o", required=True, help="the plane's cells.parquet to write")
     add_config_arguments(c)
     a = sub.add_parser("audit", help="re-simulate a sample of cells at tightened tolerance")
     a.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     a.add_argument("--cells", required=True, help="the plane's cells.parquet")
-    a.add_argument("--out", required=True, help="the plane's audit.parquet to write")
+    a.add_argument("--out", "-o", required=True, help="the plane's audit.parquet to write")
     add_config_arguments(a)
     b = sub.add_parser("build", help="build the SQLite catalogue (one transaction, atomic)")
     b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
@@ -48,7 +50,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("--orbits", nargs="*", default=[],
                    help="bifurcation points / curves and refine-orbits Parquet files "
                    "(docs/orbits.md)")
-    b.add_argument("--out", required=True, help="the catalogue file to write (the rule's output)")
+    b.add_argument("--out", "-o", required=True,
+                   help="the catalogue file to write (the rule's output)")
     b.add_argument(
         "--publish",
         metavar="PATH",
@@ -60,6 +63,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     pub.add_argument("--from", dest="source", required=True, help="a built catalogue")
     pub.add_argument("--to", required=True, help="e.g. results/catalogue.sqlite")
+    mig = sub.add_parser(
+        "migrate", help="bring a catalogue of an older schema version up to this gearsim's"
+    )
+    mig.add_argument("path", nargs="+", help="catalogue file(s), e.g. results/catalogue.sqlite")
 
 
 def _cells(args) -> int:
@@ -83,6 +90,9 @@ def _audit(args) -> int:
     config = config_from_args(args)
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'")
+    from gearsim.study.preflight import check_output
+
+    check_output(args.out)  # writable, with room, before any simulation
     cells = pd.read_parquet(args.cells)
     started = catalogue.now_iso()
     t0 = time.perf_counter()
@@ -148,6 +158,17 @@ def _publish(args) -> int:
     return 0
 
 
+def _migrate(args) -> int:
+    from gearsim.results import catalogue
+
+    for path in args.path:
+        old, new = catalogue.migrate_catalogue(path)
+        done = "already at" if old == new else f"migrated from version {old} to"
+        print(f"catalogue {path}: {done} schema version {new}", file=sys.stderr)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
-    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish}
+    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish,
+               "migrate": _migrate}
     return actions[args.action](args)

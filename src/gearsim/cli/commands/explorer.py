@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 
 NAME = "explorer"
@@ -27,7 +27,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="results directory (<plane>/cells.parquet, sweeps/<sweep>.parquet)")
     p.add_argument("--catalogue", default="results/catalogue.sqlite",
                    help="SQLite catalogue (its attractors table is shown when present)")
-    p.add_argument("--out", default="results/explorer/index.html", help="the page (HTML)")
+    p.add_argument("--out", "-o", default="results/explorer/index.html", help="the page (HTML)")
     p.add_argument("--plane", nargs="+", default=None, metavar="NAME",
                    help="only these planes of the config (default: every one)")
     p.add_argument("--sweep", nargs="+", default=None, metavar="NAME",

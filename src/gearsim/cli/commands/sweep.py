@@ -7,8 +7,8 @@ import math
 import sys
 import time
 
-from gearsim.cli.commands._common import check_new_file
-from gearsim.cli.commands.simulate_tile import Progress, add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_parameter_arguments, check_new_file, resolve_parameters
+from gearsim.cli.commands.simulate_tile import Progress
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.errors import UsageError
 from gearsim.results import catalogue
@@ -30,9 +30,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--name", help="sweep name (a key of `sweeps:`)")
     what.add_argument("--points", metavar="FIG", help="point set name (a key of `points:`)")
-    add_config_arguments(p)
+    add_parameter_arguments(p, integration=False)
     p.add_argument(
         "--out",
+        "-o",
         default=None,
         help="output Parquet file (default <results>/sweeps/<name>.parquet or "
         "<results>/points/<set>.parquet)",
@@ -67,9 +68,15 @@ def _check_recording(args: argparse.Namespace) -> None:
             raise UsageError(f"{flag}: {v!r} is outside {rng}")
 
 
+def resolve(args: argparse.Namespace):
+    """The sweep's base parameters: the shared resolution (the swept value and the sweep's
+    ``fixed`` values are set per point); its ``config`` carries them into the provenance."""
+    return resolve_parameters(args)
+
+
 def run(args: argparse.Namespace) -> int:
     _check_recording(args)
-    config = config_from_args(args)
+    config = resolve(args).config
     res = results_dir(config)
     default = (
         res / "sweeps" / f"{args.name}.parquet"

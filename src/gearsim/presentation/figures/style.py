@@ -14,6 +14,7 @@ Colours follow the paper's prose:
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -166,8 +167,14 @@ def save_figure(fig, out: str | Path) -> list[Path]:
     out.parent.mkdir(parents=True, exist_ok=True)
     png = out.with_suffix(".png")
     pdf = out.with_suffix(".pdf")
-    fig.savefig(png, dpi=DPI, bbox_inches="tight")
-    fig.savefig(pdf, bbox_inches="tight")
+    for path, kw in ((png, {"format": "png", "dpi": DPI}), (pdf, {"format": "pdf"})):
+        # a temporary name renamed into place: a full disk keeps the previous figure whole
+        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+        try:
+            fig.savefig(tmp, bbox_inches="tight", **kw)
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
     return [png, pdf]
 
 
