@@ -63,7 +63,8 @@ def test_one_byte_in_a_deciding_module_changes_every_version(copy_of_package, re
     [
         ("presentation/figures/style.py", ("tiles", "analysis", "catalogue"), ("presentation",)),
         ("presentation/report.py", ("tiles", "analysis", "catalogue"), ("presentation",)),
-        ("calibration/fidelity.py", ("tiles", "analysis", "catalogue"), ("presentation",)),
+        ("calibration/fidelity.py", ("tiles", "analysis", "catalogue"),
+         ("calibration", "presentation")),
         ("cli/commands/figures.py", tuple(gprov.CODE_SCOPES), ()),
         ("analysis/attractors.py", ("tiles",), ("analysis", "catalogue", "presentation")),
         ("results/catalogue.py", ("tiles", "analysis"), ("catalogue", "presentation")),

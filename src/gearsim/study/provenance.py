@@ -47,6 +47,7 @@ SIMULATION = ("dynamics", "physical", "numerics", "cell", "study")
 CODE_SCOPES: dict[str, tuple[str, ...]] = {
     "tiles": SIMULATION,
     "analysis": SIMULATION + ("analysis",),
+    "calibration": SIMULATION + ("analysis", "calibration"),
     "catalogue": SIMULATION + ("analysis", "results"),
     "presentation": SIMULATION + ("analysis", "results", "calibration", "presentation"),
 }
