@@ -102,6 +102,13 @@ def _dropped_rows_recorded(study, d):
     return [d / "1.parquet", *study["tiles"]["wb"][::2]]
 
 
+def _random_middle(data: bytes) -> bytes:
+    """Random bytes over the data pages; the header and the footer (schema, row counts,
+    provenance) stay valid, so only reading the pages finds the damage."""
+    n = len(data)
+    return data[:8] + os.urandom(n // 2 - 8) + data[n // 2:]
+
+
 def _bytes(study, d, data: bytes):
     (d / "1.parquet").write_bytes(data)
     return [d / "1.parquet", *study["tiles"]["wb"][::2]]
@@ -121,6 +128,10 @@ TILE_CASES = [
     ("cut-file", lambda s, d: _bytes(s, d, s["tiles"]["wb"][1].read_bytes()[:2000]),
      ["not a readable Parquet file"]),
     ("garbage", lambda s, d: _bytes(s, d, b"not parquet at all" * 50),
+     ["not a readable Parquet file"]),
+    ("random-bytes", lambda s, d: _bytes(s, d, os.urandom(len(s["tiles"]["wb"][1].read_bytes()))),
+     ["not a readable Parquet file"]),
+    ("random-pages", lambda s, d: _bytes(s, d, _random_middle(s["tiles"]["wb"][1].read_bytes())),
      ["not a readable Parquet file"]),
     ("duplicated-tile", lambda s, d: [*s["tiles"]["wb"], s["tiles"]["wb"][1]],
      ["duplicated tile", "(0, 2)"]),
