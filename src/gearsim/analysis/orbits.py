@@ -52,6 +52,8 @@ from gearsim.numerics.variational import monodromy
 #: ~6e4 rtol there (6e-8 at rtol 1e-12, against scipy.linalg.expm in the linear limit), ~rtol in
 #: the single-DOF model.
 SHOOTING = IntegrationSettings(method="dp5", rtol=1e-12, atol=1e-14, hmax=0.2)
+#: The simulation whose final section state seeds Newton: adaptive DP5 at its default tolerances.
+SEEDING = IntegrationSettings(method="dp5")
 
 #: the monodromy's DP5 error norm includes the tangent vector (6-DOF model; the kernel's
 #: ``tangent_error`` option, used by this shooting path only): the tangent then is as accurate

@@ -290,7 +290,7 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
                    "nfev_coarse": de["nfev"] + 1, "nfev_exact": res["nfev_refine"] + 2},
         "coarse": coarse.to_dict(), "exact": exact.to_dict(), "final": final.to_dict(),
         "b_star_bisection": b_star, "b_star_bisection_start": b_star0,
-        "code_version": code_version(), "wall_s": time.time() - run.t0,
+        "code_version": code_version("calibration"), "wall_s": time.time() - run.t0,
         "de": {k: v for k, v in de.items() if k not in ("population_final",)},
         "refine": res["refine"],
         "refine_candidates": [[float(s), [float(v) for v in c]] for s, c in res["candidates"]],
@@ -315,7 +315,7 @@ def evaluate_unsearched(form: Form, points: dict[str, Sequence[float]],
     run = Run()
     rec: dict[str, Any] = {"form": form.name, "text": form.text, "fixed": form.fixed,
                            "continuation": form.continuation, "searched": False,
-                           "code_version": code_version(), "final": final.to_dict(),
+                           "code_version": code_version("calibration"), "final": final.to_dict(),
                            "points": {}}
     names = [f.name for f in form.free]
     for key, x in points.items():

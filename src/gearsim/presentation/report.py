@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -732,19 +731,14 @@ def _appendix_lines(rep: Report) -> list[str]:
                     f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
                     "docs/calibration.md.", ""]
     if rep.calibration and rep.calibration.get("forms"):
-        from gearsim.calibration.fidelity import form_report_lines
+        from gearsim.calibration.tables import form_report_lines
 
         out += [_demote(line) for line in form_report_lines(rep.calibration["forms"])]
     return (["## Appendix: calibration and model forms", ""] + out) if out else []
 
 
-_WORK_NOTE = re.compile(r"\s*\((?:see )?issues? \d+[^)]*\)", re.IGNORECASE)
-
-
 def _demote(line: str) -> str:
-    """A heading of an embedded section one level down (it sits inside the appendix), without
-    notes on how the work was organised."""
-    line = _WORK_NOTE.sub("", line)
+    """A heading of an embedded section one level down (it sits inside the appendix)."""
     return "#" + line if line.startswith("#") else line
 
 

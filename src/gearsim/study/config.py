@@ -25,6 +25,7 @@ from jsonschema import Draft202012Validator, validators
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters, ParameterError, check_value
 from gearsim.errors import ConfigError
+from gearsim.numerics.integrate import INTEGER_BOUNDS
 from gearsim.safe_yaml import load_mapping
 from gearsim.study.config_io import load_standard_parameters
 from gearsim.study.grid import axis_values, sweep_values
@@ -38,15 +39,6 @@ MAX_NAME_LENGTH = 64
 NAME_PATTERN = re.compile(rf"[A-Za-z][A-Za-z0-9_]{{0,{MAX_NAME_LENGTH - 1}}}")
 #: Largest plane (cells); a 2000 x 2000 plane is the documented scale test (docs/pipeline.md).
 MAX_PLANE_CELLS = 4_000_000
-#: Upper bounds of the integration budget (a cell must end in bounded time).
-INTEGRATION_LIMITS = {
-    "steps_per_period": 65_536,
-    "transient": 100_000,
-    "transient_continuation": 100_000,
-    "chunk": 10_000,
-    "max_periods": 100_000,
-    "n_max": 4096,
-}
 #: Smallest positive normal float: smaller non-zero values (subnormals) are refused.
 SMALLEST_NORMAL = sys.float_info.min
 #: Environment variable naming the study directory of workflow jobs (see :func:`study_root`).
@@ -326,7 +318,7 @@ def _check_finite(node: Any, path: list) -> None:
 
 def _check_limits(config: Mapping) -> None:
     """Documented upper bounds of the integration budget (beyond them a cell never ends)."""
-    for name, limit in INTEGRATION_LIMITS.items():
+    for name, (_, limit) in INTEGER_BOUNDS.items():
         v = (config.get("integration") or {}).get(name)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and v > limit:
             raise ConfigError(

@@ -69,7 +69,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from gearsim.analysis.bifcurves import bifurcation_points, follow_curves
     from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
-    from gearsim.analysis.orbits import find_periodic_orbit
+    from gearsim.analysis.orbits import SEEDING, find_periodic_orbit
     from gearsim.results import catalogue
     from gearsim.study import config as gcfg
     from gearsim.study import provenance as gprov
@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         from gearsim.cell.simulate import simulate_cell
 
-        seed = simulate_cell(params).final_state
+        seed = simulate_cell(params, settings=SEEDING).final_state
         orbit = find_periodic_orbit(params, args.period, seed, grazing=False)
         cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth,
                            max_points=600, progress=_log, deadline=deadline)

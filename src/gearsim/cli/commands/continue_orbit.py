@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
-from gearsim.analysis.orbits import find_periodic_orbit, shooting_settings
+from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
 from gearsim.cli.commands._common import resolve_parameters
 from gearsim.cli.commands.orbit import add_orbit_parameter_arguments
@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs([out, fig_path])  # before any computation
     deadline = time.monotonic() + args.budget_s
     t0 = time.perf_counter()
-    sim = simulate_cell(params)
+    sim = simulate_cell(params, settings=SEEDING)
     n = args.period if args.period is not None else max(sim.classification.n, 1)
     orbit = find_periodic_orbit(params, n, sim.final_state, st, grazing=False)
     cfg = Continuation(ds=args.ds, ds_max=args.ds_max, max_points=args.max_points,

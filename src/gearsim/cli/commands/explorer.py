@@ -19,7 +19,8 @@ from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 
 NAME = "explorer"
-HELP = "write the interactive explorer page (static HTML: maps, cells, Poincare points, sweeps)"
+HELP = ("write the interactive explorer page (one static HTML file: the scorecard, every plane's "
+        "layers, cells, Poincare points, attractors, every sweep's diagram)")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -61,8 +62,21 @@ def run(args: argparse.Namespace) -> int:
                          + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
                          + " (run the pipeline first)")
     fixed = {k: dict(v.get("fixed") or {}) for k, v in (config.get("sweeps") or {}).items()}
+    from gearsim.physical.units import config_gear
+    from gearsim.presentation.report import build_report, scorecard
+    from gearsim.study.config import study_root
+
+    rep, _ = build_report(sweeps_dir=results / "sweeps", catalogue=args.catalogue,
+                          results=results, calibration=None, planes=planes, sweeps=sweeps,
+                          study=config.get("study"))
+    rows = ([{"item": r.item, "paper": r.paper, "ours": r.ours, "located": r.located,
+              "difference": r.difference, "ok": r.ok} for r in scorecard(rep)]
+            if rep.paper_study else [])
+    title = (f"gearsim explorer: study {config['study']}" if config.get("study")
+             else "gearsim explorer: reproduction of the paper")
     out = write_explorer(args.out, planes=planes, sweeps=sweeps, results=results,
-                         catalogue=args.catalogue, sweep_fixed=fixed)
+                         catalogue=args.catalogue, sweep_fixed=fixed,
+                         gear=config_gear(config, study_root()), scorecard=rows, title=title)
     size = out.stat().st_size
     print(f"wrote {out} ({size / 1e6:.1f} MB; {len(planes)} planes, {len(sweeps)} sweeps)",
           file=sys.stderr)

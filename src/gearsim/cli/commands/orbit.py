@@ -6,7 +6,7 @@ import argparse
 import json
 import time
 
-from gearsim.analysis.orbits import find_periodic_orbit, shooting_settings
+from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
 from gearsim.cli.commands._common import add_parameter_arguments, point_parameters
 
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     params, source = r.params, r.source
     st = shooting_settings(args.rtol)
     t0 = time.perf_counter()
-    sim = simulate_cell(params)
+    sim = simulate_cell(params, settings=SEEDING)
     n = args.period if args.period is not None else max(sim.classification.n, 1)
     if args.period is None and sim.classification.n < 1:
         print(f"note: the simulation from rest found no period ({sim.classification.label});"
