@@ -551,3 +551,37 @@ def test_curve_job_stops_at_its_budget_and_a_killed_one_leaves_nothing(tmp_path,
     p.wait(30)
     after = {q: q.read_bytes() for q in out.parent.iterdir()}
     assert after == before
+
+
+def test_faults_deep_in_a_command_are_one_line(tmp_path, gearsim, monkeypatch):
+    """The net under every command: an OSError or an unreadable file met anywhere."""
+    import errno
+
+    import pyarrow as pa
+
+    from gearsim.cli.commands import table1
+
+    args = ["table1", "--md", tmp_path / "t.md", "--csv", tmp_path / "t.csv"]
+
+    def full(path):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "t.md"))
+
+    monkeypatch.setattr(table1, "table", full)
+    one_line(*gearsim(args, tmp_path), f"{tmp_path / 't.md'}: the disk is full")
+
+    def foreign(path):
+        raise pa.ArrowInvalid("Parquet magic bytes not found in footer")
+
+    monkeypatch.setattr(table1, "table", foreign)
+    one_line(*gearsim(args, tmp_path), "unreadable file (ArrowInvalid: Parquet magic bytes")
+    monkeypatch.setenv("GEARSIM_DEBUG", "1")  # a developer asks for the traceback
+    with pytest.raises(pa.ArrowInvalid):
+        gearsim(args, tmp_path)
+
+    def bug(path):
+        raise KeyError("a bug is not turned into a line")
+
+    monkeypatch.delenv("GEARSIM_DEBUG")
+    monkeypatch.setattr(table1, "table", bug)
+    with pytest.raises(KeyError):
+        gearsim(args, tmp_path)

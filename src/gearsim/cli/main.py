@@ -4,7 +4,8 @@ Each module there defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``ru
 modules are discovered automatically, so a new subcommand is one new file.
 Bad input and faults of the machine or of the files (full disk, read-only folder, missing
 permission, a file that is not what its name says) exit with status 2 and one line on stderr
-naming the file and the cause, never a traceback.
+naming the file and the cause, never a traceback (set ``GEARSIM_DEBUG=1`` to get the traceback
+of a machine or file fault).
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ from gearsim.cli import commands
 from gearsim.errors import USER_ERRORS, UsageError
 
 __all__ = ["UsageError", "build_parser", "main"]
+
+#: Set (to anything) to get the traceback of a machine or file fault instead of its one line.
+DEBUG_ENV = "GEARSIM_DEBUG"
 
 #: what `gearsim --help` says first (plain words: it is printed, not rendered)
 DESCRIPTION = ("gearsim: the nonlinear dynamics of a curve-face gear pair over parameter planes, "
@@ -77,6 +81,8 @@ def main(argv: list[str] | None = None) -> int:
         os.dup2(devnull, sys.stdout.fileno())
         return 0
     except OSError as exc:
+        if os.environ.get(DEBUG_ENV):
+            raise
         sys.stderr.write(f"gearsim {args.command}: error: {os_error_line(exc)}\n")
         return 2
     except MemoryError:
@@ -84,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except Exception as exc:
         line = _file_fault_line(exc)
-        if line is None:
+        if line is None or os.environ.get(DEBUG_ENV):
             raise  # a bug: the traceback is what a developer needs
         sys.stderr.write(f"gearsim {args.command}: error: {line}\n")
         return 2

@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
+from gearsim.cell.simulate import result_columns
 from gearsim.results.columns import PARAMETERS, RESULT
 from gearsim.study.integrity import CatalogueError
 from gearsim.study.preflight import check_output, os_cause
-from gearsim.cell.simulate import result_columns
 
 FORMATS = ("netcdf", "zarr", "csv", "parquet")
 #: cell columns exported, in catalogue spelling (``I`` is ``impact``; the order of
