@@ -8,12 +8,14 @@
         planes (wb, wxi) as an n x n plane made from a computed plane of the source run (its
         regions, labels, chaotic cells and section points; values interpolated between its
         cells with cell-to-cell scatter, section points jittered so that no two cells share
-        them), plus the source run's sweeps
+        them), plus the source run's sweeps; --all-chaotic: the worst case for the page size,
+        every cell chaotic with 16 distinct random section points (the page's point budget
+        then caps the points per cell)
 
 Load time: from navigation start to the page's "ready" mark (the data inflated and every map
 and diagram drawn; ``performance.now()``), median of 5 loads in a fresh headless chromium
 (1500 x 1100), and the wall time of ``driver.get`` + ready as selenium sees it. Writes
-``benchmarks/results/explorer.json``.
+``benchmarks/results/explorer.json`` (``explorer_worst.json`` for --all-chaotic).
 """
 
 from __future__ import annotations
@@ -121,6 +123,10 @@ def stand_in(args) -> tuple[Path, dict]:
     ranges = {"wb": ((0.1, 2.5), (0.0, 1.0)), "wxi": ((0.1, 2.5), (0.04, 0.16))}
     for name, ax in planes.items():
         df = _upsample(cells, axes, args.n, ranges[name], rng)
+        if args.all_chaotic:
+            df["motion"], df["label"], df["label_npq"], df["n"] = "chaos", "chaos", "", 0
+            df["poincare_x"] = list(rng.uniform(-1.5, 1.5, (len(df), 16)))
+            df["poincare_v"] = list(rng.uniform(-0.5, 0.5, (len(df), 16)))
         df = df.rename(columns={axes[0]: "w_src", axes[1]: "y_src"})
         df[ax[0]], df[ax[1]] = df["w_src"], df["y_src"]
         (work / name).mkdir(parents=True)
@@ -134,7 +140,8 @@ def stand_in(args) -> tuple[Path, dict]:
     write_explorer(out, planes=planes, sweeps=sweeps, results=work, catalogue=None)
     build = time.perf_counter() - t0
     shutil.rmtree(work, ignore_errors=True)
-    return out, {"kind": "stand-in", "source": str(src / args.plane), "n": args.n,
+    return out, {"kind": "stand-in" + (" (all chaotic)" if args.all_chaotic else ""),
+                 "source": str(src / args.plane), "n": args.n,
                  "cells": 2 * args.n * args.n, "sweeps": sweeps, "build_s": build}
 
 
@@ -162,6 +169,8 @@ def main() -> None:
     b.add_argument("--source", required=True, help="results directory of a computed run")
     b.add_argument("--plane", required=True, help="the plane of that run to upsample")
     b.add_argument("--n", type=int, default=400, help="cells per axis (the default run: 400)")
+    b.add_argument("--all-chaotic", action="store_true",
+                   help="every cell chaotic with 16 random section points (the size's worst case)")
     for p in (a, b):
         p.add_argument("-o", "--out", default=str(RESULTS / "explorer.html"))
         p.add_argument("--repeats", type=int, default=5)
@@ -174,7 +183,8 @@ def main() -> None:
            "load_before": before, "load_after": loadavg(),
            "targets": {"MB": 5.0, "load_s": 2.0}}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "explorer.json").write_text(json.dumps(rec, indent=1))
+    name = "explorer_worst.json" if getattr(args, "all_chaotic", False) else "explorer.json"
+    (RESULTS / name).write_text(json.dumps(rec, indent=1))
     print(f"{info['kind']}: {size / 1e6:.2f} MB, ready after {times['ready_ms_median']:.0f} ms "
           f"(median of {args.repeats}; wall {times['wall_s_median']:.2f} s); load "
           f"{before} -> {rec['load_after']}")

@@ -46,7 +46,7 @@ MAX_POINTS = 16
 #: chaotic cells the cap per cell drops (to no fewer than :data:`MIN_POINTS`), so that the page
 #: of the default run stays under 5 MB whatever its share of chaos (benchmarks/README.md, (m)).
 POINTS_BUDGET = 2_000_000
-MIN_POINTS = 4
+MIN_POINTS = 2
 #: Poincare points kept per swept value in the bifurcation diagrams.
 MAX_SWEEP_POINTS = 64
 #: columns that hold a cell's Floquet margin max|mu| (the first present is shown)

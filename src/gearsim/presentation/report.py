@@ -43,6 +43,18 @@ from gearsim.analysis.landmarks import (
     pattern_sequence,
 )
 from gearsim.cell.classify import KMAX_READINGS
+from gearsim.presentation.study_summary import (
+    axis_column,
+    multistable_summary,
+    plane_lines,
+    plane_summary,
+    point_lines,
+    point_summary,
+    sweep_lines,
+    sweep_spec_of,
+    sweep_summary,
+    value_text,
+)
 
 NOT_APPLICABLE = "not applicable"
 PAPER_B_THRESHOLD = 0.4125
@@ -123,14 +135,6 @@ def load_plane(plane: str, *, catalogue: str | Path | None = None,
     if p.is_file():
         return pd.read_parquet(p)
     return None
-
-
-def _axis_column(df: pd.DataFrame, name: str, which: str) -> str:
-    """Column holding the plane's ``which`` ('x' or 'y') axis named ``name``."""
-    for c in (name, f"{which}_value", which, f"value_{which}"):
-        if c in df.columns:
-            return c
-    raise KeyError(f"no column for the plane axis '{name}' ({which}); columns: {list(df.columns)}")
 
 
 # ----------------------------------------------------------------------------- thresholds
@@ -296,36 +300,6 @@ PAPER_PLANES = {("w", "b"): "Figs 7, 12, 13 and the backlash threshold b = 0.412
                 ("w", "xi"): "Figs 14, 16, 17 and the damping threshold xi = 0.1436"}
 
 
-def plane_summary(plane: str, axes: tuple[str, str], cells: pd.DataFrame | None
-                  ) -> dict[str, Any]:
-    """A plane of the study in a few numbers: cells, grid, the most frequent patterns."""
-    out: dict[str, Any] = {"plane": plane, "axes": axes,
-                           "paper": PAPER_PLANES.get(axes, NOT_APPLICABLE)}
-    if cells is None or not len(cells):
-        out["cells"] = None
-        return out
-    out["cells"] = len(cells)
-    if {"i", "j"} <= set(cells.columns):
-        out["grid"] = (int(cells["i"].max()) + 1, int(cells["j"].max()) + 1)
-    if "label" in cells.columns:
-        labels = cells["label"].fillna("?")
-        counts = labels.value_counts()
-        out["patterns"] = [(str(k), int(v)) for k, v in counts.head(6).items()]
-        out["n_patterns"] = int(len(counts))
-        try:
-            xc, yc = _axis_column(cells, axes[0], "x"), _axis_column(cells, axes[1], "y")
-        except KeyError:
-            return out
-        x, y = cells[xc].astype(float), cells[yc].astype(float)
-        out["extents"] = [
-            {"label": str(k), "cells": int(v), "share": v / len(cells),
-             "x": (float(x[labels == k].min()), float(x[labels == k].max())),
-             "y": (float(y[labels == k].min()), float(y[labels == k].max()))}
-            for k, v in counts.head(8).items()]
-        out["range"] = ((float(x.min()), float(x.max())), (float(y.min()), float(y.max())))
-    return out
-
-
 def analyse(
     sweeps: dict[str, pd.DataFrame],
     planes: dict[str, pd.DataFrame | None],
@@ -414,7 +388,7 @@ def analyse(
             rep.notes.append(f"plane {plane} not available: threshold not computed")
             continue
         try:
-            y = _axis_column(cells, paper_axes[1], "y")
+            y = axis_column(cells, paper_axes[1], "y")
         except KeyError as exc:
             rep.notes.append(f"plane {plane}: {exc}")
             continue
@@ -430,7 +404,8 @@ def analyse(
                               f"{th.first_without:.4f}, plane {plane}), paper {paper}")
 
     for plane, ax in axes.items():
-        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane)))
+        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane),
+                                        paper=PAPER_PLANES.get(tuple(ax), NOT_APPLICABLE)))
 
     for key, (pname, pval) in SEQUENCE_SWEEPS.items():
         df = sweeps.get(key)
@@ -470,12 +445,6 @@ def _f(x: Any, fmt: str = ".4f") -> str:
         return "not computed"
     if isinstance(x, float) and math.isnan(x):
         return "—"
-    return format(x, fmt)
-
-
-def _f_or(x: Any, fmt: str, missing: str = "not computed") -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return missing
     return format(x, fmt)
 
 
@@ -551,7 +520,7 @@ def scorecard(rep: Report) -> list[ScoreRow]:
         else:
             ours = f"{th.value:.4f} [{th.last_with:.3f}, {th.first_without:.3f}]"
         rows.append(ScoreRow(label, f"{th.paper}", ours,
-            difference=_f_or(th.difference, "+.4f", "—"), ok=ok,
+            difference=value_text(th.difference, "+.4f", "—"), ok=ok,
             tolerance=f"{THRESHOLD_TOL}"))
     for key, e in rep.sequences.items():
         if e.get("paper") is None or e.get("applicable") is False:
@@ -776,133 +745,10 @@ def to_markdown(rep: Report) -> str:
 
 def _study_lines(rep: Report, heading: str | None) -> list[str]:
     out: list[str] = [heading, ""] if heading else []
-    out += _plane_lines(rep.planes, "###" if heading else "##")
-    out += _sweep_lines(rep.sweep_summaries, "###" if heading else "##")
-    out += _point_lines(rep.point_summaries, "###" if heading else "##")
+    out += plane_lines(rep.planes, "###" if heading else "##")
+    out += sweep_lines(rep.sweep_summaries, "###" if heading else "##")
+    out += point_lines(rep.point_summaries, "###" if heading else "##")
     return out
-
-
-def _plane_lines(planes: list[dict[str, Any]], h: str = "##") -> list[str]:
-    if not planes:
-        return []
-    out = [f"{h} Planes", "",
-           "| plane | axes (x, y) | cells (grid) | patterns (most frequent, cells) | "
-           "the paper has |", "|---|---|---|---|---|"]
-    for p in planes:
-        ax = f"({p['axes'][0]}, {p['axes'][1]})"
-        if p["cells"] is None:
-            out.append(f"| {p['plane']} | {ax} | not computed | | {p['paper']} |")
-            continue
-        grid = f" ({p['grid'][0]} x {p['grid'][1]})" if p.get("grid") else ""
-        pats = ", ".join(f"{k} {v}" for k, v in p.get("patterns", []))
-        more = p.get("n_patterns", 0) - len(p.get("patterns", []))
-        pats += f", {more} more" if more > 0 else ""
-        out.append(f"| {p['plane']} | {ax} | {p['cells']}{grid} | {pats} | {p['paper']} |")
-    out.append("")
-    for p in planes:
-        if not p.get("extents"):
-            continue
-        (x0, x1), (y0, y1) = p["range"]
-        xn, yn = p["axes"]
-        out += [f"Plane {p['plane']}: where each pattern lies (cell centres; the plane spans "
-                f"{xn} {x0:.4g}-{x1:.4g}, {yn} {y0:.4g}-{y1:.4g}). A pattern that ends inside "
-                "the plane ends at the edge of its range.", "",
-                f"| pattern | area | {xn} from | {xn} to | {yn} from | {yn} to |",
-                "|---|---|---|---|---|---|"]
-        for e in p["extents"]:
-            out.append(f"| {e['label']} | {100 * e['share']:.1f} % ({e['cells']} cells) | "
-                       f"{e['x'][0]:.4g} | {e['x'][1]:.4g} | {e['y'][0]:.4g} | "
-                       f"{e['y'][1]:.4g} |")
-        out.append("")
-    return out
-
-
-def sweep_summary(name: str, df: pd.DataFrame, spec: dict[str, Any] | None = None,
-                  figure: str | None = None) -> dict[str, Any]:
-    """A sweep in a few lines: its parameter (in the sweep's own units when it was given in
-    physical ones), range, pattern sequence and transitions (grid intervals), per direction."""
-    from gearsim.physical.units import axis_label_values
-
-    spec = dict(spec or {})
-    param = (str(df["parameter"].iloc[0]) if "parameter" in df.columns and len(df)
-             else str(spec.get("name", "value")))
-    spec.setdefault("name", param)
-    label, factor = axis_label_values(spec, 1.0) if spec.get("physical") else (param, 1.0)
-    out: dict[str, Any] = {"name": name, "parameter": param, "label": label, "factor": factor,
-                           "points": len(df), "figure": figure, "directions": []}
-    if not len(df):
-        return out
-    dirs = (list(dict.fromkeys(df["direction"])) if "direction" in df.columns
-            else ["forward"])
-    for d in dirs:
-        sub = df[df["direction"] == d] if "direction" in df.columns else df
-        lms = find_landmarks(sub.reset_index(drop=True))
-        v = sub["value"].astype(float) * factor
-        out["directions"].append({
-            "direction": d, "min": float(v.min()), "max": float(v.max()), "n": len(sub),
-            "sequence": pattern_sequence(sub),
-            "transitions": [{"kind": r.kind, "lo": r.lo * factor, "hi": r.hi * factor,
-                             "from": r.from_label, "to": r.to_label} for r in lms.itertuples()],
-        })
-    return out
-
-
-def _sweep_lines(sweeps: list[dict[str, Any]], h: str = "##") -> list[str]:
-    if not sweeps:
-        return []
-    out = [f"{h} Sweeps", ""]
-    for s in sweeps:
-        out += [f"**{s['name']}**: {s['label']}, {s['points']} points.", ""]
-        if s.get("figure"):
-            out += [f"![bifurcation diagram of sweep {s['name']}]({s['figure']})", ""]
-        for d in s["directions"]:
-            head = f"- {d['direction']}: " if len(s["directions"]) > 1 else "- "
-            out.append(f"{head}{s['label']} {d['min']:.5g} to {d['max']:.5g}: "
-                       + " -> ".join(d["sequence"]))
-            for t in d["transitions"]:
-                out.append(f"  - {t['kind'].replace('_', ' ')} between {t['lo']:.5g} and "
-                           f"{t['hi']:.5g}: {t['from']} -> {t['to']}")
-        out.append("")
-    return out
-
-
-def point_summary(name: str, df: pd.DataFrame) -> dict[str, Any]:
-    """A recorded point set: each point's parameters, start and pattern."""
-    from gearsim.dynamics.parameters import ModelParameters
-
-    params = [c for c in df.columns if c in ModelParameters.names()
-              and df[c].nunique(dropna=True) > 1] or (["w"] if "w" in df.columns else [])
-    rows = []
-    for r in df.to_dict("records"):
-        rows.append({"point": ", ".join(f"{k} = {float(r[k]):.4g}" for k in params),
-                     "start": r.get("start", ""), "label": r.get("label", ""),
-                     "npq": r.get("label_npq", "") or "", "dc": r.get("dc"),
-                     "kmax": r.get("kmax")})
-    return {"name": name, "rows": rows}
-
-
-def _point_lines(points: list[dict[str, Any]], h: str = "##") -> list[str]:
-    if not points:
-        return []
-    out = [f"{h} Points", "", "| set | point | start | pattern | DC | Kmax |",
-           "|---|---|---|---|---|---|"]
-    for s in points:
-        for r in s["rows"]:
-            pat = f"{r['label']} ({r['npq']})" if r["npq"] else str(r["label"])
-            out.append(f"| {s['name']} | {r['point']} | {r['start']} | {pat} | "
-                       f"{_f_or(r['dc'], '.3f', '—')} | {_f_or(r['kmax'], '.3f', '—')} |")
-    out.append("")
-    return out
-
-
-def multistable_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] | None:
-    """Cells searched for coexisting attractors and those with more than one."""
-    if cells is None or "n_attractors" not in cells.columns:
-        return None
-    n = pd.to_numeric(cells["n_attractors"], errors="coerce")
-    if not n.notna().any():
-        return None
-    return {"plane": plane, "searched": int(n.notna().sum()), "multi": int((n > 1).sum())}
 
 
 def build_report(
@@ -938,7 +784,7 @@ def build_report(
     for name, df in loaded.items():
         png = Path(results) / "figures" / "sweeps" / f"{name}.png"
         spec = ((sweep_specs or {}).get(name)
-                or _sweep_spec(Path(sweeps_dir) / f"{name}.parquet"))
+                or sweep_spec_of(Path(sweeps_dir) / f"{name}.parquet"))
         rep.sweep_summaries.append(sweep_summary(
             name, df, spec, f"figures/sweeps/{name}.png" if png.is_file() else None))
     for name in point_sets or ():
@@ -957,16 +803,6 @@ def build_report(
         prov = read_metadata(Path(sweeps_dir) / "standard.parquet")
         rep.exact_form = (prov or {}).get("subtree")
     return rep, to_markdown(rep)
-
-
-def _sweep_spec(path: Path) -> dict[str, Any] | None:
-    """A sweep's config entry from its table's provenance (``subtree.sweep``)."""
-    if not path.is_file():
-        return None
-    from gearsim.results.catalogue import read_metadata
-
-    sub = (read_metadata(path) or {}).get("subtree") or {}
-    return sub.get("sweep") if isinstance(sub, dict) else None
 
 
 def study_from_config(config: dict[str, Any]) -> tuple[dict[str, tuple[str, str]], list[str]]:

@@ -100,7 +100,6 @@ def sweep_spec_of(path, config: Mapping[str, Any] | None, name: str) -> dict[str
     spec = ((config or {}).get("sweeps") or {}).get(name)
     if spec:
         return dict(spec)
-    from gearsim.results.catalogue import read_metadata
+    from gearsim.presentation.study_summary import sweep_spec_of as from_table
 
-    sub = (read_metadata(path) or {}).get("subtree") or {}
-    return dict(sub["sweep"]) if isinstance(sub.get("sweep"), Mapping) else None
+    return from_table(path)
