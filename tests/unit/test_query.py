@@ -326,3 +326,28 @@ def test_readme_view_query_runs(tmp_path, capsys):
                        ).fetchone()[0]
     con.close()
     assert rows[0] == "w,b,label" and len(rows) - 1 == want > 0
+
+
+def test_plane_view_has_physical_columns_with_a_gear(tmp_path):
+    """A plane record with the gear's factors (a study with a gear file) gives the view the
+    physical column of each axis with a physical meaning: speed_rpm = k * w."""
+    from gearsim.physical.units import load_gear, physical_factors
+
+    gear = load_gear(ROOT / "config/gears/standard.yaml")
+    f = _plane(tmp_path, "wb", "b", 0.0, 1.0)
+    rec = gc.read_metadata(f, gc.PLANE_KEY)
+    rec["physical"] = physical_factors(gear, ["w", "b"])
+    g = gc.write_parquet(pd.read_parquet(f), tmp_path / "wb_gear.parquet",
+                         {gc.PLANE_KEY: rec, gc.TILES_KEY: gc.read_metadata(f, gc.TILES_KEY)})
+    out = tmp_path / "c.sqlite"
+    gc.build_catalogue(out, [g])
+    con = sqlite3.connect(out)
+    rows = con.execute("select w, speed_rpm, b, half_backlash_um from wb").fetchall()
+    units = dict(con.execute("select column_name, unit from column_dictionary "
+                             "where table_name = 'wb'").fetchall())
+    con.close()
+    # the standard gear: w = 1 at its speed_rpm, b = 1 at 10 um (b_c)
+    for w, rpm, b, um in rows:
+        assert rpm == pytest.approx(w * gear.speed_rpm, rel=1e-9)
+        assert um == pytest.approx(b * gear.nominal_length_um, rel=1e-9)
+    assert units["speed_rpm"] == "rpm" and units["half_backlash_um"] == "um"
