@@ -101,7 +101,8 @@ def _preflight():
         print(f"gearsim: {line}", file=sys.stderr)
 
 
-_preflight()
+if workflow.is_main_process:  # not again in each job of a cluster executor
+    _preflight()
 
 
 # 4. What the jobs depend on. CODE_VERSION[scope] hashes the layers a kind of job depends on

@@ -206,6 +206,8 @@ def _relocate_secant(
             w_b = w_pred + min(0.1 * window, 1e-3)
     lo = hi = None  # bracket
     for _ in range(max_eval):
+        if cfg.out_of_budget():
+            return None
         wa, fa, ya, _ = evals[-1]
         if len(evals) >= 2:
             wp, fp, yp, _ = evals[-2]
@@ -307,6 +309,8 @@ def _relocate_fold(
     s_b = s0 + 1e-3
     lo = hi = None
     for _ in range(max_eval):
+        if cfg.out_of_budget():
+            return None
         sa, fa, ya, wa, _ = evals[-1]
         yg, wg = ya, wa
         if len(evals) >= 2:

@@ -167,6 +167,8 @@ class _Problem:
         d = self.d
         u = np.concatenate([y[self.dims], [lam]])
         for _ in range(self.cfg.corrector_iter):
+            if self.cfg.out_of_budget():  # a point does not outlast the job's budget
+                raise OrbitError(f"{BUDGET}: wall-clock budget spent")
             yy = self.full(u[:d], y)
             G, M, dGdl = self.evaluate(yy, u[d], n)
             h = float(normal @ (u - anchor))
@@ -503,6 +505,9 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
                 ok = False
             if ok:
                 break
+            if cfg.out_of_budget():
+                return (f"{BUDGET}: wall-clock budget spent at {prob.name} = {pt.lam:.8g}",
+                        pds, None)
             ds *= 0.5
             if ds < cfg.ds_min:
                 return (f"step size below {cfg.ds_min} at {prob.name} = {pt.lam:.8g}", pds,
