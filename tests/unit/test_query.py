@@ -61,12 +61,25 @@ def _plane(tmp: Path, name: str, yname: str, lo: float, hi: float) -> Path:
     return gc.write_parquet(df, tmp / f"{name}.parquet", {gc.PLANE_KEY: rec, gc.TILES_KEY: tiles})
 
 
+def _sweep(tmp: Path, name: str = "standard", n: int = 6) -> Path:
+    """A w sweep of n points: 1/1T then 2/1T, as `gearsim sweep` writes it."""
+    ws = np.linspace(0.1, 2.5, n)
+    df = pd.DataFrame([{"parameter": "w", "value": w, "direction": "forward",
+                        **_row("1/1T" if k < n // 2 else "2/1T", 1 if k < n // 2 else 2, -0.1),
+                        "poincare_x": [0.1], "poincare_v": [0.2]} for k, w in enumerate(ws)])
+    df["p"] = df["p"].astype("Int64")
+    df["q"] = df["q"].astype("Int64")
+    prov = {"kind": "sweep", "name": name, "cells": n, "config_hash": "h", "code_version": "c",
+            "subtree": {"sweep": {"name": "w", "min": 0.1, "max": 2.5, "n": n, "fixed": {}}}}
+    return gc.write_parquet(df, tmp / f"{name}.parquet", {gc.PROVENANCE_KEY: prov})
+
+
 @pytest.fixture(scope="module")
 def db(tmp_path_factory):
     d = tmp_path_factory.mktemp("q")
     files = [_plane(d, "wb", "b", 0.0, 1.0), _plane(d, "wxi", "xi", 0.04, 0.16)]
     out = d / "catalogue.sqlite"
-    gc.build_catalogue(out, files)
+    gc.build_catalogue(out, files, [_sweep(d)])
     return out
 
 
@@ -326,3 +339,36 @@ def test_readme_view_query_runs(tmp_path, capsys):
                        ).fetchone()[0]
     con.close()
     assert rows[0] == "w,b,label" and len(rows) - 1 == want > 0
+
+
+def test_plane_view_has_physical_columns_with_a_gear(tmp_path):
+    """A plane record with the gear's factors (a study with a gear file) gives the view the
+    physical column of each axis with a physical meaning: speed_rpm = k * w."""
+    from gearsim.physical.units import load_gear, physical_factors
+
+    gear = load_gear(ROOT / "config/gears/standard.yaml")
+    f = _plane(tmp_path, "wb", "b", 0.0, 1.0)
+    rec = gc.read_metadata(f, gc.PLANE_KEY)
+    rec["physical"] = physical_factors(gear, ["w", "b"])
+    g = gc.write_parquet(pd.read_parquet(f), tmp_path / "wb_gear.parquet",
+                         {gc.PLANE_KEY: rec, gc.TILES_KEY: gc.read_metadata(f, gc.TILES_KEY)})
+    out = tmp_path / "c.sqlite"
+    gc.build_catalogue(out, [g])
+    con = sqlite3.connect(out)
+    rows = con.execute("select w, speed_rpm, b, half_backlash_um from wb").fetchall()
+    units = dict(con.execute("select column_name, unit from column_dictionary "
+                             "where table_name = 'wb'").fetchall())
+    con.close()
+    # the standard gear: w = 1 at its speed_rpm, b = 1 at 10 um (b_c)
+    for w, rpm, b, um in rows:
+        assert rpm == pytest.approx(w * gear.speed_rpm, rel=1e-9)
+        assert um == pytest.approx(b * gear.nominal_length_um, rel=1e-9)
+    assert units["speed_rpm"] == "rpm" and units["half_backlash_um"] == "um"
+
+
+def test_example_sweep_view(db):
+    """The sweep's view: its points in order with the swept parameter's name."""
+    cols, rows = execute(db, EXAMPLES["sweep-view"])
+    assert cols[:2] == ["w", "label"]
+    assert [r[0] for r in rows] == pytest.approx(list(np.linspace(0.1, 2.5, 6)))
+    assert [r[1] for r in rows] == ["1/1T"] * 3 + ["2/1T"] * 3

@@ -155,7 +155,8 @@ def test_exact_landmark_table_names_the_model_form_from_the_sweep_provenance(tmp
 
 def test_scorecard_counts_and_verdicts():
     """Every judged row counts once; a landmark off by more than the tolerance is 'no'."""
-    from gearsim.presentation.report import LANDMARK_TOL, scorecard
+    from gearsim.presentation.paper import LANDMARK_TOL
+    from gearsim.presentation.scorecard import scorecard
 
     std = paper_like()
     rep = analyse({"standard": std}, {}, plane_axes={}, configured_sweeps=["standard"])

@@ -483,20 +483,6 @@ def _html_escape(s: str) -> str:
     return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
-def physical_axes(gear, names: Sequence[str]) -> dict[str, dict[str, Any]]:
-    """For a gear: ``{parameter: {name, unit, k}}`` with ``physical = k * value`` for every
-    parameter among ``names`` that has a physical meaning (w, Fm, Fe, b)."""
-    from gearsim.physical.units import PHYSICAL_AXES, to_physical
-
-    out: dict[str, dict[str, Any]] = {}
-    if gear is None:
-        return out
-    for phys, (param, unit, _meaning) in PHYSICAL_AXES.items():
-        if param in names and param not in out and phys != "mesh_frequency_Hz":
-            out[param] = {"name": phys, "unit": unit, "k": to_physical(phys, 1.0, gear)}
-    return out
-
-
 def write_explorer(out: str | Path, *, planes: Mapping[str, tuple[str, str]] | Sequence[str],
                    sweeps: Sequence[str], results: str | Path = "results",
                    catalogue: str | Path | None = None,
@@ -508,6 +494,8 @@ def write_explorer(out: str | Path, *, planes: Mapping[str, tuple[str, str]] | S
     ``results/sweeps/<sweep>.parquet``, the catalogue's attractors and bifurcation curves when
     present) and write the page to ``out`` (atomically). ``gear``: the study's gear geometry
     (axes in physical units), ``scorecard``: the report's rows."""
+    from gearsim.physical.units import physical_factors
+
     results = Path(results)
     axes = dict(planes) if isinstance(planes, Mapping) else {p: None for p in planes}
     loaded = []
@@ -518,14 +506,14 @@ def write_explorer(out: str | Path, *, planes: Mapping[str, tuple[str, str]] | S
             p.attractors, p.n_attractors = read_attractors(catalogue, name,
                                                            int(cells["i"].max()) + 1)
             p.curves = read_curves(catalogue, name)
-        p.physical = physical_axes(gear, [p.xname, p.yname])
+        p.physical = physical_factors(gear, [p.xname, p.yname])
         loaded.append(p)
     tables = {s: pd.read_parquet(results / "sweeps" / f"{s}.parquet") for s in sweeps}
     sphys, fphys = {}, {}
     for s, df in tables.items():
         param = str(df["parameter"].iloc[0]) if "parameter" in df.columns and len(df) else "w"
-        sphys[s] = physical_axes(gear, [param]).get(param)
-        fphys[s] = physical_axes(gear, list((sweep_fixed or {}).get(s) or {}))
+        sphys[s] = physical_factors(gear, [param]).get(param)
+        fphys[s] = physical_factors(gear, list((sweep_fixed or {}).get(s) or {}))
     html = render(loaded, tables, sweep_fixed=sweep_fixed, sweep_physical=sphys,
                   sweep_fixed_physical=fphys,
                   provenance=provenance, scorecard=scorecard, title=title)

@@ -36,13 +36,25 @@ import pandas as pd
 from gearsim.analysis.landmarks import (
     PAPER_JUMP_DC,
     PAPER_JUMP_KMAX,
-    PAPER_LANDMARKS,
     find_landmarks,
     is_subsequence,
     match_paper,
     pattern_sequence,
 )
 from gearsim.cell.classify import KMAX_READINGS
+from gearsim.presentation.paper import (
+    JUMP_DC_TOL,
+    LANDMARK_TOL,
+    NOT_APPLICABLE,
+    PAPER_B_THRESHOLD,
+    PAPER_PLANES,
+    PAPER_SEQUENCE_TEXT,
+    PAPER_SEQUENCES,
+    PAPER_XI_THRESHOLD,
+    SEQUENCE_SWEEPS,
+    THRESHOLD_TOL,
+)
+from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import (
     axis_column,
     multistable_summary,
@@ -53,39 +65,7 @@ from gearsim.presentation.study_summary import (
     sweep_lines,
     sweep_spec_of,
     sweep_summary,
-    value_text,
 )
-
-NOT_APPLICABLE = "not applicable"
-PAPER_B_THRESHOLD = 0.4125
-PAPER_XI_THRESHOLD = 0.1436
-LANDMARK_TOL = 0.02
-THRESHOLD_TOL = 0.01
-JUMP_DC_TOL = 0.03
-
-#: Paper sequences (Sect 3.2 text of Fig 8, Sect 3.3 list of Fig 15). ``None`` = the paper gives
-#: only a qualitative description (quoted in ``PAPER_SEQUENCE_TEXT``).
-PAPER_SEQUENCES: dict[str, list[str] | None] = {
-    "b015": ["0/1T", "1/1T", "2/1T", "2/2T", "1/2T", "1/1T"],
-    "b025": None,
-    "b035": None,
-    "xi005": ["0/1T", "1/1T", "1/2T", "1/4T", "chaos", "1/8T", "1/4T", "1/2T", "1/1T"],
-    "xi009": ["0/1T", "1/1T", "1/2T", "1/4T", "1/2T", "1/1T"],
-    "xi015": ["0/1T", "1/1T"],
-}
-PAPER_SEQUENCE_TEXT = {
-    "b015": "0/1T -> 1/1T -> 2/1T -> 2/2T -> 1/2T -> 1/1T (Fig 8a)",
-    "b025": "non-impact interval unchanged; double-sided interval contracts, tooth-surface "
-            "interval expands; high-period double-sided motions (period 4, 8) appear (Fig 8b)",
-    "b035": "double-sided interval contracts further; double-sided motions degenerate to "
-            "2/4T and 2/2T (Fig 8c)",
-    "xi005": "0/1T -G-> 1/1T -PD-> 1/2T -PD-> 1/4T -PD-> ... chaos ... -PD-> 1/8T -> 1/4T -> "
-             "1/2T -> 1/1T (Fig 15a)",
-    "xi009": "0/1T -G-> 1/1T -PD-> 1/2T -PD-> 1/4T -PD-> 1/2T -PD-> 1/1T (Fig 15b)",
-    "xi015": "0/1T -G-> 1/1T (Fig 15c)",
-}
-SEQUENCE_SWEEPS = {"b015": ("b", 0.15), "b025": ("b", 0.25), "b035": ("b", 0.35),
-                   "xi005": ("xi", 0.05), "xi009": ("xi", 0.09), "xi015": ("xi", 0.15)}
 
 
 # ----------------------------------------------------------------------------- loading
@@ -316,10 +296,6 @@ def _table_axes(plane: str, df: pd.DataFrame | None) -> tuple[str, str]:
     return known.get(plane, ("x", "y"))
 
 
-#: what the paper has for a plane of these axes
-PAPER_PLANES = {("w", "b"): "Figs 7, 12, 13 and the backlash threshold b = 0.4125",
-                ("w", "xi"): "Figs 14, 16, 17 and the damping threshold xi = 0.1436"}
-
 
 def analyse(
     sweeps: dict[str, pd.DataFrame],
@@ -467,124 +443,6 @@ def _f(x: Any, fmt: str = ".4f") -> str:
     if isinstance(x, float) and math.isnan(x):
         return "—"
     return format(x, fmt)
-
-
-@dataclass
-class ScoreRow:
-    """One line of the scorecard: a paper result beside ours."""
-
-    item: str
-    paper: str
-    ours: str
-    located: str = "—"  # the located bifurcation (continuation), where there is one
-    difference: str = "—"
-    ok: bool | None = None  # within tolerance; None: no tolerance applies
-    tolerance: str = "—"
-
-    @property
-    def verdict(self) -> str:
-        return {True: "yes", False: "**no**", None: "—"}[self.ok]
-
-
-def scorecard(rep: Report) -> list[ScoreRow]:
-    """The paper's results beside ours, one row each (the report's and the explorer's head)."""
-    rows: list[ScoreRow] = []
-    exact = {}
-    if rep.exact is not None and len(rep.exact):
-        exact = {r["key"]: r for _, r in rep.exact.iterrows()}
-    if rep.matched is None and rep.paper_material and not any(
-            "no sweep 'standard'" in n for n in rep.notes):
-        rows.append(ScoreRow(f"w of the {len(PAPER_LANDMARKS)} landmarks of the standard sweep",
-                             "Sect 3.1", "not computed"))
-    if rep.matched is not None:
-        for r in rep.matched.itertuples():
-            paper = (f"{r.paper_lo:g}-{r.paper_hi:g}" if r.paper_lo != r.paper_hi
-                     else f"{r.paper:g}")
-            ex = exact.get(r.key)
-            located = ("—" if ex is None or not math.isfinite(ex["exact"])
-                       else f"{ex['exact']:.4f}")
-            if r.found:
-                ok = bool(abs(r.error) <= LANDMARK_TOL)
-                rows.append(ScoreRow(f"w: {r.text}", paper,
-                                     f"{r.ours:.4f} [{r.lo:.3f}, {r.hi:.3f}]", located,
-                                     f"{r.error:+.4f}", ok, f"{LANDMARK_TOL} in w"))
-            else:
-                rows.append(ScoreRow(f"w: {r.text}", paper, "not found", located, "—", False,
-                                     f"{LANDMARK_TOL} in w"))
-    if rep.jump:
-        j = rep.jump
-        rows.append(ScoreRow("DC after the jump", f"{PAPER_JUMP_DC}", f"{j['dc_after']:.3f}",
-                             difference=f"{j['dc_after'] - PAPER_JUMP_DC:+.3f}",
-                             ok=bool(abs(j["dc_after"] - PAPER_JUMP_DC) <= JUMP_DC_TOL),
-                             tolerance=f"{JUMP_DC_TOL}"))
-        best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
-                   default=None)
-        if best:
-            rows.append(ScoreRow("Kmax after the jump (closest reading)", f"{PAPER_JUMP_KMAX}",
-                                 f"{best[1]:.3f} ({best[0]})",
-                                 difference=f"{best[1] - PAPER_JUMP_KMAX:+.3f}",
-                                 tolerance="none (the paper's Kmax is not defined exactly)"))
-    for th, label, key, paper in (
-            (rep.b_threshold, "b above which no double-sided impact occurs", "b",
-             PAPER_B_THRESHOLD),
-            (rep.xi_threshold, "xi above which only 0/1T and 1/1T remain", "xi",
-             PAPER_XI_THRESHOLD)):
-        if th is None:
-            if key not in rep.thresholds_na:
-                rows.append(ScoreRow(label, f"{paper}", "not computed"))
-            continue
-        ok = bool(abs(th.difference) <= THRESHOLD_TOL) if math.isfinite(th.difference) else False
-        if math.isinf(th.value):
-            ours = f"above the plane (still at {th.last_with:.4g})"
-        elif math.isnan(th.value):
-            ours = "no row has the property"
-        else:
-            ours = f"{th.value:.4f} [{th.last_with:.3f}, {th.first_without:.3f}]"
-        rows.append(ScoreRow(label, f"{th.paper}", ours,
-            difference=value_text(th.difference, "+.4f", "—"), ok=ok,
-            tolerance=f"{THRESHOLD_TOL}"))
-    for key, e in rep.sequences.items():
-        if e.get("paper") is None or e.get("applicable") is False:
-            continue
-        if e.get("ours") is None:
-            rows.append(ScoreRow(f"sequence {e['parameter']} = {e['value']} ({key})",
-                                 " -> ".join(e["paper"]), "not computed", ok=None))
-            continue
-        extra = [x for x in dict.fromkeys(e["ours"]) if x not in e["paper"]]
-        ours = ("identical" if e["exact"] else "paper's patterns in order" if e["in_order"]
-                else "not in the paper's order")
-        if extra and not e["exact"]:
-            ours += "; extra " + ", ".join(extra)
-        rows.append(ScoreRow(f"sequence {e['parameter']} = {e['value']} ({key})",
-                             " -> ".join(e["paper"]), ours, ok=bool(e["exact"]),
-                             tolerance="same sequence"))
-    if rep.hysteresis_band is not None:
-        lo, hi = rep.hysteresis_band
-        rows.append(ScoreRow("hysteresis of the fold (Fig 18)", "jump up and down differ",
-                             f"band {lo:.4f} <= w <= {hi:.4f}", ok=hi > lo,
-                             tolerance="a band exists"))
-    for m in rep.multistable:
-        rows.append(ScoreRow(f"coexisting attractors, plane {m['plane']}",
-                             "coexistence near the fold",
-                             f"{m['multi']} of {m['searched']} searched cells"))
-    return rows
-
-
-def _scorecard_lines(rep: Report) -> list[str]:
-    rows = scorecard(rep)
-    if not rows:
-        return []
-    judged = [r for r in rows if r.ok is not None]
-    out = ["## Scorecard", "",
-           f"{sum(r.ok for r in judged)} of {len(judged)} results within tolerance. Grid "
-           "readings are the midpoint of the two swept values where the labels change "
-           "[interval]; \"located\" is the bifurcation found by continuation.", "",
-           "| result | paper | ours (grid) | located | difference | within |",
-           "|---|---|---|---|---|---|"]
-    out += [f"| {r.item} | {r.paper} | {r.ours} | {r.located} | {r.difference} | {r.verdict} |"
-            for r in rows]
-    out.append("")
-    return out
 
 
 def _misses_lines(rep: Report) -> list[str]:
@@ -743,7 +601,7 @@ def to_markdown(rep: Report) -> str:
                "Paper: Liu et al., PLOS ONE 2025 (doi 10.1371/journal.pone.0335920). Every "
                "'ours' value is computed from this run's outputs.", ""]
         out += [*warning, ""] if warning else []
-        out += _scorecard_lines(rep)
+        out += scorecard_lines(rep)
         out += _misses_lines(rep)
         out += _study_lines(rep, heading="## This study")
         out += ["## Details of the paper comparison", ""]

@@ -2,9 +2,9 @@
 
 A plane's view is named after the plane and has its axis names as columns, so a reader writes
 ``select w, b, label from wb where w between 1.0 and 1.01`` instead of joining ``cells`` to
-``planes`` and filtering on ``x`` / ``y``. An axis given in physical units (``speed_rpm``,
-``torque_Nm``, ... with a gear file, docs/units.md) adds a column of that name in its unit. A
-sweep's view is named after the sweep, with the swept parameter's name for ``value``. Every view
+``planes`` and filtering on ``x`` / ``y``. With a gear file (docs/units.md) an axis with a
+physical meaning (w, Fm, Fe, b) adds its physical column (``speed_rpm``, ``torque_Nm``, ...,
+from the plane record's ``physical`` factors or an axis given in those units). A sweep's view is named after the sweep, with the swept parameter's name for ``value``. Every view
 column gets a row in ``column_dictionary``. A name taken by a table (or by a plane, for a
 sweep) gets the prefix ``plane_`` / ``sweep_``.
 """
@@ -81,14 +81,19 @@ def create_views(con, plane_records: Iterable[Any] = (),
         return view
 
     cell_cols = _columns(con, "cells")
-    plane_axes = _by_name(plane_records, lambda r: {"x": r.get("x"), "y": r.get("y")})
+    plane_axes = _by_name(plane_records, lambda r: {"x": r.get("x"), "y": r.get("y"),
+                                                    "physical": r.get("physical")})
     for pid, pname, x_name, y_name in con.exec_driver_sql(
             "SELECT id, name, x_name, y_name FROM planes ORDER BY id").fetchall():
         view = name_for(pname, "plane")
         select = ["c.i", "c.j", f"c.x AS {_quote(x_name)}", f"c.y AS {_quote(y_name)}"]
         cols = ["i", "j", x_name, y_name]
-        for axis, col in (("x", "c.x"), ("y", "c.y")):
+        gear_axes = (plane_axes.get(pname) or {}).get("physical") or {}
+        for axis, col, param in (("x", "c.x", x_name), ("y", "c.y", y_name)):
             phys = _physical((plane_axes.get(pname) or {}).get(axis))
+            if phys is None and isinstance(gear_axes.get(param), Mapping):
+                g = gear_axes[param]
+                phys = (str(g["name"]), str(g["unit"]), float(g["k"]))
             if phys and phys[0] not in cols:
                 select.append(f"{col} * {phys[2]!r} AS {_quote(phys[0])}")
                 cols.append(phys[0])

@@ -157,4 +157,13 @@ def plane_record(config: dict, plane: str) -> dict:
         "config_hash": config_hash(plane_subtree(config, plane)),
         "code_version": code_version(),
         "integration": integration_settings(config).to_dict(),
+        # the axes in physical units when the study has a gear file (the catalogue's views)
+        "physical": _physical_axes(config, (pl["x"]["name"], pl["y"]["name"])),
     }
+
+
+def _physical_axes(config: Mapping, names) -> dict[str, dict[str, Any]]:
+    from gearsim.physical.units import config_gear, physical_factors
+    from gearsim.study.config import study_root
+
+    return physical_factors(config_gear(config, study_root()), names)

@@ -63,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
                          + " (run the pipeline first)")
     fixed = {k: dict(v.get("fixed") or {}) for k, v in (config.get("sweeps") or {}).items()}
     from gearsim.physical.units import config_gear
-    from gearsim.presentation.report import build_report, scorecard
+    from gearsim.presentation.report import build_report
+    from gearsim.presentation.scorecard import scorecard
     from gearsim.study.config import study_root
 
     rep, _ = build_report(sweeps_dir=results / "sweeps", catalogue=args.catalogue,

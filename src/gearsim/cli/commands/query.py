@@ -57,6 +57,10 @@ FROM wb
 WHERE b > 0.9
 ORDER BY w, b
 LIMIT 10;""",
+    "sweep-view": """\
+SELECT w, label, label_npq, dc, kmax
+FROM standard
+ORDER BY k;""",
 }
 
 #: SQL functions a query may call (core scalar, aggregate, window, math, date and JSON
