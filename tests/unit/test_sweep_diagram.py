@@ -70,3 +70,33 @@ def test_cli_writes_the_diagram_and_indexes_it(tmp_path):
 def test_cli_needs_a_sweep(capsys):
     assert main(["figures", "--sweep-diagrams"]) == 2
     assert "--sweep" in capsys.readouterr().err
+
+
+def test_a_dimensionless_sweep_on_a_gear_gets_a_top_axis_in_rpm():
+    fig, caption = figure_sweep_diagram(
+        synthetic_sweep(), name="standard", spec={"name": "w"},
+        physical={"name": "speed_rpm", "unit": "rpm", "k": 20000.0})
+    top = fig.axes[0].child_axes
+    assert len(top) == 1 and top[0].get_xlabel() == "speed_rpm [rpm]"
+    # the secondary axis maps w to k w: the panel's w limits become rpm limits
+    lo, hi = fig.axes[0].get_xlim()
+    assert top[0].get_xlim() == pytest.approx((20000.0 * lo, 20000.0 * hi))
+    assert "Top axis: speed_rpm [rpm]" in caption
+
+
+def test_plane_maps_of_a_gear_study_have_physical_axes(tmp_path):
+    """With a gear file the maps get axes in rpm (w) and um (b) beside the dimensionless ones,
+    and their records say so."""
+    from test_figures import synthetic_plane
+
+    from gearsim.study.config import project_root
+
+    cells = tmp_path / "wb.parquet"
+    synthetic_plane("b").to_parquet(cells)
+    study = tmp_path / "gear.yaml"
+    study.write_text(f"gear: {project_root() / 'config/gears/standard.yaml'}\n")
+    out = tmp_path / "figs"
+    assert main(["figures", "--maps", "--plane", f"wb={cells}", "--map", "pattern",
+                 "--configfile", str(study), "--outdir", str(out)]) == 0
+    rec = json.loads((out / "planes" / "wb-pattern.json").read_text())
+    assert any("speed_rpm [rpm]" in n and "half_backlash_um [um]" in n for n in rec["notes"])

@@ -136,6 +136,15 @@ def _write_record(path: Path, rec: dict) -> None:
     write_text_atomic(path, json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
 
 
+def _physical(config):
+    """``(x, y) -> {parameter: {name, unit, k}}`` of the study's gear file (empty without)."""
+    from gearsim.physical.units import config_gear, physical_factors
+    from gearsim.study.config import study_root
+
+    gear = config_gear(config, study_root())
+    return lambda *names: physical_factors(gear, names)
+
+
 def _sweep_diagrams(args: argparse.Namespace, outdir: Path) -> None:
     """``OUTDIR/sweeps/<sweep>.{png,pdf,json}`` for every ``--sweep``."""
     import matplotlib.pyplot as plt
@@ -147,7 +156,10 @@ def _sweep_diagrams(args: argparse.Namespace, outdir: Path) -> None:
     config = config_from_args(args)
     for name, path in _pairs(args.sweep, "--sweep").items():
         spec = sweep_spec_of(path, config, name)
-        fig, caption = figure_sweep_diagram(read_table(path), name=name, spec=spec)
+        df = read_table(path)
+        param = str(df["parameter"].iloc[0]) if len(df) else ""
+        fig, caption = figure_sweep_diagram(df, name=name, spec=spec,
+                                            physical=_physical(config)(param).get(param))
         stem = outdir / "sweeps" / name
         files = [str(f) for f in save_figure(fig, stem)]
         plt.close(fig)
@@ -165,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gearsim.presentation.figures import registry
     from gearsim.presentation.figures.index import write_index
-    from gearsim.presentation.figures.style import save_figure
+    from gearsim.presentation.figures.style import physical_axes, save_figure
 
     outdir = Path(args.outdir)
     table = registry.figures()
@@ -190,8 +202,13 @@ def run(args: argparse.Namespace) -> int:
         config = config_from_args(args)
         ctx = _context(args, config)
         if args.maps:
+            physical = _physical(config)
             for plane, df in ctx.planes.items():
                 for spec, fig, caption, notes in registry.build_maps(plane, df, args.map):
+                    xname, yname = registry._axes(df)
+                    units = physical_axes(fig, physical(xname, yname), xname, yname)
+                    if units:
+                        notes = [*notes, "axes also in " + ", ".join(units) + " (the gear file)"]
                     stem = outdir / "planes" / f"{plane}-{spec.kind}"
                     stem.parent.mkdir(parents=True, exist_ok=True)
                     files = [str(f) for f in save_figure(fig, stem)]

@@ -33,9 +33,12 @@ def sweep_axis_label(df: pd.DataFrame, spec: Mapping[str, Any] | None
 
 
 def figure_sweep_diagram(df: pd.DataFrame, *, name: str,
-                         spec: Mapping[str, Any] | None = None) -> tuple[Any, str]:
+                         spec: Mapping[str, Any] | None = None,
+                         physical: Mapping[str, Any] | None = None) -> tuple[Any, str]:
     """Three stacked panels sharing the swept axis: section points x (coloured by impact
     state), DC, Kmax; a ``direction: both`` sweep draws the backward pass as open markers.
+    ``physical``: ``{name, unit, k}`` of a dimensionless swept parameter on the study's gear
+    (:func:`gearsim.physical.units.physical_factors`), drawn as a second axis on top.
     Returns ``(figure, caption)``."""
     import matplotlib.pyplot as plt
 
@@ -83,7 +86,14 @@ def figure_sweep_diagram(df: pd.DataFrame, *, name: str,
     fixed = ", ".join(f"{k} = {v:g}" for k, v in ((spec or {}).get("fixed") or {}).items()
                       if isinstance(v, int | float))
     title = f"Sweep {name}: {label}" + (f" ({fixed})" if fixed else "")
-    ax_x.set_title(title, fontsize=10)
+    top = None
+    if physical and factor == 1.0:
+        k = float(physical["k"])
+        top = f"{physical['name']} [{physical['unit']}]"
+        sec = ax_x.secondary_xaxis("top", functions=(lambda v: v * k, lambda v: v / k))
+        sec.set_xlabel(top, fontsize=8)
+        sec.tick_params(labelsize=7)
+    ax_x.set_title(title, fontsize=10, pad=28 if top else 6)
     fig.tight_layout()
     n = len(df)
     caption = (f"Bifurcation diagram of the sweep '{name}' ({n} points, {label}"
@@ -91,7 +101,8 @@ def figure_sweep_diagram(df: pd.DataFrame, *, name: str,
                "displacement (the last up to 64 per value, coloured by impact state), the "
                "disengagement duty cycle DC and the dynamic load coefficient Kmax."
                + (" Open markers and dashed lines: the backward pass." if len(dirs) > 1
-                  else ""))
+                  else "")
+               + (f" Top axis: {top} (the gear file)." if top else ""))
     return fig, caption
 
 
