@@ -585,3 +585,20 @@ def test_faults_deep_in_a_command_are_one_line(tmp_path, gearsim, monkeypatch):
     monkeypatch.setattr(table1, "table", bug)
     with pytest.raises(KeyError):
         gearsim(args, tmp_path)
+
+
+def test_report_says_where_cells_come_from_without_the_catalogue(tmp_path, study):
+    """No silent fallback: a report built without its catalogue says it read the Parquet cells."""
+    from gearsim.presentation.report import build_report
+
+    (tmp_path / "wb").mkdir()
+    shutil.copyfile(study["cells"], tmp_path / "wb/cells.parquet")
+    missing = tmp_path / "catalogue.sqlite"
+    _, md = build_report(sweeps_dir=tmp_path / "none", catalogue=missing, results=tmp_path,
+                         calibration=None, planes={"wb": ("w", "b")}, sweeps=[])
+    assert f"catalogue {missing} not found: the cells of wb were read from" in md
+    db = tmp_path / "other.sqlite"  # a catalogue without this plane
+    gc.build_catalogue(db)
+    _, md = build_report(sweeps_dir=tmp_path / "none", catalogue=db, results=tmp_path,
+                         calibration=None, planes={"wb": ("w", "b")}, sweeps=[])
+    assert f"plane wb is not in the catalogue {db}: its cells were read from" in md

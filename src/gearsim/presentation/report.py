@@ -104,6 +104,27 @@ def _cells_from_catalogue(path: Path, plane: str) -> pd.DataFrame | None:
     return df
 
 
+def _fallback_notes(catalogue: str | Path | None, results: str | Path,
+                    planes: Sequence[str]) -> list[str]:
+    """A note for each plane whose cells came from its Parquet file although a catalogue was
+    given (:func:`load_plane`): the report says where its numbers come from."""
+    if catalogue is None or not planes:
+        return []
+    path = Path(catalogue)
+    if not path.is_file():
+        return [f"catalogue {path} not found: the cells of {', '.join(planes)} were read from "
+                f"{Path(results)}/<plane>/cells.parquet"]
+    from gearsim.results.catalogue import open_catalogue
+
+    con = open_catalogue(path, check=False)  # checked when the cells were read
+    try:
+        have = {name for (name,) in con.execute("SELECT name FROM planes")}
+    finally:
+        con.close()
+    return [f"plane {p} is not in the catalogue {path}: its cells were read from "
+            f"{Path(results) / p / 'cells.parquet'}" for p in planes if p not in have]
+
+
 def load_plane(plane: str, *, catalogue: str | Path | None = None,
                results: str | Path = "results") -> pd.DataFrame | None:
     """Cells of ``plane`` from the catalogue, else from ``results/<plane>/cells.parquet``."""
@@ -638,6 +659,7 @@ def build_report(
     rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
                   configured_sweeps=sweeps)
     rep.audit = load_audits(results, names)
+    rep.notes += _fallback_notes(catalogue, results, [p for p in names if cells[p] is not None])
     rep.study = study
     for name, df in loaded.items():
         png = Path(results) / "figures" / "sweeps" / f"{name}.png"
