@@ -12,8 +12,8 @@ from gearsim.study.config import project_root
 
 @pytest.mark.skipif(shutil.which("snakemake") is None, reason="snakemake not installed")
 def test_snakemake_plans_the_published_catalogue():
-    """A dry run for results/catalogue.sqlite plans the catalogue rule, which keeps the file
-    (flagged update: never deleted before the job) and builds it from the planes and sweeps."""
+    """A dry run for results/catalogue.sqlite plans the catalogue build and the publishing job,
+    whose output is flagged update (never deleted before the job)."""
     r = subprocess.run(
         ["snakemake", "-n", "--nolock", "results/catalogue.sqlite", "--configfile",
          "config/tiny.yaml"],
@@ -22,4 +22,4 @@ def test_snakemake_plans_the_published_catalogue():
     assert r.returncode == 0, out[-2000:]
     assert "No rule to produce" not in out
     assert "results/catalogue.sqlite (update)" in out
-    assert "rule catalogue:" in out
+    assert "rule catalogue:" in out and "rule published_catalogue:" in out

@@ -99,11 +99,7 @@ rule catalogue:
         # bifurcation points / curves (workflow/rules/orbits.smk, included later)
         orbits=lambda wildcards: globals().get("ORBIT_CATALOGUE_FILES", []),
     output:
-        build=CATALOGUE,
-        # the file users query, a target of its own (`snakemake results/catalogue.sqlite`);
-        # update(): Snakemake neither deletes it before the job nor leaves it deleted after a
-        # failed one, so the last good catalogue survives a failed rebuild
-        published=update(PUBLISHED_CATALOGUE),
+        CATALOGUE,
     log:
         "logs/catalogue.log",
     conda:
@@ -111,8 +107,25 @@ rule catalogue:
     shell:
         "gearsim catalogue build --cells {input.cells} --sweeps {input.sweeps} "
         "--audits {input.audits} --attractors {input.attractors} --orbits {input.orbits} "
-        "--out {output.build} --publish {output.published} "
+        "--out {output} --publish results/catalogue.sqlite "
         "> {log} 2>&1"
+
+
+# The file users query as a target of its own (`snakemake results/catalogue.sqlite`): the build
+# above publishes it; this job only asks for that build and publishes again (idempotent).
+# update(): Snakemake does not delete the published file before the job, and a failed build
+# never reaches this job, so the last good catalogue stays in place, untouched.
+rule published_catalogue:
+    input:
+        CATALOGUE,
+    output:
+        update(PUBLISHED_CATALOGUE),
+    log:
+        "logs/catalogue_publish.log",
+    conda:
+        GEARSIM_ENV
+    shell:
+        "gearsim catalogue publish --from {input} --to {output} > {log} 2>&1"
 
 
 ALL_TARGETS += expand("results/{plane}/cells.parquet", plane=PLANES)
