@@ -1,4 +1,4 @@
-"""Scale of the catalogue path (issue 14.5): a 2000 x 2000 plane through tiles -> cells.parquet
+"""Scale of the catalogue path: a 2000 x 2000 plane through tiles -> cells.parquet
 -> catalogue in bounded memory.
 
 The tiles are hand-built (``tests/synthetic_tiles.py``: every column of a simulated tile,

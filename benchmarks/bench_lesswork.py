@@ -1,8 +1,9 @@
-"""(l) Less work per cell (issue 16.4): the evidence behind each numerical shortcut.
+"""(l) Less work per cell: the evidence behind each numerical shortcut.
 
 Subcommands (results as JSON in benchmarks/results/, plane frames in benchmarks/.scratch/):
 
-* ``cells --spp 128 160 192 256``: the 30-cell convergence set (tests/test_convergence.py) with
+* ``cells --spp 128 160 192 256``: the 30-cell convergence set
+  (tests/integration/test_convergence.py) with
   RK4 at each steps-per-period value: labels, and the section-point error of a fixed 200-period
   run from the static state against DP5 at ``IntegrationSettings.tightened()`` (periodic cells;
   relative to the orbit's x range).
@@ -138,7 +139,7 @@ def cmd_plane(args) -> dict:
 
 def _dp5_label(config, plane, ref, r):
     """The audit's reference (DP5 at tightened tolerance) for row ``r`` of frame ``ref``."""
-    from gearsim.cli.commands.catalogue import audit_frame
+    from gearsim.study.audit import audit_frame
 
     config = dict(config, audit={**config["audit"], "fraction": 1.0, "seed": 0})
     sub = ref.iloc[[r]]
@@ -202,7 +203,7 @@ def cmd_compare(args) -> dict:
 def cmd_audit(args) -> dict:
     import pandas as pd
 
-    from gearsim.cli.commands.catalogue import audit_frame
+    from gearsim.study.audit import audit_frame
 
     config = _config(args.config, {})
     if args.audit:
@@ -226,7 +227,7 @@ def cmd_audit_ab(args) -> dict:
     variants alternated ``--repeats`` times in one process (load recorded)."""
     import pandas as pd
 
-    from gearsim.cli.commands.catalogue import audit_frame
+    from gearsim.study.audit import audit_frame
 
     config = _config(args.config, {})
     cells = pd.read_parquet(args.frame)
@@ -293,7 +294,6 @@ def cmd_landmarks(args) -> dict:
     import pandas as pd
 
     from gearsim.analysis.landmarks import find_landmarks, match_paper
-    from gearsim.cli.commands.sweep import sweep_frame
     from gearsim.dynamics.parameters import ModelParameters
     from gearsim.presentation.report import (
         PAPER_B_THRESHOLD,
@@ -304,6 +304,7 @@ def cmd_landmarks(args) -> dict:
     )
     from gearsim.study.config import base_parameters, integration_settings
     from gearsim.study.grid import sweep_values
+    from gearsim.study.sweeps import sweep_frame
 
     config = _config(args.config, _sets(args.set))
     sw = config["sweeps"]["standard"]

@@ -1,4 +1,4 @@
-"""The quick configuration's results before and after the one-source refactor (issue 10).
+"""The quick configuration's results before and after the one-source refactor.
 
 Not a timing: the identity check of issue 10 ("the quick configuration's catalogue is identical
 in every label, n, p, q, impact and status; values within 1e-9"). The old package is a git
@@ -47,7 +47,7 @@ from gearsim.dynamics.parameters import ModelParameters
 from gearsim.cell.simulate import IntegrationSettings
 out, planes_only = sys.argv[1], sys.argv[2] == "1"
 fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
-# the old code's settings: 256 steps per period (config.yaml has 192 since round 5, issue 16.4)
+# the old code's settings: 256 steps per period (config.yaml has 192 since round 5)
 ov = ({"integration": {"tangent_lead": 0, "steps_per_period": 256}}
       if "tangent_lead" in fields else None)
 cfg = load_config(["config/config.yaml", "config/quick.yaml"], ov)

@@ -1,4 +1,4 @@
-"""Build the results table of benchmarks/README.md from benchmarks/results/*.json.
+"""Build the results table of benchmarks/CHANGELOG.md (the log) from benchmarks/results/*.json.
 
 Usage: python benchmarks/summarize.py   (rewrites the block between the RESULTS markers)
 """
@@ -163,7 +163,7 @@ def table() -> str:
 
 
 def main():
-    readme = HERE / "README.md"
+    readme = HERE / "CHANGELOG.md"
     text = readme.read_text()
     block = f"{BEGIN}\n{table()}\n{END}"
     if BEGIN in text:

@@ -22,6 +22,7 @@ SHARED_GROUPS = {
     # tests/tiny_study.py: the tiny study with a (w, eps) plane, under the worker's basetemp
     "test_figures_planes.py": "tiny_study",
     "test_explorer.py": "tiny_study",
+    "test_report_study.py": "tiny_study",
 }
 # Units handed out first, longest first, so the last units to start are short ones and both
 # workers finish close together; units not named here follow in collection order. CPU seconds
@@ -65,12 +66,21 @@ def pytest_xdist_make_scheduler(config, log):
     return SharedStudyScheduling(config, log)
 
 
+#: The tiers (folders of tests/): unit runs in seconds per file (`make test-fast`), integration runs
+#: the compiled kernels over longer horizons or a subprocess, workflow runs Snakemake. Each test is
+#: marked with its tier, so `pytest -m "not workflow"` selects by tier too.
+TIERS = ("unit", "integration", "workflow")
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """On xdist workers, put the units of LONGEST_FIRST first (the scheduler follows this order).
-
-    A plain `pytest` run keeps the files in collection order.
+    """Mark every test with its tier; on xdist workers, put the units of LONGEST_FIRST first (the
+    scheduler follows this order). A plain `pytest` run keeps the files in collection order.
     """
+    for it in items:
+        tier = Path(str(it.fspath)).parent.name
+        if tier in TIERS:
+            it.add_marker(getattr(pytest.mark, tier))
     if not hasattr(config, "workerinput") or not LONGEST_FIRST:
         return
     rank = {u: i for i, u in enumerate(LONGEST_FIRST)}

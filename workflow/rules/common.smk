@@ -1,6 +1,7 @@
 # Config validation, tile list, shared helpers. Everything here runs once when the workflow is
 # parsed, before any job starts.
 import os
+import sys
 
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
@@ -24,7 +25,9 @@ if getattr(workflow.config_settings, "replace_workflow_config", False):
     _own_files = []
 try:
     _resolved = gcfg.load_config(
-        _own_files + _cli_files, workflow.config_settings.config or None, root=STUDY_ROOT
+        _own_files + _cli_files,
+        workflow.config_settings.config or None,
+        root=STUDY_ROOT,
     )
 except gcfg.ConfigError as exc:
     raise WorkflowError(f"invalid configuration: {exc}") from None
@@ -45,7 +48,9 @@ validate(config, str(SCHEMA))
 #    config). Rules take it as an ancient() input: its name never changes (the same content
 #    under another file name re-runs nothing) and its time never matters (the params below
 #    decide what re-runs: editing one plane re-runs only that plane).
-CONFIG_JSON = STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY or "default") / "config.json"
+CONFIG_JSON = (
+    STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY or "default") / "config.json"
+)
 _text = gprov.canonical_json(config)
 if not CONFIG_JSON.is_file() or CONFIG_JSON.read_text() != _text:
     CONFIG_JSON.parent.mkdir(parents=True, exist_ok=True)
@@ -70,7 +75,42 @@ if STUDY is not None:
     workdir: f"studies/{STUDY}"
 
 
-# 3. What the jobs depend on. CODE_VERSION[scope] hashes the layers a kind of job depends on
+# 3. Before any job: the output folders can be written (a read-only or full disk is one line
+#    now, not a traceback after minutes of simulation), and a catalogue that readers would
+#    refuse (damaged, foreign, of another schema version) is set aside so that the catalogue
+#    rule rebuilds it from the verified Parquet files; readers never fall back silently.
+_DRY_RUN = any(
+    a in ("--dry-run", "--dryrun")
+    or (a.startswith("-") and not a.startswith("--") and "n" in a)
+    for a in sys.argv[1:]
+)
+
+
+def _preflight():
+    from gearsim.errors import UsageError
+    from gearsim.results.catalogue import set_aside_damaged
+    from gearsim.study.preflight import check_folder
+
+    if not _DRY_RUN:
+        for folder in ("results", "logs"):
+            try:
+                check_folder(Path(folder).resolve())
+            except UsageError as exc:
+                # one line and exit 2, as the gearsim commands (a WorkflowError would add
+                # Snakemake's file and line of this check)
+                print(f"gearsim: error: {exc}", file=sys.stderr)
+                raise SystemExit(2) from None
+    for line in set_aside_damaged(
+        "results/catalogue.sqlite", "results/catalogue.d/build.sqlite", dry_run=_DRY_RUN
+    ):
+        print(f"gearsim: {line}", file=sys.stderr)
+
+
+if workflow.is_main_process:  # not again in each job of a cluster executor
+    _preflight()
+
+
+# 4. What the jobs depend on. CODE_VERSION[scope] hashes the layers a kind of job depends on
 #    (gearsim.study.provenance.CODE_SCOPES): Snakemake does not see edits to a package.
 CODE_VERSION = {scope: gprov.code_version(scope) for scope in gprov.CODE_SCOPES}
 PLANES = list(config["planes"])

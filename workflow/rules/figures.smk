@@ -68,10 +68,32 @@ rule plane_maps:
         "--configfile {input.config} --outdir results/figures > {log} 2>&1"
 
 
+# Every sweep of every study: its bifurcation diagram in the sweep's own units.
+rule sweep_diagram:
+    input:
+        sweep="results/sweeps/{sweep}.parquet",
+        config=CONFIG,
+    output:
+        gfr.sweep_diagram_outputs("{sweep}"),
+    log:
+        "logs/figures/sweep_{sweep}.log",
+    wildcard_constraints:
+        sweep="[^/]+",
+    conda:
+        GEARSIM_ENV
+    threads: 1
+    params:
+        code_version=CODE_VERSION["presentation"],
+    shell:
+        "gearsim figures --sweep-diagrams --sweep {wildcards.sweep}={input.sweep} "
+        "--configfile {input.config} --outdir results/figures > {log} 2>&1"
+
+
 rule figures_index:
     input:
         expand("results/figures/fig{n:02d}.json", n=FIGURES_BUILT),
         [f for plane in PLANES for f in gfr.map_outputs(plane) if f.endswith(".json")],
+        [f for s in SWEEPS for f in gfr.sweep_diagram_outputs(s) if f.endswith(".json")],
     output:
         "results/figures/README.md",
     log:
@@ -86,6 +108,7 @@ ALL_TARGETS += expand(
     "results/figures/fig{n:02d}.{ext}", n=FIGURES_BUILT, ext=["png", "pdf"]
 )
 ALL_TARGETS += [f for plane in PLANES for f in gfr.map_outputs(plane)]
+ALL_TARGETS += [f for s in SWEEPS for f in gfr.sweep_diagram_outputs(s)]
 ALL_TARGETS += ["results/figures/README.md"]
 
 

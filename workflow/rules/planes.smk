@@ -6,6 +6,7 @@
 # link renamed into place): readers of results/catalogue.sqlite never see it missing or partial,
 # and a failed rebuild keeps the last good one (docs/pipeline.md, Guarantees).
 CATALOGUE = "results/catalogue.d/build.sqlite"
+PUBLISHED_CATALOGUE = "results/catalogue.sqlite"
 
 
 rule compile:
@@ -108,6 +109,23 @@ rule catalogue:
         "--audits {input.audits} --attractors {input.attractors} --orbits {input.orbits} "
         "--out {output} --publish results/catalogue.sqlite "
         "> {log} 2>&1"
+
+
+# The file users query as a target of its own (`snakemake results/catalogue.sqlite`): the build
+# above publishes it; this job only asks for that build and publishes again (idempotent).
+# update(): Snakemake does not delete the published file before the job, and a failed build
+# never reaches this job, so the last good catalogue stays in place, untouched.
+rule published_catalogue:
+    input:
+        CATALOGUE,
+    output:
+        update(PUBLISHED_CATALOGUE),
+    log:
+        "logs/catalogue_publish.log",
+    conda:
+        GEARSIM_ENV
+    shell:
+        "gearsim catalogue publish --from {input} --to {output} > {log} 2>&1"
 
 
 ALL_TARGETS += expand("results/{plane}/cells.parquet", plane=PLANES)

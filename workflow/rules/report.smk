@@ -1,8 +1,9 @@
-# Reconstructed Table 1 and the reproduction report (calibration + report owner).
-# The report reads exactly its declared inputs: the configured sweeps, the catalogue (plane
-# cells), each plane's cells and numerical audit, Table 1 and, when the repository has it, the
-# calibration record docs/calibration.json (produced offline by `gearsim calibrate`, a long
-# search that is not part of the workflow). Its planes and sweeps come from the config.
+# Reconstructed Table 1 and the study's report.
+# The report reads exactly its declared inputs: the configured sweeps and their diagrams, the
+# point sets, the catalogue (plane cells), each plane's cells and numerical audit, Table 1 and,
+# when the repository has it, the calibration record docs/calibration.json (produced offline by
+# `gearsim calibrate`, a long search that is not part of the workflow). Its planes, sweeps and
+# points come from the config.
 CALIBRATION = Path(workflow.basedir, "docs/calibration.json")
 
 
@@ -28,6 +29,9 @@ rule report:
         audits=expand("results/{plane}/audit.parquet", plane=PLANES) if AUDIT else [],
         calibration=[str(CALIBRATION)] if CALIBRATION.is_file() else [],
         table1="results/table1.md",
+        # the sweeps' bifurcation diagrams the report links (workflow/rules/figures.smk)
+        diagrams=expand("results/figures/sweeps/{sweep}.png", sweep=SWEEPS),
+        points=expand("results/points/{points}.parquet", points=POINT_SETS),
         # exact landmarks by continuation (workflow/rules/orbits.smk)
         orbits=globals().get("ORBIT_REPORT_INPUTS", []),
         config=CONFIG,

@@ -15,7 +15,8 @@ Chaos 2023) is model-agnostic; a *system* supplies three operations on states of
 :func:`map_attractors` then works on section points projected to ``(x, x')`` (the first two
 section components) in the system's own units. The gear model is one client
 (:class:`GearCells`, the batched RK4 kernel and :mod:`gearsim.cell.classify` through
-:func:`gearsim.cell.chains.simulate_cells`); tests/test_attractors.py drives a hardening Duffing
+:func:`gearsim.cell.chains.simulate_cells`); tests/integration/test_attractors.py drives a
+hardening Duffing
 oscillator integrated with scipy through the same code.
 
 Algorithm per cell (all cells and starts of a call advance together as SIMD lanes):
@@ -52,7 +53,8 @@ sparse clouds: ``g <= 2 sqrt(points)``, at least 4; so a cell holds ~2 points on
 
 Basin fraction of an attractor: its share of the ``K`` random starts (continuation states are
 not samples and are not counted; an attractor found only by continuation has fraction 0).
-``early=False`` gives every start its full-length run; tests/test_attractors.py checks that the
+``early=False`` gives every start its full-length run; tests/integration/test_attractors.py
+checks that the
 early labelling reproduces those fractions exactly.
 """
 
@@ -404,7 +406,7 @@ def map_attractors(
         Also label starts early onto non-periodic (chaotic, quasi-periodic) attractors by
         cloud occupancy. Off by default: a torus sampled over a finite window, or a periodic
         window inside a chaotic band, can take a start that its full-length run classifies
-        otherwise (benchmarks/README.md (h)); with it off, the early labels are exactly the
+        otherwise (benchmarks/CHANGELOG.md (h)); with it off, the early labels are exactly the
         full-length ones on every cell checked.
     """
     if len(starts) != n_cells:

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from gearsim.analysis.continuation import Continuation, continue_orbit
+from gearsim.analysis.continuation import BUDGET, Continuation, continue_orbit
 from gearsim.analysis.orbits import OrbitError, find_periodic_orbit, free_states, section_map
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
@@ -206,6 +206,8 @@ def _relocate_secant(
             w_b = w_pred + min(0.1 * window, 1e-3)
     lo = hi = None  # bracket
     for _ in range(max_eval):
+        if cfg.out_of_budget():
+            return None
         wa, fa, ya, _ = evals[-1]
         if len(evals) >= 2:
             wp, fp, yp, _ = evals[-2]
@@ -307,6 +309,8 @@ def _relocate_fold(
     s_b = s0 + 1e-3
     lo = hi = None
     for _ in range(max_eval):
+        if cfg.out_of_budget():
+            return None
         sa, fa, ya, wa, _ = evals[-1]
         yg, wg = ya, wa
         if len(evals) >= 2:
@@ -442,6 +446,9 @@ def follow_curve(
     reason = "max points"
     while len(pts) < max_points:
         m1, w1, y1 = hist[-1]
+        if cfg.out_of_budget():
+            reason = f"{BUDGET}: wall-clock budget spent at {name2} = {m1:.6g}"
+            break
         if len(hist) >= 2:
             m0, w0, y0 = hist[-2]
             t = np.array([(w1 - w0) / s1, (m1 - m0) / s2])
@@ -496,6 +503,7 @@ def follow_curve(
         h = min(abs(step2), h * 1.5)
     df = pd.DataFrame(pts, columns=[c for c in CURVE_COLUMNS if c != "curve"])
     df.attrs["reason"] = reason
+    df.attrs["status"] = BUDGET if reason.startswith(BUDGET) else "ok"
     df.attrs["relocations"] = stats
     return df
 
@@ -582,9 +590,10 @@ def follow_curves(
     flush()
     out = (pd.concat(curves, ignore_index=True) if curves
            else pd.DataFrame(columns=list(CURVE_COLUMNS)))
+    status = BUDGET if any(c.attrs.get("status") == BUDGET for c in halves) else "ok"
     out.attrs.update(params=params.to_dict(), name2=name2, range2=list(range2), reasons=reasons,
                      wall_s=time.perf_counter() - t0, workers=workers, method=method,
-                     relocations=relocations)
+                     relocations=relocations, status=status)
     return out
 
 

@@ -100,6 +100,20 @@ class Continuation:
     substeps: int = 512
     settings: IntegrationSettings = field(default_factory=lambda: SHOOTING)
     progress: Any = None  # optional callable(str): a line every 10 branch points
+    #: ``time.monotonic()`` value at which the job's wall-clock budget ends (None: no budget;
+    #: a system-wide clock, so worker processes share it). Checked between points: the
+    #: computation stops with status ``budget``, keeping what it has.
+    deadline: float | None = None
+
+    def out_of_budget(self) -> bool:
+        """The job's wall-clock budget is spent."""
+        import time
+
+        return self.deadline is not None and time.monotonic() >= self.deadline
+
+
+#: Stop reasons of a continuation or a curve that ran out of its budget start with this.
+BUDGET = "budget"
 
 
 class _Problem:
@@ -153,6 +167,8 @@ class _Problem:
         d = self.d
         u = np.concatenate([y[self.dims], [lam]])
         for _ in range(self.cfg.corrector_iter):
+            if self.cfg.out_of_budget():  # a point does not outlast the job's budget
+                raise OrbitError(f"{BUDGET}: wall-clock budget spent")
             yy = self.full(u[:d], y)
             G, M, dGdl = self.evaluate(yy, u[d], n)
             h = float(normal @ (u - anchor))
@@ -361,6 +377,10 @@ def continue_orbit(
     reached: dict[int, set[int]] = {}
     next_branch = 1
     while jobs:
+        if cfg.out_of_budget():
+            reasons.append(f"{BUDGET}: wall-clock budget spent, {len(jobs)} branch job(s) "
+                           "not run")
+            break
         job = jobs.pop(0)
         nb = job["n"]
         if job["kind"] == "switch":
@@ -394,6 +414,7 @@ def continue_orbit(
     df.attrs.update(
         params=p0.to_dict(), name=name, start=start, stop=stop, reasons=reasons,
         wall_s=time.perf_counter() - t0,
+        status=BUDGET if any(f"{BUDGET}: " in r for r in reasons) else "ok",
     )
     return df
 
@@ -469,6 +490,9 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
     ds = cfg.ds
     pds: list[_Point] = []
     for step in range(cfg.max_points):
+        if cfg.out_of_budget():
+            return (f"{BUDGET}: wall-clock budget spent at {prob.name} = {pt.lam:.8g}", pds,
+                    None)
         u = np.concatenate([pt.y[prob.dims], [pt.lam]])
         while True:
             upred = u + ds * pt.tangent
@@ -481,6 +505,9 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
                 ok = False
             if ok:
                 break
+            if cfg.out_of_budget():
+                return (f"{BUDGET}: wall-clock budget spent at {prob.name} = {pt.lam:.8g}",
+                        pds, None)
             ds *= 0.5
             if ds < cfg.ds_min:
                 return (f"step size below {cfg.ds_min} at {prob.name} = {pt.lam:.8g}", pds,
@@ -565,6 +592,7 @@ def _ns_confirmed(mu: np.ndarray) -> bool:
 def write_branches(df: pd.DataFrame, path) -> None:
     """Write a branch table as Parquet (``df.attrs`` as JSON schema metadata)."""
     import json
+    import os
     from pathlib import Path
 
     import pyarrow as pa
@@ -575,6 +603,10 @@ def write_branches(df: pd.DataFrame, path) -> None:
     table = pa.Table.from_pandas(df, preserve_index=False)
     meta = {b"gearsim.analysis.continuation": json.dumps(df.attrs, default=float).encode()}
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **meta})
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    pq.write_table(table, tmp)
-    tmp.replace(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        pq.write_table(table, tmp)
+        tmp.replace(path)
+    finally:  # a full disk or a kill leaves the previous file and no temporary one
+        if tmp.exists():
+            tmp.unlink()

@@ -54,6 +54,9 @@ from gearsim.numerics.shooting import (  # noqa: F401  (the solver's public name
     sorted_eigs,
 )
 
+#: The simulation whose final section state seeds Newton: adaptive DP5 at its default tolerances.
+SEEDING = IntegrationSettings(method="dp5")
+
 #: channel names of the contact boundaries (mesh, then bearing clearances)
 _CHANNEL = ("x", "u_py", "u_pz", "u_gy", "u_gz")
 

@@ -94,7 +94,7 @@ def simulate_rows(
     ``rk4_settings`` is ``settings`` with ``method="rk4"``: the batched path always integrates
     with fixed-step RK4 at ``settings.steps_per_period`` (raised to ``ceil(T / hmax)``); the DP5
     tolerances are not used. Its classifications agree with the reference DP5 settings on the
-    test set of tests/test_batch.py.
+    test set of tests/unit/test_batch.py.
 
     Parameters
     ----------

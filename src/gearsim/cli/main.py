@@ -2,7 +2,10 @@
 
 Each module there defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``;
 modules are discovered automatically, so a new subcommand is one new file.
-Bad input exits with status 2 and one line on stderr, never a traceback.
+Bad input and faults of the machine or of the files (full disk, read-only folder, missing
+permission, a file that is not what its name says) exit with status 2 and one line on stderr
+naming the file and the cause, never a traceback (set ``GEARSIM_DEBUG=1`` to get the traceback
+of a machine or file fault).
 """
 
 from __future__ import annotations
@@ -19,6 +22,13 @@ from gearsim.cli import commands
 from gearsim.errors import USER_ERRORS, UsageError
 
 __all__ = ["UsageError", "build_parser", "main"]
+
+#: Set (to anything) to get the traceback of a machine or file fault instead of its one line.
+DEBUG_ENV = "GEARSIM_DEBUG"
+
+#: what `gearsim --help` says first (plain words: it is printed, not rendered)
+DESCRIPTION = ("gearsim: the nonlinear dynamics of a curve-face gear pair over parameter planes, "
+               "sweeps and points. `gearsim COMMAND --help` describes one command.")
 
 def _subcommand_modules(only: str | None = None):
     if only is not None:
@@ -44,7 +54,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    parser = _Parser(prog="gearsim", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="gearsim", description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"gearsim {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for mod in _subcommand_modules(only):
@@ -63,13 +73,57 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except USER_ERRORS as exc:
-        sys.stderr.write(f"gearsim {args.command}: error: {exc}\n")
+        sys.stderr.write(f"gearsim {args.command}: error: {_one_line(exc)}\n")
         return 2
     except BrokenPipeError:
         # the reader went away (`gearsim ... | head`): stop quietly, as `cat` does
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+    except OSError as exc:
+        if os.environ.get(DEBUG_ENV):
+            raise
+        sys.stderr.write(f"gearsim {args.command}: error: {os_error_line(exc)}\n")
+        return 2
+    except MemoryError:
+        sys.stderr.write(f"gearsim {args.command}: error: out of memory\n")
+        return 2
+    except Exception as exc:
+        line = _file_fault_line(exc)
+        if line is None or os.environ.get(DEBUG_ENV):
+            raise  # a bug: the traceback is what a developer needs
+        sys.stderr.write(f"gearsim {args.command}: error: {line}\n")
+        return 2
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def os_error_line(exc: OSError) -> str:
+    """``<file>: <cause>`` of an OSError, on one line."""
+    from gearsim.study.preflight import os_cause
+
+    names = [str(n) for n in (exc.filename, exc.filename2) if n is not None]
+    where = f"{' -> '.join(names)}: " if names else ""
+    return f"{where}{os_cause(exc)}"
+
+
+def _file_fault_line(exc: Exception) -> str | None:
+    """One line for a file that is not what its name says (Parquet, SQLite, YAML), else None.
+
+    The commands name the file when they can; this is the net under them."""
+    import sqlite3
+
+    mod = type(exc).__module__ or ""
+    if mod.startswith("pyarrow") or isinstance(exc, sqlite3.DatabaseError):
+        return f"unreadable file ({type(exc).__name__}: {_one_line(exc)})"
+    if mod.startswith("yaml"):
+        return f"invalid YAML ({_one_line(exc)})"
+    if mod.startswith("sqlalchemy.exc"):
+        orig = getattr(exc, "orig", None)
+        return f"database fault ({_one_line(orig if orig is not None else exc)})"
+    return None
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ by the
 one event layer (:func:`gearsim.numerics.events.advance_interval`, the same call the scalar
 integrator
 makes). The scalar RK4 path (:func:`gearsim.numerics.integrate.integrate_periods`) runs the same
-algorithm for one cell, so the two give bit-identical section points (tests/test_batch.py).
+algorithm for one cell, so the two give bit-identical section points (tests/unit/test_batch.py).
 
 Every lane uses the same number ``N`` of RK4 steps per mesh period, so all lanes share one grid in
 *phase* ``theta = w tau`` (:func:`gearsim.numerics.steps.phase_tables`). Lanes may have different
@@ -538,7 +538,7 @@ def run_periods_batched(
     steps)``. With ``tangent=False`` the tangent rows are not integrated (the summaries'
     ``lyap`` and the final tangent are then meaningless); the state, section points and event
     records are bit-identical to ``tangent=True`` (the event layer decides on the state only;
-    tests/test_attractors.py).
+    tests/integration/test_attractors.py).
     """
     st = settings or IntegrationSettings(method="rk4")
     n = len(params_list)

@@ -12,7 +12,7 @@ Two methods on the one field (:mod:`gearsim.dynamics.model`) and the one event l
   :func:`gearsim.numerics.steps.grid_step_flag` flags
   (a region change, a watched velocity sign change, the divergence bound) is redone by the event
   layer. This is the batched kernel's algorithm for one lane, so the two give bit-identical
-  section points (tests/test_batch.py).
+  section points (tests/unit/test_batch.py).
 
 Sections. Integration runs period by period (``T = 2 pi / w``, time measured within the period so
 the mesh phase is exact late in long chains), each period split into ``substeps`` equal output
@@ -24,7 +24,7 @@ counts, disengaged time, force and displacement extremes and the log growth of t
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -355,6 +355,29 @@ def integrate_periods(
     return status, periods_done, cnt[CNT_EV], acc[ACC_H], cnt[CNT_STEPS]
 
 
+#: Open intervals of the real settings of :class:`IntegrationSettings`.
+REAL_BOUNDS: dict[str, tuple[float, float]] = {
+    "rtol": (0, 1),
+    "atol": (0, 1),
+    "hmax": (0, 100),
+    "period_rtol": (0, 1),
+    "lyap_threshold": (0, 10),
+    "divergence_bound": (0, 1e300),
+}
+#: Closed intervals of the integer settings: the upper bounds keep a cell's work bounded.
+INTEGER_BOUNDS: dict[str, tuple[int, int]] = {
+    "steps_per_period": (4, 65_536),
+    "transient": (0, 100_000),
+    "transient_continuation": (0, 100_000),
+    "chunk": (4, 10_000),
+    "max_periods": (8, 100_000),
+    "n_max": (1, 4096),
+    "tangent_lead": (0, 10_000),
+    "max_steps": (1000, 1_000_000_000),
+    "transient_recurrence": (0, 100_000),
+}
+
+
 @dataclass(frozen=True)
 class IntegrationSettings:
     """Numerical settings of a cell simulation (all times in mesh periods unless stated).
@@ -401,13 +424,13 @@ class IntegrationSettings:
         means no probe.
     """
 
-    method: str = "dp5"
+    method: str = "rk4"
     rtol: float = 1e-9
     atol: float = 1e-12
     hmax: float = 0.2
-    steps_per_period: int = 256
+    steps_per_period: int = 192
     transient: int = 150
-    transient_continuation: int = 16
+    transient_continuation: int = 40
     chunk: int = 24
     max_periods: int = 256
     n_max: int = 64
@@ -423,32 +446,14 @@ class IntegrationSettings:
             raise ParameterError(
                 f"setting 'method' = {self.method!r}; allowed: {', '.join(METHODS)}"
             )
-        positive = {
-            "rtol": (0, 1),
-            "atol": (0, 1),
-            "hmax": (0, 100),
-            "period_rtol": (0, 1),
-            "lyap_threshold": (0, 10),
-            "divergence_bound": (0, 1e300),
-        }
-        for name, (lo, hi) in positive.items():
+        for name, (lo, hi) in REAL_BOUNDS.items():
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and lo < v < hi):
                 raise ParameterError(f"setting '{name}' = {v!r} must be in ({lo}, {hi})")
-        integers = {
-            "steps_per_period": 4,
-            "transient": 0,
-            "transient_continuation": 0,
-            "chunk": 4,
-            "max_periods": 8,
-            "n_max": 1,
-            "tangent_lead": 0,
-            "max_steps": 1000,
-        }
-        for name, lo in integers.items():
+        for name, (lo, hi) in INTEGER_BOUNDS.items():
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
-                raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= {lo}")
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ParameterError(f"setting '{name}' = {v!r} must be an integer in [{lo}, {hi}]")
         k = self.transient_recurrence
         lo = max(RECURRENCE_MIN, self.tangent_lead)
         if isinstance(k, bool) or not isinstance(k, int) or (k != 0 and not lo <= k <= 100_000):
@@ -470,6 +475,28 @@ class IntegrationSettings:
             steps_per_period=self.steps_per_period * 2,
             hmax=self.hmax / 2,
         )
+
+    @classmethod
+    def json_schema(cls) -> dict[str, Any]:
+        """The JSON-Schema properties of the configuration's ``integration:`` section: types,
+        bounds and defaults of these fields (workflow/schemas/config.schema.yaml holds exactly
+        this; a test checks it)."""
+        out: dict[str, Any] = {}
+        defaults = cls()
+        for f in fields(cls):
+            d = getattr(defaults, f.name)
+            if f.name == "method":
+                out[f.name] = {"type": "string", "enum": list(METHODS), "default": d}
+            elif f.name in INTEGER_BOUNDS:
+                lo, hi = INTEGER_BOUNDS[f.name]
+                out[f.name] = {"type": "integer", "minimum": lo, "maximum": hi, "default": d}
+            else:
+                lo, hi = REAL_BOUNDS[f.name]
+                s = {"type": "number", "exclusiveMinimum": lo}
+                if f.name != "divergence_bound":
+                    s["exclusiveMaximum"] = hi
+                out[f.name] = {**s, "default": d}
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

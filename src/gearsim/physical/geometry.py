@@ -142,7 +142,7 @@ class GearGeometry:
     20 deg), the assumed values for what the lost Table 1 held (face width 20 mm, solid steel
     disks on the pitch radii, b_c = 10 um, bearings 100 Km) and the load-like values that
     reproduce the calibrated dimensionless set of ``config/standard_parameters.yaml``
-    (``speed_rpm`` gives its w = 1). ``tests/test_units.py`` checks that the three agree.
+    (``speed_rpm`` gives its w = 1). ``tests/unit/test_units.py`` checks that the three agree.
 
     ``mass_*_kg`` and ``inertia_*_kg_m2`` left at ``None`` are those of solid disks of density
     ``density_kg_per_m3`` on the pitch radii and the face width (an inertia alone: ``M R^2 / 2``

@@ -116,6 +116,19 @@ def axis_factor(name: str, gear: GearGeometry) -> tuple[str, float]:
     return param, k
 
 
+def physical_factors(gear: GearGeometry | None, names) -> dict[str, dict[str, Any]]:
+    """``{parameter: {name, unit, k}}`` (``physical = k * value``) for every parameter among
+    ``names`` with a physical meaning on ``gear`` (w in rpm, Fm in N m, Fe and b in um); empty
+    without a gear."""
+    out: dict[str, dict[str, Any]] = {}
+    if gear is None:
+        return out
+    for phys, (param, unit, _meaning) in PHYSICAL_AXES.items():
+        if param in names and param not in out and phys != "mesh_frequency_Hz":
+            out[param] = {"name": phys, "unit": unit, "k": to_physical(phys, 1.0, gear)}
+    return out
+
+
 def to_dimensionless(name: str, value: float, gear: GearGeometry) -> tuple[str, float]:
     """A value of a physical axis as ``(parameter, dimensionless value)``."""
     param, k = axis_factor(name, gear)

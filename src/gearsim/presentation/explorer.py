@@ -1,16 +1,24 @@
 """The explorer: one static HTML page (``results/explorer/index.html``) to browse a study.
 
-For every plane of the study it draws the pattern, DC and Kmax maps (Plotly heatmaps); hovering
-a cell shows its label, n-p-q, impact state, DC, Kmax, the largest Lyapunov exponent and, when
-the catalogue has an ``attractors`` table, the coexisting attractors found there; clicking a
-cell draws its Poincare points (x, x') in the side panel. Every sweep gets its bifurcation
-diagram (Poincare x versus the swept parameter, coloured by impact state), zoomable.
+The page opens with the report's scorecard (the paper's results beside ours) when the study holds
+the paper's material. Every plane is a map drawn on a canvas from per-cell arrays, with its
+layers: pattern, DC, Kmax, the largest Lyapunov exponent, attractors per cell (when the plane was
+searched for coexisting attractors), the Floquet margin max|mu| (when the cells carry it) and the
+bifurcation curves on top (when the catalogue holds them); the legend sits beside the map.
+Hovering a cell shows its label, n-p-q, impact state, DC, Kmax, Lyapunov exponent; clicking it
+draws its Poincare points, lists its coexisting attractors with their basin fractions and draws
+the diagram of the nearest sweep through it. Every sweep has its bifurcation diagram. Axes are
+in physical units (rpm, N m, um) when the study has a gear file.
 
-The page needs no server and no network: Plotly.js is bundled inline and the data are embedded
-as compact typed arrays (base64 of little-endian float32 / int16 / uint32; section points as
-int16 over the plane's range), so a 400 x 400 plane costs about 36 bytes per cell plus about
-5.3 bytes per Poincare point (at most :data:`MAX_POINTS` per cell, the last ``n`` only for a
-periodic cell of period ``n``: they are its distinct points).
+The page needs no server and no network, and loads in about a second: no plotting library, and
+the data are one gzip-compressed binary block (base64) of typed arrays that the browser inflates
+with its own ``DecompressionStream``. Per cell: pattern, label and n-p-q indices, impact state,
+period (one or two bytes each), DC, Kmax, Lyapunov exponent and Floquet margin as 16-bit steps
+over their range (resolution range / 65534; stored as differences of neighbours, high bytes
+then low bytes), the number of section points; the section points themselves as 16-bit steps
+over the plane's range, at most :data:`MAX_POINTS` per cell (the last ``n`` only for a periodic
+cell of period ``n``: they are its distinct points; fewer per chaotic cell when a page would hold
+more than :data:`POINTS_BUDGET` bytes of them).
 
 Every quantity is dimensionless as in the catalogue (docs/model.md): x = X_n / b_c,
 x' = dx/dtau with tau = omega_n t; DC is a fraction of the mesh period; Kmax = F_n / F_m; the
@@ -20,9 +28,10 @@ Lyapunov exponent is per unit dimensionless time.
 from __future__ import annotations
 
 import base64
+import gzip
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,43 +41,101 @@ import pandas as pd
 from gearsim.presentation.figures import style
 
 #: Poincare points kept per cell (chaotic / unsettled cells); a periodic cell keeps its n points.
-MAX_POINTS = 32
+MAX_POINTS = 16
+#: At most this many bytes of section points on a page (4 per point): on planes with many
+#: chaotic cells the cap per cell drops (to no fewer than :data:`MIN_POINTS`), so that the page
+#: of the default run stays under 5 MB whatever its share of chaos (benchmarks/README.md, (m)).
+POINTS_BUDGET = 2_000_000
+MIN_POINTS = 2
 #: Poincare points kept per swept value in the bifurcation diagrams.
 MAX_SWEEP_POINTS = 64
+#: columns that hold a cell's Floquet margin max|mu| (the first present is shown)
+FLOQUET_COLUMNS = ("floquet_margin", "mu_max", "max_abs_mu")
+#: 16-bit code of a missing value in a quantised array
+MISSING = 65535
 
 _SYMBOLS = {"w": "ω", "b": "b", "xi": "ξ", "eps": "ε", "Fm": "F_m", "Fe": "F_e"}
 
 
-def _b64(a: np.ndarray, dtype: str) -> dict[str, str]:
-    arr = np.ascontiguousarray(np.asarray(a).astype(dtype, copy=False))
-    return {"dtype": np.dtype(dtype).name, "b64": base64.b64encode(arr.tobytes()).decode()}
+# ----------------------------------------------------------------------------- binary block
+class Block:
+    """Typed arrays packed into one buffer (8-byte aligned), described by ``{name: [dtype,
+    offset, length]}`` for the page."""
+
+    def __init__(self) -> None:
+        self.parts: list[bytes] = []
+        self.size = 0
+
+    def add(self, a: np.ndarray, dtype: str) -> list[Any]:
+        arr = np.ascontiguousarray(np.asarray(a).astype(dtype, copy=False))
+        raw = arr.tobytes()
+        offset = self.size
+        pad = (-len(raw)) % 8
+        self.parts.append(raw + b"\0" * pad)
+        self.size += len(raw) + pad
+        return [np.dtype(dtype).name, offset, int(arr.size)]
+
+    def quantised(self, v: np.ndarray, lo: float | None = None, hi: float | None = None
+                  ) -> dict[str, Any]:
+        """Values as uint16 steps over ``[lo, hi]`` (default: their finite range); NaN ->
+        :data:`MISSING`. ``value = lo + q * step``."""
+        v = np.asarray(v, dtype=float)
+        finite = v[np.isfinite(v)]
+        lo = float(finite.min()) if lo is None and len(finite) else (lo or 0.0)
+        hi = float(finite.max()) if hi is None and len(finite) else (hi if hi is not None
+                                                                       else 1.0)
+        step = (hi - lo) / (MISSING - 1) if hi > lo else 1.0
+        q = np.where(np.isfinite(v), np.clip(np.round((v - lo) / step), 0, MISSING - 1),
+                     MISSING).astype(np.uint16)
+        # neighbours differ little: store the differences (mod 2^16), high bytes then low
+        # bytes, which gzip packs far better than the values themselves
+        d = np.diff(q, prepend=np.uint16(0)).astype(np.uint16)
+        planes = np.concatenate([(d >> 8).astype(np.uint8), (d & 0xFF).astype(np.uint8)])
+        return {"array": self.add(planes, "u1"), "n": int(q.size), "coding": "delta16",
+                "lo": lo, "step": step}
+
+    def encoded(self) -> str:
+        """gzip + base64 of the whole buffer."""
+        return base64.b64encode(gzip.compress(b"".join(self.parts), compresslevel=9,
+                                              mtime=0)).decode()
 
 
-def _f32(values) -> dict[str, str]:
-    return _b64(np.asarray(values, dtype=float), "<f4")
+def quantised_of(buffer: bytes, enc: Mapping[str, Any]) -> np.ndarray:
+    """The 16-bit steps of a :meth:`Block.quantised` array in a decoded buffer."""
+    planes = array_of(buffer, enc["array"])
+    n = enc["n"]
+    d = (planes[:n].astype(np.uint16) << 8) | planes[n:2 * n].astype(np.uint16)
+    return np.cumsum(d, dtype=np.uint16)
 
 
-def _quantised(v: np.ndarray) -> dict[str, Any]:
-    """Section coordinates as int16 over the plane's range (resolution range / 65535, far below
-    a marker's size): ``value = lo + (q + 32768) * step``."""
-    v = np.asarray(v, dtype=float)
-    lo = float(v.min()) if len(v) else 0.0
-    hi = float(v.max()) if len(v) else 1.0
-    step = (hi - lo) / 65535.0 if hi > lo else 1.0
-    q = np.round((v - lo) / step) - 32768.0
-    return {**_b64(np.clip(q, -32768, 32767), "<i2"), "lo": lo, "step": step}
+def dequantise(q: np.ndarray, lo: float, step: float) -> np.ndarray:
+    """The values of 16-bit steps (what the page shows)."""
+    q = np.asarray(q)
+    return np.where(q == MISSING, np.nan, lo + q.astype(float) * step)
 
 
-def dequantise(enc: Mapping[str, Any]) -> np.ndarray:
-    """The inverse of the page's int16 coding of section points (what the page draws)."""
-    q = np.frombuffer(base64.b64decode(enc["b64"]), "<i2").astype(float)
-    return enc["lo"] + (q + 32768.0) * enc["step"]
+def values_of(buffer: bytes, enc: Mapping[str, Any]) -> np.ndarray:
+    """A :meth:`Block.quantised` array back as values (NaN where missing)."""
+    return dequantise(quantised_of(buffer, enc), enc["lo"], enc["step"])
+
+
+def decode_block(encoded: str) -> bytes:
+    """The raw buffer of :meth:`Block.encoded` (for tests and benchmarks)."""
+    return gzip.decompress(base64.b64decode(encoded))
+
+
+def array_of(buffer: bytes, desc: Sequence[Any]) -> np.ndarray:
+    """One array of a decoded buffer from its ``[dtype, offset, length]``."""
+    dtype, offset, n = desc
+    return np.frombuffer(buffer, dtype=np.dtype(dtype).newbyteorder("<"), count=n,
+                         offset=offset)
 
 
 def _int_or(values: pd.Series, missing: int = -1) -> np.ndarray:
     return pd.to_numeric(values, errors="coerce").fillna(missing).to_numpy().astype(np.int64)
 
 
+# ----------------------------------------------------------------------------- planes
 @dataclass
 class PlaneData:
     """A plane's cells as the page needs them."""
@@ -78,6 +145,9 @@ class PlaneData:
     yname: str
     cells: pd.DataFrame  # i, j, the axes, the CellResult columns, poincare_x / poincare_v
     attractors: dict[int, list[str]] | None = None  # cell index j * nx + i -> lines
+    n_attractors: dict[int, int] | None = None  # cell index -> attractors found
+    curves: list[dict[str, Any]] = field(default_factory=list)  # bifurcation curves
+    physical: dict[str, dict[str, Any]] = field(default_factory=dict)  # axis -> name/unit/k
 
 
 def plane_from_cells(name: str, cells: pd.DataFrame, axes: tuple[str, str] | None = None
@@ -91,49 +161,71 @@ def plane_from_cells(name: str, cells: pd.DataFrame, axes: tuple[str, str] | Non
     return PlaneData(name, axes[0], axes[1], cells)
 
 
-def read_attractors(catalogue: str | Path, plane: str, nx: int) -> dict[int, list[str]] | None:
-    """Coexisting attractors of a plane's cells from the catalogue's ``attractors`` table, when
-    it has one: ``{j * nx + i: [one line per attractor]}``.
-
-    The table is matched to cells through ``cell_id`` (-> ``cells.id``), or ``plane`` /
-    ``plane_id`` with ``i`` and ``j``; each attractor is shown as its remaining columns
-    (``name=value``). ``None`` when the catalogue has no such table or no attractor of this
-    plane (its ``multistability`` is off).
-    """
+def read_attractors(catalogue: str | Path, plane: str, nx: int
+                    ) -> tuple[dict[int, list[str]] | None, dict[int, int] | None]:
+    """Coexisting attractors of a plane's cells from the catalogue: ``({j * nx + i: [one line
+    per attractor]}, {j * nx + i: attractors found})``; ``(None, None)`` when the catalogue has
+    none for this plane (its ``multistability`` is off)."""
     from gearsim.results.catalogue import open_catalogue
 
     path = Path(catalogue)
     if not path.is_file():
-        return None
+        return None, None
     con = open_catalogue(path)
     try:
         tables = {r[0] for r in con.execute("select name from sqlite_master where type='table'")}
-        if "attractors" not in tables:
-            return None
-        cols = [r[1] for r in con.execute('pragma table_info("attractors")')]
-        if "cell_id" in cols:
-            df = pd.read_sql_query(
-                "select a.*, c.i as _i, c.j as _j from attractors a join cells c on "
-                "a.cell_id = c.id join planes p on c.plane_id = p.id where p.name = ?",
+        counts = None
+        cols = [r[1] for r in con.execute('pragma table_info("cells")')]
+        if "n_attractors" in cols:
+            n = pd.read_sql_query(
+                "select c.i, c.j, c.n_attractors from cells c join planes p on "
+                "c.plane_id = p.id where p.name = ? and c.n_attractors is not null",
                 con, params=(plane,))
-        elif {"i", "j", "plane_id"} <= set(cols):
-            df = pd.read_sql_query(
-                "select a.*, a.i as _i, a.j as _j from attractors a join planes p on "
-                "a.plane_id = p.id where p.name = ?", con, params=(plane,))
-        elif {"i", "j", "plane"} <= set(cols):
-            df = pd.read_sql_query("select a.*, a.i as _i, a.j as _j from attractors a "
-                                   "where a.plane = ?", con, params=(plane,))
-        else:
-            return {}
+            counts = {int(r.j) * nx + int(r.i): int(r.n_attractors) for r in n.itertuples()}
+        if "attractors" not in tables:
+            return None, counts or None
+        df = pd.read_sql_query(
+            "select a.*, c.i as _i, c.j as _j from attractors a join cells c on "
+            "a.cell_id = c.id join planes p on c.plane_id = p.id where p.name = ?",
+            con, params=(plane,))
     finally:
         con.close()
     if not len(df):
-        return None  # multistability off for this plane
+        return None, counts or None
     if "attractor" in df.columns:
         df = df.sort_values(["_j", "_i", "attractor"])
     out: dict[int, list[str]] = {}
     for rec in df.to_dict("records"):
         out.setdefault(int(rec["_j"]) * nx + int(rec["_i"]), []).append(attractor_line(rec))
+    if not counts:
+        counts = {k: len(v) for k, v in out.items()}
+    return out, counts
+
+
+def read_curves(catalogue: str | Path, plane: str) -> list[dict[str, Any]]:
+    """The plane's two-parameter bifurcation curves from the catalogue (``bifurcation_curves``):
+    one polyline per curve, ``{kind, period, x, y}`` in the plane's axes."""
+    from gearsim.results.catalogue import open_catalogue
+
+    path = Path(catalogue)
+    if not path.is_file():
+        return []
+    con = open_catalogue(path)
+    try:
+        tables = {r[0] for r in con.execute("select name from sqlite_master where type='table'")}
+        if "bifurcation_curves" not in tables:
+            return []
+        df = pd.read_sql_query("select curve, kind, period, name, value, name2, value2 from "
+                               "bifurcation_curves where plane = ? order by curve, id", con,
+                               params=(plane,))
+    finally:
+        con.close()
+    out = []
+    for (curve, kind, period), g in df.groupby(["curve", "kind", "period"], sort=False):
+        out.append({"curve": int(curve), "kind": str(kind), "period": int(period),
+                    "xname": str(g["name"].iloc[0]), "yname": str(g["name2"].iloc[0]),
+                    "x": g["value"].astype(float).round(6).tolist(),
+                    "y": g["value2"].astype(float).round(6).tolist()})
     return out
 
 
@@ -178,41 +270,59 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def _poincare(df: pd.DataFrame, order: np.ndarray, cap: int, periodic_n: np.ndarray | None
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Offsets (uint32, len cells + 1) and the concatenated x, x' of the kept section points."""
+def _poincare(df: pd.DataFrame, rows: np.ndarray, present: np.ndarray, cap: int,
+              periodic_n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points per grid cell (uint8) and the concatenated x, x' of the kept section points, in
+    grid order."""
     px_col, pv_col = df["poincare_x"].to_numpy(), df["poincare_v"].to_numpy()
-    counts = np.zeros(len(order), dtype=np.int64)
+    counts = np.zeros(len(rows), dtype=np.int64)
     xs, vs = [], []
-    for k, r in enumerate(order):
+    for k, r in enumerate(rows):
+        if not present[k]:
+            continue
         px = np.asarray(px_col[r] if px_col[r] is not None else [], dtype=float)
         pv = np.asarray(pv_col[r] if pv_col[r] is not None else [], dtype=float)
-        keep = cap
-        if periodic_n is not None and periodic_n[r] > 0:
-            keep = min(cap, int(periodic_n[r]))
+        keep = min(cap, int(periodic_n[r])) if periodic_n[r] > 0 else cap
         px, pv = px[-keep:], pv[-keep:]
         ok = np.isfinite(px) & np.isfinite(pv)
         xs.append(px[ok])
         vs.append(pv[ok])
         counts[k] = int(ok.sum())
-    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.uint32)
     cat = (np.concatenate(xs) if xs else np.zeros(0), np.concatenate(vs) if vs else np.zeros(0))
-    return offsets, cat[0], cat[1]
+    return counts, cat[0], cat[1]
 
 
-def plane_payload(plane: PlaneData) -> dict[str, Any]:
-    """Everything the page shows of one plane, as typed arrays in row-major (j, i) order."""
+def _indexed(values: pd.Series) -> tuple[list[str], np.ndarray]:
+    names = sorted(set(values))
+    idx = {s: n for n, s in enumerate(names)}
+    return names, np.array([idx[s] for s in values], dtype=np.int64)
+
+
+def points_cap(planes: Sequence[PlaneData]) -> int:
+    """Section points kept per non-periodic cell on a page of these planes: :data:`MAX_POINTS`,
+    fewer when the planes' non-periodic cells would exceed :data:`POINTS_BUDGET`."""
+    free = sum(int((p.cells["motion"].fillna("") != "periodic").sum()) for p in planes)
+    periodic = sum(int(np.minimum(_int_or(p.cells.loc[p.cells["motion"] == "periodic", "n"],
+                                          0), MAX_POINTS).sum()) for p in planes)
+    room = POINTS_BUDGET / 4 - periodic
+    if free == 0 or room >= free * MAX_POINTS:
+        return MAX_POINTS
+    return int(max(MIN_POINTS, min(MAX_POINTS, room // free)))
+
+
+def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict[str, Any]:
+    """Everything the page shows of one plane: metadata, and typed arrays in row-major (j, i)
+    order added to ``block``."""
     df = plane.cells.reset_index(drop=True)
     nx, ny = int(df["i"].max()) + 1, int(df["j"].max()) + 1
     xs = df.groupby("i")[plane.xname].first().reindex(range(nx)).to_numpy(dtype=float)
     ys = df.groupby("j")[plane.yname].first().reindex(range(ny)).to_numpy(dtype=float)
-    # row of each grid cell (-1 where the table has no cell)
     where = np.full(nx * ny, -1, dtype=np.int64)
     where[df["j"].to_numpy(dtype=int) * nx + df["i"].to_numpy(dtype=int)] = np.arange(len(df))
     present = where >= 0
     rows = np.where(present, where, 0)
 
-    def grid(col: str, dtype=float) -> np.ndarray:
+    def grid(col: str) -> np.ndarray:
         v = pd.to_numeric(df[col], errors="coerce").to_numpy(dtype=float)[rows]
         return np.where(present, v, np.nan)
 
@@ -220,125 +330,153 @@ def plane_payload(plane: PlaneData) -> dict[str, Any]:
     keys = [k for k in style.PATTERN_KEYS if k in set(cats)]
     kidx = {k: n for n, k in enumerate(keys)}
     cat = np.array([kidx[c] for c in cats], dtype=np.int64)[rows]
-    labels = sorted(set(df["label"].fillna("").astype(str)) | set(
-        df["label_npq"].fillna("").astype(str)))
-    lidx = {s: n for n, s in enumerate(labels)}
-    label = np.array([lidx[s] for s in df["label"].fillna("").astype(str)])[rows]
-    npq = np.array([lidx[s] for s in df["label_npq"].fillna("").astype(str)])[rows]
-    motion = df["motion"].fillna("").astype(str)
+    labels, label = _indexed(df["label"].fillna("").astype(str))
+    npqs, npq = _indexed(df["label_npq"].fillna("").astype(str))
     n = _int_or(df["n"])
-    periodic = np.where(motion.to_numpy() == "periodic", n, 0)
-    order = np.where(present, where, -1)
-    order = order[order >= 0]
-    offsets_c, px, pv = _poincare(df, order, MAX_POINTS, periodic)
-    # offsets per grid cell (a missing cell has none)
-    counts = np.zeros(nx * ny, dtype=np.int64)
-    counts[present] = np.diff(offsets_c.astype(np.int64))
-    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.uint32)
+    periodic = np.where(df["motion"].fillna("").astype(str).to_numpy() == "periodic", n, 0)
+    counts, px, pv = _poincare(df, rows, present, cap, periodic)
     kmax_col = "kmax" if "kmax" in df.columns else "kmax_peak_mean"
     kmax = grid(kmax_col)
-    finite = kmax[np.isfinite(kmax)]
     from gearsim.presentation.figures.planes import robust_max
 
+    finite = kmax[np.isfinite(kmax)]
+    small = "<u1" if max(len(labels), len(npqs)) < 255 else "<u2"
+    layers: dict[str, Any] = {
+        "dc": block.quantised(grid("dc"), 0.0, 1.0),
+        "kmax": block.quantised(kmax),
+        "lyapunov": block.quantised(grid("lyapunov") if "lyapunov" in df.columns
+                                    else np.full(nx * ny, np.nan)),
+    }
+    floquet = next((c for c in FLOQUET_COLUMNS if c in df.columns), None)
+    if floquet is not None:
+        layers["floquet"] = block.quantised(grid(floquet))
     payload: dict[str, Any] = {
         "name": plane.name, "nx": nx, "ny": ny,
         "xname": plane.xname, "yname": plane.yname,
         "xsym": _SYMBOLS.get(plane.xname, plane.xname),
         "ysym": _SYMBOLS.get(plane.yname, plane.yname),
-        "xs": xs.tolist(), "ys": ys.tolist(),
-        "present": _b64(present, "u1"),
-        "cat": _b64(np.where(present, cat, -1), "<i2"),
+        "xs": block.add(xs, "<f8"), "ys": block.add(ys, "<f8"),
+        "present": block.add(present, "u1"),
+        "cat": block.add(np.where(present, cat, 255), "u1"),
         "cat_keys": keys,
         "cat_labels": [style.PATTERN_LABELS[k] for k in keys],
         "cat_colours": [style.PATTERN_COLOURS[k] for k in keys],
-        "labels": labels,
-        "label": _b64(np.where(present, label, -1), "<i2"),
-        "npq": _b64(np.where(present, npq, -1), "<i2"),
-        "I": _b64(np.where(present, _int_or(df["I"], -9)[rows], -9), "<i2"),
-        "n": _b64(np.where(present, n[rows], -1), "<i2"),
-        "dc": _f32(grid("dc")),
-        "kmax": _f32(kmax),
+        "labels": labels, "npqs": npqs,
+        "label": block.add(label[rows], small), "npq": block.add(npq[rows], small),
+        "I": block.add(np.where(present, _int_or(df["I"], -9)[rows], -9), "<i1"),
+        "n": block.add(np.where(present, n[rows], -1), "<i2"),
+        "layers": layers,
         "kmax_cap": float(robust_max(kmax)) if len(finite) else 1.0,
         "kmax_reading": kmax_col,
-        "lyapunov": _f32(grid("lyapunov") if "lyapunov" in df.columns
-                         else np.full(nx * ny, np.nan)),
-        "offsets": _b64(offsets, "<u4"),
-        "px": _quantised(px), "pv": _quantised(pv),
-        "attractors": None,
+        "floquet_column": floquet,
+        "counts": block.add(np.clip(counts, 0, 255), "u1"),
+        "px": block.quantised(px), "pv": block.quantised(pv),
+        "attractors": None, "n_attractors": None,
+        "curves": plane.curves,
+        "physical": plane.physical,
     }
     if plane.attractors is not None:
         payload["attractors"] = {str(k): v for k, v in plane.attractors.items()}
+    if plane.n_attractors:
+        na = np.full(nx * ny, 255, dtype=np.int64)
+        for k, v in plane.n_attractors.items():
+            na[k] = min(int(v), 254)
+        payload["n_attractors"] = block.add(na, "u1")
     return payload
 
 
-def sweep_payload(name: str, df: pd.DataFrame, fixed: Mapping[str, float] | None = None
+def sweep_payload(name: str, df: pd.DataFrame, block: Block,
+                  fixed: Mapping[str, float] | None = None,
+                  physical: Mapping[str, Any] | None = None,
+                  fixed_physical: Mapping[str, Mapping[str, Any]] | None = None
                   ) -> dict[str, Any]:
     """A sweep's bifurcation diagram: every kept Poincare x against the swept value."""
     param = str(df["parameter"].iloc[0]) if "parameter" in df.columns and len(df) else "w"
-    vals, xs, Is, ks = [], [], [], []
-    for k, (v, px, I) in enumerate(zip(df["value"], df["poincare_x"], df["I"], strict=True)):
+    xs, Is, ks = [], [], []
+    for k, (px, I) in enumerate(zip(df["poincare_x"], df["I"], strict=True)):
         px = np.asarray(px if px is not None else [], dtype=float)[-MAX_SWEEP_POINTS:]
         px = px[np.isfinite(px)]
-        vals.append(np.full(len(px), float(v)))
         xs.append(px)
         Is.append(np.full(len(px), int(I) if pd.notna(I) else -9))
         ks.append(np.full(len(px), k))
 
-    def cat(a, d):
-        return np.concatenate(a) if a else np.zeros(0, dtype=d)
+    def cat(a):
+        return np.concatenate(a) if a else np.zeros(0)
 
     impacts = sorted({int(i) for i in df["I"].dropna()})
     return {
         "name": name, "parameter": param, "psym": _SYMBOLS.get(param, param),
-        "fixed": dict(fixed or {}),
-        "value": _f32(cat(vals, float)), "x": _f32(cat(xs, float)),
-        "I": _b64(cat(Is, int), "<i2"), "k": _b64(cat(ks, int), "<u4"),
+        "fixed": {k: float(v) for k, v in (fixed or {}).items()
+                  if isinstance(v, int | float)},
+        "fixed_physical": {k: {**ph, "value": float(fixed[k]) * ph["k"]}
+                           for k, ph in (fixed_physical or {}).items() if k in (fixed or {})},
+        "physical": dict(physical or {}),
+        "values": df["value"].astype(float).tolist(),
+        "direction": (df["direction"].astype(str).tolist() if "direction" in df.columns
+                      else ["forward"] * len(df)),
+        "x": block.quantised(cat(xs)), "I": block.add(cat(Is), "<i1"),
+        "k": block.add(cat(ks), "<u4"),
         "labels": [f"{lab} ({npq})" if npq else str(lab) for lab, npq in
                    zip(df["label"].fillna(""), df["label_npq"].fillna(""), strict=True)],
-        "values": df["value"].astype(float).tolist(),
+        "dc": df["dc"].astype(float).round(4).tolist(),
+        "kmax": (df["kmax"] if "kmax" in df.columns else df["kmax_peak_mean"]
+                 ).astype(float).round(4).tolist(),
         "impacts": impacts,
         "impact_colours": {str(i): style.impact_colour(i) for i in impacts},
         "impact_names": {str(i): style.IMPACT_NAMES.get(i, f"I = {i}") for i in impacts},
     }
 
 
-def _colorscale(name: str, n: int = 16) -> list[list[Any]]:
-    """A matplotlib colour map as a Plotly colour scale (the maps look like the figures')."""
+def _colorscale(name: str, n: int = 256) -> list[str]:
+    """A matplotlib colour map as ``n`` hex colours (the maps look like the figures')."""
     from matplotlib import colormaps
     from matplotlib.colors import to_hex
 
     cmap = colormaps[name]
-    return [[k / (n - 1), to_hex(cmap(k / (n - 1)))] for k in range(n)]
-
-
-def plotly_js() -> str:
-    """The Plotly.js bundle shipped with the plotly package (inlined: no network)."""
-    from plotly.offline import get_plotlyjs
-
-    return get_plotlyjs()
+    return [to_hex(cmap(k / (n - 1))) for k in range(n)]
 
 
 _TEMPLATE = Path(__file__).with_name("explorer_page.html")
 
 
+def _json_safe(o: Any) -> Any:
+    if isinstance(o, float):
+        return o if np.isfinite(o) else None
+    if isinstance(o, dict):
+        return {k: _json_safe(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [_json_safe(v) for v in o]
+    return o
+
+
 def render(planes: Sequence[PlaneData], sweeps: Mapping[str, pd.DataFrame], *,
            sweep_fixed: Mapping[str, Mapping[str, float]] | None = None,
-           title: str = "gearsim explorer", provenance: Mapping[str, Any] | None = None
-           ) -> str:
+           sweep_physical: Mapping[str, Mapping[str, Any]] | None = None,
+           sweep_fixed_physical: Mapping[str, Mapping[str, Any]] | None = None,
+           title: str = "gearsim explorer", provenance: Mapping[str, Any] | None = None,
+           scorecard: Sequence[Mapping[str, Any]] | None = None) -> str:
     """The page (one HTML string)."""
+    block = Block()
+    cap = points_cap(planes)
     data = {
         "title": title,
-        "planes": [plane_payload(p) for p in planes],
-        "sweeps": [sweep_payload(n, df, (sweep_fixed or {}).get(n)) for n, df in sweeps.items()],
+        "planes": [plane_payload(p, block, cap) for p in planes],
+        "sweeps": [sweep_payload(n, df, block, (sweep_fixed or {}).get(n),
+                                 (sweep_physical or {}).get(n),
+                                 (sweep_fixed_physical or {}).get(n))
+                   for n, df in sweeps.items()],
         "provenance": dict(provenance or {}),
-        "max_points": MAX_POINTS,
+        "scorecard": list(scorecard or []),
+        "max_points": cap,
+        "missing": MISSING,
         "turbo": _colorscale("turbo"),
+        "magma": _colorscale("magma"),
     }
-    blob = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    blob = json.dumps(_json_safe(data), separators=(",", ":"), allow_nan=False
+                      ).replace("</", "<\\/")
     page = _TEMPLATE.read_text()
     return (page.replace("%%TITLE%%", _html_escape(title))
-            .replace("%%PLOTLYJS%%", plotly_js().replace("</script", "<\\/script"))
-            .replace("%%DATA%%", blob))
+            .replace("%%DATA%%", blob).replace("%%BLOCK%%", block.encoded()))
 
 
 def _html_escape(s: str) -> str:
@@ -349,10 +487,15 @@ def write_explorer(out: str | Path, *, planes: Mapping[str, tuple[str, str]] | S
                    sweeps: Sequence[str], results: str | Path = "results",
                    catalogue: str | Path | None = None,
                    sweep_fixed: Mapping[str, Mapping[str, float]] | None = None,
-                   provenance: Mapping[str, Any] | None = None) -> Path:
+                   provenance: Mapping[str, Any] | None = None, gear=None,
+                   scorecard: Sequence[Mapping[str, Any]] | None = None,
+                   title: str = "gearsim explorer") -> Path:
     """Read the study's tables (``results/<plane>/cells.parquet``,
-    ``results/sweeps/<sweep>.parquet``, the catalogue's ``attractors`` when present) and write
-    the page to ``out`` (atomically)."""
+    ``results/sweeps/<sweep>.parquet``, the catalogue's attractors and bifurcation curves when
+    present) and write the page to ``out`` (atomically). ``gear``: the study's gear geometry
+    (axes in physical units), ``scorecard``: the report's rows."""
+    from gearsim.physical.units import physical_factors
+
     results = Path(results)
     axes = dict(planes) if isinstance(planes, Mapping) else {p: None for p in planes}
     loaded = []
@@ -360,10 +503,20 @@ def write_explorer(out: str | Path, *, planes: Mapping[str, tuple[str, str]] | S
         cells = pd.read_parquet(results / name / "cells.parquet")
         p = plane_from_cells(name, cells, tuple(ax) if ax else None)
         if catalogue is not None:
-            p.attractors = read_attractors(catalogue, name, int(cells["i"].max()) + 1)
+            p.attractors, p.n_attractors = read_attractors(catalogue, name,
+                                                           int(cells["i"].max()) + 1)
+            p.curves = read_curves(catalogue, name)
+        p.physical = physical_factors(gear, [p.xname, p.yname])
         loaded.append(p)
     tables = {s: pd.read_parquet(results / "sweeps" / f"{s}.parquet") for s in sweeps}
-    html = render(loaded, tables, sweep_fixed=sweep_fixed, provenance=provenance)
+    sphys, fphys = {}, {}
+    for s, df in tables.items():
+        param = str(df["parameter"].iloc[0]) if "parameter" in df.columns and len(df) else "w"
+        sphys[s] = physical_factors(gear, [param]).get(param)
+        fphys[s] = physical_factors(gear, list((sweep_fixed or {}).get(s) or {}))
+    html = render(loaded, tables, sweep_fixed=sweep_fixed, sweep_physical=sphys,
+                  sweep_fixed_physical=fphys,
+                  provenance=provenance, scorecard=scorecard, title=title)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".tmp")

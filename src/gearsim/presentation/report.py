@@ -1,24 +1,21 @@
-"""The reproduction report: the paper's numbers beside ours, every one of ours computed here.
+"""The study's report: what a reader wants first, then the evidence.
 
-Inputs (pipeline outputs, docs/TEAM.md): ``results/sweeps/<sweep>.parquet`` of the configured
-sweeps (orbit diagrams), the cells of the configured planes (``results/catalogue.sqlite``, or
-``results/<plane>/cells.parquet`` when the catalogue has no cell table), the planes' numerical
-audits ``results/<plane>/audit.parquet`` and optionally the calibration record
-``docs/calibration.json``; the rule ``report`` declares each of them. The planes and sweeps are
-those of the config: a plane is compared with the paper's thresholds when its axes are the
-paper's ((w, b) or (w, xi)); for any other plane, and for a paper sweep the study does not
-configure, the report says "not applicable". Output: Markdown (``results/report.md``).
+Inputs (pipeline outputs): ``results/sweeps/<sweep>.parquet`` of the configured sweeps (orbit
+diagrams), the cells of the configured planes (``results/catalogue.sqlite``, or
+``results/<plane>/cells.parquet``), the planes' numerical audits ``results/<plane>/audit.parquet``,
+the figure point sets ``results/points/<set>.parquet`` and optionally the calibration record
+``docs/calibration.json``; the rule ``report`` declares each of them. Output: Markdown
+(``results/report.md``).
 
-Sections
---------
-1. Landmarks of the standard sweep: paper | ours | difference (:mod:`gearsim.analysis.landmarks`).
-2. DC and Kmax at the jump under each Kmax reading (:data:`gearsim.cell.classify.KMAX_READINGS`).
-3. Thresholds: the backlash above which no double-sided impact occurs (wb plane) and the damping
-   above which only 0/1T and 1/1T remain (wxi plane).
-4. Pattern sequences at b = 0.15, 0.25, 0.35 (Fig 8) and xi = 0.05, 0.09, 0.15 (Fig 15).
-5. What does not match, with the evidence (or that nothing was compared).
-6. Every plane of the study: axes, grid, the most frequent patterns, and what the paper has to
-   compare with it.
+A study that holds any of the paper's material (the standard sweep, a (w, b) or (w, xi) plane, the
+paper's sequence sweeps) gets the reproduction report: a one-screen **scorecard** first (each
+landmark, threshold, sequence, the DC/Kmax reading at the jump and the multistability summary:
+paper, ours, the located bifurcation beside the grid reading, difference, within tolerance or
+not), then what does not match and why, then the study's own planes, sweeps and points, then the
+details, the numerical audit and, as an appendix, the model-form search of the calibration.
+Any other study (``study:`` of one's own) gets a report about itself: its planes (pattern areas,
+where each pattern ends along each axis), its sweeps (the pattern sequence, the transitions in
+the sweep's own units, the bifurcation diagram), its points.
 
 Paper numbers appear only in the "paper" columns; a quantity we did not compute is reported as
 "not computed", never filled with the paper's value.
@@ -45,36 +42,30 @@ from gearsim.analysis.landmarks import (
     pattern_sequence,
 )
 from gearsim.cell.classify import KMAX_READINGS
-
-NOT_APPLICABLE = "not applicable"
-PAPER_B_THRESHOLD = 0.4125
-PAPER_XI_THRESHOLD = 0.1436
-LANDMARK_TOL = 0.02
-THRESHOLD_TOL = 0.01
-
-#: Paper sequences (Sect 3.2 text of Fig 8, Sect 3.3 list of Fig 15). ``None`` = the paper gives
-#: only a qualitative description (quoted in ``PAPER_SEQUENCE_TEXT``).
-PAPER_SEQUENCES: dict[str, list[str] | None] = {
-    "b015": ["0/1T", "1/1T", "2/1T", "2/2T", "1/2T", "1/1T"],
-    "b025": None,
-    "b035": None,
-    "xi005": ["0/1T", "1/1T", "1/2T", "1/4T", "chaos", "1/8T", "1/4T", "1/2T", "1/1T"],
-    "xi009": ["0/1T", "1/1T", "1/2T", "1/4T", "1/2T", "1/1T"],
-    "xi015": ["0/1T", "1/1T"],
-}
-PAPER_SEQUENCE_TEXT = {
-    "b015": "0/1T -> 1/1T -> 2/1T -> 2/2T -> 1/2T -> 1/1T (Fig 8a)",
-    "b025": "non-impact interval unchanged; double-sided interval contracts, tooth-surface "
-            "interval expands; high-period double-sided motions (period 4, 8) appear (Fig 8b)",
-    "b035": "double-sided interval contracts further; double-sided motions degenerate to "
-            "2/4T and 2/2T (Fig 8c)",
-    "xi005": "0/1T -G-> 1/1T -PD-> 1/2T -PD-> 1/4T -PD-> ... chaos ... -PD-> 1/8T -> 1/4T -> "
-             "1/2T -> 1/1T (Fig 15a)",
-    "xi009": "0/1T -G-> 1/1T -PD-> 1/2T -PD-> 1/4T -PD-> 1/2T -PD-> 1/1T (Fig 15b)",
-    "xi015": "0/1T -G-> 1/1T (Fig 15c)",
-}
-SEQUENCE_SWEEPS = {"b015": ("b", 0.15), "b025": ("b", 0.25), "b035": ("b", 0.35),
-                   "xi005": ("xi", 0.05), "xi009": ("xi", 0.09), "xi015": ("xi", 0.15)}
+from gearsim.presentation.paper import (
+    JUMP_DC_TOL,
+    LANDMARK_TOL,
+    NOT_APPLICABLE,
+    PAPER_B_THRESHOLD,
+    PAPER_PLANES,
+    PAPER_SEQUENCE_TEXT,
+    PAPER_SEQUENCES,
+    PAPER_XI_THRESHOLD,
+    SEQUENCE_SWEEPS,
+    THRESHOLD_TOL,
+)
+from gearsim.presentation.scorecard import scorecard_lines
+from gearsim.presentation.study_summary import (
+    axis_column,
+    multistable_summary,
+    plane_lines,
+    plane_summary,
+    point_lines,
+    point_summary,
+    sweep_lines,
+    sweep_spec_of,
+    sweep_summary,
+)
 
 
 # ----------------------------------------------------------------------------- loading
@@ -113,6 +104,27 @@ def _cells_from_catalogue(path: Path, plane: str) -> pd.DataFrame | None:
     return df
 
 
+def _fallback_notes(catalogue: str | Path | None, results: str | Path,
+                    planes: Sequence[str]) -> list[str]:
+    """A note for each plane whose cells came from its Parquet file although a catalogue was
+    given (:func:`load_plane`): the report says where its numbers come from."""
+    if catalogue is None or not planes:
+        return []
+    path = Path(catalogue)
+    if not path.is_file():
+        return [f"catalogue {path} not found: the cells of {', '.join(planes)} were read from "
+                f"{Path(results)}/<plane>/cells.parquet"]
+    from gearsim.results.catalogue import open_catalogue
+
+    con = open_catalogue(path, check=False)  # checked when the cells were read
+    try:
+        have = {name for (name,) in con.execute("SELECT name FROM planes")}
+    finally:
+        con.close()
+    return [f"plane {p} is not in the catalogue {path}: its cells were read from "
+            f"{Path(results) / p / 'cells.parquet'}" for p in planes if p not in have]
+
+
 def load_plane(plane: str, *, catalogue: str | Path | None = None,
                results: str | Path = "results") -> pd.DataFrame | None:
     """Cells of ``plane`` from the catalogue, else from ``results/<plane>/cells.parquet``."""
@@ -124,14 +136,6 @@ def load_plane(plane: str, *, catalogue: str | Path | None = None,
     if p.is_file():
         return pd.read_parquet(p)
     return None
-
-
-def _axis_column(df: pd.DataFrame, name: str, which: str) -> str:
-    """Column holding the plane's ``which`` ('x' or 'y') axis named ``name``."""
-    for c in (name, f"{which}_value", which, f"value_{which}"):
-        if c in df.columns:
-            return c
-    raise KeyError(f"no column for the plane axis '{name}' ({which}); columns: {list(df.columns)}")
 
 
 # ----------------------------------------------------------------------------- thresholds
@@ -201,9 +205,43 @@ class Report:
     compared: int = 0  # comparisons with the paper actually made
     thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
     planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
-    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down (issue 11)
+    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down of the fold
+    hysteresis_band: tuple[float, float] | None = None
     exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
     exact_form: dict | None = None  # provenance subtree of the standard sweep (its model form)
+    study: str | None = None  # the config's ``study`` name (a study of one's own)
+    sweep_summaries: list[dict[str, Any]] = field(default_factory=list)  # every sweep
+    point_summaries: list[dict[str, Any]] = field(default_factory=list)  # every point set
+    multistable: list[dict[str, Any]] = field(default_factory=list)  # per plane with attractors
+    curves: list[str] = field(default_factory=list)  # bifurcation curves skipped or cut short
+    paper_material: bool = False  # the study configures a paper sweep or plane
+
+    @property
+    def paper_study(self) -> bool:
+        """Whether any of the paper's material is in this study (then the scorecard leads)."""
+        return self.paper_material or self.compared > 0 or self.matched is not None
+
+
+
+def load_curve_status(results: str | Path, planes: Sequence[str]) -> list[str]:
+    """A line for each plane whose bifurcation curves (``results/orbits/<plane>_curves.parquet``)
+    were skipped or stopped at the job's budget, from the file's provenance."""
+    from gearsim.results.catalogue import read_metadata
+
+    out = []
+    for plane in planes:
+        f = Path(results) / "orbits" / f"{plane}_curves.parquet"
+        if not f.is_file():
+            continue
+        meta = read_metadata(f) or {}
+        status = meta.get("status", "ok")
+        if status == "skipped":
+            why = "; ".join(meta.get("reasons") or []) or "curves skipped"
+            out.append(f"plane {plane}: {why}")
+        elif status == "budget":
+            out.append(f"plane {plane}: the bifurcation curves stopped at the job's budget "
+                       f"({meta.get('budget_s', '?')} s); they are partial")
+    return out
 
 
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
@@ -258,28 +296,6 @@ def _table_axes(plane: str, df: pd.DataFrame | None) -> tuple[str, str]:
     return known.get(plane, ("x", "y"))
 
 
-#: what the paper has for a plane of these axes
-PAPER_PLANES = {("w", "b"): "Figs 7, 12, 13 and the backlash threshold b = 0.4125",
-                ("w", "xi"): "Figs 14, 16, 17 and the damping threshold xi = 0.1436"}
-
-
-def plane_summary(plane: str, axes: tuple[str, str], cells: pd.DataFrame | None
-                  ) -> dict[str, Any]:
-    """A plane of the study in a few numbers: cells, grid, the most frequent patterns."""
-    out: dict[str, Any] = {"plane": plane, "axes": axes,
-                           "paper": PAPER_PLANES.get(axes, NOT_APPLICABLE)}
-    if cells is None or not len(cells):
-        out["cells"] = None
-        return out
-    out["cells"] = len(cells)
-    if {"i", "j"} <= set(cells.columns):
-        out["grid"] = (int(cells["i"].max()) + 1, int(cells["j"].max()) + 1)
-    if "label" in cells.columns:
-        counts = cells["label"].fillna("?").value_counts()
-        out["patterns"] = [(str(k), int(v)) for k, v in counts.head(6).items()]
-        out["n_patterns"] = int(len(counts))
-    return out
-
 
 def analyse(
     sweeps: dict[str, pd.DataFrame],
@@ -301,6 +317,8 @@ def analyse(
         p: _table_axes(p, df) for p, df in planes.items()}
     configured = ({"standard", *SEQUENCE_SWEEPS, *sweeps} if configured_sweeps is None
                   else set(configured_sweeps))
+    rep.paper_material = bool(({"standard", *SEQUENCE_SWEEPS} & configured) or any(
+        tuple(ax) in PAPER_PLANES for ax in axes.values()))
     std = sweeps.get("standard")
     if "standard" not in configured:
         rep.notes.append("this study has no sweep 'standard': the paper's landmarks are "
@@ -332,7 +350,7 @@ def analyse(
                 "kmax_before": {k: float(before[k]) for k in KMAX_READINGS if k in before},
                 "kmax_after": {k: float(after[k]) for k in KMAX_READINGS if k in after},
             }
-            if abs(rep.jump["dc_after"] - PAPER_JUMP_DC) > 0.03:
+            if abs(rep.jump["dc_after"] - PAPER_JUMP_DC) > JUMP_DC_TOL:
                 rep.misses.append(f"DC after the jump {rep.jump['dc_after']:.3f}, paper "
                                   f"{PAPER_JUMP_DC}")
         else:
@@ -344,7 +362,9 @@ def analyse(
     if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
         from gearsim.analysis.attractors import hysteresis
 
-        rep.hysteresis = hysteresis(hyst).lines()
+        h = hysteresis(hyst)
+        rep.hysteresis = h.lines()
+        rep.hysteresis_band = None if h.band is None else (float(h.band[0]), float(h.band[1]))
 
     for paper_axes, fn, name, paper in (
         (("w", "b"), double_sided, "b above which no double-sided impact occurs",
@@ -365,7 +385,7 @@ def analyse(
             rep.notes.append(f"plane {plane} not available: threshold not computed")
             continue
         try:
-            y = _axis_column(cells, paper_axes[1], "y")
+            y = axis_column(cells, paper_axes[1], "y")
         except KeyError as exc:
             rep.notes.append(f"plane {plane}: {exc}")
             continue
@@ -381,7 +401,8 @@ def analyse(
                               f"{th.first_without:.4f}, plane {plane}), paper {paper}")
 
     for plane, ax in axes.items():
-        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane)))
+        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane),
+                                        paper=PAPER_PLANES.get(tuple(ax), NOT_APPLICABLE)))
 
     for key, (pname, pval) in SEQUENCE_SWEEPS.items():
         df = sweeps.get(key)
@@ -424,26 +445,29 @@ def _f(x: Any, fmt: str = ".4f") -> str:
     return format(x, fmt)
 
 
-def to_markdown(rep: Report) -> str:
-    """Format the report."""
-    out = ["# Reproduction report", "",
-           "Paper: Liu et al., PLOS ONE 2025 (doi 10.1371/journal.pone.0335920). Every 'ours' "
-           "value is computed from this run's outputs; the paper's values are quoted beside "
-           "them only.", ""]
-    if rep.calibration:
-        s = rep.calibration.get("search", {})
-        if s:
-            best = ", ".join(f"{k} = {v:.4g}" for k, v in s.get("best", {}).items())
-            out += ["## Calibration", "",
-                    f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
-                    f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
-                    "docs/calibration.md.", ""]
-    if rep.calibration and rep.calibration.get("forms"):
-        from gearsim.calibration.fidelity import form_report_lines
+def _misses_lines(rep: Report) -> list[str]:
+    out = ["## What does not match, and why", ""]
+    if rep.misses:
+        out += [f"- {m}" for m in rep.misses]
+        out += ["", "Why: the paper's equations and Table 1 are reconstructed (docs/model.md); "
+                "the standard parameters are a fit to the paper's landmarks "
+                "(docs/calibration.md); grid readings carry half a grid spacing of error."]
+    elif rep.compared:
+        out += [f"- nothing beyond the tolerances ({LANDMARK_TOL} in w, {THRESHOLD_TOL} "
+                f"thresholds) in {rep.compared} comparisons with the paper"]
+    else:
+        out += [f"- {NOT_APPLICABLE}: nothing of this study was compared with the paper (it "
+                "has none of the paper's sweeps or planes, or they were not computed)"]
+    if rep.notes:
+        out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
+    out.append("")
+    return out
 
-        out += form_report_lines(rep.calibration["forms"])
-    out += _audit_lines(rep.audit)
-    out += ["## 1. Landmarks of the standard sweep", ""]
+
+def _detail_lines(rep: Report) -> list[str]:
+    """The paper comparison in full (landmarks, DC/Kmax, thresholds, sequences)."""
+    out: list[str] = []
+    out += ["### Landmarks of the standard sweep", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
     elif rep.matched is not None:
@@ -484,7 +508,7 @@ def to_markdown(rep: Report) -> str:
                 "simulated labels change.", "",
                 f"Model form ({form_name(rep.exact_form)}): {model_form(rep.exact_form)}.", "",
                 *report_lines(rep.exact, form_name(rep.exact_form)), ""]
-    out += ["## 2. DC and Kmax at the jump", ""]
+    out += ["### DC and Kmax at the jump", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
     elif rep.jump:
@@ -507,7 +531,7 @@ def to_markdown(rep: Report) -> str:
     if rep.hysteresis:
         out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
                 *rep.hysteresis, ""]
-    out += ["## 3. Thresholds", "", "| threshold | paper | ours | rows (last with / first "
+    out += ["### Thresholds", "", "| threshold | paper | ours | rows (last with / first "
             "without) | difference |", "|---|---|---|---|---|"]
     for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
                                    "impact above", "b"),
@@ -524,7 +548,7 @@ def to_markdown(rep: Report) -> str:
                        f"{_f(th.first_without)} ({th.rows} rows{note}) | "
                        f"{_f(th.difference, '+.4f')} |")
     out.append("")
-    out += ["## 4. Pattern sequences (Fig 8, Fig 15)", ""]
+    out += ["### Pattern sequences (Fig 8, Fig 15)", ""]
     for key, e in rep.sequences.items():
         out.append(f"**{e['parameter']} = {e['value']}** (sweep `{key}`)")
         out.append("")
@@ -540,39 +564,69 @@ def to_markdown(rep: Report) -> str:
                 out.append(f"- paper's patterns in order: {'yes' if e['in_order'] else 'no'}; "
                            f"identical sequence: {'yes' if e['exact'] else 'no'}")
         out.append("")
-    out += ["## 5. What does not match", ""]
-    if rep.misses:
-        out += [f"- {m}" for m in rep.misses]
-    elif rep.compared:
-        out += [f"- nothing beyond the tolerances ({LANDMARK_TOL} in w, {THRESHOLD_TOL} "
-                f"thresholds) in {rep.compared} comparisons with the paper"]
+    return out
+
+
+def _appendix_lines(rep: Report) -> list[str]:
+    """The calibration search and its model-form tables: evidence behind the standard set."""
+    out: list[str] = []
+    if rep.calibration:
+        s = rep.calibration.get("search", {})
+        if s:
+            best = ", ".join(f"{k} = {v:.4g}" for k, v in s.get("best", {}).items())
+            out += ["### Calibration", "",
+                    f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
+                    f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
+                    "docs/calibration.md.", ""]
+    if rep.calibration and rep.calibration.get("forms"):
+        from gearsim.calibration.tables import form_report_lines
+
+        out += [_demote(line) for line in form_report_lines(rep.calibration["forms"])]
+    return (["## Appendix: calibration and model forms", ""] + out) if out else []
+
+
+def _demote(line: str) -> str:
+    """A heading of an embedded section one level down (it sits inside the appendix)."""
+    return "#" + line if line.startswith("#") else line
+
+
+def to_markdown(rep: Report) -> str:
+    """Format the report: the scorecard first for a study with the paper's material, else a
+    report about the study itself."""
+    audit = _audit_lines(rep.audit)
+    warning = [line for line in audit[:2] if line.startswith("> **WARNING")]
+    audit = audit[len(warning) + (1 if warning else 0):] if warning else audit
+    if rep.paper_study:
+        out = ["# Reproduction report", "",
+               "Paper: Liu et al., PLOS ONE 2025 (doi 10.1371/journal.pone.0335920). Every "
+               "'ours' value is computed from this run's outputs.", ""]
+        out += [*warning, ""] if warning else []
+        out += scorecard_lines(rep)
+        out += _misses_lines(rep)
+        out += _study_lines(rep, heading="## This study")
+        out += ["## Details of the paper comparison", ""]
+        out += _detail_lines(rep)
+        out += audit
+        out += _appendix_lines(rep)
     else:
-        out += [f"- {NOT_APPLICABLE}: nothing of this study was compared with the paper (it "
-                "has none of the paper's sweeps or planes, or they were not computed)"]
-    if rep.notes:
-        out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
-    out.append("")
-    out += _plane_lines(rep.planes)
-    return "\n".join(out)
+        name = rep.study or "this study"
+        out = [f"# Study report: {name}", "",
+               "What this study computed: its planes, sweeps and points. None of the paper's "
+               "sweeps or planes is part of it, so nothing is compared with the paper.", ""]
+        out += [*warning, ""] if warning else []
+        out += _study_lines(rep, heading=None)
+        out += audit
+    if rep.curves:
+        out += ["## Bifurcation curves not followed in full", "",
+                *[f"- {line}" for line in rep.curves], ""]
+    return "\n".join(out).rstrip() + "\n"
 
 
-def _plane_lines(planes: list[dict[str, Any]]) -> list[str]:
-    if not planes:
-        return []
-    out = ["## 6. Planes of this study", "",
-           "| plane | axes (x, y) | cells (grid) | patterns (most frequent, cells) | "
-           "the paper has |", "|---|---|---|---|---|"]
-    for p in planes:
-        ax = f"({p['axes'][0]}, {p['axes'][1]})"
-        if p["cells"] is None:
-            out.append(f"| {p['plane']} | {ax} | not computed | | {p['paper']} |")
-            continue
-        grid = f" ({p['grid'][0]} x {p['grid'][1]})" if p.get("grid") else ""
-        pats = ", ".join(f"{k} {v}" for k, v in p.get("patterns", []))
-        more = p.get("n_patterns", 0) - len(p.get("patterns", []))
-        pats += f", {more} more" if more > 0 else ""
-        out.append(f"| {p['plane']} | {ax} | {p['cells']}{grid} | {pats} | {p['paper']} |")
-    out.append("")
+def _study_lines(rep: Report, heading: str | None) -> list[str]:
+    out: list[str] = [heading, ""] if heading else []
+    out += plane_lines(rep.planes, "###" if heading else "##")
+    out += sweep_lines(rep.sweep_summaries, "###" if heading else "##")
+    out += point_lines(rep.point_summaries, "###" if heading else "##")
     return out
 
 
@@ -584,12 +638,17 @@ def build_report(
     calibration: str | Path | None = "docs/calibration.json",
     planes: Sequence[str] | dict[str, tuple[str, str]] = ("wb", "wxi"),
     sweeps: Sequence[str] | None = None,
+    study: str | None = None,
+    sweep_specs: dict[str, dict[str, Any]] | None = None,
+    point_sets: Sequence[str] | None = None,
 ) -> tuple[Report, str]:
     """Load the pipeline outputs, analyse and format. Returns (report, markdown).
 
     ``planes``: the study's planes, by name, or ``{name: (x, y)}`` with their axes (the
     config's ``planes``, :func:`study_from_config`); ``sweeps``: the study's sweeps (default:
-    every table in ``sweeps_dir``)."""
+    every table in ``sweeps_dir``); ``study``: the config's study name; ``sweep_specs``: the
+    sweeps' config entries (their units; default: read from each table's provenance);
+    ``point_sets``: the recorded point sets under ``results/points``."""
     loaded = load_sweeps(sweeps_dir, sweeps)
     names = list(planes)
     cells = {p: load_plane(p, catalogue=catalogue, results=results) for p in names}
@@ -600,6 +659,20 @@ def build_report(
     rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
                   configured_sweeps=sweeps)
     rep.audit = load_audits(results, names)
+    rep.notes += _fallback_notes(catalogue, results, [p for p in names if cells[p] is not None])
+    rep.study = study
+    for name, df in loaded.items():
+        png = Path(results) / "figures" / "sweeps" / f"{name}.png"
+        spec = ((sweep_specs or {}).get(name)
+                or sweep_spec_of(Path(sweeps_dir) / f"{name}.parquet"))
+        rep.sweep_summaries.append(sweep_summary(
+            name, df, spec, f"figures/sweeps/{name}.png" if png.is_file() else None))
+    for name in point_sets or ():
+        f = Path(results) / "points" / f"{name}.parquet"
+        if f.is_file():
+            rep.point_summaries.append(point_summary(name, pd.read_parquet(f)))
+    rep.multistable = [m for m in (multistable_summary(p, cells.get(p)) for p in names) if m]
+    rep.curves = load_curve_status(results, names)
     # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
     exact_points = Path(results) / "orbits" / "standard_points.parquet"
     if exact_points.is_file() and "standard" in loaded:

@@ -9,7 +9,8 @@ the nominal length ``b_c``, time ``tau = w_n t``, forces over ``Km b_c``. A unit
 
 from __future__ import annotations
 
-#: Model parameters: (unit, meaning). The names of :class:`gearsim.dynamics.parameters.ModelParameters`.
+#: Model parameters: (unit, meaning). The names of
+#: :class:`gearsim.dynamics.parameters.ModelParameters`.
 PARAMETERS: dict[str, tuple[str, str]] = {
     "model": ("", "model variant: 6dof (bearings elastic) or 1dof (rigid bearings)"),
     "w": ("1 (w_h / w_n)", "mesh frequency over the natural frequency w_n = sqrt(Km / Me)"),
@@ -117,6 +118,8 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("runs", "finished"): ("UTC", "job end"),
     ("runs", "wall_s"): ("s", "wall time of the job"),
     ("runs", "cells"): ("1", "cells (or sweep points, audited cells) the job produced"),
+    ("runs", "status"): ("", "ok | budget (stopped at its budget: partial results) | "
+                         "skipped (nothing to follow: e.g. a plane of mostly diverged cells)"),
     ("planes", "id"): _ID,
     ("planes", "name"): ("", "plane name (config key planes.<name>)"),
     ("planes", "x_name"): ("", "parameter on the x axis (columns cells.x, cells.i)"),
@@ -236,6 +239,13 @@ CATALOGUE.update({
     ("cell_orbits", "ms"): ("ms", "wall time of the refinement"),
 })
 
+#: the views of :mod:`gearsim.results.views` (one per plane, one per sweep), as documented in the
+#: ``column_dictionary`` row ``(view, '*')``; their columns keep the meanings above
+VIEWS = {
+    "plane": "view of plane {name}: its cells with the axes as columns {x} and {y} (and their "
+             "physical units when the axis was given in them)",
+    "sweep": "view of sweep {name}: its points with the swept value as column {parameter}",
+}
 CATALOGUE[("plane_cells", "*")] = ("", "view: cells joined to planes (plane, x_name, y_name)")
 
 

@@ -4,8 +4,9 @@ Parquet (``gearsim export``).
 The Dataset has the plane's two parameters as dimensions and coordinates, named by parameter
 (e.g. ``b`` x ``w`` for the wb plane: ``ds.label.sel(w=1.0, b=0.3, method="nearest")``), the
 cell centres ``min + (i + 0.5)(max - min)/n`` as coordinate values, and one variable per cell
-column of the catalogue (:data:`gearsim.results.columns.RESULT`, plus ``elapsed_s``) with ``units`` and
-``long_name`` attributes from :mod:`gearsim.results.columns`. Integer columns that may be NULL (``p``,
+column of the catalogue (:data:`gearsim.results.columns.RESULT`, plus ``elapsed_s``) with
+``units`` and ``long_name`` attributes from :mod:`gearsim.results.columns`. Integer columns that
+may be NULL (``p``,
 ``q``) are float with NaN. Global attributes carry the provenance: plane record, fixed
 parameters, integration settings, configuration hash, code version, git commit of the catalogue
 build. Nested values are JSON strings (NetCDF attributes are flat).
@@ -24,9 +25,10 @@ from typing import Any
 
 import numpy as np
 
+from gearsim.cell.simulate import result_columns
 from gearsim.results.columns import PARAMETERS, RESULT
 from gearsim.study.integrity import CatalogueError
-from gearsim.cell.simulate import result_columns
+from gearsim.study.preflight import check_output, os_cause
 
 FORMATS = ("netcdf", "zarr", "csv", "parquet")
 #: cell columns exported, in catalogue spelling (``I`` is ``impact``; the order of
@@ -159,12 +161,12 @@ def check_out(out: str | Path, fmt: str) -> Path:
     out = Path(out)
     if not out.parent.is_dir():
         raise CatalogueError(f"--out: directory {out.parent} does not exist")
-    if not os.access(out.parent, os.W_OK):
-        raise CatalogueError(f"--out: directory {out.parent} is not writable")
     if fmt != "zarr" and out.is_dir():
         raise CatalogueError(f"--out: {out} is a directory (expected a file name)")
     if fmt == "zarr" and out.exists() and not out.is_dir():
         raise CatalogueError(f"--out: {out} is a file (a Zarr store is a directory)")
+    # a probe file and free space (read-only mounts, permissions, a full disk)
+    check_output(out.with_name(out.name + ".probe") if fmt == "zarr" else out, what="--out")
     return out
 
 
@@ -211,7 +213,7 @@ def write(ds, out: str | Path, fmt: str) -> Path:
         else:
             os.replace(tmp, out)
     except OSError as exc:
-        raise CatalogueError(f"--out {out}: {exc.strerror or exc}") from None
+        raise CatalogueError(f"--out {out}: {os_cause(exc)}") from None
     finally:
         if tmp.is_dir():
             shutil.rmtree(tmp)

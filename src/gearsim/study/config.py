@@ -25,6 +25,7 @@ from jsonschema import Draft202012Validator, validators
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters, ParameterError, check_value
 from gearsim.errors import ConfigError
+from gearsim.numerics.integrate import INTEGER_BOUNDS
 from gearsim.safe_yaml import load_mapping
 from gearsim.study.config_io import load_standard_parameters
 from gearsim.study.grid import axis_values, sweep_values
@@ -38,15 +39,6 @@ MAX_NAME_LENGTH = 64
 NAME_PATTERN = re.compile(rf"[A-Za-z][A-Za-z0-9_]{{0,{MAX_NAME_LENGTH - 1}}}")
 #: Largest plane (cells); a 2000 x 2000 plane is the documented scale test (docs/pipeline.md).
 MAX_PLANE_CELLS = 4_000_000
-#: Upper bounds of the integration budget (a cell must end in bounded time).
-INTEGRATION_LIMITS = {
-    "steps_per_period": 65_536,
-    "transient": 100_000,
-    "transient_continuation": 100_000,
-    "chunk": 10_000,
-    "max_periods": 100_000,
-    "n_max": 4096,
-}
 #: Smallest positive normal float: smaller non-zero values (subnormals) are refused.
 SMALLEST_NORMAL = sys.float_info.min
 #: Environment variable naming the study directory of workflow jobs (see :func:`study_root`).
@@ -151,7 +143,20 @@ def _check_names(mapping: Mapping[str, Any], where: str) -> None:
         try:
             check_value(name, value)
         except ParameterError as exc:
-            raise ConfigError(f"config key '{where}.{name}': {exc}") from None
+            text = str(exc).replace(f"= {value!r}", f"= {as_written(value)}")
+            raise ConfigError(f"config key '{where}.{name}': {text}") from None
+
+
+def as_written(v: Any) -> str:
+    """A config value as a user would write it in YAML: ``1.0e8``, ``0.25``, ``400``."""
+    if isinstance(v, bool) or not isinstance(v, float) or not math.isfinite(v):
+        return repr(v)
+    if v != 0 and not 1e-4 <= abs(v) < 1e6:
+        mant, exp = f"{v:.15e}".split("e")
+        mant = mant.rstrip("0")
+        mant = mant + "0" if mant.endswith(".") else mant
+        return f"{mant}e{int(exp)}"
+    return repr(v)
 
 
 def _check_axis(axis: Mapping[str, Any], where: str, *, centres: bool) -> None:
@@ -170,11 +175,26 @@ def _check_axis(axis: Mapping[str, Any], where: str, *, centres: bool) -> None:
     if int(axis["n"]) < 1:
         raise ConfigError(f"config key '{where}.n': resolution must be positive, got {axis['n']}")
     vals = axis_values(axis) if centres else sweep_values(axis)
-    for v in (vals[0], vals[-1]):
+    # the ends as the user wrote them first: a message names the key and value in the file
+    # (a plane's cells lie inside [min, max], so an end outside the range but with its cells
+    # inside, e.g. b: min 0 of an open range, is allowed)
+    bad_ends = {}
+    for key in ("min", "max"):
+        try:
+            check_value(name, float(axis[key]))
+        except ParameterError as exc:
+            bad_ends[key] = exc
+    for v, key in ((vals[0], "min"), (vals[-1], "max")):
         try:
             check_value(name, float(v))
         except ParameterError as exc:
-            raise ConfigError(f"config key '{where}': {exc}") from None
+            end = key if key in bad_ends else next(iter(bad_ends), None)
+            if end is None:  # both ends allowed, a cell centre not (cannot happen for a range)
+                raise ConfigError(f"config key '{where}': {exc}") from None
+            text = str(bad_ends[end]).replace(f"= {float(axis[end])!r}",
+                                              f"= {as_written(axis[end])}")
+            raise ConfigError(f"config key '{where}.{end}': {as_written(axis[end])}: {text}"
+                              ) from None
 
 
 def _physical_units(config: dict, root: str | Path | None) -> None:
@@ -298,7 +318,7 @@ def _check_finite(node: Any, path: list) -> None:
 
 def _check_limits(config: Mapping) -> None:
     """Documented upper bounds of the integration budget (beyond them a cell never ends)."""
-    for name, limit in INTEGRATION_LIMITS.items():
+    for name, (_, limit) in INTEGER_BOUNDS.items():
         v = (config.get("integration") or {}).get(name)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and v > limit:
             raise ConfigError(

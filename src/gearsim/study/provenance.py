@@ -18,7 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from gearsim.cell.simulate import TANGENT_SEED
-from gearsim.study.config import base_parameters, integration_settings, resolved_parameters
+from gearsim.study.config import (
+    base_parameters,
+    integration_settings,
+    plane_base,
+    resolved_parameters,
+)
 
 #: Packages whose versions go into the provenance.
 PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "distributed")
@@ -42,6 +47,7 @@ SIMULATION = ("dynamics", "physical", "numerics", "cell", "study")
 CODE_SCOPES: dict[str, tuple[str, ...]] = {
     "tiles": SIMULATION,
     "analysis": SIMULATION + ("analysis",),
+    "calibration": SIMULATION + ("analysis", "calibration"),
     "catalogue": SIMULATION + ("analysis", "results"),
     "presentation": SIMULATION + ("analysis", "results", "calibration", "presentation"),
 }
@@ -136,3 +142,28 @@ def provenance(
     }
     rec.update(extra)
     return rec
+
+
+def plane_record(config: dict, plane: str) -> dict:
+    """What a plane's cells.parquet records about the plane: axes, fixed values, parameters,
+    configuration hash, code version and integration settings."""
+    pl = config["planes"][plane]
+    return {
+        "name": plane,
+        "x": dict(pl["x"]),
+        "y": dict(pl["y"]),
+        "fixed": dict(pl.get("fixed", {})),
+        "parameters": plane_base(config, plane).to_dict(),
+        "config_hash": config_hash(plane_subtree(config, plane)),
+        "code_version": code_version(),
+        "integration": integration_settings(config).to_dict(),
+        # the axes in physical units when the study has a gear file (the catalogue's views)
+        "physical": _physical_axes(config, (pl["x"]["name"], pl["y"]["name"])),
+    }
+
+
+def _physical_axes(config: Mapping, names) -> dict[str, dict[str, Any]]:
+    from gearsim.physical.units import config_gear, physical_factors
+    from gearsim.study.config import study_root
+
+    return physical_factors(config_gear(config, study_root()), names)

@@ -1,19 +1,27 @@
-"""Argument helpers shared by subcommands."""
+"""Argument helpers shared by subcommands: the one resolution of a command's parameters
+(:func:`resolve_parameters`) and output-path checks."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.errors import UsageError
-from gearsim.study.config import base_parameters, integration_settings, study_config
-from gearsim.study.config_io import load_standard_parameters
+from gearsim.physical.geometry import GearGeometry
+from gearsim.physical.units import (
+    DEFAULT_GEAR,
+    PHYSICAL_AXES,
+    config_gear,
+    dimensionless_mapping,
+)
+from gearsim.study.config import base_parameters, integration_settings, study_config, study_root
 
 
 def parse_assignment(text: str) -> tuple[str, float | str]:
@@ -33,18 +41,35 @@ def parse_assignment(text: str) -> tuple[str, float | str]:
     return name, value
 
 
-def add_parameter_arguments(p: argparse.ArgumentParser) -> None:
-    """``--configfile``, ``--params``, ``--set``, ``--method``, ``--rtol``: the study's
-    parameters and settings (config/config.yaml) unless these say otherwise."""
+def add_config_arguments(p: argparse.ArgumentParser) -> None:
+    """``--configfile`` and ``--config-json``: the study's configuration, as Snakemake reads it."""
     p.add_argument(
         "--configfile",
         metavar="YAML",
         nargs="+",
         action="extend",
         default=[],
-        help="study config file(s) merged over config/config.yaml in order, like "
-        "`snakemake --configfile` (their standard_parameters, parameters and integration apply)",
+        help="study config file(s) (YAML or JSON) merged over config/config.yaml in order, "
+        "like `snakemake --configfile`",
     )
+    p.add_argument(
+        "--config-json",
+        metavar="JSON",
+        default=None,
+        help="overrides merged last, like `snakemake --config` (a JSON mapping)",
+    )
+
+
+#: physical options of every simulating command -> the gear-file name they set (docs/units.md)
+PHYSICAL_OPTIONS = {"rpm": "speed_rpm", "torque": "torque_Nm", "backlash": "half_backlash_um"}
+
+
+def add_parameter_arguments(p: argparse.ArgumentParser, *, integration: bool = True) -> None:
+    """The parameter options of every command that simulates: ``--configfile``,
+    ``--config-json``, ``--params``, ``--set``, ``--gear`` with ``--rpm`` / ``--torque`` /
+    ``--backlash`` and, with ``integration``, ``--method`` / ``--rtol``. One resolution for all:
+    :func:`resolve_parameters`."""
+    add_config_arguments(p)
     p.add_argument(
         "--params",
         metavar="YAML",
@@ -56,22 +81,166 @@ def add_parameter_arguments(p: argparse.ArgumentParser) -> None:
         metavar="NAME=VALUE",
         action="append",
         default=[],
-        help="override a model parameter (repeatable), e.g. --set xi=0.05",
+        help="override a model parameter (repeatable), e.g. --set xi=0.05; with a gear file "
+        "also speed_rpm, torque_Nm, half_backlash_um, te_amplitude_um",
     )
     p.add_argument(
-        "--method",
-        choices=("dp5", "rk4"),
-        default=None,
-        help="integrator (default: the study's integration.method, rk4)",
+        "--gear",
+        metavar="YAML",
+        help="gear file in physical units (config/gears/*.yaml, docs/units.md): its "
+        "dimensionless set replaces the standard parameters",
     )
-    p.add_argument(
-        "--rtol", type=float, default=None, help="DP5 relative tolerance (default: the study's)"
-    )
+    p.add_argument("--rpm", type=float, default=None,
+                   help="speed of the non-circular gear in rpm (needs a gear file; sets w)")
+    p.add_argument("--torque", type=float, default=None,
+                   help="driving torque on the non-circular gear in N m (needs a gear file; "
+                   "sets Fm)")
+    p.add_argument("--backlash", type=float, default=None,
+                   help="half backlash in um (needs a gear file; sets b)")
+    if integration:
+        p.add_argument(
+            "--method",
+            choices=("dp5", "rk4"),
+            default=None,
+            help="integrator (default: the study's integration.method, rk4)",
+        )
+        p.add_argument(
+            "--rtol", type=float, default=None,
+            help="DP5 relative tolerance (default: the study's)",
+        )
+
+
+def _file_option(flag: str, path: str) -> str:
+    f = Path(path)
+    if not f.is_file():
+        raise UsageError(f"{flag} {path}: no such file")
+    return str(f.resolve())
+
+
+def config_from_args(args: argparse.Namespace) -> dict:
+    """The study's configuration: config/config.yaml, the ``--configfile`` files, the
+    ``--config-json`` overrides (Snakemake's order; :func:`gearsim.study.config.study_config`),
+    then ``--gear`` / ``--params`` (which file gives the parameter set)."""
+    cached = getattr(args, "_config", None)
+    if cached is not None:
+        return cached
+    overrides: dict = {}
+    if getattr(args, "config_json", None):
+        try:
+            overrides = json.loads(args.config_json)
+        except (json.JSONDecodeError, RecursionError) as exc:
+            raise UsageError(f"--config-json is not valid JSON ({exc})") from None
+        if not isinstance(overrides, dict):
+            raise UsageError("--config-json must be a JSON mapping of config keys")
+    gear, params = getattr(args, "gear", None), getattr(args, "params", None)
+    if gear and params:
+        raise ParameterError("--gear and --params both give the parameter set; use one")
+    if gear:
+        overrides["gear"] = _file_option("--gear", gear)
+    if params:
+        overrides["standard_parameters"] = _file_option("--params", params)
+        overrides["gear"] = None
+    config = study_config(getattr(args, "configfile", None) or (), overrides or None)
+    args._config = config
+    return config
+
+
+@dataclass(frozen=True)
+class Resolved:
+    """The parameters a command simulates, where they came from, and the study behind them.
+
+    ``config`` is the study's configuration with the command line's values folded into its
+    ``parameters`` (what a sweep records in its provenance); ``gear`` the gear file's geometry
+    (``None`` without one)."""
+
+    params: ModelParameters
+    source: str
+    config: dict
+    gear: GearGeometry | None
+    gear_path: str | None
+
+
+def _cli_values(args: argparse.Namespace) -> tuple[dict, dict, list[str]]:
+    """(numeric values, text values, source words) of ``--set`` and the physical options."""
+    numbers: dict = {}
+    words: list[str] = []
+    text = {}
+    sets = _assignments(args)
+    for name, value in sets.items():
+        (text if isinstance(value, str) else numbers)[name] = value
+    if sets:
+        words.append("--set " + ", ".join(f"{k}={v}" for k, v in sets.items()))
+    for opt, name in PHYSICAL_OPTIONS.items():
+        value = getattr(args, opt, None)
+        if value is None:
+            continue
+        if name in numbers:
+            raise ParameterError(f"--set {name} and --{opt} both set {name}; give one")
+        numbers[name] = value
+        words.append(f"--{opt} {value:g}")
+    return numbers, text, words
+
+
+def resolve_parameters(args: argparse.Namespace, **extra: float | None) -> Resolved:
+    """The one resolution of a simulating command's parameters.
+
+    In order: the study's set (config/config.yaml and ``--configfile``: its gear file, else its
+    standard-parameter file, then its ``parameters``; ``--gear`` / ``--params`` choose the file),
+    ``--set`` values and ``--rpm`` / ``--torque`` / ``--backlash`` (physical names converted with
+    the gear file), then ``extra`` (a command's own option such as ``--omega``; ``None`` = not
+    given). A value given twice is an error, never a silent choice.
+    """
+    config = config_from_args(args)
+    numbers, text, words = _cli_values(args)
+    gear = config_gear(config, study_root())
+    if any(name in PHYSICAL_AXES for name in numbers) and gear is None:
+        raise ParameterError("--rpm, --torque, --backlash and physical --set names need a gear "
+                             f"file: add --gear {DEFAULT_GEAR} (or your own, docs/units.md)")
+    for opt, name in PHYSICAL_OPTIONS.items():  # the gear file's own range check, by option
+        if getattr(args, opt, None) is not None:
+            try:
+                replace(gear, **{name: getattr(args, opt)})
+            except ParameterError as exc:
+                raise ParameterError(f"--{opt}: {exc}") from None
+    numbers = dimensionless_mapping(numbers, gear, "--set")
+    given = {k: v for k, v in extra.items() if v is not None}
+    for name in given:
+        if name in numbers or name in text:
+            flag = "--omega" if name == "w" else f"--{name}"
+            raise ParameterError(f"{name} is set twice (--set or a physical option, and {flag});"
+                                 " give one")
+    values, source = base_parameters(config)
+    if getattr(args, "params", None):
+        source = source.replace(str(Path(args.params).resolve()), args.params, 1)
+    if getattr(args, "gear", None):
+        source = source.replace(str(Path(args.gear).resolve()), args.gear, 1)
+    values.update(numbers)
+    values.update(text)
+    values.update(given)
+    if words:
+        source += " + " + " + ".join(words)
+    folded = dict(config)
+    folded["parameters"] = {**(config.get("parameters") or {}), **numbers}
+    return Resolved(ModelParameters.from_mapping(values), source, folded, gear,
+                    config.get("gear"))
+
+
+def point_parameters(args: argparse.Namespace, omega: float | None) -> Resolved:
+    """:func:`resolve_parameters` of a one-point command, whose mesh frequency must be given:
+    ``--omega``, ``--set w=...``, ``--rpm`` with a gear file, or the study's ``parameters``."""
+    sets = _assignments(args)
+    cfg = config_from_args(args)
+    if (omega is None and "w" not in sets and "speed_rpm" not in sets
+            and "mesh_frequency_Hz" not in sets and getattr(args, "rpm", None) is None
+            and "w" not in (cfg.get("parameters") or {})):
+        raise ParameterError("give --omega W (dimensionless mesh frequency), --set w=W, or "
+                             "--gear FILE with --rpm N")
+    return resolve_parameters(args, w=omega)
 
 
 def study_from_args(args: argparse.Namespace) -> dict:
-    """The study configuration of a point-like command (config/config.yaml + --configfile)."""
-    return study_config(getattr(args, "configfile", None) or ())
+    """The study configuration of a command (:func:`config_from_args`)."""
+    return config_from_args(args)
 
 
 def _assignments(args: argparse.Namespace) -> dict:
@@ -85,48 +254,35 @@ def _assignments(args: argparse.Namespace) -> dict:
 
 
 def parameters_and_source(args: argparse.Namespace, **extra: float) -> tuple[ModelParameters, str]:
-    """The study's parameters with ``--params`` / ``--set`` / ``extra`` applied, and a text
-    naming where they came from (printed and saved beside the result)."""
-    sets = _assignments(args)
-    for name in extra:
-        if name in sets:
-            flag = "--omega" if name == "w" else f"--{name}"
-            raise ParameterError(
-                f"--set {name}={sets[name]:g} and {flag} both set {name}; give one"
-            )
-    if args.params:
-        base = load_standard_parameters(args.params)
-        source = str(args.params)
-    else:
-        config = study_from_args(args)
-        base, source = base_parameters(config)
-    base.update(sets)
-    base.update(extra)
-    if sets:
-        source += " + --set " + ", ".join(f"{k}={v}" for k, v in sets.items())
-    return ModelParameters.from_mapping(base), source
+    """:func:`resolve_parameters` as (parameters, source)."""
+    r = resolve_parameters(args, **extra)
+    return r.params, r.source
 
 
 def parameters_from_args(args: argparse.Namespace, **extra: float) -> ModelParameters:
-    """:func:`parameters_and_source` without the source."""
-    return parameters_and_source(args, **extra)[0]
+    """:func:`resolve_parameters` without the source."""
+    return resolve_parameters(args, **extra).params
 
 
 def settings_from_args(args: argparse.Namespace) -> IntegrationSettings:
     """The study's integration settings with ``--method`` / ``--rtol`` applied."""
-    settings = integration_settings(study_from_args(args))
+    settings = integration_settings(config_from_args(args))
     kw: dict = {}
-    if args.method is not None:
+    if getattr(args, "method", None) is not None:
         kw["method"] = args.method
-    if args.rtol is not None:
+    if getattr(args, "rtol", None) is not None:
         kw["rtol"] = args.rtol
     return settings.with_(**kw) if kw else settings
 
 
-def check_new_file(path: str | Path, *, create_parent: bool = True) -> Path:
+def check_new_file(path: str | Path, *, create_parent: bool = True, need: int | None = None
+                   ) -> Path:
     """An output file path that can be written, checked before any computation (one line,
     exit 2): not a directory; its directory exists (or, with ``create_parent``, can be made:
-    no file stands in the way)."""
+    no file stands in the way); a file can be created there and ``need`` bytes are free
+    (:func:`gearsim.study.preflight.check_output`)."""
+    from gearsim.study.preflight import DEFAULT_NEED, check_output
+
     out = Path(path)
     if out.is_dir():
         raise UsageError(f"{out}: is a directory, expected a file name")
@@ -138,7 +294,9 @@ def check_new_file(path: str | Path, *, create_parent: bool = True) -> Path:
             if not anc.is_dir():
                 raise UsageError(f"{out}: {anc} is a file, not a directory")
             break
-    return out
+    if need == 0 and not parent.exists():
+        return out  # shape only: the folder is made (and probed) by a later call
+    return check_output(out, need=DEFAULT_NEED if need is None else need)
 
 
 def check_output_path(path: str | Path) -> Path:
@@ -162,33 +320,3 @@ def json_safe(row: dict) -> dict:
         else:
             out[k] = v
     return out
-
-
-def default_parameters_file():
-    """The repository's ``config/standard_parameters.yaml`` (None if absent)."""
-    path = Path(__file__).resolve().parents[4] / "config" / "standard_parameters.yaml"
-    return path if path.is_file() else None
-
-
-def orbit_parameters(
-    path: str | None, assignments: list[str], **extra: float
-) -> tuple[ModelParameters, str]:
-    """Parameters for the orbit commands: the standard set (or ``path``) plus ``--set`` values.
-
-    Returns the parameters and a one-line description of their source.
-    """
-    base: dict[str, Any] = {}
-    src = "built-in defaults (no standard parameter file found)"
-    file = path if path else default_parameters_file()
-    if file is not None:
-        base = load_standard_parameters(file)
-        src = f"standard parameters {file}"
-    sets = []
-    for item in assignments:
-        name, value = parse_assignment(item)
-        base[name] = value
-        sets.append(f"{name}={value}")
-    base.update(extra)
-    if sets:
-        src += " with " + ", ".join(sets)
-    return ModelParameters.from_mapping(base), src

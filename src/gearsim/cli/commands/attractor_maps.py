@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 
 NAME = "attractor-maps"

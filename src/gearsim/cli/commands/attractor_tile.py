@@ -7,7 +7,8 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import Progress, add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands.simulate_tile import Progress
 from gearsim.errors import UsageError
 
 NAME = "attractor-tile"
@@ -31,7 +32,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="LocalCluster worker processes (1 without a scheduler address: in this "
                    "process, no dask)")  # fmt: skip
     p.add_argument("--no-cluster", action="store_true", help="run in this process (no dask)")
-    p.add_argument("--out", default=None,
+    p.add_argument("--out", "-o", default=None,
                    help="output (default results/<plane>/attractors/<tile>.parquet)")
 
 
@@ -91,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
     specs = task_specs(config, args.plane, args.tile, tile_df)
     total = sum(len(s["cells"]) for s in specs)
     out = Path(args.out or f"results/{args.plane}/attractors/{args.tile}.parquet")
+    from gearsim.study.preflight import check_output
+
+    check_output(out)  # writable, with room, before any simulation
     label = f"{args.plane}/attractor tile {args.tile}"
     progress = Progress(label, total)
     started = catalogue.now_iso()

@@ -14,36 +14,38 @@ HELP = (
 
 
 def add_multistability_arguments(p: argparse.ArgumentParser) -> None:
-    """``--params``, ``--set``, ``--transient``, ``--full`` (shared with ``gearsim basins``)."""
-    p.add_argument("--omega", "-w", type=float, required=True,
-                   help="dimensionless mesh frequency w")  # fmt: skip
-    p.add_argument(
-        "--params", metavar="YAML",
-        help="standard parameters file (default: config/standard_parameters.yaml of the "
-        "repository; the built-in defaults if it is absent)",
-    )  # fmt: skip
-    p.add_argument("--set", metavar="NAME=VALUE", action="append", default=[],
-                   help="override a model parameter (repeatable), e.g. --set b=0.15")
+    """``--omega``, the shared parameter options, ``--transient``, ``--full`` (shared with
+    ``gearsim basins``)."""
+    from gearsim.cli.commands._common import add_parameter_arguments
+
+    p.add_argument("--omega", "-w", type=float, default=None,
+                   help="dimensionless mesh frequency w (or --set w=W, or --gear with --rpm)")
+    add_parameter_arguments(p, integration=False)
     p.add_argument("--transient", type=int, default=150,
                    help="mesh periods of transient of a start before measuring (default 150)")
     p.add_argument("--full", action="store_true",
                    help="full-length run of every start (no early labelling by recurrence)")
 
 
+def resolve(args: argparse.Namespace):
+    """The point's parameters (:func:`gearsim.cli.commands._common.point_parameters`)."""
+    from gearsim.cli.commands._common import point_parameters
+
+    return point_parameters(args, args.omega)
+
+
 def load_point(args: argparse.Namespace):
-    """Parameters and settings of a multistability command: the standard parameters and the
-    study's integration settings (RK4, the production path) with ``--transient``."""
-    from gearsim.cli.commands._common import orbit_parameters
+    """Parameters and settings of a multistability command: the shared parameter resolution
+    and the study's integration settings (RK4, the production path) with ``--transient``."""
     from gearsim.dynamics.parameters import ParameterError
-    from gearsim.study.config import study_settings
+    from gearsim.study.config import integration_settings
 
     if args.transient < 0:
         raise ParameterError(f"--transient = {args.transient} must be an integer >= 0")
-    params, source = orbit_parameters(args.params, args.set, w=args.omega)
+    r = resolve(args)
     # the study's settings (config/config.yaml: RK4, 192 steps per period), this transient
-    settings = study_settings().with_(method="rk4",
-                                                       transient=int(args.transient))
-    return params, source, settings
+    settings = integration_settings(r.config).with_(method="rk4", transient=int(args.transient))
+    return r.params, r.source, settings
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -6,7 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
-from gearsim.cli.commands.attractors import add_multistability_arguments, load_point
+from gearsim.cli.commands.attractors import add_multistability_arguments, load_point, resolve
+
+__all__ = ["HELP", "NAME", "add_arguments", "resolve", "run"]
 
 NAME = "basins"
 HELP = (

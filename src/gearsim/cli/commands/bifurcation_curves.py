@@ -8,10 +8,17 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
+from gearsim.study.preflight import check_outputs
 
 NAME = "bifurcation-curves"
+#: Wall-clock budget of a job (s). The paper's (w, xi) plane took 686 s on a loaded machine
+#: (benchmarks/README.md, section (g)): twice that, so a normal job is never cut.
+DEFAULT_BUDGET_S = 1800.0
+#: A plane whose cells are more than this fraction diverged or out of their step budget (stiff)
+#: has no periodic orbits to follow: its curves are skipped (status 'skipped').
+MAX_UNUSABLE = 0.5
 HELP = (
     "locate the bifurcations along a plane's x axis by continuation (Newton-Floquet) and follow "
     "the fold, period-doubling and grazing points across the plane's y range (Parquet + figure)"
@@ -50,15 +57,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=("secant", "window"), default="secant",
                    help="re-location of a curve point: direct secant solve (default), or a "
                    "windowed continuation (the slower reference; also the secant's fallback)")
-    p.add_argument("--out", required=True,
+    p.add_argument("--out", "-o", required=True,
                    help="curves Parquet (results/orbits/PLANE_curves.parquet); the located "
                    "points go to *_points.parquet beside it, the figure to *.png")
+    p.add_argument("--budget-s", type=float, default=DEFAULT_BUDGET_S,
+                   help="wall-clock budget of the job in seconds: the continuation and the "
+                   "curves stop there, keep what they have and record status 'budget' "
+                   f"(default {DEFAULT_BUDGET_S:g})")
 
 
 def run(args: argparse.Namespace) -> int:
     from gearsim.analysis.bifcurves import bifurcation_points, follow_curves
     from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
-    from gearsim.analysis.orbits import find_periodic_orbit
+    from gearsim.analysis.orbits import SEEDING, find_periodic_orbit
     from gearsim.results import catalogue
     from gearsim.study import config as gcfg
     from gearsim.study import provenance as gprov
@@ -91,9 +102,20 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--step2 = {step2} must be in (0, {y1 - y0}]")
     if not 1 <= args.workers <= 64:
         raise UsageError(f"--workers = {args.workers} must be in [1, 64]")
+    if not 0 < args.budget_s <= 7 * 86400:
+        raise UsageError(f"--budget-s = {args.budget_s:g} must be in (0, 604800]")
+    out = Path(args.out)
+    stem = out.with_suffix("")
+    outputs = [out, Path(f"{stem}_points.parquet"), Path(f"{stem}_branches.parquet"),
+               out.with_suffix(".png")]
+    check_outputs(outputs)  # before any computation
+    deadline = time.monotonic() + args.budget_s
     params = base.with_(**{yn: at, xn: x0})
     started = catalogue.now_iso()
     t0 = time.perf_counter()
+    skip = _unusable_plane(args.cells) if args.cells else None
+    if skip is not None:
+        return _write_skipped(args, config, outputs, skip, started, at, yn)
     given = _given_points(args.points, params, xn, x0, x1) if args.points else None
     if given is not None:
         points, branches = given
@@ -101,26 +123,27 @@ def run(args: argparse.Namespace) -> int:
     else:
         from gearsim.cell.simulate import simulate_cell
 
-        seed = simulate_cell(params).final_state
+        seed = simulate_cell(params, settings=SEEDING).final_state
         orbit = find_periodic_orbit(params, args.period, seed, grazing=False)
         cfg = Continuation(ds=0.02, ds_max=0.05, switch_depth=args.switch_depth,
-                           max_points=600, progress=_log)
+                           max_points=600, progress=_log, deadline=deadline)
         branches = continue_orbit(params, xn, x0, x1, orbit, config=cfg)
         points = bifurcation_points(branches)
     t_branch = time.perf_counter() - t0
     curves = follow_curves(params, points, yn, (y0, y1), step2=step2, kinds=kinds,
-                           config=Continuation(progress=_log), workers=args.workers,
+                           config=Continuation(progress=_log, deadline=deadline),
+                           workers=args.workers,
                            method=args.method, range1=(x0, x1),
                            max_period=args.max_period or None)
     wall = time.perf_counter() - t0
-    out = Path(args.out)
-    stem = out.with_suffix("")
+    status = ("budget" if "budget" in (branches.attrs.get("status"), curves.attrs.get("status"))
+              else "ok")
     prov = gprov.provenance(
         gprov.plane_subtree(config, args.plane), kind="curves", name=args.plane, config=config,
         scope="analysis",
         started=started, finished=catalogue.now_iso(), wall_s=wall, seed_value=at,
         branch_wall_s=t_branch, curve_wall_s=wall - t_branch, reasons=curves.attrs["reasons"],
-        workers="in-process",
+        workers="in-process", status=status, budget_s=args.budget_s,
     )
     branches.attrs["provenance"] = prov
     write_branches(branches, Path(f"{stem}_branches.parquet"))
@@ -142,10 +165,77 @@ def run(args: argparse.Namespace) -> int:
                       int(curves["curve"].nunique()) if len(curves) else 0,
                       "curve_points": len(curves), "branch_wall_s": t_branch,
                       "curve_wall_s": wall - t_branch}), file=sys.stderr)
-    for r in curves.attrs["reasons"]:
+    for r in [*branches.attrs.get("reasons", []), *curves.attrs["reasons"]]:
         print(f"  {r}", file=sys.stderr)
+    if status == "budget":
+        print(f"plane {args.plane}: stopped at the budget of {args.budget_s:g} s "
+              "(status budget); the curves are partial", file=sys.stderr)
     print(f"wrote {out}, {stem}_points.parquet, {stem}_branches.parquet and "
           f"{out.with_suffix('.png')}", file=sys.stderr)
+    return 0
+
+
+def _unusable_plane(cells: str) -> str | None:
+    """Why a plane's curves are not worth following (most cells diverged or stiff), or None."""
+    import pandas as pd
+
+    p = Path(cells)
+    if not p.is_file():
+        raise UsageError(f"--cells: file not found: {cells}")
+    try:
+        df = pd.read_parquet(p, columns=["status"])
+    except Exception as exc:  # pyarrow: a foreign or damaged file
+        cause = " ".join(str(exc).split()) or type(exc).__name__
+        raise UsageError(f"--cells: {cells} is not a readable cells table ({cause})") from None
+    if not len(df):
+        return f"plane has no cells in {cells}"
+    bad = df["status"].isin(["diverged", "budget"])
+    frac = float(bad.mean())
+    if frac > MAX_UNUSABLE:
+        return (f"{int(bad.sum())} of {len(df)} cells diverged or out of their step budget "
+                f"(more than {MAX_UNUSABLE:.0%}): no periodic orbits to follow")
+    return None
+
+
+def _write_skipped(args, config, outputs, why: str, started: str, at: float, yn: str) -> int:
+    """Empty curve tables (status 'skipped', the reason in their provenance) and a figure
+    saying why: the catalogue and the report then state it, the workflow goes on."""
+    import pandas as pd
+
+    from gearsim.analysis.bifcurves import CURVE_COLUMNS, POINT_COLUMNS
+    from gearsim.analysis.continuation import COLUMNS, write_branches
+    from gearsim.presentation.figures.style import save_figure
+    from gearsim.presentation.orbit_plots import figure_curves
+    from gearsim.results import catalogue
+    from gearsim.study import provenance as gprov
+
+    out, points_path, branches_path, png = outputs
+    reason = f"curves skipped: {why}"
+    prov = gprov.provenance(
+        gprov.plane_subtree(config, args.plane), kind="curves", name=args.plane, config=config,
+        scope="analysis", started=started, finished=catalogue.now_iso(), wall_s=0.0,
+        seed_value=at, reasons=[reason], workers="in-process", status="skipped",
+        budget_s=args.budget_s,
+    )
+    branches = pd.DataFrame(columns=list(COLUMNS))
+    branches.attrs.update(provenance=prov, reasons=[reason], status="skipped")
+    write_branches(branches, branches_path)
+    points = pd.DataFrame(columns=list(POINT_COLUMNS)).assign(plane=args.plane, name2=yn, value2=at)
+    catalogue.write_parquet(points, points_path, {catalogue.PROVENANCE_KEY: prov})
+    curves = pd.DataFrame(columns=list(CURVE_COLUMNS)).assign(plane=args.plane)
+    catalogue.write_parquet(curves, out, {catalogue.PROVENANCE_KEY: prov})
+    import textwrap
+
+    from gearsim.presentation.orbit_plots import param_label
+
+    fig = figure_curves(curves, pd.read_parquet(args.cells),
+                        title="\n".join(textwrap.wrap(f"plane {args.plane}: {reason}", 80)))
+    pl = config["planes"][args.plane]
+    fig.axes[0].set_xlabel(param_label(pl["x"]["name"]))
+    fig.axes[0].set_ylabel(param_label(pl["y"]["name"]))
+    save_figure(fig, png)
+    print(f"plane {args.plane}: {reason}", file=sys.stderr)
+    print(f"wrote {out}, {points_path}, {branches_path} and {png}", file=sys.stderr)
     return 0
 
 

@@ -9,6 +9,8 @@ Subcommands (each is one Snakemake rule):
   --out results/catalogue.d/build.sqlite --publish results/catalogue.sqlite``
 * ``gearsim catalogue publish --from results/catalogue.d/build.sqlite
   --to results/catalogue.sqlite`` (restore the published copy by hand)
+* ``gearsim catalogue migrate results/catalogue.sqlite`` (bring a catalogue of an older schema
+  version up to this one, in place and atomically)
 """
 
 from __future__ import annotations
@@ -18,8 +20,10 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
+from gearsim.study.audit import audit_frame, audit_settings
+from gearsim.study.provenance import plane_record
 
 NAME = "catalogue"
 HELP = "combine a plane's tiles, audit it, or build results/catalogue.sqlite"
@@ -30,12 +34,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     c = sub.add_parser("cells", help="combine a plane's tile files into cells.parquet")
     c.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     c.add_argument("--tiles", nargs="+", required=True, help="the plane's tile Parquet files")
-    c.add_argument("--out", required=True, help="the plane's cells.parquet to write")
+    c.add_argument("--out", "-o", required=True, help="the plane's cells.parquet to write")
     add_config_arguments(c)
     a = sub.add_parser("audit", help="re-simulate a sample of cells at tightened tolerance")
     a.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     a.add_argument("--cells", required=True, help="the plane's cells.parquet")
-    a.add_argument("--out", required=True, help="the plane's audit.parquet to write")
+    a.add_argument("--out", "-o", required=True, help="the plane's audit.parquet to write")
     add_config_arguments(a)
     b = sub.add_parser("build", help="build the SQLite catalogue (one transaction, atomic)")
     b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
@@ -46,7 +50,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     b.add_argument("--orbits", nargs="*", default=[],
                    help="bifurcation points / curves and refine-orbits Parquet files "
                    "(docs/orbits.md)")
-    b.add_argument("--out", required=True, help="the catalogue file to write (the rule's output)")
+    b.add_argument("--out", "-o", required=True,
+                   help="the catalogue file to write (the rule's output)")
     b.add_argument(
         "--publish",
         metavar="PATH",
@@ -58,23 +63,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     pub.add_argument("--from", dest="source", required=True, help="a built catalogue")
     pub.add_argument("--to", required=True, help="e.g. results/catalogue.sqlite")
-
-
-def plane_record(config: dict, plane: str) -> dict:
-    from gearsim.study import config as gcfg
-    from gearsim.study import provenance
-
-    pl = config["planes"][plane]
-    return {
-        "name": plane,
-        "x": dict(pl["x"]),
-        "y": dict(pl["y"]),
-        "fixed": dict(pl.get("fixed", {})),
-        "parameters": gcfg.plane_base(config, plane).to_dict(),
-        "config_hash": provenance.config_hash(provenance.plane_subtree(config, plane)),
-        "code_version": provenance.code_version(),
-        "integration": gcfg.integration_settings(config).to_dict(),
-    }
+    mig = sub.add_parser(
+        "migrate", help="bring a catalogue of an older schema version up to this gearsim's"
+    )
+    mig.add_argument("path", nargs="+", help="catalogue file(s), e.g. results/catalogue.sqlite")
 
 
 def _cells(args) -> int:
@@ -88,99 +80,6 @@ def _cells(args) -> int:
     return 0
 
 
-def audit_settings(config: dict):
-    """The audit's reference: the adaptive DP5 integrator, whatever method produced the cells
-    (an independent integrator, not just a finer step of the same one), at ``audit.tighten``
-    times the configuration's DP5 tolerances and half its step cap; the cell plan (transient,
-    chunks, period test, ``transient_recurrence``) is the configuration's. ``tighten: 100`` is
-    :meth:`IntegrationSettings.tightened`; the evidence for the default is in
-    benchmarks/README.md (l)."""
-    from gearsim.study import config as gcfg
-
-    st = gcfg.integration_settings(config).with_(method="dp5")
-    return st.tightened(float(config["audit"].get("tighten", 10)))
-
-
-def audit_frame(config: dict, plane: str, cells, progress=None):
-    """Re-simulate a deterministic sample of cells with DP5 at tightened tolerance
-    (:func:`audit_settings`).
-
-    Each audited cell starts exactly where the pipeline started it: from the final state of its
-    left neighbour in the row (continuation), or from rest for the first cell of a row.
-    """
-    import numpy as np
-    import pandas as pd
-
-    from gearsim.cell.simulate import simulate_cell
-    from gearsim.study import config as gcfg
-
-    aud = config["audit"]
-    n = len(cells)
-    k = int(round(aud["fraction"] * n))
-    if aud["fraction"] > 0:
-        k = max(k, 1)
-    rng = np.random.default_rng(int(aud["seed"]))
-    pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
-    base = gcfg.plane_base(config, plane)
-    pl = config["planes"][plane]
-    tight = audit_settings(config)
-    index = {
-        (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
-    }
-    rows = []
-    t0 = time.perf_counter()
-    for m, r in enumerate(pick):
-        c = cells.iloc[r]
-        i, j = int(c["i"]), int(c["j"])
-        params = base.with_(**{pl["x"]["name"]: float(c["x"]), pl["y"]["name"]: float(c["y"])})
-        u0, start = None, 0
-        left = index.get((i - 1, j))
-        if left is not None and cells.iloc[left]["status"] != "diverged":
-            u0 = np.asarray(cells.iloc[left]["final_state"], dtype=float)
-            start = int(cells.iloc[left]["final_period"])
-        res = simulate_cell(params, u0, settings=tight, start_period=start)
-        t = res.row()
-        rows.append(
-            {
-                "plane": plane,
-                "i": i,
-                "j": j,
-                "x": float(c["x"]),
-                "y": float(c["y"]),
-                "label": c["label"],
-                "label_npq": c["label_npq"],
-                "tight_label": t["label"],
-                "tight_label_npq": t["label_npq"],
-                "tight_I": t["I"],
-                "tight_dc": t["dc"],
-                "tight_kmax": t["kmax"],
-                "tight_lyapunov": t["lyapunov"],
-                "agree": bool(t["label"] == c["label"] and t["label_npq"] == c["label_npq"]),
-            }
-        )
-        if progress:
-            progress(m + 1, len(pick), time.perf_counter() - t0)
-    return pd.DataFrame(
-        rows,
-        columns=[
-            "plane",
-            "i",
-            "j",
-            "x",
-            "y",
-            "label",
-            "label_npq",
-            "tight_label",
-            "tight_label_npq",
-            "tight_I",
-            "tight_dc",
-            "tight_kmax",
-            "tight_lyapunov",
-            "agree",
-        ],
-    )
-
-
 def _audit(args) -> int:
     import pandas as pd
 
@@ -191,6 +90,9 @@ def _audit(args) -> int:
     config = config_from_args(args)
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'")
+    from gearsim.study.preflight import check_output
+
+    check_output(args.out)  # writable, with room, before any simulation
     cells = pd.read_parquet(args.cells)
     started = catalogue.now_iso()
     t0 = time.perf_counter()
@@ -256,6 +158,17 @@ def _publish(args) -> int:
     return 0
 
 
+def _migrate(args) -> int:
+    from gearsim.results import catalogue
+
+    for path in args.path:
+        old, new = catalogue.migrate_catalogue(path)
+        done = "already at" if old == new else f"migrated from version {old} to"
+        print(f"catalogue {path}: {done} schema version {new}", file=sys.stderr)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
-    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish}
+    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish,
+               "migrate": _migrate}
     return actions[args.action](args)

@@ -9,13 +9,17 @@ import time
 from pathlib import Path
 
 from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
-from gearsim.analysis.orbits import find_periodic_orbit, shooting_settings
+from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
-from gearsim.cli.commands._common import orbit_parameters
+from gearsim.cli.commands._common import resolve_parameters
 from gearsim.cli.commands.orbit import add_orbit_parameter_arguments
 from gearsim.errors import UsageError
+from gearsim.study.preflight import check_outputs
 
 NAME = "continue"
+#: Wall-clock budget of a continuation (s): the standard one takes ~1 CPU-minute, 4 minutes
+#: of wall on a loaded machine (benchmarks/README.md); a normal run is never cut.
+DEFAULT_BUDGET_S = 1800.0
 HELP = (
     "continue a periodic orbit in one parameter: stable and unstable branches, located folds, "
     "period doublings (with branch switching), Neimark-Sacker points and grazings"
@@ -34,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-points", type=int, default=400, help="points per branch")
     p.add_argument("--switch-depth", type=int, default=2,
                    help="period doublings followed onto the doubled branch (0: none)")
-    p.add_argument("--out", metavar="PARQUET", default=None,
+    p.add_argument("--out", "-o", metavar="PARQUET", default=None,
                    help="branch table (default results/orbits/continue_NAME_FROM_TO_pN.parquet)")
     p.add_argument("--figure", metavar="PNG", default=None,
                    help="branch figure (default: the Parquet path with .png)")
@@ -42,6 +46,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a simulated sweep of the same parameter set (results/sweeps/*.parquet): "
                    "write the exact landmarks (paper, grid-read, continuation) beside the branches")
     p.add_argument("--json", action="store_true", help="print the events as JSON")
+    p.add_argument("--budget-s", type=float, default=DEFAULT_BUDGET_S,
+                   help="wall-clock budget in seconds: the continuation stops there, keeps "
+                   f"its branches and records status 'budget' (default {DEFAULT_BUDGET_S:g})")
+
+
+def resolve(args: argparse.Namespace):
+    """The start point's parameters: the shared resolution with the continued parameter at
+    ``--from``."""
+    return resolve_parameters(args, **{args.name: args.start})
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,18 +68,30 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--switch-depth = {args.switch_depth} must be in [0, 6]")
     if args.start == args.stop:
         raise UsageError(f"--from and --to are equal ({args.start}): empty range")
-    params, source = orbit_parameters(args.params, args.set, **{args.name: args.start})
+    if not 0 < args.budget_s <= 7 * 86400:
+        raise UsageError(f"--budget-s = {args.budget_s:g} must be in (0, 604800]")
+    r = resolve(args)
+    params, source = r.params, r.source
     st = shooting_settings(args.rtol)
+    out = Path(args.out or
+               f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p"
+               f"{args.period if args.period is not None else 'N'}.parquet")
+    fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
+    check_outputs([out, fig_path])  # before any computation
+    deadline = time.monotonic() + args.budget_s
     t0 = time.perf_counter()
-    sim = simulate_cell(params)
+    sim = simulate_cell(params, settings=SEEDING)
     n = args.period if args.period is not None else max(sim.classification.n, 1)
     orbit = find_periodic_orbit(params, n, sim.final_state, st, grazing=False)
     cfg = Continuation(ds=args.ds, ds_max=args.ds_max, max_points=args.max_points,
-                       switch_depth=args.switch_depth, settings=st, progress=_log)
+                       switch_depth=args.switch_depth, settings=st, progress=_log,
+                       deadline=deadline)
     df = continue_orbit(params, args.name, args.start, args.stop, orbit, config=cfg)
     elapsed = time.perf_counter() - t0
-    out = Path(args.out or
-               f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}.parquet")
+    if args.out is None:
+        out = Path(f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}"
+                   ".parquet")
+        fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     df.attrs["parameters_source"] = source
     write_branches(df, out)
     from gearsim.analysis.bifcurves import bifurcation_points
@@ -75,7 +100,6 @@ def run(args: argparse.Namespace) -> int:
     points_path = out.with_name(out.stem + "_points.parquet")
     catalogue.write_parquet(bifurcation_points(df).assign(name2="", value2=float("nan")),
                             points_path, {b"gearsim.analysis.continuation": dict(df.attrs)})
-    fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     from gearsim.presentation.figures.style import save_figure
     from gearsim.presentation.orbit_plots import figure_branches
 
@@ -105,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
                  "branch": int(r.branch), "boundary": r.boundary, "x": r.x}
                 for r in ev.itertuples()
             ],
-            "reasons": df.attrs["reasons"],
+            "reasons": df.attrs["reasons"], "status": df.attrs.get("status", "ok"),
             "landmarks": None if landmarks_path is None else str(landmarks_path),
         }, default=float))
         return 0
@@ -117,6 +141,9 @@ def run(args: argparse.Namespace) -> int:
               f"x = {r.x:.6f}")
     for reason in df.attrs["reasons"]:
         print(f"  {reason}")
+    if df.attrs.get("status") == "budget":
+        print(f"stopped at the budget of {args.budget_s:g} s (status budget): the branches "
+              "are partial")
     print(f"wrote {out}, {points_path} and {fig_path}"
           + (f" and {landmarks_path}" if landmarks_path else ""))
     return 0

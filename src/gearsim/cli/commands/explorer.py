@@ -15,11 +15,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 
 NAME = "explorer"
-HELP = "write the interactive explorer page (static HTML: maps, cells, Poincare points, sweeps)"
+HELP = ("write the interactive explorer page (one static HTML file: the scorecard, every plane's "
+        "layers, cells, Poincare points, attractors, every sweep's diagram)")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,7 +28,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="results directory (<plane>/cells.parquet, sweeps/<sweep>.parquet)")
     p.add_argument("--catalogue", default="results/catalogue.sqlite",
                    help="SQLite catalogue (its attractors table is shown when present)")
-    p.add_argument("--out", default="results/explorer/index.html", help="the page (HTML)")
+    p.add_argument("--out", "-o", default="results/explorer/index.html", help="the page (HTML)")
     p.add_argument("--plane", nargs="+", default=None, metavar="NAME",
                    help="only these planes of the config (default: every one)")
     p.add_argument("--sweep", nargs="+", default=None, metavar="NAME",
@@ -61,8 +62,22 @@ def run(args: argparse.Namespace) -> int:
                          + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
                          + " (run the pipeline first)")
     fixed = {k: dict(v.get("fixed") or {}) for k, v in (config.get("sweeps") or {}).items()}
+    from gearsim.physical.units import config_gear
+    from gearsim.presentation.report import build_report
+    from gearsim.presentation.scorecard import scorecard
+    from gearsim.study.config import study_root
+
+    rep, _ = build_report(sweeps_dir=results / "sweeps", catalogue=args.catalogue,
+                          results=results, calibration=None, planes=planes, sweeps=sweeps,
+                          study=config.get("study"))
+    rows = ([{"item": r.item, "paper": r.paper, "ours": r.ours, "located": r.located,
+              "difference": r.difference, "ok": r.ok} for r in scorecard(rep)]
+            if rep.paper_study else [])
+    title = (f"gearsim explorer: study {config['study']}" if config.get("study")
+             else "gearsim explorer: reproduction of the paper")
     out = write_explorer(args.out, planes=planes, sweeps=sweeps, results=results,
-                         catalogue=args.catalogue, sweep_fixed=fixed)
+                         catalogue=args.catalogue, sweep_fixed=fixed,
+                         gear=config_gear(config, study_root()), scorecard=rows, title=title)
     size = out.stat().st_size
     print(f"wrote {out} ({size / 1e6:.1f} MB; {len(planes)} planes, {len(sweeps)} sweeps)",
           file=sys.stderr)

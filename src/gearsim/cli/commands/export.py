@@ -18,7 +18,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--format", choices=FORMATS, default="netcdf", help="output format (default netcdf)"
     )
-    p.add_argument("--out", required=True, help="output file (a directory for zarr)")
+    p.add_argument("--out", "-o", required=True, help="output file (a directory for zarr)")
     p.add_argument(
         "--catalogue",
         "--db",

@@ -6,6 +6,7 @@ Examples::
     gearsim figures --fig 7 12 13 --plane wb=results/wb/cells.parquet
     gearsim figures --fig 9 10 11 --sweep b015=results/sweeps/b015.parquet
     gearsim figures --maps --plane weps=results/weps/cells.parquet   # any axes
+    gearsim figures --sweep-diagrams --sweep torque=results/sweeps/torque.parquet
     gearsim figures --index
 
 Each figure is written as ``<outdir>/figNN.png`` (200 dpi) and ``.pdf`` plus ``figNN.json``
@@ -27,7 +28,7 @@ import json
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 
 NAME = "figures"
@@ -44,6 +45,17 @@ def _pairs(items: list[str], flag: str) -> dict[str, str]:
             raise UsageError(f"{flag} {name}: file not found: {path}")
         out[name] = path
     return out
+
+
+def _read(read_table, path: str, what: str):
+    """A table from ``path``, or one line naming it when it is not a readable Parquet file."""
+    try:
+        return read_table(path)
+    except OSError:
+        raise  # full disk, permission: the CLI names the file and the cause
+    except Exception as exc:  # pyarrow: ArrowInvalid, ArrowTypeError, ... for a foreign file
+        cause = " ".join(str(exc).split()) or type(exc).__name__
+        raise UsageError(f"{what}: {path} is not a readable Parquet table ({cause})") from None
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -67,6 +79,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--map", nargs="+", default=None, metavar="KIND",
                    help="with --maps: only these maps (default every registered one: "
                    "pattern, dc, kmax, ...)")
+    p.add_argument("--sweep-diagrams", action="store_true",
+                   help="draw the bifurcation diagram (section points, DC, Kmax) of every "
+                   "--sweep, in the sweep's own units, into OUTDIR/sweeps/")
     p.add_argument("--index", action="store_true",
                    help="write OUTDIR/README.md from the figure records present")
     add_config_arguments(p)
@@ -87,13 +102,13 @@ def _context(args, config):
                      (config.get("sweeps") or {}).items()},
     )
     for name, path in _pairs(args.sweep, "--sweep").items():
-        ctx.sweeps[name] = read_table(path)
+        ctx.sweeps[name] = _read(read_table, path, f"--sweep {name}")
     for name, path in _pairs(args.plane, "--plane").items():
-        ctx.planes[name] = read_table(path)
+        ctx.planes[name] = _read(read_table, path, f"--plane {name}")
     for name, path in _pairs(args.points, "--points").items():
-        ctx.points[name] = read_table(path)
+        ctx.points[name] = _read(read_table, path, f"--points {name}")
     for name, path in _pairs(args.orbits, "--orbits").items():
-        ctx.orbits[name] = read_table(path)
+        ctx.orbits[name] = _read(read_table, path, f"--orbits {name}")
         pts = Path(path).with_name(Path(path).stem + "_points.parquet")
         if not name.endswith("_curves") and pts.is_file():
             ctx.orbits[f"{name}_points"] = read_table(pts)
@@ -116,7 +131,42 @@ def _bind_single_plane(numbers, ctx, table) -> dict[str, str]:
 
 
 def _write_record(path: Path, rec: dict) -> None:
-    path.write_text(json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
+    from gearsim.study.preflight import write_text_atomic
+
+    write_text_atomic(path, json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
+
+
+def _physical(config):
+    """``(x, y) -> {parameter: {name, unit, k}}`` of the study's gear file (empty without)."""
+    from gearsim.physical.units import config_gear, physical_factors
+    from gearsim.study.config import study_root
+
+    gear = config_gear(config, study_root())
+    return lambda *names: physical_factors(gear, names)
+
+
+def _sweep_diagrams(args: argparse.Namespace, outdir: Path) -> None:
+    """``OUTDIR/sweeps/<sweep>.{png,pdf,json}`` for every ``--sweep``."""
+    import matplotlib.pyplot as plt
+
+    from gearsim.presentation.figures.data import read_table
+    from gearsim.presentation.figures.style import save_figure
+    from gearsim.presentation.figures.sweeps import figure_sweep_diagram, sweep_spec_of
+
+    config = config_from_args(args)
+    for name, path in _pairs(args.sweep, "--sweep").items():
+        spec = sweep_spec_of(path, config, name)
+        df = read_table(path)
+        param = str(df["parameter"].iloc[0]) if len(df) else ""
+        fig, caption = figure_sweep_diagram(df, name=name, spec=spec,
+                                            physical=_physical(config)(param).get(param))
+        stem = outdir / "sweeps" / name
+        files = [str(f) for f in save_figure(fig, stem)]
+        plt.close(fig)
+        _write_record(stem.with_suffix(".json"), {
+            "sweep": name, "title": f"Sweep {name}", "files": files, "caption": caption,
+            "inputs": [f"sweeps/{name}"], "spec": spec})
+        print(f"sweep {name}: wrote {', '.join(files)}", file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -127,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gearsim.presentation.figures import registry
     from gearsim.presentation.figures.index import write_index
-    from gearsim.presentation.figures.style import save_figure
+    from gearsim.presentation.figures.style import physical_axes, save_figure
 
     outdir = Path(args.outdir)
     table = registry.figures()
@@ -136,16 +186,29 @@ def run(args: argparse.Namespace) -> int:
         numbers = list(table)
     if args.map and not args.maps:
         raise UsageError("--map KIND needs --maps")
-    if not numbers and not args.index and not args.maps:
-        raise UsageError("nothing to do: give --fig N, --all, --maps or --index")
+    if not numbers and not args.index and not args.maps and not args.sweep_diagrams:
+        raise UsageError("nothing to do: give --fig N, --all, --maps, --sweep-diagrams or "
+                         "--index")
+    if args.sweep_diagrams and not args.sweep:
+        raise UsageError("--sweep-diagrams needs at least one --sweep NAME=PATH")
     if args.maps and not args.plane:
         raise UsageError("--maps needs at least one --plane NAME=PATH")
+    from gearsim.study.preflight import check_folder
+
+    check_folder(outdir, what="--outdir")  # writable, with room, before any drawing
+    if args.sweep_diagrams:
+        _sweep_diagrams(args, outdir)
     if numbers or args.maps:
         config = config_from_args(args)
         ctx = _context(args, config)
         if args.maps:
+            physical = _physical(config)
             for plane, df in ctx.planes.items():
                 for spec, fig, caption, notes in registry.build_maps(plane, df, args.map):
+                    xname, yname = registry._axes(df)
+                    units = physical_axes(fig, physical(xname, yname), xname, yname)
+                    if units:
+                        notes = [*notes, "axes also in " + ", ".join(units) + " (the gear file)"]
                     stem = outdir / "planes" / f"{plane}-{spec.kind}"
                     stem.parent.mkdir(parents=True, exist_ok=True)
                     files = [str(f) for f in save_figure(fig, stem)]

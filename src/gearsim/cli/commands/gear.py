@@ -1,16 +1,16 @@
 """``gearsim gear``: a gear file's dimensionless set, or a dimensionless set's physical meaning.
 
-Also the ``--gear / --rpm / --torque`` options of ``gearsim point`` (docs/units.md).
+The ``--gear / --rpm / --torque / --backlash`` options of the simulating commands are in
+:mod:`gearsim.cli.commands._common` (docs/units.md).
 """
 
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 from pathlib import Path
 
 from gearsim.cli.commands._common import parse_assignment
-from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.dynamics.parameters import ModelParameters
 from gearsim.physical.geometry import GearGeometry
 
 NAME = "gear"
@@ -72,63 +72,3 @@ def run(args: argparse.Namespace) -> int:
     print(head)
     print(describe(gear, params))
     return 0
-
-
-# ----------------------------------------------------------------------------- gearsim point
-def add_gear_arguments(p: argparse.ArgumentParser) -> None:
-    """``--gear FILE``, ``--rpm N``, ``--torque T`` (used by ``gearsim point``)."""
-    p.add_argument("--gear", metavar="YAML",
-                   help="gear file in physical units (config/gears/*.yaml, docs/units.md): its "
-                        "dimensionless set replaces the standard parameters, and the result is "
-                        "printed in physical units too")
-    p.add_argument("--rpm", type=float, default=None,
-                   help="speed of the non-circular gear, rpm (needs --gear; sets w)")
-    p.add_argument("--torque", type=float, default=None,
-                   help="driving torque on the non-circular gear, N m (needs --gear; sets Fm)")
-
-
-def gear_from_args(args: argparse.Namespace) -> GearGeometry | None:
-    """The gear of ``--gear`` with ``--rpm`` / ``--torque`` applied, or ``None``."""
-    from gearsim.physical.units import DEFAULT_GEAR, load_gear
-
-    rpm, torque = getattr(args, "rpm", None), getattr(args, "torque", None)
-    if not getattr(args, "gear", None):
-        if rpm is not None or torque is not None:
-            raise ParameterError(f"--rpm and --torque need a gear file: add --gear {DEFAULT_GEAR}"
-                                 " (or your own, docs/units.md)")
-        return None
-    gear = load_gear(args.gear)
-    for opt, field, value in (("--rpm", "speed_rpm", rpm), ("--torque", "torque_Nm", torque)):
-        if value is not None:
-            try:
-                gear = replace(gear, **{field: value})
-            except ParameterError as exc:
-                raise ParameterError(f"{opt}: {exc}") from None
-    return gear
-
-
-def point_parameters(args: argparse.Namespace, parameters_from_args
-                     ) -> tuple[ModelParameters, GearGeometry | None]:
-    """The dimensionless set of ``gearsim point`` and its gear (``None`` without ``--gear``).
-
-    With ``--gear``: the gear's set (``--rpm``, ``--torque`` applied), ``--set`` on top, then
-    ``--omega`` if given. Without: ``parameters_from_args(args, w=omega)``.
-    """
-    gear = gear_from_args(args)
-    omega = getattr(args, "omega", None)
-    if gear is None:
-        if omega is None:
-            raise ParameterError("give --omega W (dimensionless mesh frequency), or --gear FILE "
-                                 "with --rpm N")
-        return parameters_from_args(args, w=omega), None
-    if getattr(args, "params", None):
-        raise ParameterError("--gear and --params both give the parameter set; use one")
-    if omega is not None and getattr(args, "rpm", None) is not None:
-        raise ParameterError("--omega and --rpm both set the mesh frequency; use one")
-    values = gear.to_model_parameters().to_dict()
-    for item in getattr(args, "set", []) or []:
-        name, value = parse_assignment(item)
-        values[name] = value
-    if omega is not None:
-        values["w"] = omega
-    return ModelParameters.from_mapping(values), gear

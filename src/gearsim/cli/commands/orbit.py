@@ -6,9 +6,9 @@ import argparse
 import json
 import time
 
-from gearsim.analysis.orbits import find_periodic_orbit, shooting_settings
+from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
-from gearsim.cli.commands._common import orbit_parameters
+from gearsim.cli.commands._common import add_parameter_arguments, point_parameters
 
 NAME = "orbit"
 HELP = (
@@ -18,38 +18,33 @@ HELP = (
 
 
 def add_orbit_parameter_arguments(p: argparse.ArgumentParser) -> None:
-    """``--params``, ``--set``, ``--rtol`` shared by ``orbit``, ``continue``, ``refine-orbits``."""
-    p.add_argument(
-        "--params",
-        metavar="YAML",
-        help="standard parameters file (default: config/standard_parameters.yaml of the "
-        "repository; the built-in defaults if it is absent)",
-    )
-    p.add_argument(
-        "--set",
-        metavar="NAME=VALUE",
-        action="append",
-        default=[],
-        help="override a model parameter (repeatable), e.g. --set model=1dof",
-    )
+    """The shared parameter options (:func:`add_parameter_arguments`) and the shooting
+    integrator's ``--rtol`` (``orbit``, ``continue``)."""
+    add_parameter_arguments(p, integration=False)
     p.add_argument("--rtol", type=float, default=None,
                    help="DP5 relative tolerance of the shooting integrator (default 1e-12)")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--omega", "-w", type=float, required=True,
-                   help="dimensionless mesh frequency w")
+    p.add_argument("--omega", "-w", type=float, default=None,
+                   help="dimensionless mesh frequency w (or --set w=W, or --gear with --rpm)")
     p.add_argument("--period", "-n", type=int, default=None,
                    help="period in mesh periods (default: the period simulated from rest)")
     add_orbit_parameter_arguments(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
+def resolve(args: argparse.Namespace):
+    """The orbit's parameters (:func:`gearsim.cli.commands._common.point_parameters`)."""
+    return point_parameters(args, args.omega)
+
+
 def run(args: argparse.Namespace) -> int:
-    params, source = orbit_parameters(args.params, args.set, w=args.omega)
+    r = resolve(args)
+    params, source = r.params, r.source
     st = shooting_settings(args.rtol)
     t0 = time.perf_counter()
-    sim = simulate_cell(params)
+    sim = simulate_cell(params, settings=SEEDING)
     n = args.period if args.period is not None else max(sim.classification.n, 1)
     if args.period is None and sim.classification.n < 1:
         print(f"note: the simulation from rest found no period ({sim.classification.label});"

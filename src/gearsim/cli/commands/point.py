@@ -11,15 +11,12 @@ import numpy as np
 
 from gearsim.cell.simulate import simulate_cell, trajectory
 from gearsim.cli.commands._common import (
-    _assignments,
     add_parameter_arguments,
     check_output_path,
     json_safe,
-    parameters_and_source,
+    point_parameters,
     settings_from_args,
 )
-from gearsim.cli.commands.gear import add_gear_arguments, point_parameters
-from gearsim.dynamics.parameters import ParameterError
 from gearsim.errors import UsageError
 from gearsim.study.config import settings_text
 
@@ -33,9 +30,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="dimensionless mesh frequency w (required unless --gear with --rpm)",
     )
     add_parameter_arguments(p)
-    add_gear_arguments(p)
     p.add_argument(
         "--out",
+        "-o",
         "--save",
         dest="out",
         metavar="PARQUET",
@@ -55,23 +52,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def resolve(args: argparse.Namespace):
+    """The point's parameters (:func:`gearsim.cli.commands._common.point_parameters`)."""
+    return point_parameters(args, args.omega)
+
+
 def run(args: argparse.Namespace) -> int:
-    sets = _assignments(args)
-    if "w" in sets and (args.omega is not None or getattr(args, "rpm", None) is not None):
-        flag = "--omega" if args.omega is not None else "--rpm"
-        raise ParameterError(f"--set w={sets['w']:g} and {flag} both set w; give one")
     out = check_output_path(args.out) if args.out else None
-    sources: list[str] = []
-
-    def from_args(a, **extra):
-        params, source = parameters_and_source(a, **extra)
-        sources.append(source)
-        return params
-
-    params, gear = point_parameters(args, from_args)
-    source = sources[0] if sources else f"gear file {args.gear}"
-    if gear is not None and sets:
-        source += " + --set " + ", ".join(f"{k}={v}" for k, v in sets.items())
+    r = resolve(args)
+    params, source, gear = r.params, r.source, r.gear
     settings = settings_from_args(args)
     t0 = time.perf_counter()
     spectrum = False if args.spectrum is None else (args.spectrum or True)
@@ -117,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
         if gear is not None:
             from gearsim.physical.units import physical_line
 
-            print(physical_line(row, args.gear))
+            print(physical_line(row, r.gear_path or ""))
     if out is not None:
         _save(out, params, res, settings, source)
     return 0

@@ -51,6 +51,16 @@ FROM cells c JOIN planes p ON p.id = c.plane_id
 WHERE c.lyapunov > 0
 ORDER BY c.lyapunov DESC
 LIMIT 20;""",
+    "plane-view": """\
+SELECT w, b, label, dc, kmax
+FROM wb
+WHERE b > 0.9
+ORDER BY w, b
+LIMIT 10;""",
+    "sweep-view": """\
+SELECT w, label, label_npq, dc, kmax
+FROM standard
+ORDER BY k;""",
 }
 
 #: SQL functions a query may call (core scalar, aggregate, window, math, date and JSON

@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.errors import UsageError
 
 NAME = "refine-orbits"
@@ -23,7 +23,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rtol", type=float, default=None,
                    help="DP5 relative tolerance of the shooting integrator (default 1e-12)")
     p.add_argument("--limit", type=int, default=None, help="refine only the first N cells")
-    p.add_argument("--out", required=True, help="output Parquet (results/PLANE/orbits.parquet)")
+    p.add_argument("--out", "-o", required=True,
+                   help="output Parquet (results/PLANE/orbits.parquet)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -50,6 +51,9 @@ def run(args: argparse.Namespace) -> int:
     base = gcfg.plane_base(config, args.plane)
     pl = config["planes"][args.plane]
     st = shooting_settings(args.rtol)
+    from gearsim.study.preflight import check_output
+
+    check_output(args.out)  # writable, with room, before any Newton solve
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     todo = int(((cells["n"] >= 1) & (cells["status"] != "diverged")).sum())

@@ -1,4 +1,5 @@
-"""``gearsim report``: the reproduction report (paper landmarks and thresholds beside ours).
+"""``gearsim report``: the study's report (a scorecard against the paper first, when the study
+holds the paper's material; else a report about the study's own planes, sweeps and points).
 
 The study's planes (with their axes) and sweeps come from the pipeline config (``--configfile``,
 merged like Snakemake's); without one, the paper's planes ``wb`` and ``wxi`` and every sweep in
@@ -11,11 +12,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from gearsim.cli.commands.simulate_tile import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, config_from_args
 from gearsim.presentation.report import build_report, study_from_config
 
 NAME = "report"
-HELP = "write the reproduction report (Markdown) from the sweeps, planes and calibration"
+HELP = ("write the study's report (Markdown): the scorecard against the paper, or the study's "
+        "own planes, sweeps and points")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -25,18 +27,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="results directory (<plane>/audit.parquet, fallback <plane>/cells.parquet)")
     p.add_argument("--calibration", default="docs/calibration.json",
                    help="calibration record (read when the file exists; '' for none)")
-    p.add_argument("--out", default="results/report.md", help="the report (Markdown)")
+    p.add_argument("--out", "-o", default="results/report.md", help="the report (Markdown)")
     add_config_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
     planes: dict[str, tuple[str, str]] | tuple[str, ...] = ("wb", "wxi")
-    sweeps = None
+    sweeps = specs = points = study = None
     if args.configfile or args.config_json:
-        planes, sweeps = study_from_config(config_from_args(args))
+        config = config_from_args(args)
+        planes, sweeps = study_from_config(config)
+        specs = dict(config.get("sweeps") or {})
+        points = list(config.get("points") or {})
+        study = config.get("study")
     rep, text = build_report(sweeps_dir=args.sweeps, catalogue=args.catalogue,
                              results=args.results, calibration=args.calibration or None,
-                             planes=planes, sweeps=sweeps)
+                             planes=planes, sweeps=sweeps, study=study, sweep_specs=specs,
+                             point_sets=points)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(".tmp")

@@ -3,54 +3,20 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import check_new_file
+from gearsim.cli.commands._common import add_config_arguments, check_new_file, config_from_args
 from gearsim.errors import UsageError
 from gearsim.results import catalogue
 from gearsim.study import provenance, tiles
 from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
-from gearsim.study.config import results_dir, study_config
+from gearsim.study.config import results_dir
 from gearsim.study.grid import tile_rows
 
 NAME = "simulate-tile"
 HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and write its Parquet file"
-
-
-# ----------------------------------------------------------- shared by pipeline commands
-def add_config_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--configfile",
-        metavar="YAML",
-        nargs="+",
-        action="extend",
-        default=[],
-        help="study config file(s) (YAML or JSON) merged over config/config.yaml in order, "
-        "like `snakemake --configfile`",
-    )
-    p.add_argument(
-        "--config-json",
-        metavar="JSON",
-        default=None,
-        help="overrides merged last, like `snakemake --config` (a JSON mapping)",
-    )
-
-
-def config_from_args(args: argparse.Namespace) -> dict:
-    """config/config.yaml, then ``--configfile`` files, then ``--config-json`` (Snakemake's
-    order; :func:`gearsim.study.config.study_config`)."""
-    overrides = None
-    if args.config_json:
-        try:
-            overrides = json.loads(args.config_json)
-        except (json.JSONDecodeError, RecursionError) as exc:
-            raise UsageError(f"--config-json is not valid JSON ({exc})") from None
-        if not isinstance(overrides, dict):
-            raise UsageError("--config-json must be a JSON mapping of config keys")
-    return study_config(args.configfile, overrides)
 
 
 class Progress:
@@ -109,6 +75,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--out",
+        "-o",
         default=None,
         help="output Parquet file (default <results>/<plane>/tiles/<tile>.parquet)",
     )
@@ -122,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         )
     rows = tile_rows(config, args.plane, args.tile)
     out = Path(args.out or results_dir(config) / args.plane / "tiles" / f"{args.tile}.parquet")
-    check_new_file(out)
+    check_new_file(out, need=0)  # not a folder, no file in the way (the folder not yet made)
     nx = int(config["planes"][args.plane]["x"]["n"])
     label = f"{args.plane}/tile {args.tile}"
     progress = Progress(label, nx * len(rows))
@@ -135,6 +102,9 @@ def run(args: argparse.Namespace) -> int:
             check_address(address)
         else:
             check_workers(args.workers)
+    # every argument checked; before any simulation: the folder is writable and has room for
+    # the tile and its temporary copy (~350 bytes per cell; 1 kB per cell leaves a margin)
+    check_new_file(out, need=2 * 1024 * nx * len(rows) + (64 << 10))
     started = catalogue.now_iso()
     t0 = time.perf_counter()
     banner = f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells"

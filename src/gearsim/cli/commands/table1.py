@@ -23,7 +23,13 @@ def table(path: str | Path) -> pd.DataFrame:
         raise ParameterError(f"{path}: expected a mapping with key 'dimensionless'")
     rows = []
     for sec in SECTIONS:
-        for name, e in (doc.get(sec) or {}).items():
+        part = doc.get(sec) or {}
+        if not isinstance(part, dict):
+            raise ParameterError(
+                f"{path}: key '{sec}' must be a mapping of parameter names, "
+                f"got {type(part).__name__}"
+            )
+        for name, e in part.items():
             e = e if isinstance(e, dict) else {"value": e}
             rows.append({"section": sec, "name": name, "value": e.get("value"),
                          "unit": e.get("unit", "-" if sec == "dimensionless" else ""),
@@ -60,10 +66,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from gearsim.study.preflight import check_outputs, write_text_atomic
+
     df = table(args.params)
+    check_outputs([args.md, args.csv])
     for path, text in ((args.md, markdown(df)), (args.csv, df.to_csv(index=False))):
-        out = Path(path)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text)
+        out = write_text_atomic(Path(path), text)
         print(f"wrote {out}")
     return 0

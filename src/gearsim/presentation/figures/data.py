@@ -1,6 +1,6 @@
 """Inputs of the figures: reading sweeps and planes, simulating the figures' single points.
 
-Tables follow docs/TEAM.md: a sweep is the :func:`gearsim.cell.sweep.orbit_diagram` table (one row
+Tables: a sweep is the :func:`gearsim.cell.sweep.orbit_diagram` table (one row
 per parameter value, list columns ``poincare_x`` / ``poincare_v``); a plane is
 ``results/<plane>/cells.parquet`` (``i``, ``j``, the two axis parameters by name, the
 ``CellResult.row()`` columns and the Poincare lists).

@@ -1,5 +1,7 @@
-"""The generated index ``results/figures/README.md``: every figure, the paper's caption, ours,
-and where ours differs and why (collected from the ``figNN.json`` records the CLI writes)."""
+"""The generated index ``results/figures/README.md``: every figure the study drew, the paper's
+caption, ours, and where ours differs and why (collected from the ``figNN.json`` records the CLI
+writes), then the maps of every plane and the diagram of every sweep. A figure the study did not
+draw is not listed."""
 
 from __future__ import annotations
 
@@ -10,14 +12,14 @@ from gearsim.presentation.figures.registry import figures
 
 
 def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
-    """Write the index of the figures in ``outdir``; figures not built yet are listed as such."""
+    """Write the index of the figures in ``outdir`` (only those drawn: their records exist)."""
     outdir = Path(outdir)
     out = Path(out) if out else outdir / "README.md"
     lines = [
         "# Figures of the study (generated)",
         "",
-        "Written by `gearsim figures --index`; do not edit. Each entry: the paper's caption, "
-        "ours, and where ours differs and why. Images: PNG (200 dpi) and PDF.",
+        "Written by `gearsim figures --index`; do not edit. Each entry of a paper figure: the "
+        "paper's caption, ours, and where ours differs and why. Images: PNG (200 dpi) and PDF.",
         "",
     ]
     recs = [json.loads(p.read_text()) for p in sorted(outdir.glob("fig[0-9][0-9].json"))]
@@ -37,13 +39,12 @@ def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
         lines.append("")
     for n, spec in figures().items():
         rec_path = outdir / f"fig{n:02d}.json"
+        if not rec_path.is_file():  # not drawn by this study
+            continue
         lines.append(f"## Fig {n}")
         lines.append("")
         lines.append(f"**{'Paper' if spec.in_paper else 'Shows'}:** {spec.paper_caption}")
         lines.append("")
-        if not rec_path.is_file():
-            lines += ["*Not built yet.*", ""]
-            continue
         rec = json.loads(rec_path.read_text())
         files = ", ".join(f"[{Path(f).name}]({Path(f).name})" for f in rec.get("files", []))
         lines.append(f"**Ours:** {rec['caption']} ({files})")
@@ -57,6 +58,7 @@ def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
             lines += [f"- {d}" for d in rec["differences"]]
             lines.append("")
     lines += _map_lines(outdir)
+    lines += _sweep_lines(outdir)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines))
     return out
@@ -81,4 +83,19 @@ def _map_lines(outdir: Path) -> list[str]:
             lines.append(f"- **{r['title']}** ({files}): {r['caption']}")
             lines += [f"  - {n}" for n in r.get("notes", [])]
         lines.append("")
+    return lines
+
+
+def _sweep_lines(outdir: Path) -> list[str]:
+    """The bifurcation diagram of every sweep (``sweeps/<sweep>.json``)."""
+    recs = [json.loads(p.read_text()) for p in sorted((outdir / "sweeps").glob("*.json"))]
+    if not recs:
+        return []
+    lines = ["# Bifurcation diagrams of every sweep", "",
+             "Section points, DC and Kmax against the swept value, in the sweep's own units "
+             "(`gearsim figures --sweep-diagrams`).", ""]
+    for r in recs:
+        files = ", ".join(f"[{Path(f).name}](sweeps/{Path(f).name})" for f in r["files"])
+        lines.append(f"- **{r['title']}** ({files}): {r['caption']}")
+    lines.append("")
     return lines

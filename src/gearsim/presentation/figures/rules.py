@@ -96,6 +96,11 @@ def map_outputs(plane: str) -> list[str]:
             for ext in ("png", "pdf", "json")]
 
 
+def sweep_diagram_outputs(sweep: str) -> list[str]:
+    """The bifurcation diagram of a sweep (PNG, PDF, JSON record)."""
+    return [f"results/figures/sweeps/{sweep}.{ext}" for ext in ("png", "pdf", "json")]
+
+
 def figure_params(config: Mapping[str, Any]) -> str:
     """What the simulated figures (2, 5, 6, 9-11) depend on besides their tables (JSON)."""
     from gearsim.study import config as gcfg

@@ -14,6 +14,7 @@ Colours follow the paper's prose:
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -166,8 +167,14 @@ def save_figure(fig, out: str | Path) -> list[Path]:
     out.parent.mkdir(parents=True, exist_ok=True)
     png = out.with_suffix(".png")
     pdf = out.with_suffix(".pdf")
-    fig.savefig(png, dpi=DPI, bbox_inches="tight")
-    fig.savefig(pdf, bbox_inches="tight")
+    for path, kw in ((png, {"format": "png", "dpi": DPI}), (pdf, {"format": "pdf"})):
+        # a temporary name renamed into place: a full disk keeps the previous figure whole
+        tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+        try:
+            fig.savefig(tmp, bbox_inches="tight", **kw)
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
     return [png, pdf]
 
 
@@ -179,3 +186,33 @@ def note_box(ax, text: str, loc: str = "upper left", fontsize: float = 7.5) -> N
     ax.text(xy[0], xy[1], text, transform=ax.transAxes, ha=xy[2], va=xy[3], fontsize=fontsize,
             bbox={"boxstyle": "round,pad=0.3", "fc": "#fff8dc", "ec": "#b8860b", "alpha": 0.9},
             zorder=10)
+
+
+def physical_axes(fig, physical: dict, xname: str, yname: str | None = None) -> list[str]:
+    """Second axes in physical units on every 2-D panel of ``fig`` whose x (y) axis is the
+    parameter ``xname`` (``yname``): on top (right), ``physical[name] = {name, unit, k}`` with
+    ``value_phys = k * value`` (:func:`gearsim.physical.units.physical_factors`). Returns the
+    labels added."""
+    added = []
+    for ax in list(fig.axes):
+        if ax.name != "rectilinear":
+            continue
+        for which, name in (("x", xname), ("y", yname)):
+            ph = physical.get(name) if name else None
+            label = ax.get_xlabel() if which == "x" else ax.get_ylabel()
+            if not ph or label != param_label(name):
+                continue
+            k = float(ph["k"])
+            funcs = (lambda v, k=k: v * k, lambda v, k=k: v / k)
+            sec = (ax.secondary_xaxis("top", functions=funcs) if which == "x"
+                   else ax.secondary_yaxis("right", functions=funcs))
+            text = f"{ph['name']} [{ph['unit']}]"
+            (sec.set_xlabel if which == "x" else sec.set_ylabel)(text, fontsize=8)
+            sec.tick_params(labelsize=7)
+            if which == "x" and ax.get_title():  # the panel's title above the new axis
+                ax.set_title(ax.get_title(), pad=30, fontsize=ax.title.get_fontsize())
+            added.append(text)
+    if added and getattr(fig, "_suptitle", None) is not None:
+        fig._suptitle.set_y(1.05)
+    return sorted(set(added))
+

@@ -1,0 +1,221 @@
+"""The search: free parameters, the vector-to-parameters map, one bisection, one seeded
+differential-evolution driver with its refinement, and the logged objective wrapper.
+
+Every calibration search (the round-1 landmark fit, :mod:`gearsim.calibration.calibrate`, and
+the per-form fits, :mod:`gearsim.calibration.forms`) uses these; only the objective differs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from gearsim.dynamics.parameters import ModelParameters
+
+Bounds = Sequence[tuple[float, float]]
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """One search coordinate: a :class:`ModelParameters` name or a derived coordinate of
+    :func:`params_from_vector`, its bounds, its start value (None: none given), its unit and
+    meaning."""
+
+    name: str
+    lower: float
+    upper: float
+    start: float | None = None
+    unit: str = ""
+    text: str = ""
+
+
+def params_from_vector(x: Sequence[float], free: Sequence[FreeParameter],
+                       base: ModelParameters, *, Fm: float, b: float,
+                       **fixed: Any) -> ModelParameters:
+    """``base`` with ``fixed``, the search scale ``Fm``, ``b`` and the coordinates ``x`` of
+    ``free`` (later entries win).
+
+    Derived coordinates: ``Fe_over_Fm`` (``Fe = Fe_over_Fm * Fm``), ``phi_e_deg`` (degrees),
+    ``kappa`` (one bearing stiffness for all four directions), ``kappa_ratio`` (bearing stiffness
+    over mesh stiffness: ``kappa_ij = ratio * rho_i`` with ``base``'s mass ratios), ``rho`` (one
+    mass ratio for both gears), ``b_brg`` (one bearing half clearance for all four directions);
+    any other name is a :class:`ModelParameters` field.
+    """
+    kw: dict[str, Any] = dict(fixed)
+    kw.update(Fm=Fm, b=b)
+    for fp, v in zip(free, x, strict=True):
+        v = float(v)
+        if fp.name == "Fe_over_Fm":
+            kw["Fe"] = v * Fm
+        elif fp.name == "phi_e_deg":
+            kw["phi_e"] = math.radians(v)
+        elif fp.name == "kappa":
+            kw.update(kappa_py=v, kappa_pz=v, kappa_gy=v, kappa_gz=v)
+        elif fp.name == "kappa_ratio":
+            kw.update(kappa_py=v * base.rho_p, kappa_pz=v * base.rho_p,
+                      kappa_gy=v * base.rho_g, kappa_gz=v * base.rho_g)
+        elif fp.name == "rho":
+            kw.update(rho_p=v, rho_g=v)
+        elif fp.name == "b_brg":
+            kw.update(b_py=v, b_pz=v, b_gy=v, b_gz=v)
+        else:
+            kw[fp.name] = v
+    return base.with_(**kw)
+
+
+def bisect_bool(pred: Callable[[float], bool], lo: float, hi: float,
+                tol: float | None = None, *, steps: int | None = None) -> float:
+    """Midpoint of the final bracket of ``[lo, hi]`` where ``pred`` turns from true (at ``lo``)
+    to false (at ``hi``): bisected to width ``tol`` (> 0), or exactly ``steps`` times."""
+    if (steps is None) == (tol is None) or (tol is not None and not tol > 0):
+        raise ValueError("bisect_bool: give either tol > 0 or steps")
+    n = 0
+    while (hi - lo > tol) if steps is None else (n < steps):
+        mid = 0.5 * (lo + hi)
+        if pred(mid):
+            lo = mid
+        else:
+            hi = mid
+        n += 1
+    return 0.5 * (lo + hi)
+
+
+class LoggedObjective:
+    """Picklable objective for the search (``workers=`` map): ``point(x) -> (J, record)``; every
+    call is appended as one JSON line to ``log_pattern.format(pid=...)``; a failed evaluation
+    is a bad point (``J = bad``, the error recorded), not a crash."""
+
+    def __init__(self, point: Callable[[np.ndarray], tuple[float, dict[str, Any]]],
+                 log_pattern: str | None = None, bad: float = 1e3):
+        self.point = point
+        self.log_pattern = log_pattern
+        self.bad = bad
+
+    def evaluate(self, x: np.ndarray) -> tuple[float, dict[str, Any]]:
+        xs = [float(v) for v in x]
+        try:
+            J, rec = self.point(x)
+            rec = {"x": xs, **rec}
+        except Exception as exc:  # noqa: BLE001 - a failed evaluation is a bad point
+            J = self.bad
+            rec = {"x": xs, "J": J, "error": repr(exc)}
+        if self.log_pattern:
+            with open(self.log_pattern.format(pid=os.getpid()), "a") as fh:
+                fh.write(json.dumps(rec, default=float) + "\n")
+        return float(J), rec
+
+    def __call__(self, x: np.ndarray) -> float:
+        return self.evaluate(x)[0]
+
+
+def sobol_population(bounds: Bounds, size: int, seed: int,
+                     x0: Sequence[float] | None = None) -> np.ndarray:
+    """Scrambled-Sobol initial population in ``bounds`` (seeded); row 0 is ``x0`` if given."""
+    from scipy.stats import qmc
+
+    d = len(bounds)
+    u = qmc.Sobol(d, scramble=True, seed=seed).random(size)
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
+    pop = lo + u * (hi - lo)
+    if x0 is not None:
+        pop[0] = np.clip(np.asarray(x0, dtype=float), lo, hi)
+    return pop
+
+
+def run_de(fun: Callable[[np.ndarray], float], bounds: Bounds, *, seed: int, generations: int,
+           population: int = 16, x0: Sequence[float] | None = None, workers: int = 1,
+           tol: float = 0.0, time_budget: float | None = None) -> dict[str, Any]:
+    """Seeded differential evolution (scipy; Sobol initial population of ``population``, member
+    0 = ``x0``; ``updating='deferred'``, no polish). Reproducible: the same seed, bounds,
+    population and generations give the same result (``workers`` only changes where the
+    evaluations run). ``tol`` is scipy's relative convergence stop (0: run every generation);
+    ``time_budget`` (seconds) stops after the generation that exceeds it (recorded)."""
+    from scipy.optimize import differential_evolution
+
+    t0 = time.time()
+    c0 = time.process_time()
+    history: list[dict[str, Any]] = []
+    stopped = {"time": False}
+
+    def cb(intermediate_result):
+        history.append({"t": time.time() - t0, "J": float(intermediate_result.fun),
+                        "x": [float(v) for v in intermediate_result.x]})
+        if time_budget is not None and time.time() - t0 > time_budget:
+            stopped["time"] = True
+            return True
+        return False
+
+    init = sobol_population(bounds, population, seed, x0)
+    res = differential_evolution(fun, bounds, init=init, seed=seed, maxiter=generations,
+                                 tol=tol, atol=0.0, polish=False, updating="deferred",
+                                 workers=workers, callback=cb)
+    return {"x": [float(v) for v in res.x], "J": float(res.fun), "nfev": int(res.nfev),
+            "nit": int(res.nit), "message": str(res.message), "seed": seed,
+            "population": population, "generations": generations, "workers": workers,
+            "stopped_by_time": stopped["time"], "wall_s": time.time() - t0,
+            "cpu_s_main": time.process_time() - c0, "history": history,
+            "population_final": [[float(v) for v in r] for r in res.population],
+            "population_energies": [float(v) for v in res.population_energies]}
+
+
+def refine(fun: Callable[[np.ndarray], float], x0: Sequence[float], bounds: Bounds, *,
+           maxfev: int, step: float = 0.05) -> dict[str, Any]:
+    """Bounded Nelder-Mead from ``x0`` (initial simplex ``step`` of each box width)."""
+    from scipy.optimize import minimize
+
+    x0 = np.asarray(x0, dtype=float)
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
+    d = len(x0)
+    simplex = np.repeat(x0[None, :], d + 1, axis=0)
+    for k in range(d):
+        h = step * (hi[k] - lo[k])
+        simplex[k + 1, k] = x0[k] + h if x0[k] + h <= hi[k] else x0[k] - h
+    res = minimize(fun, x0, method="Nelder-Mead", bounds=list(zip(lo, hi, strict=True)),
+                   options={"maxfev": maxfev, "initial_simplex": simplex, "xatol": 1e-6,
+                            "fatol": 1e-6})
+    return {"x": [float(v) for v in res.x], "J": float(res.fun), "nfev": int(res.nfev)}
+
+
+def search(fun: Callable[[np.ndarray], float], bounds: Bounds, *, seed: int,
+           generations: int, population: int = 16, x0: Sequence[float] | None = None,
+           workers: int = 1, tol: float = 0.0, time_budget: float | None = None,
+           refine_fun: Callable[[np.ndarray], float] | None = None, refine_top: int = 4,
+           refine_fev: int = 16) -> dict[str, Any]:
+    """Differential evolution (:func:`run_de`) on ``fun``, then, with ``refine_fun`` (a finer
+    objective), the refinement: the best ``refine_top`` distinct members of the final population
+    scored by ``refine_fun`` and Nelder-Mead (:func:`refine`, ``refine_fev`` evaluations) from
+    the best of them.
+
+    Returns ``{"de": ..., "x": best vector, "J": its value}`` and, with refinement,
+    ``"candidates"`` (``[(J, x)]``), ``"refine"`` and ``"nfev_refine"``.
+    """
+    de = run_de(fun, bounds, seed=seed, generations=generations, population=population,
+                x0=x0, workers=workers, tol=tol, time_budget=time_budget)
+    out: dict[str, Any] = {"de": de, "x": np.asarray(de["x"]), "J": de["J"]}
+    if refine_fun is None:
+        return out
+    pop = np.asarray(de["population_final"])
+    order = np.argsort(np.asarray(de["population_energies"]))
+    cand: list[np.ndarray] = []
+    for i in order:
+        if not any(np.allclose(pop[i], c) for c in cand):
+            cand.append(pop[i])
+        if len(cand) >= refine_top:
+            break
+    scored = [(refine_fun(c), c) for c in cand]
+    Jbest, xbest = min(scored, key=lambda t: t[0])
+    nm = refine(refine_fun, xbest, bounds, maxfev=refine_fev)
+    if nm["J"] < Jbest:
+        xbest, Jbest = np.asarray(nm["x"]), nm["J"]
+    out.update(x=np.asarray(xbest), J=Jbest, candidates=scored, refine=nm,
+               nfev_refine=len(scored) + nm["nfev"])
+    return out

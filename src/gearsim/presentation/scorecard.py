@@ -1,0 +1,137 @@
+"""The scorecard: the paper's results beside ours, one row each, on the first screen of the
+report and at the head of the explorer (docs/figures.md, "The report")."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from gearsim.analysis.landmarks import PAPER_JUMP_DC, PAPER_JUMP_KMAX, PAPER_LANDMARKS
+from gearsim.presentation.paper import (
+    JUMP_DC_TOL,
+    LANDMARK_TOL,
+    PAPER_B_THRESHOLD,
+    PAPER_XI_THRESHOLD,
+    THRESHOLD_TOL,
+)
+from gearsim.presentation.study_summary import value_text
+
+
+@dataclass
+class ScoreRow:
+    """One line of the scorecard: a paper result beside ours."""
+
+    item: str
+    paper: str
+    ours: str
+    located: str = "—"  # the located bifurcation (continuation), where there is one
+    difference: str = "—"
+    ok: bool | None = None  # within tolerance; None: no tolerance applies
+    tolerance: str = "—"
+
+    @property
+    def verdict(self) -> str:
+        return {True: "yes", False: "**no**", None: "—"}[self.ok]
+
+
+def scorecard(rep: Any) -> list[ScoreRow]:
+    """The paper's results beside ours, one row each, from a
+    :class:`gearsim.presentation.report.Report`."""
+    rows: list[ScoreRow] = []
+    exact = {}
+    if rep.exact is not None and len(rep.exact):
+        exact = {r["key"]: r for _, r in rep.exact.iterrows()}
+    if rep.matched is None and rep.paper_material and not any(
+            "no sweep 'standard'" in n for n in rep.notes):
+        rows.append(ScoreRow(f"w of the {len(PAPER_LANDMARKS)} landmarks of the standard sweep",
+                             "Sect 3.1", "not computed"))
+    if rep.matched is not None:
+        for r in rep.matched.itertuples():
+            paper = (f"{r.paper_lo:g}-{r.paper_hi:g}" if r.paper_lo != r.paper_hi
+                     else f"{r.paper:g}")
+            ex = exact.get(r.key)
+            located = ("—" if ex is None or not math.isfinite(ex["exact"])
+                       else f"{ex['exact']:.4f}")
+            if r.found:
+                ok = bool(abs(r.error) <= LANDMARK_TOL)
+                rows.append(ScoreRow(f"w: {r.text}", paper,
+                                     f"{r.ours:.4f} [{r.lo:.3f}, {r.hi:.3f}]", located,
+                                     f"{r.error:+.4f}", ok, f"{LANDMARK_TOL} in w"))
+            else:
+                rows.append(ScoreRow(f"w: {r.text}", paper, "not found", located, "—", False,
+                                     f"{LANDMARK_TOL} in w"))
+    if rep.jump:
+        j = rep.jump
+        rows.append(ScoreRow("DC after the jump", f"{PAPER_JUMP_DC}", f"{j['dc_after']:.3f}",
+                             difference=f"{j['dc_after'] - PAPER_JUMP_DC:+.3f}",
+                             ok=bool(abs(j["dc_after"] - PAPER_JUMP_DC) <= JUMP_DC_TOL),
+                             tolerance=f"{JUMP_DC_TOL}"))
+        best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
+                   default=None)
+        if best:
+            rows.append(ScoreRow("Kmax after the jump (closest reading)", f"{PAPER_JUMP_KMAX}",
+                                 f"{best[1]:.3f} ({best[0]})",
+                                 difference=f"{best[1] - PAPER_JUMP_KMAX:+.3f}",
+                                 tolerance="none (the paper's Kmax is not defined exactly)"))
+    for th, label, key, paper in (
+            (rep.b_threshold, "b above which no double-sided impact occurs", "b",
+             PAPER_B_THRESHOLD),
+            (rep.xi_threshold, "xi above which only 0/1T and 1/1T remain", "xi",
+             PAPER_XI_THRESHOLD)):
+        if th is None:
+            if key not in rep.thresholds_na:
+                rows.append(ScoreRow(label, f"{paper}", "not computed"))
+            continue
+        ok = bool(abs(th.difference) <= THRESHOLD_TOL) if math.isfinite(th.difference) else False
+        if math.isinf(th.value):
+            ours = f"above the plane (still at {th.last_with:.4g})"
+        elif math.isnan(th.value):
+            ours = "no row has the property"
+        else:
+            ours = f"{th.value:.4f} [{th.last_with:.3f}, {th.first_without:.3f}]"
+        rows.append(ScoreRow(label, f"{th.paper}", ours,
+            difference=value_text(th.difference, "+.4f", "—"), ok=ok,
+            tolerance=f"{THRESHOLD_TOL}"))
+    for key, e in rep.sequences.items():
+        if e.get("paper") is None or e.get("applicable") is False:
+            continue
+        if e.get("ours") is None:
+            rows.append(ScoreRow(f"sequence {e['parameter']} = {e['value']} ({key})",
+                                 " -> ".join(e["paper"]), "not computed", ok=None))
+            continue
+        extra = [x for x in dict.fromkeys(e["ours"]) if x not in e["paper"]]
+        ours = ("identical" if e["exact"] else "paper's patterns in order" if e["in_order"]
+                else "not in the paper's order")
+        if extra and not e["exact"]:
+            ours += "; extra " + ", ".join(extra)
+        rows.append(ScoreRow(f"sequence {e['parameter']} = {e['value']} ({key})",
+                             " -> ".join(e["paper"]), ours, ok=bool(e["exact"]),
+                             tolerance="same sequence"))
+    if rep.hysteresis_band is not None:
+        lo, hi = rep.hysteresis_band
+        rows.append(ScoreRow("hysteresis of the fold (Fig 18)", "jump up and down differ",
+                             f"band {lo:.4f} <= w <= {hi:.4f}", ok=hi > lo,
+                             tolerance="a band exists"))
+    for m in rep.multistable:
+        rows.append(ScoreRow(f"coexisting attractors, plane {m['plane']}",
+                             "coexistence near the fold",
+                             f"{m['multi']} of {m['searched']} searched cells"))
+    return rows
+
+
+def scorecard_lines(rep: Any) -> list[str]:
+    rows = scorecard(rep)
+    if not rows:
+        return []
+    judged = [r for r in rows if r.ok is not None]
+    out = ["## Scorecard", "",
+           f"{sum(r.ok for r in judged)} of {len(judged)} results within tolerance. Grid "
+           "readings are the midpoint of the two swept values where the labels change "
+           "[interval]; \"located\" is the bifurcation found by continuation.", "",
+           "| result | paper | ours (grid) | located | difference | within |",
+           "|---|---|---|---|---|---|"]
+    out += [f"| {r.item} | {r.paper} | {r.ours} | {r.located} | {r.difference} | {r.verdict} |"
+            for r in rows]
+    out.append("")
+    return out

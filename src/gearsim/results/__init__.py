@@ -1,0 +1,1 @@
+"""Results: Parquet files with provenance, the SQLite catalogue (schema, migrations), export."""

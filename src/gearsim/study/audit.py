@@ -1,0 +1,98 @@
+"""The numerical audit of a plane: a deterministic sample of its cells re-simulated with an
+independent integrator (adaptive DP5 at tightened tolerances) from the same start states, and
+their labels compared with the pipeline's."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pandas as pd
+
+from gearsim.cell.simulate import simulate_cell
+from gearsim.study.config import integration_settings, plane_base
+
+
+def audit_settings(config: dict):
+    """The audit's reference: the adaptive DP5 integrator, whatever method produced the cells
+    (an independent integrator, not just a finer step of the same one), at ``audit.tighten``
+    times the configuration's DP5 tolerances and half its step cap; the cell plan (transient,
+    chunks, period test, ``transient_recurrence``) is the configuration's. ``tighten: 100`` is
+    :meth:`IntegrationSettings.tightened`; the evidence for the default is in
+    benchmarks/CHANGELOG.md (l)."""
+    st = integration_settings(config).with_(method="dp5")
+    return st.tightened(float(config["audit"].get("tighten", 10)))
+
+
+def audit_frame(config: dict, plane: str, cells, progress=None):
+    """Re-simulate a deterministic sample of cells with DP5 at tightened tolerance
+    (:func:`audit_settings`).
+
+    Each audited cell starts exactly where the pipeline started it: from the final state of its
+    left neighbour in the row (continuation), or from rest for the first cell of a row.
+    """
+    aud = config["audit"]
+    n = len(cells)
+    k = int(round(aud["fraction"] * n))
+    if aud["fraction"] > 0:
+        k = max(k, 1)
+    rng = np.random.default_rng(int(aud["seed"]))
+    pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
+    base = plane_base(config, plane)
+    pl = config["planes"][plane]
+    tight = audit_settings(config)
+    index = {
+        (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
+    }
+    rows = []
+    t0 = time.perf_counter()
+    for m, r in enumerate(pick):
+        c = cells.iloc[r]
+        i, j = int(c["i"]), int(c["j"])
+        params = base.with_(**{pl["x"]["name"]: float(c["x"]), pl["y"]["name"]: float(c["y"])})
+        u0, start = None, 0
+        left = index.get((i - 1, j))
+        if left is not None and cells.iloc[left]["status"] != "diverged":
+            u0 = np.asarray(cells.iloc[left]["final_state"], dtype=float)
+            start = int(cells.iloc[left]["final_period"])
+        res = simulate_cell(params, u0, settings=tight, start_period=start)
+        t = res.row()
+        rows.append(
+            {
+                "plane": plane,
+                "i": i,
+                "j": j,
+                "x": float(c["x"]),
+                "y": float(c["y"]),
+                "label": c["label"],
+                "label_npq": c["label_npq"],
+                "tight_label": t["label"],
+                "tight_label_npq": t["label_npq"],
+                "tight_I": t["I"],
+                "tight_dc": t["dc"],
+                "tight_kmax": t["kmax"],
+                "tight_lyapunov": t["lyapunov"],
+                "agree": bool(t["label"] == c["label"] and t["label_npq"] == c["label_npq"]),
+            }
+        )
+        if progress:
+            progress(m + 1, len(pick), time.perf_counter() - t0)
+    return pd.DataFrame(
+        rows,
+        columns=[
+            "plane",
+            "i",
+            "j",
+            "x",
+            "y",
+            "label",
+            "label_npq",
+            "tight_label",
+            "tight_label_npq",
+            "tight_I",
+            "tight_dc",
+            "tight_kmax",
+            "tight_lyapunov",
+            "agree",
+        ],
+    )

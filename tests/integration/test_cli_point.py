@@ -1,0 +1,93 @@
+"""`gearsim point`: output, --save, and one-line errors with exit status 2."""
+
+import json
+import subprocess
+import sys
+
+import pyarrow.parquet as pq
+import yaml
+
+from gearsim.cell.simulate import IntegrationSettings
+from gearsim.cli.main import main
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study.config import standard_parameters, study_settings
+
+
+def test_point_prints_pattern(capsys):
+    assert main(["point", "--omega", "1.05", "--set", "b=1.0", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)
+    assert row["label"] == "1/2T" and row["label_npq"] == "2-2-0"
+    assert 0 < row["dc"] < 1 and row["lyapunov"] < 0
+
+
+def test_point_save_writes_series_poincare_and_spectrum(tmp_path, capsys):
+    out = tmp_path / "pt.parquet"
+    assert main(["point", "-w", "1.05", "--save", str(out)]) == 0
+    t = pq.read_table(out).to_pandas()
+    assert set(t.kind) == {"time_series", "poincare", "spectrum"}
+    spec = t[t.kind == "spectrum"]
+    # a 2T motion puts its strongest subharmonic line at w / 2
+    sub = spec[(spec.frequency > 0.45 * 1.05) & (spec.frequency < 0.55 * 1.05)].amplitude.max()
+    floor = spec[(spec.frequency > 0.3 * 1.05) & (spec.frequency < 0.4 * 1.05)].amplitude.max()
+    assert sub > 20 * floor
+
+
+def test_bad_input_is_one_line_exit_2():
+    for args in (["point", "-w", "1", "--set", "xi=-1"], ["point", "-w", "nan"],
+                 ["point", "-w", "1", "--set", "bogus=1"], ["point", "-w", "1", "--set", "xi"]):
+        r = subprocess.run([sys.executable, "-m", "gearsim", *args], capture_output=True,
+                           text=True)
+        assert r.returncode == 2, args
+        assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, r.stderr
+        assert r.stdout == ""
+
+
+# ----------------------------------------------------------- the study's defaults
+def _strict_json(text):
+    def refuse(c):
+        raise ValueError(f"not JSON: {c}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_point_uses_the_study_and_says_so(tmp_path):
+    """From any directory, `gearsim point --omega 0.48` simulates the study's parameters with
+    the study's settings (0/1T, as the pipeline) and prints where they came from."""
+    r = subprocess.run([sys.executable, "-m", "gearsim", "point", "--omega", "0.48"],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    first, second = r.stdout.splitlines()[:2]
+    assert first.startswith("parameters: config/standard_parameters.yaml; integration: rk4 192")
+    assert "pattern=0/1T (1-0-0)" in second
+
+
+def test_point_json_names_source_and_settings(capsys):
+    from gearsim.study.config import DEFAULT_STANDARD_PARAMETERS, project_root
+    from gearsim.study.config_io import load_standard_parameters
+
+    assert main(["point", "--omega", "0.48", "--set", "xi=0.07", "--json"]) == 0
+    row = _strict_json(capsys.readouterr().out)
+    assert row["parameters_source"] == "config/standard_parameters.yaml + --set xi=0.07"
+    study = yaml.safe_load((project_root() / "config/config.yaml").read_text())["integration"]
+    assert row["settings"] == study
+    std = load_standard_parameters(project_root() / DEFAULT_STANDARD_PARAMETERS)
+    assert standard_parameters(w=0.48) == ModelParameters.from_mapping({**std, "w": 0.48})
+    assert study_settings() == IntegrationSettings(**study)
+
+
+def test_point_configfile_is_merged_over_config_yaml(tmp_path, capsys):
+    f = tmp_path / "mine.yaml"
+    f.write_text("parameters: {xi: 0.09}\nintegration: {steps_per_period: 128}\n")
+    assert main(["point", "--omega", "0.48", "--configfile", str(f), "--json"]) == 0
+    row = _strict_json(capsys.readouterr().out)
+    assert row["parameters_source"] == "config/standard_parameters.yaml + parameters xi=0.09"
+    assert row["settings"]["steps_per_period"] == 128 and row["settings"]["method"] == "rk4"
+    assert row["settings"]["transient_continuation"] == 40  # the rest from config.yaml
+
+
+def test_point_out_records_source_and_settings(tmp_path, capsys):
+    out = tmp_path / "p.parquet"
+    assert main(["point", "-w", "0.48", "--out", str(out)]) == 0
+    meta = pq.read_schema(out).metadata
+    assert meta[b"gearsim.parameters_source"] == b"config/standard_parameters.yaml"
+    assert json.loads(meta[b"gearsim.settings"])["method"] == "rk4"

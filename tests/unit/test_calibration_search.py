@@ -1,0 +1,103 @@
+"""The calibration package's shared pieces against hand-built references: the vector map, the
+bisection by steps, the sweep builder's frequency-scale mapping, a form record's own run."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gearsim.calibration.search import FreeParameter, bisect_bool, params_from_vector
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.dynamics.parameters import ModelParameters
+
+
+def test_params_from_vector_derived_coordinates_on_the_given_base():
+    base = ModelParameters(rho_p=0.4, rho_g=0.1, model="6dof")
+    free = (FreeParameter("Fe_over_Fm", 1, 3), FreeParameter("phi_e_deg", -90, 0),
+            FreeParameter("kappa_ratio", 20, 200), FreeParameter("b_brg", 0, 0.2),
+            FreeParameter("xi", 0.04, 0.08))
+    p = params_from_vector([2.0, -30.0, 50.0, 0.05, 0.07], free, base, Fm=0.2, b=1.5,
+                           model="1dof", xi=0.01)
+    assert (p.Fm, p.b, p.model) == (0.2, 1.5, "1dof")
+    assert p.Fe == pytest.approx(0.4) and p.phi_e == pytest.approx(-math.pi / 6)
+    assert (p.kappa_py, p.kappa_pz) == (pytest.approx(20.0), pytest.approx(20.0))
+    assert (p.kappa_gy, p.kappa_gz) == (pytest.approx(5.0), pytest.approx(5.0))
+    assert (p.b_py, p.b_pz, p.b_gy, p.b_gz) == (0.05, 0.05, 0.05, 0.05)
+    assert p.xi == 0.07  # the search coordinate wins over a fixed value
+    # the base decides what the vector does not: another base, other bearing stiffnesses
+    q = params_from_vector([2.0, -30.0, 50.0, 0.05, 0.07], free, base.with_(rho_p=0.2), Fm=0.2,
+                           b=1.5)
+    assert q.kappa_py == pytest.approx(10.0) and q.model == "6dof"
+
+
+def test_bisect_bool_by_steps_is_the_written_out_loop():
+    calls = []
+
+    def sub(x):
+        calls.append(x)
+        return x < 0.1436
+
+    lo, hi = 0.09, 0.15
+    for _ in range(6):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mid < 0.1436 else (lo, mid)
+    assert bisect_bool(sub, 0.09, 0.15, steps=6) == 0.5 * (lo + hi)
+    assert len(calls) == 6
+    assert bisect_bool(sub, 0.09, 0.15, steps=0) == 0.12
+    with pytest.raises(ValueError):
+        bisect_bool(sub, 0.0, 1.0)
+    with pytest.raises(ValueError):
+        bisect_bool(sub, 0.0, 1.0, 0.1, steps=3)
+
+
+def test_w_sweep_maps_the_axis_onto_the_simulated_frequency():
+    """``w_factor`` r: cells simulated at w = r * axis value, each from the previous cell's
+    final state (a chain of ``simulate_cell`` written out here); ``value`` is the axis."""
+    from gearsim.calibration.sweeps import w_sweep
+
+    st = IntegrationSettings(method="dp5", rtol=1e-7, transient=30, transient_continuation=10,
+                             chunk=8, max_periods=16)
+    p = ModelParameters(model="1dof")
+    grid, r = np.array([0.6, 0.7, 0.8]), 0.93
+    df = w_sweep(p, grid, st, w_factor=r)
+    np.testing.assert_array_equal(df["value"], grid)
+    np.testing.assert_array_equal(df["w_sim"], grid * r)
+    u0, k = None, 0
+    for i, w in enumerate(grid):
+        ref = simulate_cell(p.with_(w=float(w) * r), u0, settings=st, start_period=k)
+        np.testing.assert_array_equal(np.asarray(df["final_state"].iloc[i]), ref.final_state)
+        assert df["label_npq"].iloc[i] == ref.row()["label_npq"]
+        assert df["x_min"].iloc[i] == ref.row()["x_min"]
+        u0, k = ref.final_state, ref.final_period
+
+
+def test_a_form_record_carries_its_own_run_and_the_table_prefers_it(tmp_path):
+    from gearsim.calibration.forms import Run, collect_forms
+
+    run = Run().record()
+    head = subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "--short",
+                           "HEAD"], capture_output=True, text=True)
+    if head.returncode == 0:
+        assert run["code"].split("+")[0] == head.stdout.strip()
+    load = [float(v) for v in run["load"].split()]
+    assert len(load) == 3 and load[0] == pytest.approx(os.getloadavg()[0], abs=5.0)
+    assert run["wall_s"] >= 0 and run["user_s"] >= 0 and run["end"] >= run["start"]
+    # forms-table: a record's own run wins over the log of the process that ran it; a record
+    # without one takes the log's
+    (tmp_path / "today.json").write_text(json.dumps({"form": "today", "J": 1.0, "run": run}))
+    (tmp_path / "fixed_start.json").write_text(json.dumps({"form": "fixed_start", "J": 2.0}))
+    (tmp_path / "streamA.log").write_text(
+        "=== today start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
+        "=== fixed_start start 2026-11-30T03:00:00Z load 1.00 1.00 1.00 code f3f7786\n"
+        "10.00 s wall 9.00 s user\n=== fixed_start end 2026-11-30T03:00:10Z rc 0\n")
+    forms = collect_forms(["today", "fixed_start"], tmp_path)
+    assert forms["records"]["today"]["run"] == run
+    assert forms["records"]["fixed_start"]["run"]["wall_s"] == 10.0
+    with pytest.raises(KeyError):
+        collect_forms(["te_rate"], tmp_path)

@@ -1,0 +1,336 @@
+"""The explorer page in a real headless browser (Debian's chromium + chromium-driver through
+selenium), on the tables of a tiny real pipeline run: the page loads with no console error;
+every layer of every plane draws the cell colours of its values; a hover over a known cell shows
+that cell's values from cells.parquet; a click draws its Poincare points, lists its coexisting
+attractors from the catalogue and picks the nearest sweep. A screenshot of each plane is kept
+under the test's tmp dir (path printed)."""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import time
+
+import numpy as np
+import pandas as pd
+import pytest
+from tiny_study import CATALOGUE, CONFIGS, tiny_study
+
+from gearsim.cli.main import main
+from gearsim.presentation import explorer
+from gearsim.presentation.explorer import (
+    MAX_POINTS,
+    MISSING,
+    Block,
+    array_of,
+    decode_block,
+    plane_from_cells,
+    plane_payload,
+    quantised_of,
+    values_of,
+)
+from gearsim.presentation.figures import style
+from gearsim.results.catalogue import open_catalogue
+
+CHROMIUM = shutil.which("chromium")
+DRIVER = shutil.which("chromedriver")
+FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync",
+         "--window-size=1600,1200")
+
+
+@pytest.fixture(scope="module")
+def monkeypatch_module():
+    mp = pytest.MonkeyPatch()
+    yield mp
+    mp.undo()
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory, monkeypatch_module):
+    wd = tiny_study(tmp_path_factory.getbasetemp())
+    monkeypatch_module.chdir(wd)
+    out = wd / "results" / "explorer" / "index.html"
+    assert main(["explorer", "--configfile", *CONFIGS, "--plane", "wb", "weps",
+                 "--sweep", "standard", "--catalogue", str(wd / CATALOGUE),
+                 "--out", str(out)]) == 0
+    return wd, out
+
+
+def _expected_points(cell: pd.Series) -> tuple[np.ndarray, np.ndarray]:
+    px, pv = np.asarray(cell["poincare_x"], float), np.asarray(cell["poincare_v"], float)
+    keep = MAX_POINTS
+    if cell["motion"] == "periodic" and cell["n"] > 0:
+        keep = min(MAX_POINTS, int(cell["n"]))
+    return px[-keep:], pv[-keep:]
+
+
+def test_block_round_trips_within_half_a_step():
+    """The 16-bit coding of the page: every value back within half a step of its range, NaN
+    kept as missing."""
+    rng = np.random.default_rng(1)
+    v = rng.normal(size=1000) * 3.7 + 1.0
+    v[::97] = np.nan
+    block = Block()
+    enc = block.quantised(v)
+    raw = decode_block(block.encoded())
+    got = values_of(raw, enc)
+    ok = np.isfinite(v)
+    assert np.array_equal(np.isfinite(got), ok)
+    assert np.max(np.abs(got[ok] - v[ok])) <= 0.5 * enc["step"] * (1 + 1e-9)
+    assert enc["step"] == pytest.approx(np.ptp(v[ok]) / (MISSING - 1))
+    q = quantised_of(raw, enc)
+    assert q.max() == MISSING and np.array_equal(q == MISSING, ~ok)
+
+
+def test_payload_of_a_plane(page):
+    """A plane's arrays hold exactly its cells: pattern categories, labels, DC and Kmax within
+    half a step, the section points of each cell (the last n of a period-n motion)."""
+    wd, out = page
+    cells = pd.read_parquet(wd / "results/wb/cells.parquet")
+    block = Block()
+    p = plane_payload(plane_from_cells("wb", cells, ("w", "b")), block)
+    raw = decode_block(block.encoded())
+    nx = p["nx"]
+    k = cells["j"].to_numpy() * nx + cells["i"].to_numpy()
+    cats = array_of(raw, p["cat"])[k]
+    assert [p["cat_keys"][c] for c in cats] == list(style.pattern_categories(cells))
+    labels = np.array(p["labels"])[array_of(raw, p["label"])[k]]
+    assert list(labels) == list(cells["label"].fillna(""))
+    for col in ("dc", "kmax"):
+        enc = p["layers"][col]
+        got = values_of(raw, enc)[k]
+        np.testing.assert_allclose(got, cells[col], rtol=0, atol=0.51 * enc["step"])
+    counts = array_of(raw, p["counts"]).astype(int)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    px = values_of(raw, p["px"])
+    for _, cell in cells.iloc[::7].iterrows():
+        kk = int(cell["j"]) * nx + int(cell["i"])
+        ex, _ = _expected_points(cell)
+        np.testing.assert_allclose(px[offsets[kk]:offsets[kk + 1]], ex, rtol=0,
+                                   atol=0.51 * p["px"]["step"])
+
+
+def test_floquet_margin_is_a_layer_when_the_cells_carry_it(page):
+    wd, _ = page
+    cells = pd.read_parquet(wd / "results/wb/cells.parquet")
+    block = Block()
+    assert "floquet" not in plane_payload(plane_from_cells("wb", cells, ("w", "b")),
+                                          block)["layers"]
+    margin = np.linspace(0.1, 0.99, len(cells))
+    p = plane_payload(plane_from_cells("wb", cells.assign(floquet_margin=margin),
+                                       ("w", "b")), block)
+    enc = p["layers"]["floquet"]
+    raw = decode_block(block.encoded())
+    k = cells["j"].to_numpy() * p["nx"] + cells["i"].to_numpy()
+    got = values_of(raw, enc)[k]
+    np.testing.assert_allclose(got, margin, atol=0.51 * enc["step"])
+
+
+def test_page_is_static_and_small(page):
+    wd, out = page
+    html = out.read_text()
+    assert "<script src=" not in html and "http://" not in html and "https://" not in html
+    assert "issue" not in html.lower()
+    cells = sum(len(pd.read_parquet(wd / f"results/{p}/cells.parquet")) for p in ("wb", "weps"))
+    # no plotting library inside: the page is its data plus ~25 kB of code and style
+    assert len(html) < 40_000 + 60 * cells, len(html)
+
+
+def _driver(tmp_path):
+    if CHROMIUM is None or DRIVER is None:  # pragma: no cover - CI installs both (.ci/run)
+        why = ("chromium and chromium-driver are needed: apt-get install -y chromium "
+               "chromium-driver (.ci/run installs them)")
+        if os.environ.get("CI"):  # CI skips nothing
+            pytest.fail(why)
+        pytest.skip(why)
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = CHROMIUM
+    for flag in (*FLAGS, f"--user-data-dir={tmp_path / 'profile'}"):
+        opts.add_argument(flag)
+    opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    return webdriver.Chrome(service=Service(DRIVER), options=opts)
+
+
+def _load(driver, url):
+    driver.get(url)
+    deadline = time.monotonic() + 60
+    while driver.execute_script("return document.body.dataset.ready") != "1":
+        assert time.monotonic() < deadline, "the page never finished drawing"
+        time.sleep(0.05)
+
+
+def _move(driver, plane: str, x: float, y: float, click: bool = False) -> None:
+    """Move the real mouse over the data point (x, y) of a plane's map (and click)."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    canvas = driver.find_element("id", f"map-{plane}")
+    driver.execute_script("arguments[0].scrollIntoView({block: 'center'});", canvas)
+    dx, dy = driver.execute_script("return window.GEARSIM.pixelOf(arguments[0], arguments[1],"
+                                   " arguments[2]);", plane, x, y)
+    chain = ActionChains(driver).move_to_element_with_offset(canvas, int(round(dx)),
+                                                             int(round(dy)))
+    (chain.click() if click else chain).perform()
+
+
+def _pixel(driver, plane: str, x: float, y: float) -> list[int]:
+    """The colour the map's canvas shows at the data point (x, y)."""
+    return driver.execute_script(
+        "const p = window.GEARSIM.planes[arguments[0]], f = p.frame;"
+        "const d = f.ctx.getImageData(Math.round(f.X(arguments[1])), Math.round(f.Y(arguments[2])),"
+        " 1, 1).data; return [d[0], d[1], d[2]];", plane, x, y)
+
+
+def _hex(c: str) -> list[int]:
+    return [int(c[k:k + 2], 16) for k in (1, 3, 5)]
+
+
+def test_page_in_chromium(page, tmp_path):
+    wd, out = page
+    driver = _driver(tmp_path)
+    try:
+        _load(driver, out.as_uri())
+        errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+        assert not errors, errors
+        # the scorecard of the paper comparison heads the page (wb and standard are the paper's)
+        score = driver.find_element("id", "scorecard-table").text
+        assert "b above which no double-sided impact occurs" in score
+        cells = pd.read_parquet(wd / "results/wb/cells.parquet")
+        inner = cells[cells["i"].between(1, cells["i"].max() - 1)
+                      & cells["j"].between(1, cells["j"].max() - 1)]
+        periodic = inner[inner["motion"] == "periodic"]
+        cell = (periodic if len(periodic) else inner).iloc[0]
+        x, y = float(cell["w"]), float(cell["b"])
+        # every layer draws this cell in the colour of its value; the legend sits beside
+        cat = style.pattern_categories(cells.loc[[cell.name]])[0]
+        for layer, title in (("pattern", "pattern (cells)"), ("dc", "DC"), ("kmax", "Kmax"),
+                             ("lyapunov", "Lyapunov")):
+            driver.find_element("id", f"layer-wb-{layer}").click()
+            legend = driver.find_element("id", "legend-wb")
+            assert title in legend.text, (layer, legend.text)
+            m, lg = driver.find_element("id", "map-wb").rect, legend.rect
+            assert lg["x"] >= m["x"] + m["width"] - 1  # beside the map, not over it
+            if layer == "pattern":
+                assert _pixel(driver, "wb", x, y) == _hex(style.PATTERN_COLOURS[cat])
+            if layer == "dc":
+                t = driver.execute_script("return DATA.turbo;")
+                assert _pixel(driver, "wb", x, y) == _hex(t[round(float(cell["dc"]) * 255)])
+            shot = tmp_path / f"wb-{layer}.png"
+            driver.save_screenshot(str(shot))
+        print(f"screenshots: {tmp_path}")
+        driver.find_element("id", "layer-wb-pattern").click()
+        # hover: this cell's values
+        _move(driver, "wb", x, y)
+        assert driver.execute_script("return window.GEARSIM.hover") == \
+            f"wb:{cell['i']}:{cell['j']}"
+        text = driver.find_element("id", "cell").text
+        assert f"pattern: {cell['label']}" in text
+        if cell["label_npq"]:
+            assert f"({cell['label_npq']})" in text
+        assert f"I = {int(cell['I'])}   n = {int(cell['n'])}" in text
+        dc = float(re.search(r"DC = ([-0-9.]+)", text).group(1))
+        assert dc == pytest.approx(float(cell["dc"]), abs=6e-5)
+        kmax = float(re.search(r"Kmax = ([-0-9.]+)", text).group(1))
+        assert kmax == pytest.approx(float(cell["kmax"]), abs=1e-4 + 1e-4 * abs(cell["kmax"]))
+        # click: its Poincare points
+        _move(driver, "wb", x, y, click=True)
+        got = driver.execute_script("return window.GEARSIM.poincare")
+        assert got["cell"] == f"wb:{cell['i']}:{cell['j']}"
+        ex, ev = _expected_points(cell)
+        assert len(got["x"]) == len(ex) > 0
+        np.testing.assert_allclose(got["x"], ex, atol=1e-4 * (1 + np.ptp(ex)) + 1e-3)
+        np.testing.assert_allclose(got["v"], ev, atol=1e-4 * (1 + np.ptp(ev)) + 1e-3)
+        # the nearest sweep through it: the standard sweep runs along w
+        assert driver.execute_script("return window.GEARSIM.near") == "standard"
+        assert "attractors" in driver.find_element("id", "attractors").text  # not searched
+        # a (w, eps) cell with coexisting attractors: its count (cells.n_attractors, which
+        # leaves out starts that did not settle) and the rows of the attractors table
+        con = open_catalogue(wd / CATALOGUE)
+        att = pd.read_sql_query(
+            "select a.*, c.i as _i, c.j as _j from attractors a join cells c on a.cell_id = "
+            "c.id join planes p on c.plane_id = p.id where p.name = 'weps' "
+            "order by c.j, c.i, a.attractor", con)
+        found = pd.read_sql_query(
+            "select c.i, c.j, c.n_attractors from cells c join planes p on c.plane_id = p.id "
+            "where p.name = 'weps' and c.n_attractors is not null "
+            "order by c.n_attractors desc, c.j, c.i", con)
+        con.close()
+        assert len(att) and len(found), "the tiny run found no attractor"
+        ai, aj, n_att = (int(v) for v in found.iloc[0][["i", "j", "n_attractors"]])
+        weps = pd.read_parquet(wd / "results/weps/cells.parquet")
+        wcell = weps[(weps["i"] == ai) & (weps["j"] == aj)].iloc[0]
+        driver.find_element("id", "layer-weps-attractors").click()
+        colour = explorer_attractor_colour(driver, min(n_att, 4))
+        assert _pixel(driver, "weps", float(wcell["w"]), float(wcell["eps"])) == colour
+        _move(driver, "weps", float(wcell["w"]), float(wcell["eps"]), click=True)
+        assert f"coexisting attractors: {n_att}" in driver.find_element("id", "cell").text
+        listed = driver.find_element("id", "attractors").text
+        first = att[(att["_i"] == ai) & (att["_j"] == aj)].iloc[0]
+        assert f"#0 {first['label']}" in listed
+        assert f"basin {100 * first['basin_fraction']:.1f} %" in listed
+        driver.save_screenshot(str(tmp_path / "weps-attractors.png"))
+        errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+        assert not errors, errors
+    finally:
+        driver.quit()
+
+
+def explorer_attractor_colour(driver, n: int) -> list[int]:
+    return _hex(driver.execute_script(f"return ATT_COLOURS[{n}];"))
+
+
+def test_bifurcation_curves_are_drawn_on_top(page, tmp_path):
+    """A plane's curve from the catalogue's bifurcation_curves is drawn over the map in its
+    kind's colour (a synthetic fold line across the tiny plane)."""
+    wd, _ = page
+    cells = pd.read_parquet(wd / "results/wb/cells.parquet")
+    plane = plane_from_cells("wb", cells, ("w", "b"))
+    plane.curves = [{"curve": 0, "kind": "fold", "period": 1, "xname": "w", "yname": "b",
+                     "x": [1.0, 1.0], "y": [0.0, 1.0]}]
+    out = tmp_path / "curves.html"
+    out.write_text(explorer.render([plane], {}))
+    driver = _driver(tmp_path)
+    try:
+        _load(driver, out.as_uri())
+        # the line is anti-aliased over its pixel column: the darkest of the three around it
+        dark = driver.execute_script(
+            "const f = window.GEARSIM.planes.wb.frame, X = Math.round(f.X(1.0)),"
+            " Y = Math.round(f.Y(0.5)); const d = f.ctx.getImageData(X - 1, Y, 3, 1).data;"
+            " return Math.min(d[0] + d[1] + d[2], d[4] + d[5] + d[6], d[8] + d[9] + d[10]);")
+        assert dark < 3 * 70
+        driver.find_element("id", "curves-wb").click()
+        cat = style.pattern_categories(cells)
+        near = cells.assign(d=(cells["w"] - 1.0).abs() + (cells["b"] - 0.5).abs())["d"].idxmin()
+        assert _pixel(driver, "wb", 1.0, 0.5) == _hex(style.PATTERN_COLOURS[cat[near]])
+        assert not [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+    finally:
+        driver.quit()
+
+
+def test_explorer_cli_errors(page, capsys):
+    wd, _ = page
+    assert main(["explorer", "--configfile", *CONFIGS, "--plane", "nope"]) == 2
+    assert "--plane nope: not in the config" in capsys.readouterr().err
+    assert main(["explorer", "--configfile", *CONFIGS, "--results", str(wd / "none")]) == 2
+    assert "missing" in capsys.readouterr().err
+
+
+def test_points_cap_keeps_a_chaotic_page_small():
+    """Few chaotic cells keep MAX_POINTS each; a page of many chaotic cells keeps fewer, so its
+    section points stay within the budget (never fewer than MIN_POINTS)."""
+    from gearsim.presentation.explorer import MIN_POINTS, POINTS_BUDGET, points_cap
+
+    def plane(n_chaos, n_periodic=100):
+        motion = ["chaos"] * n_chaos + ["periodic"] * n_periodic
+        return explorer.PlaneData("p", "w", "b", pd.DataFrame(
+            {"motion": motion, "n": [0] * n_chaos + [2] * n_periodic}))
+
+    assert points_cap([plane(1000)]) == MAX_POINTS
+    many = 50_000
+    cap = points_cap([plane(many)])
+    assert MIN_POINTS <= cap < MAX_POINTS and 4 * (cap * many + 200) <= POINTS_BUDGET
+    assert points_cap([plane(10_000_000)]) == MIN_POINTS
