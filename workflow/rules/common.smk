@@ -25,7 +25,9 @@ if getattr(workflow.config_settings, "replace_workflow_config", False):
     _own_files = []
 try:
     _resolved = gcfg.load_config(
-        _own_files + _cli_files, workflow.config_settings.config or None, root=STUDY_ROOT
+        _own_files + _cli_files,
+        workflow.config_settings.config or None,
+        root=STUDY_ROOT,
     )
 except gcfg.ConfigError as exc:
     raise WorkflowError(f"invalid configuration: {exc}") from None
@@ -46,7 +48,9 @@ validate(config, str(SCHEMA))
 #    config). Rules take it as an ancient() input: its name never changes (the same content
 #    under another file name re-runs nothing) and its time never matters (the params below
 #    decide what re-runs: editing one plane re-runs only that plane).
-CONFIG_JSON = STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY or "default") / "config.json"
+CONFIG_JSON = (
+    STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY or "default") / "config.json"
+)
 _text = gprov.canonical_json(config)
 if not CONFIG_JSON.is_file() or CONFIG_JSON.read_text() != _text:
     CONFIG_JSON.parent.mkdir(parents=True, exist_ok=True)
@@ -76,7 +80,8 @@ if STUDY is not None:
 #    refuse (damaged, foreign, of another schema version) is set aside so that the catalogue
 #    rule rebuilds it from the verified Parquet files; readers never fall back silently.
 _DRY_RUN = any(
-    a in ("--dry-run", "--dryrun") or (a.startswith("-") and not a.startswith("--") and "n" in a)
+    a in ("--dry-run", "--dryrun")
+    or (a.startswith("-") and not a.startswith("--") and "n" in a)
     for a in sys.argv[1:]
 )
 

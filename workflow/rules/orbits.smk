@@ -86,12 +86,14 @@ rule bifurcation_curves:
         "logs/orbits/{plane}_curves.log",
     benchmark:
         "logs/benchmarks/orbits/{plane}_curves.tsv"
-    threads: 2
     conda:
         GEARSIM_ENV
+    threads: 2
     params:
         config=plane_params,
-        points=lambda wildcards, input: f"--points {input.points}" if input.points else "",
+        points=lambda wildcards, input: (
+            f"--points {input.points}" if input.points else ""
+        ),
         code_version=CODE_VERSION["analysis"],
     shell:
         "gearsim bifurcation-curves --plane {wildcards.plane} --cells {input.cells} "
@@ -107,5 +109,7 @@ ORBIT_CATALOGUE_FILES = [
 ]
 ORBIT_REPORT_INPUTS = (
     ["results/orbits/standard_points.parquet"] if ORBITS_STANDARD else []
-) + list(ORBIT_CURVES.values())  # the report says which planes' curves were skipped or cut
+) + list(
+    ORBIT_CURVES.values()
+)  # the report says which planes' curves were skipped or cut
 ALL_TARGETS += ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS

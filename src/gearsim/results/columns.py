@@ -9,7 +9,8 @@ the nominal length ``b_c``, time ``tau = w_n t``, forces over ``Km b_c``. A unit
 
 from __future__ import annotations
 
-#: Model parameters: (unit, meaning). The names of :class:`gearsim.dynamics.parameters.ModelParameters`.
+#: Model parameters: (unit, meaning). The names of
+#: :class:`gearsim.dynamics.parameters.ModelParameters`.
 PARAMETERS: dict[str, tuple[str, str]] = {
     "model": ("", "model variant: 6dof (bearings elastic) or 1dof (rigid bearings)"),
     "w": ("1 (w_h / w_n)", "mesh frequency over the natural frequency w_n = sqrt(Km / Me)"),

@@ -4,8 +4,9 @@ Parquet (``gearsim export``).
 The Dataset has the plane's two parameters as dimensions and coordinates, named by parameter
 (e.g. ``b`` x ``w`` for the wb plane: ``ds.label.sel(w=1.0, b=0.3, method="nearest")``), the
 cell centres ``min + (i + 0.5)(max - min)/n`` as coordinate values, and one variable per cell
-column of the catalogue (:data:`gearsim.results.columns.RESULT`, plus ``elapsed_s``) with ``units`` and
-``long_name`` attributes from :mod:`gearsim.results.columns`. Integer columns that may be NULL (``p``,
+column of the catalogue (:data:`gearsim.results.columns.RESULT`, plus ``elapsed_s``) with
+``units`` and ``long_name`` attributes from :mod:`gearsim.results.columns`. Integer columns that
+may be NULL (``p``,
 ``q``) are float with NaN. Global attributes carry the provenance: plane record, fixed
 parameters, integration settings, configuration hash, code version, git commit of the catalogue
 build. Nested values are JSON strings (NetCDF attributes are flat).

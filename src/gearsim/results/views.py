@@ -4,7 +4,8 @@ A plane's view is named after the plane and has its axis names as columns, so a 
 ``select w, b, label from wb where w between 1.0 and 1.01`` instead of joining ``cells`` to
 ``planes`` and filtering on ``x`` / ``y``. With a gear file (docs/units.md) an axis with a
 physical meaning (w, Fm, Fe, b) adds its physical column (``speed_rpm``, ``torque_Nm``, ...,
-from the plane record's ``physical`` factors or an axis given in those units). A sweep's view is named after the sweep, with the swept parameter's name for ``value``. Every view
+from the plane record's ``physical`` factors or an axis given in those units). A sweep's view is
+named after the sweep, with the swept parameter's name for ``value``. Every view
 column gets a row in ``column_dictionary``. A name taken by a table (or by a plane, for a
 sweep) gets the prefix ``plane_`` / ``sweep_``.
 """
