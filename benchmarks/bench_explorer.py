@@ -1,11 +1,12 @@
-"""The explorer page: its size and its load time in headless chromium (benchmarks/README.md, (m)).
+"""The explorer page: its size and its load time in headless chromium (benchmarks/CHANGELOG.md,
+"Explorer page").
 
     python benchmarks/bench_explorer.py page --results results --configfile config/config.yaml
         the page of a finished run (default: the default run's results/)
-    python benchmarks/bench_explorer.py stand-in --source studies/weps/results --plane weps \
-        --n 400
+    python benchmarks/bench_explorer.py stand-in --source RESULTS --plane wb --n 400
         a stand-in for the default run when it has not been computed: each of the default
-        planes (wb, wxi) as an n x n plane made from a computed plane of the source run (its
+        planes (wb, wxi) as an n x n plane made from the source run's plane of that name (e.g.
+        the quick run's 40 x 40 planes), else from --plane (its
         regions, labels, chaotic cells and section points; values interpolated between its
         cells with cell-to-cell scatter, section points jittered so that no two cells share
         them), plus the source run's sweeps; --all-chaotic: the worst case for the page size,
@@ -111,17 +112,20 @@ def _upsample(cells: pd.DataFrame, axes: tuple[str, str], n: int, ranges, rng
 
 def stand_in(args) -> tuple[Path, dict]:
     from gearsim.presentation.explorer import write_explorer
-
-    src = Path(args.source)
-    cells = pd.read_parquet(src / args.plane / "cells.parquet")
     from gearsim.presentation.figures.data import plane_axes
 
-    axes = plane_axes(cells)
+    src = Path(args.source)
     rng = np.random.default_rng(0)
     work = Path(tempfile.mkdtemp(prefix="bench-explorer-results-"))
     planes = {"wb": ("w", "b"), "wxi": ("w", "xi")}
     ranges = {"wb": ((0.1, 2.5), (0.0, 1.0)), "wxi": ((0.1, 2.5), (0.04, 0.16))}
+    used, chaotic = {}, 0
     for name, ax in planes.items():
+        # the source run's plane of the same name (e.g. the quick run's wb), else --plane
+        source = name if (src / name / "cells.parquet").is_file() else args.plane
+        used[name] = source
+        cells = pd.read_parquet(src / source / "cells.parquet")
+        axes = plane_axes(cells)
         df = _upsample(cells, axes, args.n, ranges[name], rng)
         if args.all_chaotic:
             df["motion"], df["label"], df["label_npq"], df["n"] = "chaos", "chaos", "", 0
@@ -129,6 +133,7 @@ def stand_in(args) -> tuple[Path, dict]:
             df["poincare_v"] = list(rng.uniform(-0.5, 0.5, (len(df), 16)))
         df = df.rename(columns={axes[0]: "w_src", axes[1]: "y_src"})
         df[ax[0]], df[ax[1]] = df["w_src"], df["y_src"]
+        chaotic += int((df["motion"] != "periodic").sum())
         (work / name).mkdir(parents=True)
         df.drop(columns=["w_src", "y_src"]).to_parquet(work / name / "cells.parquet")
     sweeps = sorted(p.stem for p in (src / "sweeps").glob("*.parquet"))
@@ -141,7 +146,8 @@ def stand_in(args) -> tuple[Path, dict]:
     build = time.perf_counter() - t0
     shutil.rmtree(work, ignore_errors=True)
     return out, {"kind": "stand-in" + (" (all chaotic)" if args.all_chaotic else ""),
-                 "source": str(src / args.plane), "n": args.n,
+                 "source": {k: str(src / v) for k, v in used.items()}, "n": args.n,
+                 "chaotic_share": chaotic / (2 * args.n * args.n),
                  "cells": 2 * args.n * args.n, "sweeps": sweeps, "build_s": build}
 
 
@@ -167,7 +173,9 @@ def main() -> None:
     a.add_argument("--configfile", nargs="+", default=["config/config.yaml"])
     b = sub.add_parser("stand-in", help="a stand-in for the default run's two planes")
     b.add_argument("--source", required=True, help="results directory of a computed run")
-    b.add_argument("--plane", required=True, help="the plane of that run to upsample")
+    b.add_argument("--plane", required=True,
+                   help="the plane of that run to upsample where it has no plane of the "
+                   "default's name (wb, wxi)")
     b.add_argument("--n", type=int, default=400, help="cells per axis (the default run: 400)")
     b.add_argument("--all-chaotic", action="store_true",
                    help="every cell chaotic with 16 random section points (the size's worst case)")

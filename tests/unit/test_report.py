@@ -202,3 +202,13 @@ def test_a_study_of_ones_own_gets_a_report_about_itself(tmp_path):
     lo = float(t[0].split("between ")[1].split(" and")[0])
     assert 5.0 <= lo <= 10.0
     assert "issue" not in md.lower()
+
+
+def test_a_difference_of_exactly_the_tolerance_is_within():
+    """Grid midpoints carry rounding (1.31 - 1.33 = -0.020000000000000018): a difference of the
+    tolerance itself counts as within, one a grid step beyond does not."""
+    from gearsim.presentation.paper import LANDMARK_TOL, within
+
+    assert 1.31 - 1.33 < -LANDMARK_TOL  # the rounding the rule absorbs
+    assert within(1.31 - 1.33, LANDMARK_TOL) and within(0.02, LANDMARK_TOL)
+    assert not within(0.0201, LANDMARK_TOL) and not within(float("nan"), LANDMARK_TOL)

@@ -134,8 +134,10 @@ def test_page_is_static_and_small(page):
     assert "<script src=" not in html and "http://" not in html and "https://" not in html
     assert "issue" not in html.lower()
     cells = sum(len(pd.read_parquet(wd / f"results/{p}/cells.parquet")) for p in ("wb", "weps"))
-    # no plotting library inside: the page is its data plus ~25 kB of code and style
-    assert len(html) < 40_000 + 60 * cells, len(html)
+    # no plotting library inside: the page is its code and style, the scorecard and the
+    # plane/sweep metadata (~15 kB here) and about 60 bytes per cell
+    template = len(explorer._TEMPLATE.read_text())
+    assert len(html) < template + 15_000 + 60 * cells, (len(html), template)
 
 
 def _driver(tmp_path):
@@ -223,6 +225,22 @@ def test_page_in_chromium(page, tmp_path):
             driver.save_screenshot(str(shot))
         print(f"screenshots: {tmp_path}")
         driver.find_element("id", "layer-wb-pattern").click()
+        # the wheel zooms about the mouse; the cell keeps its colour and its place under it
+        full = driver.execute_script("const f = window.GEARSIM.planes.wb.frame;"
+                                     " return [f.x0, f.x1, f.y0, f.y1];")
+        for _ in range(4):
+            driver.execute_script(
+                "const c = document.getElementById('map-wb'), r = c.getBoundingClientRect(),"
+                " [dx, dy] = window.GEARSIM.pixelOf('wb', arguments[0], arguments[1]);"
+                "c.dispatchEvent(new WheelEvent('wheel', {deltaY: -100, bubbles: true,"
+                " cancelable: true, clientX: r.left + r.width / 2 + dx,"
+                " clientY: r.top + r.height / 2 + dy}));", x, y)
+        zoomed = driver.execute_script("const f = window.GEARSIM.planes.wb.frame;"
+                                       " return [f.x0, f.x1, f.y0, f.y1];")
+        assert zoomed[1] - zoomed[0] < 0.5 * (full[1] - full[0])
+        assert zoomed[0] <= x <= zoomed[1] and zoomed[2] <= y <= zoomed[3]
+        assert _pixel(driver, "wb", x, y) == _hex(style.PATTERN_COLOURS[cat])
+        driver.save_screenshot(str(tmp_path / "wb-zoomed.png"))
         # hover: this cell's values
         _move(driver, "wb", x, y)
         assert driver.execute_script("return window.GEARSIM.hover") == \
@@ -244,6 +262,12 @@ def test_page_in_chromium(page, tmp_path):
         assert len(got["x"]) == len(ex) > 0
         np.testing.assert_allclose(got["x"], ex, atol=1e-4 * (1 + np.ptp(ex)) + 1e-3)
         np.testing.assert_allclose(got["v"], ev, atol=1e-4 * (1 + np.ptp(ev)) + 1e-3)
+        # a double click shows the whole plane again
+        from selenium.webdriver.common.action_chains import ActionChains
+
+        ActionChains(driver).double_click(driver.find_element("id", "map-wb")).perform()
+        assert driver.execute_script("const f = window.GEARSIM.planes.wb.frame;"
+                                     " return [f.x0, f.x1, f.y0, f.y1];") == pytest.approx(full)
         # the nearest sweep through it: the standard sweep runs along w
         assert driver.execute_script("return window.GEARSIM.near") == "standard"
         assert "attractors" in driver.find_element("id", "attractors").text  # not searched

@@ -4,6 +4,8 @@ are in :mod:`gearsim.analysis.landmarks`."""
 
 from __future__ import annotations
 
+import math
+
 NOT_APPLICABLE = "not applicable"
 PAPER_B_THRESHOLD = 0.4125
 PAPER_XI_THRESHOLD = 0.1436
@@ -38,3 +40,10 @@ SEQUENCE_SWEEPS = {"b015": ("b", 0.15), "b025": ("b", 0.25), "b035": ("b", 0.35)
 #: what the paper has for a plane of these axes
 PAPER_PLANES = {("w", "b"): "Figs 7, 12, 13 and the backlash threshold b = 0.4125",
                 ("w", "xi"): "Figs 14, 16, 17 and the damping threshold xi = 0.1436"}
+
+
+def within(difference: float, tolerance: float) -> bool:
+    """Whether a difference from the paper is within the tolerance (grid midpoints such as
+    1.31 - 1.33 carry rounding of 1e-16: a difference of exactly the tolerance counts)."""
+    return bool(math.isfinite(difference) and round(abs(difference), 9) <= tolerance)
+

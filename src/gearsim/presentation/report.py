@@ -53,6 +53,7 @@ from gearsim.presentation.paper import (
     PAPER_XI_THRESHOLD,
     SEQUENCE_SWEEPS,
     THRESHOLD_TOL,
+    within,
 )
 from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import (
@@ -332,7 +333,7 @@ def analyse(
             if not r.found:
                 rep.misses.append(f"landmark '{r.text}' (paper w = {r.paper:g}) not found in "
                                   "the standard sweep")
-            elif abs(r.error) > LANDMARK_TOL:
+            elif not within(r.error, LANDMARK_TOL):
                 rep.misses.append(f"landmark '{r.text}': ours w = {r.ours:.4f} (between "
                                   f"{r.lo:.4f} and {r.hi:.4f}), paper {r.paper:g}, difference "
                                   f"{r.error:+.4f} > {LANDMARK_TOL}")
@@ -350,7 +351,7 @@ def analyse(
                 "kmax_before": {k: float(before[k]) for k in KMAX_READINGS if k in before},
                 "kmax_after": {k: float(after[k]) for k in KMAX_READINGS if k in after},
             }
-            if abs(rep.jump["dc_after"] - PAPER_JUMP_DC) > JUMP_DC_TOL:
+            if not within(rep.jump["dc_after"] - PAPER_JUMP_DC, JUMP_DC_TOL):
                 rep.misses.append(f"DC after the jump {rep.jump['dc_after']:.3f}, paper "
                                   f"{PAPER_JUMP_DC}")
         else:
@@ -396,7 +397,7 @@ def analyse(
             rep.b_threshold = th
         else:
             rep.xi_threshold = th
-        if th is not None and not (abs(th.difference) <= THRESHOLD_TOL):
+        if th is not None and not within(th.difference, THRESHOLD_TOL):
             rep.misses.append(f"{name}: ours {th.value:.4f} (rows {th.last_with:.4f} / "
                               f"{th.first_without:.4f}, plane {plane}), paper {paper}")
 
@@ -487,7 +488,7 @@ def _detail_lines(rep: Report) -> list[str]:
             e = np.asarray(errs)
             out += ["", f"Found {len(e)} of {len(rep.matched)}; RMS difference "
                     f"{np.sqrt(np.mean(e**2)):.4f}, worst {np.max(np.abs(e)):.4f}; within "
-                    f"{LANDMARK_TOL}: {int((np.abs(e) <= LANDMARK_TOL).sum())}."]
+                    f"{LANDMARK_TOL}: {sum(within(x, LANDMARK_TOL) for x in e)}."]
         out.append("")
         if rep.landmarks is not None and len(rep.landmarks):
             out += ["All landmarks found (sweep order):", "",

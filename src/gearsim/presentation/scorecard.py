@@ -14,6 +14,7 @@ from gearsim.presentation.paper import (
     PAPER_B_THRESHOLD,
     PAPER_XI_THRESHOLD,
     THRESHOLD_TOL,
+    within,
 )
 from gearsim.presentation.study_summary import value_text
 
@@ -54,7 +55,7 @@ def scorecard(rep: Any) -> list[ScoreRow]:
             located = ("—" if ex is None or not math.isfinite(ex["exact"])
                        else f"{ex['exact']:.4f}")
             if r.found:
-                ok = bool(abs(r.error) <= LANDMARK_TOL)
+                ok = within(r.error, LANDMARK_TOL)
                 rows.append(ScoreRow(f"w: {r.text}", paper,
                                      f"{r.ours:.4f} [{r.lo:.3f}, {r.hi:.3f}]", located,
                                      f"{r.error:+.4f}", ok, f"{LANDMARK_TOL} in w"))
@@ -65,7 +66,7 @@ def scorecard(rep: Any) -> list[ScoreRow]:
         j = rep.jump
         rows.append(ScoreRow("DC after the jump", f"{PAPER_JUMP_DC}", f"{j['dc_after']:.3f}",
                              difference=f"{j['dc_after'] - PAPER_JUMP_DC:+.3f}",
-                             ok=bool(abs(j["dc_after"] - PAPER_JUMP_DC) <= JUMP_DC_TOL),
+                             ok=within(j["dc_after"] - PAPER_JUMP_DC, JUMP_DC_TOL),
                              tolerance=f"{JUMP_DC_TOL}"))
         best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
                    default=None)
@@ -83,7 +84,7 @@ def scorecard(rep: Any) -> list[ScoreRow]:
             if key not in rep.thresholds_na:
                 rows.append(ScoreRow(label, f"{paper}", "not computed"))
             continue
-        ok = bool(abs(th.difference) <= THRESHOLD_TOL) if math.isfinite(th.difference) else False
+        ok = within(th.difference, THRESHOLD_TOL)
         if math.isinf(th.value):
             ours = f"above the plane (still at {th.last_with:.4g})"
         elif math.isnan(th.value):
