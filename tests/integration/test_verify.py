@@ -119,3 +119,64 @@ def standard():
 
 def test_refine_threshold_is_below_the_merge_tolerance():
     assert REFINE_RTOL <= 0.1 * 1e-3
+
+
+# ---------------------------------------------------------------- next to bifurcations
+#: cells next to period doublings, folds and grazings of both default planes, the xi = 0.15
+#: sweep and the hysteresis sweep: where the study's budget left slow transients
+#: (benchmarks/bench_refine.py rows; docs/decisions.md "Verified motions")
+NEAR_BIFURCATIONS = [
+    # (w, b, xi): None keeps the standard value
+    (1.237, None, 0.04615), (1.243, None, 0.04615), (1.327, None, 0.04615),
+    (1.615, None, 0.04615), (0.973, None, 0.04615), (1.393, None, 0.07615),
+    (1.399, None, 0.07615), (1.525, None, 0.07615), (1.111, None, 0.10615),
+    (1.117, None, 0.10615), (1.675, None, 0.10615), (1.255, None, 0.13615),
+    (1.579, None, 0.13615), (1.009, 0.37625, None), (1.003, 0.9, None), (1.75, 0.55, None),
+    (1.29, 0.55, None), (0.95, 0.15, None), (1.31, 0.35, None), (1.34, None, 0.15),
+    (1.342, None, 0.15), (1.466, None, 0.15), (1.47, None, 0.15), (0.55, None, None),
+    (0.6, None, None), (0.65, None, None),
+]
+
+
+def test_labels_next_to_bifurcations_agree_with_long_simulations(standard, monkeypatch):
+    """The study's budget (150 + 256 periods) with refinement against 12 000 transient periods
+    from the same start: no cell is quasi-periodic where the long run settles on a period, and
+    a periodic label is the long run's (cells at a bifurcation excepted: there the two sides
+    are one grid step apart and both labels are readings of the same critical orbit)."""
+    from gearsim.cell.chains import simulate_cells
+    from gearsim.study.config import study_settings
+
+    st = study_settings()
+    cells = []
+    for w, b, xi in NEAR_BIFURCATIONS:
+        ch = {"w": w} | ({"b": b} if b is not None else {}) | ({"xi": xi} if xi else {})
+        cells.append(standard.with_(**ch))
+    short = simulate_cells(cells, settings=st)
+    # the reference: the plain long simulation, no refinement. 12 000 periods: at w = 1.47,
+    # xi = 0.15 the 1T orbit has |mu|max 0.99876 (e-folding 800 periods); after 4 000 the
+    # decaying alternation still reads as 2-2-0, after 12 000 it is 1-1-0, the refined label
+    import gearsim.cell.verify as verify
+
+    monkeypatch.setattr(verify, "needs_refinement", lambda cls, floquet="slow": False)
+    long = simulate_cells(cells, settings=st.with_(transient=12000))
+    refined, compared, bad, lines = 0, 0, [], []
+    for p, s, g in zip(cells, short, long, strict=True):
+        a, r = s.classification, g.classification
+        where = (f"w={p.w} b={p.b} xi={p.xi}: {a.label} {a.label_npq} {a.status} "
+                 f"refined={a.refined} mu={a.mu_max:.5f} vs {r.label} {r.label_npq} {r.status}")
+        lines.append(where)
+        refined += bool(a.refined)
+        if r.motion == "periodic" and a.motion == "quasi-periodic":
+            bad.append(where)
+        # a claim is a settled label: not_converged says there is none, bifurcation that the
+        # cell sits on the critical orbit (both sides are readings of it)
+        if a.status != "ok" or r.status != "ok":
+            continue
+        if r.motion == "periodic" and a.motion == "periodic":
+            compared += 1
+            if (a.n, a.p, a.q) != (r.n, r.p, r.q) or abs(a.dc - r.dc) > 2e-3:
+                bad.append(where)
+    print("\n".join(lines))
+    assert not bad, "\n".join(bad)
+    assert refined >= len(cells) // 3  # the set does exercise the refinement
+    assert compared >= 20

@@ -14,6 +14,10 @@ cell is then labelled by that orbit (its pattern, DC and Kmax over one motion pe
 orbit's section state; its exponent the leading Floquet exponent ``log|mu|max / (n T)``), with
 its Floquet margin ``mu_max`` and the kind of its critical multiplier.
 
+A cell whose Newton orbit has just lost stability (``1 <= |mu|max < 1 +`` the margin, e.g. a
+period-2 window next to the period-1 orbit it doubled from) keeps its window's reading with
+status ``bifurcation`` and that orbit's ``mu_max`` and ``critical`` (``refined`` false).
+
 Status of a refined cell: ``ok``, or ``bifurcation`` when ``1 - |mu|max <``
 :data:`BIFURCATION_MARGIN` (the transient's e-folding time exceeds 1000 motion periods: no
 simulation of the budget tells the two sides of the bifurcation apart, and the cell sits within
@@ -119,8 +123,10 @@ def _minimal_period(section: np.ndarray, n: int) -> int:
 
 def refine(params: ModelParameters, window: PeriodSummaries, n: int, guess: np.ndarray,
            st: IntegrationSettings) -> Refinement | None:
-    """The stable period-``n`` orbit the window approaches, from the section state ``guess``;
-    None when Newton fails, the orbit is unstable or the window does not approach it."""
+    """The stable period-``n`` orbit the window approaches, from the section state ``guess``,
+    or an orbit that has just lost stability (``|mu|max < 1 +`` :data:`BIFURCATION_MARGIN`, no
+    approach test); None when Newton fails, the orbit is farther from stable or the window
+    does not approach it."""
     if params.var_ratio != 0.0:
         return None  # the map is not T-periodic: no orbit to refine
     p = params.to_array()
@@ -143,6 +149,9 @@ def refine(params: ModelParameters, window: PeriodSummaries, n: int, guess: np.n
         section = section[:m]
     mu = sorted_eigs(M)
     if not abs(mu[0]) < 1.0:
+        if abs(mu[0]) < 1.0 + BIFURCATION_MARGIN:
+            # just past a bifurcation: the window leaves this orbit slowly (no approach test)
+            return Refinement(m, y[:N_STATE].copy(), mu, r, it, math.nan)
         return None
     scale = max(float(window.xmax.max() - window.xmin.min()), 1e-9)
     q = max(len(window) // 4, 1)
@@ -190,6 +199,11 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
         ref = refine(params, window, n, guess, st)
         if ref is None:
             continue
+        if ref.mu_max >= 1.0:
+            # the orbit Newton finds has just lost stability: the window's own reading stays,
+            # the status says the cell sits at that orbit's bifurcation
+            return replace(cls, status="bifurcation", mu_max=ref.mu_max, critical=ref.critical,
+                           converged=cls.n > 0 or cls.converged), None  # fmt: skip
         out = orbit_classification(params, ref, st, cls.settle)
         if out is not None:
             return out
