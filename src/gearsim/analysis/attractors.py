@@ -642,6 +642,9 @@ class GearCells:
         st = settings or IntegrationSettings(method="rk4")
         self.settings = st.with_(method="rk4")
         self.transient = int(self.settings.transient)
+        from gearsim.cell.verify import OrbitCache
+
+        self.orbits = OrbitCache()  # the starts of a cell share their refined orbits
 
     def start_states(self, cell: int, unit: np.ndarray) -> np.ndarray:
         from gearsim.dynamics.model import static_state
@@ -710,7 +713,8 @@ class GearCells:
         plist = [self.params[c] for c in cells]
         res = simulate_cells(plist, settings=st, u0=[np.asarray(s, dtype=float)[:10]
                                                      for s in states],
-                             start_periods=[int(k) for k in start_periods])  # fmt: skip
+                             start_periods=[int(k) for k in start_periods],
+                             orbits=self.orbits)  # fmt: skip
         return [gear_steady(r) for r in res]
 
 

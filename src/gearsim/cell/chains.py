@@ -24,6 +24,7 @@ from gearsim.cell.simulate import (
     recurrence_probe,
     seeds_continuation,
 )
+from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, static_state
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import (
@@ -86,6 +87,7 @@ def simulate_rows(
     on_cell: Callable[[int, int, CellResult], None] | None = None,
     start_periods: Sequence[int] | None = None,
     floquet: str = "slow",
+    orbits: OrbitCache | None = None,
 ) -> list[list[CellResult]]:
     """Simulate many continuation chains at once with the batched RK4 kernel.
 
@@ -114,6 +116,9 @@ def simulate_rows(
     floquet
         ``"slow"``: Newton-refine the cells that settle too slowly; ``"all"``: also give every
         periodic cell its Floquet margin (:func:`gearsim.cell.simulate.finish_cell`).
+    orbits
+        Refined orbits shared by the cells of this call (:class:`gearsim.cell.verify.OrbitCache`,
+        e.g. the starts of one attractor search), or None.
 
     Returns
     -------
@@ -140,7 +145,7 @@ def simulate_rows(
         else:
             out[r] = []
     if chains:
-        _run_chains(chains, st, bound, continuation, on_cell, floquet)
+        _run_chains(chains, st, bound, continuation, on_cell, floquet, orbits)
         for ch in chains:
             out[ch.index] = ch.results
     return out  # type: ignore[return-value]
@@ -153,6 +158,7 @@ def simulate_cells(
     u0: np.ndarray | Sequence[np.ndarray | None] | None = None,
     start_periods: Sequence[int] | None = None,
     floquet: str = "slow",
+    orbits: OrbitCache | None = None,
 ) -> list[CellResult]:
     """Independent cells through the batched path: ``[simulate_cell(p, u0_i, start_period=k_i)]``.
 
@@ -184,14 +190,15 @@ def simulate_cells(
     for idx in groups.values():
         res = simulate_rows([[params_list[k]] for k in idx], settings=settings,
                             continuation=False, u0=[u0s[k] for k in idx],
-                            start_periods=[ks[k] for k in idx], floquet=floquet)  # fmt: skip
+                            start_periods=[ks[k] for k in idx], floquet=floquet,
+                            orbits=orbits)  # fmt: skip
         for k, r in zip(idx, res, strict=True):
             out[k] = r[0]
     return out  # type: ignore[return-value]
 
 
 def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, continuation: bool,
-                on_cell, floquet: str = "slow") -> None:
+                on_cell, floquet: str = "slow", orbits: OrbitCache | None = None) -> None:
     # records of the measured periods, or of a longer recurrence probe
     lanes = Lanes(len(chains), max(st.max_periods, st.transient_recurrence))
     for l, ch in enumerate(chains):
@@ -250,7 +257,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                 elif c.phase == _PROBE:
                     _end_probe(c, lanes, st)
                 else:
-                    _decide(c, lanes, st, continuation, on_cell, floquet)
+                    _decide(c, lanes, st, continuation, on_cell, floquet, orbits)
         active = [ch for ch in chains if not ch.finished]
 
 
@@ -350,14 +357,14 @@ def _begin_measure(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
 
 
 def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_cell,
-            floquet: str = "slow") -> None:
+            floquet: str = "slow", orbits: OrbitCache | None = None) -> None:
     """After a measuring chunk: the period test of simulate_cell, then finish or go on."""
     params = ch.cells[ch.i]
     s = lanes.summaries(ch.lane, ch.measured, copy=False)  # read before the lane moves on
     n = period_of(s, params, st)
     if n > 0 or ch.measured >= st.max_periods:
         y = lanes.state(ch.lane, N_STATE)
-        res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps, floquet)
+        res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps, floquet, orbits)
         _finish(ch, res, lanes, st, continuation, on_cell)
     elif ch.steps > st.max_steps:
         res = diverged_result(params, ch.k, ch.steps, status="budget")

@@ -22,7 +22,7 @@ from gearsim.cell.classify import (
     estimate_period,
     settle_estimate,
 )
-from gearsim.cell.verify import FLOQUET, verify_motion
+from gearsim.cell.verify import FLOQUET, OrbitCache, verify_motion
 from gearsim.dynamics.model import (
     N_STATE,
     mesh_force_series,
@@ -174,6 +174,7 @@ def finish_cell(
     start_period: int,
     steps: int,
     floquet: str = "slow",
+    orbits: OrbitCache | None = None,
 ) -> CellResult:
     """Classify the measured periods of a cell (period ``n``, 0 if none) into its result.
 
@@ -200,7 +201,7 @@ def finish_cell(
         xs = np.ascontiguousarray(summaries.section[:, 0])
         vs = np.ascontiguousarray(summaries.section[:, 1])
         cls.settle = float(settle_estimate(xs, vs, int(n), scale, float(params.w), 96)[0])
-    cls, orbit = verify_motion(params, summaries, cls, st, final_state, floquet)
+    cls, orbit = verify_motion(params, summaries, cls, st, final_state, floquet, orbits)
     if orbit is not None:
         poincare = orbit
     else:

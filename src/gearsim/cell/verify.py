@@ -97,6 +97,34 @@ class Refinement:
         return multiplier_kind(complex(self.multipliers[0]))
 
 
+class OrbitCache:
+    """Refined orbits of one batch of runs (e.g. the starts of one attractor search), so that
+    a run that settles slowly onto an orbit already refined for the same parameters takes it
+    without a Newton solve: its last section state must lie within ``max(10 settle, 1e-6)`` of
+    the orbit's range from one of the orbit's section points (``settle`` = its own distance
+    from settled, :func:`gearsim.cell.classify.settle_estimate`)."""
+
+    def __init__(self) -> None:
+        self._orbits: dict[tuple, list[tuple[np.ndarray, Classification]]] = {}
+
+    def find(self, params: ModelParameters, cls: Classification, guess: np.ndarray
+             ) -> tuple[Classification, np.ndarray] | None:
+        if cls.n <= 0 or not math.isfinite(cls.settle):
+            return None
+        for section, ocls in self._orbits.get((params, cls.n), []):
+            scale = max(ocls.x_max - ocls.x_min, 1e-9)
+            tol = max(10.0 * cls.settle, 1e-6)
+            d = _distances(np.asarray(guess, dtype=float)[None, :2], section[:, :2], scale,
+                           params.w)  # fmt: skip
+            if d[0] <= tol:
+                return replace(ocls, settle=cls.settle), section
+        return None
+
+    def add(self, params: ModelParameters, n: int, cls: Classification,
+            section: np.ndarray) -> None:
+        self._orbits.setdefault((params, n), []).append((section, cls))
+
+
 def needs_refinement(cls: Classification, floquet: str = "slow") -> bool:
     """Whether :func:`refine` should settle this classification (see the module docstring)."""
     if cls.status in ("diverged", "budget"):
@@ -182,7 +210,8 @@ def orbit_classification(params: ModelParameters, ref: Refinement, st: Integrati
 
 
 def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classification,
-                  st: IntegrationSettings, guess: np.ndarray, floquet: str = "slow"
+                  st: IntegrationSettings, guess: np.ndarray, floquet: str = "slow",
+                  orbits: OrbitCache | None = None
                   ) -> tuple[Classification, np.ndarray | None]:
     """Settle ``cls`` by its orbit where it needs it: ``(classification, orbit section points or
     None)``. A periodic cell whose refinement fails keeps its label with status
@@ -191,6 +220,9 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
         return cls, None
     if cls.n > 0:
         periods = [cls.n]
+        known = orbits.find(params, cls, guess) if orbits is not None else None
+        if known is not None:
+            return known
     else:
         scale = float(window.xmax.max() - window.xmin.min())
         periods = candidate_periods(window.section[:, 0], window.section[:, 1], scale,
@@ -206,11 +238,14 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
                            converged=cls.n > 0 or cls.converged), None  # fmt: skip
         out = orbit_classification(params, ref, st, cls.settle)
         if out is not None:
+            if orbits is not None and cls.n > 0:
+                orbits.add(params, cls.n, *out)
             return out
     if cls.n > 0 and not cls.settle <= REFINE_RTOL:
         return replace(cls, status="not_converged", converged=False), None
     return cls, None
 
 
-__all__ = ["REFINE_RTOL", "BIFURCATION_MARGIN", "FLOQUET", "Refinement", "needs_refinement",
+__all__ = ["REFINE_RTOL", "BIFURCATION_MARGIN", "FLOQUET", "OrbitCache", "Refinement",
+           "needs_refinement",
            "refine", "orbit_classification", "verify_motion"]
