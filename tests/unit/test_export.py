@@ -69,7 +69,7 @@ def _assert_equals_catalogue(ds: xr.Dataset, db: Path, nx=NX, ny=NY, chaos=True)
     for c in VARIABLES:
         got = ds[c].values[j, i]
         want = cells[c].to_numpy()
-        if c in ("motion", "status", "label", "label_npq"):
+        if c in ("motion", "status", "label", "label_npq", "critical"):
             assert [str(v) for v in got] == [str(v) for v in want], c
         else:
             np.testing.assert_array_equal(np.asarray(got, float), np.asarray(want, float), c)
@@ -111,7 +111,8 @@ def test_export_round_trip(db, tmp_path, capsys, fmt):
     else:
         df = pd.read_csv(out, keep_default_na=False, na_values=[""]) if fmt == "csv" \
             else pd.read_parquet(out)
-        df["label_npq"] = df["label_npq"].fillna("")
+        for c in ("label_npq", "critical"):  # text columns that may be empty
+            df[c] = df[c].astype(object).fillna("")
         ds = df.set_index(["b", "w"]).drop(columns=["i", "j"]).to_xarray()
         _assert_equals_catalogue(ds, db)
         meta = (json.loads(Path(str(out) + ".json").read_text()) if fmt == "csv"

@@ -46,8 +46,27 @@ def test_step_collapse_is_diverged():
     assert r.classification.status == "diverged"
 
 
-def test_unsettled_motion_is_not_converged():
-    """No transient and a tiny budget from far away: no period yet, contracting -> not_converged."""
+def test_unsettled_motion_is_labelled_by_the_orbit_it_approaches():
+    """No transient and a tiny budget from far away: no period in the 8-period window, but the
+    window approaches a stable orbit: the cell is labelled by that Newton-refined orbit, the
+    motion a long simulation from the same start settles to."""
+    st = reference_settings(transient=0, chunk=8, max_periods=8)
+    y0 = np.zeros(10)
+    y0[0] = 3.0
+    p = ModelParameters(w=0.3, b=1.0)
+    r = simulate_cell(p, y0, settings=st, transient=0)
+    c = r.classification
+    assert c.refined and c.status == "ok" and c.mu_max < 1.0
+    long = simulate_cell(p, y0, settings=reference_settings(), transient=2000).classification
+    assert not long.refined and (c.label, c.label_npq) == (long.label, long.label_npq)
+    assert c.dc == pytest.approx(long.dc, abs=1e-6)
+
+
+def test_unsettled_without_an_orbit_is_not_converged(monkeypatch):
+    """When no orbit is found (refinement fails) the unsettled window stays not_converged."""
+    import gearsim.cell.verify as verify
+
+    monkeypatch.setattr(verify, "refine", lambda *a, **k: None)
     st = reference_settings(transient=0, chunk=8, max_periods=8)
     y0 = np.zeros(10)
     y0[0] = 3.0

@@ -828,7 +828,8 @@ def summary_lines(ca: CellAttractors) -> list[str]:
 TILE_COLUMNS = ("plane", "tile", "i", "j", "x", "y", "attractor", "n_attractors", "motion",
                 "status", "label", "label_npq", "I", "n", "p", "q", "dc", "kmax", "lyapunov",
                 "basin_fraction", "n_starts", "n_early", "found_by", "starts",
-                "diverged_fraction", "periods_run", "poincare_x", "poincare_v")  # fmt: skip
+                "diverged_fraction", "periods_run", "poincare_x", "poincare_v", "mu_max",
+                "critical", "refined")  # fmt: skip
 
 
 def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -863,7 +864,8 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
                         "q": None, "dc": float("nan"), "kmax": float("nan"),
                         "lyapunov": float("nan"), "basin_fraction": 0.0, "n_starts": 0,
                         "n_early": 0, "found_by": "", "poincare_x": [],
-                        "poincare_v": []})  # fmt: skip
+                        "poincare_v": [], "mu_max": float("nan"), "critical": "",
+                        "refined": False})  # fmt: skip
             continue
         for a in ca.attractors:
             r = a.record()

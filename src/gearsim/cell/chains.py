@@ -85,6 +85,7 @@ def simulate_rows(
     u0: np.ndarray | Sequence[np.ndarray | None] | None = None,
     on_cell: Callable[[int, int, CellResult], None] | None = None,
     start_periods: Sequence[int] | None = None,
+    floquet: str = "slow",
 ) -> list[list[CellResult]]:
     """Simulate many continuation chains at once with the batched RK4 kernel.
 
@@ -110,6 +111,9 @@ def simulate_rows(
     start_periods
         Absolute period index of each chain's ``u0`` (``start_period`` of simulate_cell; only
         the slow variable-ratio forcing depends on it). Default 0.
+    floquet
+        ``"slow"``: Newton-refine the cells that settle too slowly; ``"all"``: also give every
+        periodic cell its Floquet margin (:func:`gearsim.cell.simulate.finish_cell`).
 
     Returns
     -------
@@ -136,7 +140,7 @@ def simulate_rows(
         else:
             out[r] = []
     if chains:
-        _run_chains(chains, st, bound, continuation, on_cell)
+        _run_chains(chains, st, bound, continuation, on_cell, floquet)
         for ch in chains:
             out[ch.index] = ch.results
     return out  # type: ignore[return-value]
@@ -148,6 +152,7 @@ def simulate_cells(
     settings: IntegrationSettings | None = None,
     u0: np.ndarray | Sequence[np.ndarray | None] | None = None,
     start_periods: Sequence[int] | None = None,
+    floquet: str = "slow",
 ) -> list[CellResult]:
     """Independent cells through the batched path: ``[simulate_cell(p, u0_i, start_period=k_i)]``.
 
@@ -179,14 +184,14 @@ def simulate_cells(
     for idx in groups.values():
         res = simulate_rows([[params_list[k]] for k in idx], settings=settings,
                             continuation=False, u0=[u0s[k] for k in idx],
-                            start_periods=[ks[k] for k in idx])  # fmt: skip
+                            start_periods=[ks[k] for k in idx], floquet=floquet)  # fmt: skip
         for k, r in zip(idx, res, strict=True):
             out[k] = r[0]
     return out  # type: ignore[return-value]
 
 
 def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, continuation: bool,
-                on_cell) -> None:
+                on_cell, floquet: str = "slow") -> None:
     # records of the measured periods, or of a longer recurrence probe
     lanes = Lanes(len(chains), max(st.max_periods, st.transient_recurrence))
     for l, ch in enumerate(chains):
@@ -245,7 +250,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                 elif c.phase == _PROBE:
                     _end_probe(c, lanes, st)
                 else:
-                    _decide(c, lanes, st, continuation, on_cell)
+                    _decide(c, lanes, st, continuation, on_cell, floquet)
         active = [ch for ch in chains if not ch.finished]
 
 
@@ -344,14 +349,15 @@ def _begin_measure(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     ch.left = min(st.chunk, st.max_periods)
 
 
-def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_cell) -> None:
+def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_cell,
+            floquet: str = "slow") -> None:
     """After a measuring chunk: the period test of simulate_cell, then finish or go on."""
     params = ch.cells[ch.i]
     s = lanes.summaries(ch.lane, ch.measured, copy=False)  # read before the lane moves on
     n = period_of(s, params, st)
     if n > 0 or ch.measured >= st.max_periods:
         y = lanes.state(ch.lane, N_STATE)
-        res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps)
+        res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps, floquet)
         _finish(ch, res, lanes, st, continuation, on_cell)
     elif ch.steps > st.max_steps:
         res = diverged_result(params, ch.k, ch.steps, status="budget")

@@ -20,6 +20,13 @@ period ``n``
     the unit circle (next to a period doubling ``mu -> -1``: the transient alternates, repeats
     after ``2 n`` samples within the tolerance and the repeat test alone takes it for period
     ``2 n``; docs/orbits.md, "Simulated labels next to a period doubling").
+settle distance
+    (:func:`settle_estimate`) how far the last section point still is from the period-``n``
+    orbit the sequence converges to, relative to ``scale``: the last relative difference
+    ``|P_m - P_{m-n}|`` over ``|1 - mu|``, ``mu`` the contraction per motion period read from
+    the decay of those differences over the window (signed: an alternating transient has
+    ``mu < 0``). A cell farther than :data:`gearsim.cell.verify.REFINE_RTOL` from settled is
+    labelled by its Newton-refined orbit (:mod:`gearsim.cell.verify`), not by the window.
 ``p``, ``q``
     Face (x crosses +b upward) and back (x crosses -b downward) impacts per motion period.
 ``I``
@@ -54,6 +61,10 @@ KMAX_READINGS = {
 DEFAULT_KMAX = "kmax_peak_static"
 
 MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
+
+#: relative lag-n difference below which a section sequence counts as settled whatever its rate
+#: (the RK4 map repeats a settled orbit to ~1e-14 of its scale)
+SETTLED_FLOOR = 1e-9
 
 
 @njit(cache=True, nogil=True)
@@ -223,6 +234,89 @@ def _spread_decays(section_x, m, window, n, tol_x):
     return early - late > max(2.0 * tol_x, 1e-3 * early)
 
 
+@njit(cache=True, nogil=True)
+def _rel_diff(section_x, section_v, i, lag, scale, sv):
+    return max(abs(section_x[i] - section_x[i - lag]) / scale,
+               abs(section_v[i] - section_v[i - lag]) / sv)
+
+
+@njit(cache=True, nogil=True)
+def settle_estimate(section_x, section_v, n, scale, w, max_window=96):
+    """``(distance, mu)``: how far the sequence still is from its period-``n`` limit.
+
+    ``e`` = mean relative difference ``|P_i - P_{i-n}|`` (x over ``scale``, x' over ``scale w``)
+    over the last ``2 n`` samples (pairs: an alternating second mode averages out). Over the
+    longest window ``W <= min(m - 3 n, max_window)`` (whole pairs of motion periods) ``e`` falls
+    by ``|mu|^(W / n)``: ``|mu|`` is the contraction per motion period, its sign that of the
+    correlation of successive differences (``-``: the transient alternates, a multiplier near
+    -1). With ``P_k = O + c mu^(k/n) v`` the last point lies ``|mu|^(2 - 1/(2n)) e / |1 -
+    mu|`` from the orbit ``O``. Returns ``(e, 0)`` when ``e <= SETTLED_FLOOR`` (settled to the
+    map's noise), ``(e, nan)`` when the window is too short for a rate, ``(inf, mu)`` when the
+    differences do not shrink. ``distance`` is relative to ``scale``.
+    """
+    m = len(section_x)
+    scale = max(scale, 1e-9)
+    sv = scale * max(w, 1e-3)
+    if m < 3 * n:
+        return np.inf, np.nan
+    e_end = 0.0
+    for i in range(m - 2 * n, m):
+        e_end += _rel_diff(section_x, section_v, i, n, scale, sv)
+    e_end /= 2 * n
+    if not np.isfinite(e_end):
+        return np.inf, np.nan
+    if e_end <= SETTLED_FLOOR:
+        return e_end, 0.0
+    W = (min(m - 3 * n, max_window) // (2 * n)) * (2 * n)
+    if W < 2 * n:
+        return e_end, np.nan
+    e_start = 0.0
+    corr = 0.0
+    for i in range(m - 1 - W - 2 * n + 1, m - 1 - W + 1):
+        e_start += _rel_diff(section_x, section_v, i, n, scale, sv)
+    e_start /= 2 * n
+    for i in range(m - W, m):
+        corr += (section_x[i] - section_x[i - n]) * (section_x[i - n] - section_x[i - 2 * n])
+    if not e_start > 0.0:
+        return np.inf, np.nan
+    rate = (e_end / e_start) ** (n / W)
+    mu = -rate if corr < 0.0 else rate
+    if rate >= 1.0:
+        return np.inf, mu
+    # d_i = P_i - P_(i-n) = c mu^((i-n)/n) (mu - 1): the last point is |d_(m-1)| |mu| / |1 - mu|
+    # from the orbit, and the mean over the 2 n samples is |d| at their geometric middle
+    return e_end * rate ** (1.0 + (2 * n - 1) / (2.0 * n)) / abs(1.0 - mu), mu
+
+
+def candidate_periods(section_x, section_v, scale, w, n_max, *, near=0.05, k=2):
+    """Up to ``k`` periods ``n <= n_max`` whose last relative differences ``|P_i - P_{i-n}|``
+    (mean over ``2 n`` samples) are below ``near``: the periodic orbits an unsettled sequence
+    may be approaching, closest first; a multiple of an accepted period is skipped. None below
+    ``near``: the one with the smallest difference (a transient still far from its orbit)."""
+    m = len(section_x)
+    scale = max(float(scale), 1e-9)
+    sv = scale * max(float(w), 1e-3)
+    found = []
+    best = (math.inf, 0)
+    for n in range(1, int(n_max) + 1):
+        if 3 * n > m:
+            break
+        e = float(np.mean([_rel_diff(section_x, section_v, i, n, scale, sv)
+                           for i in range(m - 2 * n, m)]))  # fmt: skip
+        best = min(best, (e, n))
+        if e < near:
+            found.append((e, n))
+    if not found and best[1] > 0 and math.isfinite(best[0]):
+        found = [best]  # a slow transient far from its orbit: the best repeat only
+    out: list[int] = []
+    for _, n in sorted(found):
+        if not any(n % a == 0 for a in out):
+            out.append(n)
+        if len(out) >= k:
+            break
+    return out
+
+
 def impact_state(face: int, back: int, disengaged_time: float, total_time: float) -> int:
     """Impact state I from impact counts and disengagement over a window."""
     if face > 0 and back > 0:
@@ -241,7 +335,7 @@ class Classification:
     """The steady motion of one cell."""
 
     motion: str  # one of MOTIONS
-    status: str  # ok | not_converged | diverged
+    status: str  # ok | bifurcation | not_converged | diverged | budget
     I: int
     n: int  # 0 when no period <= n_max
     p: int | None
@@ -259,6 +353,12 @@ class Classification:
     x_max: float
     converged: bool
     window_periods: int
+    # Floquet margin: largest multiplier modulus of the Newton-refined orbit (per motion
+    # period), NaN where no orbit was refined
+    mu_max: float = float("nan")
+    critical: str = ""  # kind of that multiplier: fold | period_doubling | neimark_sacker
+    refined: bool = False  # the label is that of the Newton-refined orbit
+    settle: float = float("nan")  # settle distance of the window (relative to the x range)
 
     @property
     def kmax(self) -> float:

@@ -43,7 +43,11 @@ PARAMETERS: dict[str, tuple[str, str]] = {
 #: Columns of a classified cell (``CellResult.row()``; ``I`` is stored as ``impact``).
 RESULT: dict[str, tuple[str, str]] = {
     "motion": ("", "periodic | quasi-periodic | chaos | unsettled | diverged"),
-    "status": ("", "ok | not_converged | diverged (how the integration ended)"),
+    "status": (
+        "",
+        "ok | bifurcation (a refined orbit within 1e-3 of |mu| = 1) | not_converged | "
+        "diverged | budget (how the motion was settled)",
+    ),
     "impact": (
         "",
         "impact state I: 0 never disengaged, 1 face impacts only, -1 back impacts only, "
@@ -66,6 +70,17 @@ RESULT: dict[str, tuple[str, str]] = {
     "x_max": ("1 (X_n / b_c)", "largest mesh displacement over the analysed window"),
     "converged": ("", "true when a period was found (or chaos / quasi-periodic decided)"),
     "window_periods": ("mesh periods", "length of the analysed window"),
+    "mu_max": (
+        "1 (per motion period)",
+        "Floquet margin: largest Floquet multiplier modulus of the Newton-refined periodic orbit "
+        "(< 1 stable; bifurcation curves are where it reaches 1); NULL where not refined",
+    ),
+    "critical": ("", "kind of that multiplier: fold | period_doubling | neimark_sacker"),
+    "refined": ("", "true when the label is that of the Newton-refined orbit (slow settling)"),
+    "settle": (
+        "1 (of the x range)",
+        "estimated distance of the last section point from the periodic orbit it settles to",
+    ),
     "periods": ("mesh periods", "mesh periods integrated in all for this cell"),
     "steps": ("1", "integrator steps taken for this cell"),
 }
@@ -176,6 +191,9 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("attractors", "dc"): RESULT["dc"],
     ("attractors", "kmax"): RESULT["kmax"],
     ("attractors", "lyapunov"): RESULT["lyapunov"],
+    ("attractors", "status"): RESULT["status"],
+    ("attractors", "mu_max"): RESULT["mu_max"],
+    ("attractors", "critical"): RESULT["critical"],
     ("attractors", "basin_fraction"): ("1", "share of the cell's seeded starts that reach it"),
     ("attractors", "n_starts"): ("1", "seeded starts that reach it"),
     ("attractors", "n_early"): ("1", "of those, labelled early by recurrence"),

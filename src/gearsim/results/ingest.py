@@ -387,6 +387,8 @@ def _insert_attractors(session: Session, f: Path, counts: dict) -> None:
                 "q": None if _nan_to_none(r["q"]) is None else int(r["q"]),
                 "dc": _nan_to_none(r["dc"]), "kmax": _nan_to_none(r["kmax"]),
                 "lyapunov": _nan_to_none(r["lyapunov"]),
+                "status": r.get("status"), "mu_max": _nan_to_none(r.get("mu_max")),
+                "critical": r.get("critical") or None,
                 "basin_fraction": float(r["basin_fraction"]), "n_starts": int(r["n_starts"]),
                 "n_early": int(r["n_early"]), "found_by": r["found_by"],
             }  # fmt: skip

@@ -247,6 +247,11 @@ class CellAttractor(Base):
     dc: Mapped[float | None] = mapped_column(Float)
     kmax: Mapped[float | None] = mapped_column(Float)
     lyapunov: Mapped[float | None] = mapped_column(Float)
+    # how the motion was settled and the Floquet margin of its refined orbit (NULL: not
+    # refined, or a tile written before these columns)
+    status: Mapped[str | None] = mapped_column(String(16))
+    mu_max: Mapped[float | None] = mapped_column(Float)
+    critical: Mapped[str | None] = mapped_column(String(16))
     basin_fraction: Mapped[float] = mapped_column(Float)
     n_starts: Mapped[int] = mapped_column(Integer)
     n_early: Mapped[int] = mapped_column(Integer)

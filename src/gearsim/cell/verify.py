@@ -1,0 +1,216 @@
+"""Labels backed by the orbit: Newton refinement of cells that settle too slowly for the budget.
+
+Next to a period doubling, a fold or a grazing the leading Floquet multiplier of the attracting
+orbit approaches the unit circle and a transient decays over hundreds of periods: the measured
+window is then a reading of the transient, not of the motion. :func:`refine` settles such a
+cell: Newton shooting on the stroboscopic map (:func:`gearsim.numerics.shooting.newton_orbit`,
+the one orbit solver) from the last section state, for the cell's period (or, without one, for
+the periods the section points nearly repeat after:
+:func:`gearsim.cell.classify.candidate_periods`).
+The orbit is accepted when Newton converges, the orbit is stable (``|mu|max < 1``) and the
+simulated window approaches it (its mean distance to the orbit's section points falls from the
+first to the last quarter of the window, or is already below 1e-6 of the orbit's range). The
+cell is then labelled by that orbit (its pattern, DC and Kmax over one motion period from the
+orbit's section state; its exponent the leading Floquet exponent ``log|mu|max / (n T)``), with
+its Floquet margin ``mu_max`` and the kind of its critical multiplier.
+
+A cell whose Newton orbit has just lost stability (``1 <= |mu|max < 1 +`` the margin, e.g. a
+period-2 window next to the period-1 orbit it doubled from) keeps its window's reading with
+status ``bifurcation`` and that orbit's ``mu_max`` and ``critical`` (``refined`` false).
+
+Status of a refined cell: ``ok``, or ``bifurcation`` when ``1 - |mu|max <``
+:data:`BIFURCATION_MARGIN` (the transient's e-folding time exceeds 1000 motion periods: no
+simulation of the budget tells the two sides of the bifurcation apart, and the cell sits within
+a small fraction of a grid step of it; the label is the orbit's, ``critical`` says which
+bifurcation).
+
+Which cells: a periodic cell whose settle distance
+(:func:`gearsim.cell.classify.settle_estimate`) exceeds :data:`REFINE_RTOL` of its range, and a
+cell without a period whose exponent does not say chaos (``quasi-periodic`` or ``unsettled``).
+With ``floquet="all"`` every periodic cell gets its Floquet margin (the sweeps' and points'
+option; a plane's fast-settling cells keep ``mu_max`` NaN: their refinement would cost more than
+the whole simulation, docs/decisions.md "Verified motions").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from gearsim.cell.classify import Classification, candidate_periods, classify_motion
+from gearsim.dynamics.model import N_STATE
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics.integrate import STATUS_OK, IntegrationSettings, PeriodSummaries, run_periods
+from gearsim.numerics.shooting import (
+    SHOOTING,
+    OrbitError,
+    multiplier_kind,
+    newton_orbit,
+    section_map,
+    sorted_eigs,
+)
+
+#: a periodic cell farther than this from settled (relative to its x range) is refined: ten
+#: times below the attractor finder's merge tolerance (1e-3), so two starts on one orbit merge
+REFINE_RTOL = 1e-4
+#: ``1 - |mu|max`` below which a refined cell's status is ``bifurcation``
+BIFURCATION_MARGIN = 1e-3
+#: Newton shooting of a DP5 cell: rtol 1e-10 (multipliers within 1e-10 of those at 1e-12)
+REFINE_SHOOTING = SHOOTING.with_(rtol=1e-10, atol=1e-12)
+#: an RK4 cell is refined with RK4 at this many times its steps per period: the orbit of the
+#: cell's own integrator, multipliers within 1.2e-7 of DP5 at 1e-12 (192 steps: 1.8e-6), at a
+#: fifth of the DP5 cost (docs/decisions.md, "Verified motions")
+RK4_REFINE_FACTOR = 2
+
+
+def refine_settings(st: IntegrationSettings) -> IntegrationSettings:
+    """The Newton-shooting settings for a cell simulated with ``st``."""
+    if st.method == "rk4":
+        return st.with_(steps_per_period=RK4_REFINE_FACTOR * st.steps_per_period)
+    return REFINE_SHOOTING
+#: Newton converged when max |P^n(y) - y| is below this (dimensionless state units)
+REFINE_TOL = 1e-9
+REFINE_MAX_ITER = 12
+#: FLOQUET modes: "slow" refines the cells that need it, "all" every periodic cell too
+FLOQUET = ("slow", "all")
+
+
+@dataclass
+class Refinement:
+    """A stable periodic orbit a cell's trajectory approaches."""
+
+    n: int  # minimal period (mesh periods)
+    state: np.ndarray  # (10,) section state of the orbit
+    multipliers: np.ndarray  # of P^n, sorted by decreasing modulus
+    residual: float
+    iterations: int
+    approach: float  # mean distance of the last quarter of the window to the orbit (rel.)
+
+    @property
+    def mu_max(self) -> float:
+        return float(abs(self.multipliers[0]))
+
+    @property
+    def critical(self) -> str:
+        return multiplier_kind(complex(self.multipliers[0]))
+
+
+def needs_refinement(cls: Classification, floquet: str = "slow") -> bool:
+    """Whether :func:`refine` should settle this classification (see the module docstring)."""
+    if cls.status in ("diverged", "budget"):
+        return False
+    if cls.n > 0:
+        return floquet == "all" or not cls.settle <= REFINE_RTOL
+    return cls.motion in ("quasi-periodic", "unsettled")
+
+
+def _distances(points: np.ndarray, orbit: np.ndarray, scale: float, w: float) -> np.ndarray:
+    """Relative distance of each point to the nearest orbit section point (x, x')."""
+    dx = np.abs(points[:, None, 0] - orbit[None, :, 0]) / scale
+    dv = np.abs(points[:, None, 1] - orbit[None, :, 1]) / (scale * max(w, 1e-3))
+    return np.min(np.maximum(dx, dv), axis=1)
+
+
+def _minimal_period(section: np.ndarray, n: int) -> int:
+    scale = 1.0 + float(np.max(np.abs(section[:, :2])))
+    for m in range(1, n + 1):
+        if n % m == 0 and np.all(np.abs(section[m % n] - section[0]) <= 1e-7 * scale):
+            return m
+    return n
+
+
+def refine(params: ModelParameters, window: PeriodSummaries, n: int, guess: np.ndarray,
+           st: IntegrationSettings) -> Refinement | None:
+    """The stable period-``n`` orbit the window approaches, from the section state ``guess``,
+    or an orbit that has just lost stability (``|mu|max < 1 +`` :data:`BIFURCATION_MARGIN`, no
+    approach test); None when Newton fails, the orbit is farther from stable or the window
+    does not approach it."""
+    if params.var_ratio != 0.0:
+        return None  # the map is not T-periodic: no orbit to refine
+    p = params.to_array()
+    rst = refine_settings(st)
+    try:
+        y, _, M, r, it = newton_orbit(params, n, guess, rst, tol=REFINE_TOL,
+                                      max_iter=REFINE_MAX_ITER, parray=p)  # fmt: skip
+    except OrbitError:
+        return None
+    run = run_periods(params, y, n, rst, parray=p)
+    if run.status != STATUS_OK:
+        return None
+    section = run.summaries.section  # states at the start of each period: P^k(y), k < n
+    m = _minimal_period(section, n)
+    if m < n:
+        try:
+            _, M = section_map(params, y, m, rst, parray=p)
+        except OrbitError:
+            return None
+        section = section[:m]
+    mu = sorted_eigs(M)
+    if not abs(mu[0]) < 1.0:
+        if abs(mu[0]) < 1.0 + BIFURCATION_MARGIN:
+            # just past a bifurcation: the window leaves this orbit slowly (no approach test)
+            return Refinement(m, y[:N_STATE].copy(), mu, r, it, math.nan)
+        return None
+    scale = max(float(window.xmax.max() - window.xmin.min()), 1e-9)
+    q = max(len(window) // 4, 1)
+    d = _distances(window.section[:, :2], section[:, :2], scale, params.w)
+    early, late = float(np.mean(d[:q])), float(np.mean(d[-q:]))
+    if not (late < early or late <= 1e-6):
+        return None
+    return Refinement(m, y[:N_STATE].copy(), mu, r, it, late)
+
+
+def orbit_classification(params: ModelParameters, ref: Refinement, st: IntegrationSettings,
+                         settle: float) -> tuple[Classification, np.ndarray] | None:
+    """The classification of the refined orbit (one motion period from its section state, the
+    cell's integrator) and its section points; None if that run diverges."""
+    run = run_periods(params, ref.state, ref.n, st)
+    if run.status != STATUS_OK or len(run.summaries) < ref.n:
+        return None
+    cls = classify_motion(
+        run.summaries, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
+        Fe=params.Fe, n=ref.n, lyap_threshold=st.lyap_threshold,
+    )  # fmt: skip
+    T = 2.0 * math.pi / params.w
+    status = "bifurcation" if 1.0 - ref.mu_max < BIFURCATION_MARGIN else "ok"
+    cls = replace(cls, status=status, lyapunov=math.log(ref.mu_max) / (ref.n * T),
+                  mu_max=ref.mu_max, critical=ref.critical, refined=True, settle=settle,
+                  converged=True)  # fmt: skip
+    return cls, run.summaries.section.copy()
+
+
+def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classification,
+                  st: IntegrationSettings, guess: np.ndarray, floquet: str = "slow"
+                  ) -> tuple[Classification, np.ndarray | None]:
+    """Settle ``cls`` by its orbit where it needs it: ``(classification, orbit section points or
+    None)``. A periodic cell whose refinement fails keeps its label with status
+    ``not_converged`` when it is farther than :data:`REFINE_RTOL` from settled."""
+    if not needs_refinement(cls, floquet):
+        return cls, None
+    if cls.n > 0:
+        periods = [cls.n]
+    else:
+        scale = float(window.xmax.max() - window.xmin.min())
+        periods = candidate_periods(window.section[:, 0], window.section[:, 1], scale,
+                                    params.w, min(st.n_max, 16))  # fmt: skip
+    for n in periods:
+        ref = refine(params, window, n, guess, st)
+        if ref is None:
+            continue
+        if ref.mu_max >= 1.0:
+            # the orbit Newton finds has just lost stability: the window's own reading stays,
+            # the status says the cell sits at that orbit's bifurcation
+            return replace(cls, status="bifurcation", mu_max=ref.mu_max, critical=ref.critical,
+                           converged=cls.n > 0 or cls.converged), None  # fmt: skip
+        out = orbit_classification(params, ref, st, cls.settle)
+        if out is not None:
+            return out
+    if cls.n > 0 and not cls.settle <= REFINE_RTOL:
+        return replace(cls, status="not_converged", converged=False), None
+    return cls, None
+
+
+__all__ = ["REFINE_RTOL", "BIFURCATION_MARGIN", "FLOQUET", "Refinement", "needs_refinement",
+           "refine", "orbit_classification", "verify_motion"]

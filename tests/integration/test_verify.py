@@ -1,0 +1,182 @@
+"""Verified motions: the settle distance, Newton-refined labels and the Floquet margin.
+
+References: geometric sequences with a known limit (the settle estimate), the linear single-DOF
+limit (multipliers ``exp((-xi +/- i sqrt(1 - xi^2)) T)``, modulus ``exp(-xi 2 pi / w)``), the
+orbit solver of ``gearsim orbit`` (:func:`gearsim.analysis.orbits.find_periodic_orbit`) at its
+own tighter tolerance, and long simulations (4 000 periods) of the same cell.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from gearsim.analysis.attractors import find_attractors, n_real
+from gearsim.analysis.orbits import find_periodic_orbit
+from gearsim.cell.classify import candidate_periods, settle_estimate
+from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.cell.verify import BIFURCATION_MARGIN, REFINE_RTOL
+from gearsim.dynamics.parameters import ModelParameters
+
+
+def _sequence(mu, m, c=0.01, period=1, amp=1.0):
+    """Section points ``P_k = O_(k mod period) + c mu^k (1, 0.5)`` of a period-``period`` orbit
+    with range ``2 amp``."""
+    k = np.arange(m)
+    orbit_x = amp * np.cos(2 * np.pi * (k % period) / max(period, 1))
+    orbit_v = amp * np.sin(2 * np.pi * (k % period) / max(period, 1))
+    t = c * np.real(mu ** k.astype(float) if np.isrealobj(mu) else mu**k)
+    return orbit_x + t, orbit_v + 0.5 * t
+
+
+@pytest.mark.parametrize("mu, m", [(0.99, 200), (-0.99, 200), (0.9, 80), (-0.6, 30)])
+def test_settle_estimate_reads_the_distance_and_the_multiplier(mu, m):
+    x, v = _sequence(mu, m)
+    dist, est = settle_estimate(x, v, 1, 2.0, 1.0)
+    true = abs(0.01 * mu ** (m - 1)) / 2.0  # x distance of the last point over the range 2
+    assert est == pytest.approx(mu, abs=2e-3)
+    assert dist == pytest.approx(true, rel=0.05)
+
+
+def test_settle_estimate_settled_short_and_growing():
+    x, v = _sequence(0.5, 200)  # 0.5^200: settled to the noise floor
+    assert settle_estimate(x, v, 1, 2.0, 1.0) == (pytest.approx(0.0, abs=1e-9), 0.0)
+    x, v = _sequence(0.99, 5)  # too short for a rate
+    d, mu = settle_estimate(x, v, 2, 2.0, 1.0)
+    assert math.isinf(d) and math.isnan(mu)
+    x, v = _sequence(1.01, 100)  # growing differences: not settling
+    assert math.isinf(settle_estimate(x, v, 1, 2.0, 1.0)[0])
+
+
+def test_candidate_periods_prefers_the_smallest_repeat():
+    x, v = _sequence(0.95, 120, c=0.02, period=3)
+    assert candidate_periods(x, v, 2.0, 1.0, 16)[0] == 3
+    rng = np.random.default_rng(1)
+    assert len(candidate_periods(rng.random(120), rng.random(120), 1.0, 1.0, 16)) == 1
+
+
+# ---------------------------------------------------------------- the linear single-DOF limit
+def _linear(w, xi):
+    """In permanent contact (no impact: the forced amplitude stays below the mean load), no
+    stiffness fluctuation: a damped linear oscillator of natural frequency 1."""
+    return ModelParameters(model="1dof", w=w, xi=xi, eps=0.0, Fm=0.1, Fe=0.02, b=0.5)
+
+
+@pytest.mark.parametrize("w", [0.7, 1.6, 2.2])
+def test_linear_limit_floquet_margin_is_exp_minus_xi_T(w):
+    xi = 0.05
+    res = simulate_cell(_linear(w, xi), floquet="all")
+    c = res.classification
+    assert c.label == "0/1T" and c.refined and c.status == "ok"
+    assert c.mu_max == pytest.approx(math.exp(-xi * 2 * math.pi / w), abs=1e-8)
+    assert c.critical == "neimark_sacker"  # a complex pair: the damped free oscillation
+
+
+def test_slow_linear_transient_is_labelled_by_its_orbit():
+    """Multiplier modulus 0.995: 406 periods from rest leave 13 % of the transient, the window
+    rotates with it (no period, exponent about 0: 'quasi-periodic' by the exponent alone)."""
+    w = 1.6
+    xi = -math.log(0.995) * w / (2 * math.pi)
+    p = _linear(w, xi)
+    c = simulate_cell(p).classification
+    assert c.motion == "periodic" and c.label == "0/1T" and c.refined
+    assert c.status == "ok" and 1.0 - c.mu_max > BIFURCATION_MARGIN
+    assert c.mu_max == pytest.approx(0.995, abs=1e-8)
+    # starts that stay in contact (the linear regime) all settle onto that one orbit
+    ends = []
+    for dx, dv in ((0.05, 0.0), (-0.05, 0.02), (0.0, -0.06)):
+        y = np.array(simulate_cell(p, samples=24).final_state)
+        y[0] += dx
+        y[1] += dv
+        r = simulate_cell(p, y, transient=150)
+        assert r.classification.refined and r.classification.label == "0/1T"
+        ends.append(r.poincare[0, :2])
+    assert np.max(np.abs(np.array(ends) - ends[0])) < 1e-8
+
+
+# ---------------------------------------------------------------- the standard (6-DOF) set
+def test_one_orbit_next_to_the_doubling_is_one_attractor(standard):
+    """w = 1.003, b = 0.9: the 1T orbit has |mu|max 0.989 (doubling at 1.0055); 150 periods
+    leave ~19 % of a start's distance. All 16 starts are one attractor, its margin that of
+    ``gearsim orbit``."""
+    p = standard.with_(w=1.003, b=0.9)
+    st = IntegrationSettings(method="rk4", steps_per_period=192)
+    ca = find_attractors(p, starts=16, settings=st)
+    assert n_real(ca) == 1
+    a = ca.attractors[0]
+    assert a.label == "1/1T" and a.steady.info["refined"]
+    orbit = find_periodic_orbit(p, 1, a.steady.final_state)
+    assert a.steady.info["mu_max"] == pytest.approx(orbit.mu_max, abs=1e-6)
+    assert a.steady.info["critical"] == "period_doubling"
+
+
+@pytest.fixture(scope="module")
+def standard():
+    from gearsim.study.config import standard_parameters
+
+    return standard_parameters()
+
+
+def test_refine_threshold_is_below_the_merge_tolerance():
+    assert REFINE_RTOL <= 0.1 * 1e-3
+
+
+# ---------------------------------------------------------------- next to bifurcations
+#: cells next to period doublings, folds and grazings of both default planes, the xi = 0.15
+#: sweep and the hysteresis sweep: where the study's budget left slow transients
+#: (benchmarks/bench_refine.py rows; docs/decisions.md "Verified motions")
+NEAR_BIFURCATIONS = [
+    # (w, b, xi): None keeps the standard value
+    (1.237, None, 0.04615), (1.243, None, 0.04615), (1.327, None, 0.04615),
+    (1.615, None, 0.04615), (0.973, None, 0.04615), (1.393, None, 0.07615),
+    (1.399, None, 0.07615), (1.525, None, 0.07615), (1.111, None, 0.10615),
+    (1.117, None, 0.10615), (1.675, None, 0.10615), (1.255, None, 0.13615),
+    (1.579, None, 0.13615), (1.009, 0.37625, None), (1.003, 0.9, None), (1.75, 0.55, None),
+    (1.29, 0.55, None), (0.95, 0.15, None), (1.31, 0.35, None), (1.34, None, 0.15),
+    (1.342, None, 0.15), (1.466, None, 0.15), (1.47, None, 0.15), (0.55, None, None),
+    (0.6, None, None), (0.65, None, None),
+]
+
+
+def test_labels_next_to_bifurcations_agree_with_long_simulations(standard, monkeypatch):
+    """The study's budget (150 + 256 periods) with refinement against 12 000 transient periods
+    from the same start: no cell is quasi-periodic where the long run settles on a period, and
+    a periodic label is the long run's (cells at a bifurcation excepted: there the two sides
+    are one grid step apart and both labels are readings of the same critical orbit)."""
+    from gearsim.cell.chains import simulate_cells
+    from gearsim.study.config import study_settings
+
+    st = study_settings()
+    cells = []
+    for w, b, xi in NEAR_BIFURCATIONS:
+        ch = {"w": w} | ({"b": b} if b is not None else {}) | ({"xi": xi} if xi else {})
+        cells.append(standard.with_(**ch))
+    short = simulate_cells(cells, settings=st)
+    # the reference: the plain long simulation, no refinement. 12 000 periods: at w = 1.47,
+    # xi = 0.15 the 1T orbit has |mu|max 0.99876 (e-folding 800 periods); after 4 000 the
+    # decaying alternation still reads as 2-2-0, after 12 000 it is 1-1-0, the refined label
+    import gearsim.cell.verify as verify
+
+    monkeypatch.setattr(verify, "needs_refinement", lambda cls, floquet="slow": False)
+    long = simulate_cells(cells, settings=st.with_(transient=12000))
+    refined, compared, bad, lines = 0, 0, [], []
+    for p, s, g in zip(cells, short, long, strict=True):
+        a, r = s.classification, g.classification
+        where = (f"w={p.w} b={p.b} xi={p.xi}: {a.label} {a.label_npq} {a.status} "
+                 f"refined={a.refined} mu={a.mu_max:.5f} vs {r.label} {r.label_npq} {r.status}")
+        lines.append(where)
+        refined += bool(a.refined)
+        if r.motion == "periodic" and a.motion == "quasi-periodic":
+            bad.append(where)
+        # a claim is a settled label: not_converged says there is none, bifurcation that the
+        # cell sits on the critical orbit (both sides are readings of it)
+        if a.status != "ok" or r.status != "ok":
+            continue
+        if r.motion == "periodic" and a.motion == "periodic":
+            compared += 1
+            if (a.n, a.p, a.q) != (r.n, r.p, r.q) or abs(a.dc - r.dc) > 2e-3:
+                bad.append(where)
+    print("\n".join(lines))
+    assert not bad, "\n".join(bad)
+    assert refined >= len(cells) // 3  # the set does exercise the refinement
+    assert compared >= 20
