@@ -86,7 +86,8 @@ def plane_lines(planes: list[dict[str, Any]], h: str = "##") -> list[str]:
                 f"| pattern | area | {xn} from | {xn} to | {yn} from | {yn} to |",
                 "|---|---|---|---|---|---|"]
         for e in p["extents"]:
-            out.append(f"| {e['label']} | {100 * e['share']:.1f} % ({e['cells']} cells) | "
+            n = f"{e['cells']} cell" + ("s" if e["cells"] != 1 else "")
+            out.append(f"| {e['label']} | {100 * e['share']:.1f} % ({n}) | "
                        f"{e['x'][0]:.4g} | {e['x'][1]:.4g} | {e['y'][0]:.4g} | "
                        f"{e['y'][1]:.4g} |")
         out.append("")

@@ -193,6 +193,11 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--sweep-diagrams needs at least one --sweep NAME=PATH")
     if args.maps and not args.plane:
         raise UsageError("--maps needs at least one --plane NAME=PATH")
+    for kind in args.map or ():
+        registry.figures()  # extensions register their maps on import
+        if kind not in registry.PLANE_MAPS:
+            raise UsageError(f"unknown plane map '{kind}'; allowed: "
+                             f"{', '.join(registry.PLANE_MAPS)}")
     from gearsim.study.preflight import check_folder
 
     check_folder(outdir, what="--outdir")  # writable, with room, before any drawing
