@@ -180,3 +180,27 @@ def test_labels_next_to_bifurcations_agree_with_long_simulations(standard, monke
     assert not bad, "\n".join(bad)
     assert refined >= len(cells) // 3  # the set does exercise the refinement
     assert compared >= 20
+
+
+def test_floquet_margin_map_draws_margins_bifurcations_and_the_rest():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import pandas as pd
+
+    from gearsim.presentation.figures.multistability import figure_floquet_margin
+
+    xs, ys = np.linspace(0.5, 2.0, 4), np.array([0.05, 0.1])
+    rows = []
+    kinds = {(0, 0): ("periodic", "ok", 0.9), (1, 0): ("periodic", "bifurcation", 0.9995),
+             (2, 0): ("periodic", "ok", np.nan), (3, 0): ("chaos", "ok", np.nan)}
+    for j, y in enumerate(ys):
+        for i, x in enumerate(xs):
+            motion, status, mu = kinds.get((i, j), ("periodic", "ok", 0.5))
+            rows.append({"x": x, "y": y, "motion": motion, "status": status, "mu_max": mu})
+    fig = figure_floquet_margin(pd.DataFrame(rows), "w", "xi")
+    ax = fig.axes[0]
+    under, margin = (np.ma.filled(m.get_array(), np.nan).reshape(2, 4) for m in ax.collections)
+    assert margin[0, 0] == pytest.approx(0.1) and margin[1, 2] == pytest.approx(0.5)
+    assert np.isnan(margin[0, 1]) and under[0, 1] == 2  # bifurcation: black
+    assert under[0, 2] == 1 and under[0, 3] == 0  # settled fast (grey), no orbit (white)

@@ -340,3 +340,81 @@ def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
+                          title: str | None = None, xlim=None, ylim=None):
+    """Floquet margin of a plane: ``1 - |mu|max`` of each cell's Newton-refined orbit (log
+    scale; the bifurcation curves are where it reaches 0), black where the status is
+    ``bifurcation`` (within 1e-3 of the unit circle), light grey where the cell settled fast
+    and was not refined (its margin is larger than a slow transient's), white where the cell
+    has no periodic orbit (chaos, quasi-periodic, unsettled, diverged).
+    ``cells``: a plane's cell rows (``x``, ``y``, ``motion``, ``status``, ``mu_max``)."""
+    from matplotlib.colors import LogNorm
+
+    df = cells[["x", "y"]].copy()
+    mu = pd.to_numeric(cells["mu_max"], errors="coerce").to_numpy(dtype=float)
+    status = cells["status"].astype(str).to_numpy()
+    periodic = cells["motion"].astype(str).to_numpy() == "periodic"
+    margin = np.where(np.isfinite(mu), np.clip(1.0 - mu, 1e-4, 1.0), np.nan)
+    df["margin"] = np.where(status == "bifurcation", np.nan, margin)
+    df["kind"] = np.select([status == "bifurcation", np.isfinite(df["margin"]), periodic],
+                           [2.0, np.nan, 1.0], default=0.0)  # fmt: skip
+    xs, ys, M = _grid(df, "margin")
+    _, _, K = _grid(df, "kind", fill=0.0)
+    ex, ey = _edges(xs, xlim), _edges(ys, ylim)
+    fig, ax = plt.subplots(figsize=(8.4, 5.2))
+    under = ListedColormap(["#ffffff", "#d9d9d9", "#000000"])
+    ax.pcolormesh(ex, ey, np.ma.masked_invalid(K), cmap=under,
+                  norm=BoundaryNorm([-0.5, 0.5, 1.5, 2.5], 3), shading="flat",
+                  rasterized=True)  # fmt: skip
+    m = ax.pcolormesh(ex, ey, np.ma.masked_invalid(M), cmap="viridis",
+                      norm=LogNorm(vmin=1e-4, vmax=1.0), shading="flat", rasterized=True)
+    cb = fig.colorbar(m, ax=ax)
+    cb.set_label("Floquet margin 1 - |mu|max of the refined orbit")
+    n_ref = int(np.isfinite(margin).sum())
+    handles = [
+        Patch(facecolor="#000000", label=f"bifurcation ({int((status == 'bifurcation').sum())} "
+              "cells: 1 - |mu|max < 1e-3)"),
+        Patch(facecolor="#d9d9d9", edgecolor="#555555", lw=0.4,
+              label="periodic, settled fast (not refined)"),
+        Patch(facecolor="#ffffff", edgecolor="#555555", lw=0.4, label="no periodic orbit"),
+    ]  # fmt: skip
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.13), ncol=3,
+              fontsize=7, frameon=False, title=f"{n_ref} of {len(df)} cells refined",
+              title_fontsize=7)  # fmt: skip
+    ax.set_xlabel(style.param_label(x_name))
+    ax.set_ylabel(style.param_label(y_name))
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def _map_floquet(df: pd.DataFrame):
+    """The Floquet-margin map of a plane's cells table (:data:`registry.PLANE_MAPS` entry)."""
+    from gearsim.presentation.figures.data import plane_axes
+
+    xn, yn = plane_axes(df)
+    cells = df.assign(x=df[xn], y=df[yn])
+    n_ref = int(pd.to_numeric(cells["mu_max"], errors="coerce").notna().sum())
+    n_bif = int((cells["status"].astype(str) == "bifurcation").sum())
+    fig = figure_floquet_margin(cells, xn, yn)
+    return (fig, f"Floquet margin 1 - |mu|max of the Newton-refined orbit of every cell that "
+            f"settled slowly ({n_ref} of {len(cells)} cells), black at a bifurcation "
+            f"({n_bif} cells within 1e-3 of |mu| = 1); the bifurcation curves are where the "
+            "margin reaches 0.",
+            ["Cells that settled fast were not refined (light grey): their margin is larger "
+             "than a slow transient's, and refining them would cost more than simulating "
+             "them (docs/decisions.md, 'Verified motions')."])
+
+
+def register_maps() -> None:
+    from gearsim.presentation.figures.registry import MapSpec, register_map
+
+    register_map(MapSpec("floquet", "Floquet margin of the refined orbits", _map_floquet,
+                         ("mu_max", "status", "motion")))
+
+
+register_maps()
+
