@@ -6,7 +6,10 @@ ROOT = Path(__file__).resolve().parents[1]
 os.environ.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".numba_cache"))
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+# tests/ and its tier folders are import roots: shared helpers (reference.py, tiny_study.py, ...)
+# and the helpers one test file takes from another, across tiers
+for _folder in ("workflow", "integration", "unit", ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent / _folder))
 
 
 import pytest  # noqa: E402

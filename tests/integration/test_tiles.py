@@ -99,7 +99,7 @@ def test_defaults_filled():
         (lambda c: c["parameters"].update(xi=-1), "parameters.xi", "outside"),
         (lambda c: c["sweeps"]["b015"].update(min=3, max=1), "sweeps.b015", "reversed"),
         (lambda c: c["integration"].update(rtol=2), "integration.rtol", "maximum"),
-        (lambda c: c["planes"]["wb"]["y"].update(min=-1), "planes.wb.y", "outside"),
+        (lambda c: c["planes"]["wb"]["y"].update(min=-1), "planes.wb.y.min", "outside"),
         (lambda c: c["planes"].update(sweeps=c["planes"]["wb"]), "planes.sweeps", "reserved"),
     ],
 )

@@ -243,8 +243,11 @@ def test_editing_a_layer_reruns_only_the_jobs_that_depend_on_it(tiny_run, tmp_pa
     import shutil
 
     wd, _, _ = tiny_run
+    # a project whose src/ is a copy (the schema and config files are the checkout's)
     src = tmp_path / "src"
     shutil.copytree(ROOT / "src", src, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    for name in ("workflow", "config", "pyproject.toml"):
+        (tmp_path / name).symlink_to(ROOT / name)
     assert "Nothing to be done" in _dry_with_package(wd, src)  # the copy is the same code
     style = src / "gearsim/presentation/figures/style.py"
     style.write_text(style.read_text() + "\n# an edit of presentation only\n")
