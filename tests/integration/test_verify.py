@@ -216,3 +216,16 @@ def test_floquet_margin_map_draws_margins_bifurcations_and_the_rest():
     assert margin[0, 0] == pytest.approx(0.1) and margin[1, 2] == pytest.approx(0.5)
     assert np.isnan(margin[0, 1]) and under[0, 1] == 2  # bifurcation: black
     assert under[0, 2] == 1 and under[0, 3] == 0  # settled fast (grey), no orbit (white)
+
+
+def test_closed_curve_test_tells_a_torus_section_from_a_cloud():
+    from gearsim.cell.verify import on_closed_curve
+
+    k = np.arange(200)
+    theta = 2 * np.pi * k * (math.sqrt(5) - 1) / 2  # an irrational rotation: a torus section
+    curve = np.column_stack([0.3 * np.cos(theta) + 0.05 * np.cos(3 * theta),
+                             2.0 * np.sin(theta)])  # fmt: skip
+    assert on_closed_curve(curve, 0.7, 4.0)
+    cloud = np.random.default_rng(3).random((200, 2)) * np.array([0.7, 4.0])
+    assert not on_closed_curve(cloud, 0.7, 4.0)
+    assert not on_closed_curve(curve[:10], 0.7, 4.0)  # too few points to tell

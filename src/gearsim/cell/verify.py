@@ -24,6 +24,9 @@ simulation of the budget tells the two sides of the bifurcation apart, and the c
 a small fraction of a grid step of it; the label is the orbit's, ``critical`` says which
 bifurcation).
 
+Without an orbit, ``quasi-periodic`` stays only when the section points lie on a curve
+(:func:`on_closed_curve`, the cut of an invariant torus); else the cell is ``unsettled``.
+
 Which cells: a periodic cell whose settle distance
 (:func:`gearsim.cell.classify.settle_estimate`) exceeds :data:`REFINE_RTOL` of its range, and a
 cell without a period whose exponent does not say chaos (``quasi-periodic`` or ``unsettled``).
@@ -123,6 +126,33 @@ class OrbitCache:
     def add(self, params: ModelParameters, n: int, cls: Classification,
             section: np.ndarray) -> None:
         self._orbits.setdefault((params, n), []).append((section, cls))
+
+
+#: a quasi-periodic reading needs its section points on a curve: the neighbourhood of every
+#: point (its ``CURVE_K`` nearest points) is thin, second singular value below
+#: ``CURVE_THIN`` of the first, for at least ``CURVE_SHARE`` of the points
+CURVE_K = 6
+CURVE_THIN = 0.25
+CURVE_SHARE = 0.9
+
+
+def on_closed_curve(points: np.ndarray, scale_x: float, scale_v: float) -> bool:
+    """Whether the section points ``(x, x')`` lie on a curve (an invariant torus cuts the section
+    in a closed curve; a chaotic or transient cloud fills an area): every point's ``CURVE_K``
+    nearest neighbours (axes scaled by the motion's ranges) spread along one direction."""
+    p = np.asarray(points, dtype=float)[:, :2]
+    p = p / np.array([max(scale_x, 1e-12), max(scale_v, 1e-12)])
+    m = len(p)
+    if m < 4 * CURVE_K:
+        return False
+    d = np.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=2)
+    nn = np.argsort(d, axis=1)[:, : CURVE_K + 1]
+    thin = 0
+    for i in range(m):
+        q = p[nn[i]] - p[nn[i]].mean(axis=0)
+        sv = np.linalg.svd(q, compute_uv=False)
+        thin += sv[0] > 0.0 and sv[1] <= CURVE_THIN * sv[0]
+    return thin >= CURVE_SHARE * m
 
 
 def needs_refinement(cls: Classification, floquet: str = "slow") -> bool:
@@ -243,6 +273,13 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
             return out
     if cls.n > 0 and not cls.settle <= REFINE_RTOL:
         return replace(cls, status="not_converged", converged=False), None
+    if cls.motion == "quasi-periodic":
+        # no orbit found: quasi-periodic only with the section points on a closed curve
+        pts = window.section[-min(len(window), 256):]
+        scale = float(window.xmax.max() - window.xmin.min())
+        if not on_closed_curve(pts, scale, scale * params.w):
+            return replace(cls, motion="unsettled", status="not_converged", label="unsettled",
+                           converged=False), None  # fmt: skip
     return cls, None
 
 
