@@ -816,11 +816,14 @@ def summary_lines(ca: CellAttractors) -> list[str]:
         i = a.steady.info
         npq = i.get("label_npq") or ""
         pat = f"{a.label} ({npq})" if npq else a.label
+        mu = i.get("mu_max", nan)
+        verified = (f" |mu|max={mu:.5f} ({i.get('critical')})" if mu == mu else "") + (
+            f" status={i.get('status')}" if i.get("status", "ok") != "ok" else "")
         lines.append(
             f"#{a.index} {pat:<18} basin={a.basin_fraction:6.3f} ({a.n_starts}/{ca.n_starts} "
             f"starts, {a.n_early} early) I={i.get('I')} DC={i.get('dc', nan):.4f} "
             f"Kmax={i.get('kmax', nan):.4f} lyapunov={i.get('lyapunov', nan):+.4f} "
-            f"found_by={','.join(a.found_by)}"
+            f"found_by={','.join(a.found_by)}{verified}"
         )
     nd = int(np.sum(ca.start_labels < 0))
     lines.append(f"diverged: {nd}/{ca.n_starts} starts ({ca.diverged_fraction:.3f})")
