@@ -1,5 +1,5 @@
-# Coexisting attractors of the planes that set `multistability: {starts, seed}` (issue 11,
-# docs/multistability.md): one job per tile, after the plane's simulated tile (its
+# Coexisting attractors of the planes that set `multistability: {starts, seed}`
+# (docs/multistability.md): one job per tile, after the plane's simulated tile (its
 # forward-continuation states seed the finder), into the catalogue's `attractors` table.
 MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
 # the finder's source decides the attractor tiles too (CODE_VERSION covers the simulation)
