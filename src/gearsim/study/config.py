@@ -526,8 +526,11 @@ def integration_settings(config: Mapping) -> IntegrationSettings:
 
 def sweep_set_arguments(config, sweep: str) -> str:
     """``--set name=value ...`` of a configured sweep's parameter set (the study's resolved
-    parameters and the sweep's ``fixed``): the continuation of workflow/rules/orbits.smk runs
-    on exactly the sweep's parameters."""
-    values = {**resolved_parameters(config), **(config["sweeps"][sweep].get("fixed") or {})}
+    parameters and the sweep's ``fixed``, less the swept parameter, which the continuation's
+    ``--name/--from`` sets): the continuation of workflow/rules/orbits.smk runs on exactly the
+    sweep's parameters."""
+    spec = config["sweeps"][sweep]
+    values = {**resolved_parameters(config), **(spec.get("fixed") or {})}
+    values.pop(spec["name"], None)
     return " ".join(f"--set {k}={v!r}" if k != "model" else f"--set model={v}"
                     for k, v in values.items())
