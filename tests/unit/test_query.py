@@ -31,7 +31,7 @@ def _row(label, impact, lyap):
         "kmax_peak_mean": 2.0, "kmax_peak_static": 1.5, "kmax_section_mean": 1.8,
         "kmax_section_static": 1.2, "kmin_peak_mean": 0.0, "lyapunov": lyap, "x_min": -1.0,
         "x_max": 1.0, "converged": label != "chaos", "window_periods": 16, "periods": 100,
-        "steps": 1000,
+        "steps": 1000, "mu_max": None, "critical": "", "refined": False, "settle": None,
     }
 
 

@@ -63,7 +63,7 @@ def test_attractor_tiles_and_catalogue(ms_run):
     doc = con.execute(
         "SELECT COUNT(*) FROM column_dictionary WHERE table_name = 'attractors'"
     ).fetchone()[0]
-    assert doc == 18
+    assert doc == 21  # with status, mu_max, critical
     con.close()
 
 def test_rerun_is_incremental(ms_run):
