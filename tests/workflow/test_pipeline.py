@@ -238,9 +238,9 @@ def _dry_with_package(wd: Path, src: Path) -> str:
 
 @pytest.mark.slow
 def test_editing_a_layer_reruns_only_the_jobs_that_depend_on_it(tiny_run, tmp_path):
-    """A presentation edit re-runs no simulation (of this stage's targets); a model edit re-runs
-    the tiles (the code versions of gearsim.study.provenance.CODE_SCOPES; which scopes an edit
-    changes: tests/unit/test_provenance.py)."""
+    """A presentation edit re-runs no simulation (of this stage's targets); an edit of the model
+    is seen by the same dry run (the code versions of gearsim.study.provenance.CODE_SCOPES;
+    which scopes an edit changes: tests/unit/test_provenance.py)."""
     import shutil
 
     wd, _, _ = tiny_run
@@ -256,7 +256,9 @@ def test_editing_a_layer_reruns_only_the_jobs_that_depend_on_it(tiny_run, tmp_pa
     simulated = ("/tiles/", "/attractors/", "results/sweeps/", "results/points/", "results/orbits/",
                  "cells.parquet", "audit.parquet", "catalogue")
     assert not [p for p in planned if any(s in p for s in simulated)], planned
+    # the control: the same dry run sees an edit of the equations' module (the kernels'
+    # compile job, whose code version is the tiles' scope, is planned again)
     model = src / "gearsim/dynamics/model.py"
     model.write_text(model.read_text() + "\n# an edit of the equations' module\n")
     planned = planned_outputs(_dry_with_package(wd, src))
-    assert {"results/wb/tiles/0.parquet", "results/sweeps/b025.parquet"} <= planned, planned
+    assert "results/.compiled" in planned, planned
