@@ -468,8 +468,25 @@ def map_attractors(
         _run_full(system, known, starts, labels, periods_run, scout, T)
         _probe(system, known, starts, labels, is_early, periods_run, opts, T)
 
-    # 3. merge again in a canonical order (continuation states, then starts by index), so the
-    #    list does not depend on which start was run first; then basin fractions, most first
+    # 3. merge again in a canonical order, basin fractions
+    return assemble(opts, starts, labels, is_early, periods_run, known, cont_steady)
+
+
+def assemble(opts: _Options, starts, labels, is_early, periods_run, known, cont_steady
+             ) -> list[CellAttractors]:
+    """The cells' attractor lists from the fate of every start (any finder's last step).
+
+    Every start's motion (its own full-length one in ``known[c].own``, or the attractor it was
+    labelled onto) is merged again in a canonical order (continuation states, then starts by
+    index), so the list does not depend on which start finished first; then basin fractions,
+    most starts first. ``labels[c][i]``: index into ``known[c].steadies`` (-1 diverged).
+    """
+    n_cells = len(starts)
+    K = [len(s) for s in starts]
+    cont_labels: list[dict[str, int]] = [{} for _ in range(n_cells)]
+    cont_found: list[dict[int, set[str]]] = [{} for _ in range(n_cells)]
+    labels = list(labels)
+    known = list(known)
     for c in range(n_cells):
         kn = _Known(opts)
         cont_labels[c], cont_found[c] = {}, {}
@@ -857,6 +874,12 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
     fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
     found = find_attractors_many(plist, starts=int(spec["starts"]), seed=int(spec["seed"]),
                                  settings=settings, forward=fwd)  # fmt: skip
+    return tile_records(spec, cells, found)
+
+
+def tile_records(spec: Mapping[str, Any], cells, found: Sequence[CellAttractors]
+                 ) -> list[dict[str, Any]]:
+    """The attractor-tile records (:data:`TILE_COLUMNS`) of ``cells`` and their attractors."""
     out: list[dict[str, Any]] = []
     for (i, j, x, y, _), ca in zip(cells, found, strict=True):
         common = {
