@@ -148,7 +148,7 @@ class _Judge:
                 elif j.probed - self.since.get(id(j), 0) >= self.opts.rescout:
                     if cell.runner is None:
                         cell.runner = j
-                    elif self._busy():
+                    else:
                         cell.parked.append(j)
                         out[r] = PARK
             if cell.runner is None or cell.runner.where == "done":
@@ -162,8 +162,6 @@ class _Judge:
         if cell.runner is None or cell.runner is job:
             cell.runner = job
             return MEASURE
-        if not self._busy():
-            return MEASURE  # its lane would idle: measure it too
         cell.parked.append(job)
         return PARK
 
@@ -182,10 +180,6 @@ class _Judge:
             self._release(cell)
 
     # ---- helpers
-    def _busy(self) -> bool:
-        """Other work could take a freed lane (parking a start then costs no lane time)."""
-        return bool(self.ready or self.cells)
-
     def _recur(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
         if not cell.known.steadies:
             return np.full(len(jobs), -1, dtype=np.int64)

@@ -472,6 +472,9 @@ class PoolStats:
     computed: int = 0
     calls: int = 0
     periods: int = 0  # job periods integrated (probe + measure)
+    steps: int = 0  # lane-steps the kernel computed (blocks x LANES x steps of each call)
+    kernel_cpu_s: float = 0.0  # CPU time inside the kernel calls
+    parked: int = 0  # times a job was parked
 
     @property
     def lane_use(self) -> float:
@@ -557,9 +560,12 @@ class _Pool:
             ist[_POS, l] = (c.measured if c.phase == _MEASURE
                             else 0 if j.probe and c.phase == _TRANSIENT else -1)
             ist[_K, l] = c.k
+        t0 = time.process_time()
         self.lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
-        blocks = {j.ch.lane // LANES for j in occ}
-        stats.computed += len(blocks) * LANES * m
+        stats.kernel_cpu_s += time.process_time() - t0
+        computed = self.lanes.n_blocks * LANES * m  # the kernel steps every block
+        stats.computed += computed
+        stats.steps += computed * N
         stats.calls += 1
         for j in occ:
             c = j.ch
@@ -653,6 +659,7 @@ def run_pool(
             _begin_lead(c, meas.lanes, st)
 
     def park(pool: _Pool, job: PoolJob) -> None:
+        stats.parked += 1
         job.saved = pool.column(job)
         pool.release(job)
 
@@ -707,8 +714,9 @@ def run_pool(
                         j.where, j.saved = "wait", col
                         load(j)
                         continue
-                    j.where = "wait"
                 if v == PARK:
+                    if j.ch.left == 0:
+                        j.where = "wait"  # transient over: it resumes with its lead
                     park(probe, j)
         if meas.occupied():
             meas.pack()
