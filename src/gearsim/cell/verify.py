@@ -105,8 +105,9 @@ def _switch_free(res) -> bool:
     no bearing clearance): the field is then one linear system along the orbit and its
     neighbourhood, so the monodromy does not depend on the state it is taken at."""
     c = res.classification
-    inactive = not np.any(res.params.to_array()[P_ACT:P_ACT + 4])
-    return inactive and c.p == 0 and c.q == 0 and (c.dc == 0.0 or c.I == -2)
+    if not (c.p == 0 and c.q == 0 and (c.dc == 0.0 or c.I == -2)):
+        return False
+    return not np.any(res.params.to_array()[P_ACT : P_ACT + 4])
 
 
 def fill_margins(results: list, st: IntegrationSettings) -> None:

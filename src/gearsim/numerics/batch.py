@@ -475,10 +475,12 @@ class Lanes:
     def set_column(self, row: int, values: np.ndarray) -> None:
         self.view[:, row, :] = np.asarray(values, dtype=float).reshape(self.n_blocks, LANES)
 
-    def load_params(self, lane: int, params: ModelParameters, N: int) -> None:
-        """Write the packed parameters of ``params`` for ``N`` steps per period."""
+    def load_params(self, lane: int, params: ModelParameters, N: int,
+                    packed: np.ndarray | None = None) -> None:
+        """Write the packed parameters of ``params`` (``packed`` if given: the same array
+        computed before) for ``N`` steps per period."""
         v = self._lane(lane)
-        v[_PAR : _PAR + N_PARAMS] = pack_parameters(params)
+        v[_PAR : _PAR + N_PARAMS] = pack_parameters(params) if packed is None else packed
         v[_H] = params.mesh_period / N
 
     def load_state(self, lane: int, y: np.ndarray) -> None:
@@ -595,10 +597,12 @@ def tangent_lanes_many(
     settings: IntegrationSettings,
     Zs: Sequence[np.ndarray],
     start_periods: Sequence[int] | None = None,
+    packed: Sequence[np.ndarray] | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """:func:`tangent_lanes` of many cells in one kernel call (one lane per cell and column,
     the blocks full): the cells must share the step grid (steps per period, variable-ratio
-    order); lanes are independent, so each cell's result is that of its own call."""
+    order); lanes are independent, so each cell's result is that of its own call. ``packed``:
+    the cells' packed parameters if the caller has them."""
     N = steps_per_period(params_list[0], settings)
     p0 = params_list[0]
     nu = p0.var_ratio_order if p0.var_ratio != 0.0 else 0.0
@@ -626,7 +630,7 @@ def tangent_lanes_many(
         if len(cols) == 0:
             continue
         y0 = np.asarray(y0s[c], dtype=float)[:N_STATE]
-        lanes.load_params(l0, params_list[c], N)
+        lanes.load_params(l0, params_list[c], N, None if packed is None else packed[c])
         lanes.load_state(l0, y0)
         idx = np.arange(l0, l0 + len(cols))
         # the first lane's rows (parameters, state, regions) into the cell's other lanes

@@ -111,11 +111,13 @@ def monodromies(
             groups.setdefault(key, []).append(i)
         else:
             out[i] = monodromy(p, y0s[i], n_periods, settings)
+    eye = np.eye(N_STATE)
     for idx in groups.values():
-        ds = [n_evolved(pack_parameters(params_list[i])) for i in idx]
-        Zs = [np.eye(N_STATE)[:, :d] for d in ds]
+        packed = [pack_parameters(params_list[i]) for i in idx]
+        ds = [n_evolved(pa) for pa in packed]
         res = tangent_lanes_many([params_list[i] for i in idx], [y0s[i] for i in idx],
-                                 n_periods, settings, Zs)  # fmt: skip
+                                 n_periods, settings, [eye[:, :d] for d in ds],
+                                 packed=packed)  # fmt: skip
         for i, d, (y, MZ, st) in zip(idx, ds, res, strict=True):
             out[i] = (y, MZ[:d, :], st)
     return out
