@@ -146,6 +146,28 @@ def test_same_attractor_cyclic_shift_and_tolerance():
     assert not same_attractor(c1, c3)
 
 
+def test_readings_of_one_orbit_merge():
+    """A refined 1/2T orbit and the bifurcation-status window reading of the same orbit (its
+    points a few 1e-3 of the range off, DC within 1e-3) are one attractor; a different n-p-q,
+    DC or orbit is not; the basin of the merged attractor counts both starts."""
+    from gearsim.analysis.attractors import _Known, _Options
+
+    orbit = [[0.08371, -0.18005], [-0.10163, -0.23235]]
+    info = {"label_npq": "2-1-1", "dc": 0.4683, "status": "ok", "refined": True}
+    ok = Steady("ok", 2, np.array(orbit), 0.5, 0.5, "1/2T", dict(info))
+    off = np.array(orbit) + [[2e-3, -1e-3], [-1.5e-3, 2e-3]]  # up to 4e-3 of the range 0.5
+    bif = Steady("ok", 2, off, 0.5, 0.5, "1/2T",
+                 {**info, "dc": 0.4689, "status": "bifurcation", "refined": False})
+    assert same_attractor(ok, bif) and same_attractor(bif, ok)
+    other_npq = Steady("ok", 2, off, 0.5, 0.5, "1/2T", {**bif.info, "label_npq": "2-2-1"})
+    other_dc = Steady("ok", 2, off, 0.5, 0.5, "1/2T", {**bif.info, "dc": 0.4710})
+    other_orbit = Steady("ok", 2, np.array(orbit) + 0.1, 0.5, 0.5, "1/2T", dict(bif.info))
+    for s in (other_npq, other_dc, other_orbit):
+        assert not same_attractor(ok, s)
+    kn = _Known(_Options())
+    assert kn.add(ok) == kn.add(bif) == 0 and kn.add(other_orbit) == 1
+
+
 GEAR = reference_settings(method="rk4")
 REFERENCE = dict(
     Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,

@@ -256,9 +256,12 @@ def test_editing_a_layer_reruns_only_the_jobs_that_depend_on_it(tiny_run, tmp_pa
     simulated = ("/tiles/", "/attractors/", "results/sweeps/", "results/points/", "results/orbits/",
                  "cells.parquet", "audit.parquet", "catalogue")
     assert not [p for p in planned if any(s in p for s in simulated)], planned
-    # the control: the same dry run sees an edit of the equations' module (the kernels'
-    # compile job, whose code version is the tiles' scope, is planned again)
+    # the control: the same dry run sees an edit of the equations' module (every tile, sweep
+    # and point, and the kernels' compile job before them, is planned again)
     model = src / "gearsim/dynamics/model.py"
     model.write_text(model.read_text() + "\n# an edit of the equations' module\n")
     planned = planned_outputs(_dry_with_package(wd, src))
-    assert "results/.compiled" in planned, planned
+    tiles = {p for p in planned if "/tiles/" in p}
+    assert tiles and all(any(f"results/{pl}/tiles/" in p for p in tiles) for pl in ("wb", "wxi"))
+    assert any(p.startswith("results/sweeps/") for p in planned), planned
+    assert any(p.startswith("results/.kernels/") for p in planned), planned

@@ -11,14 +11,12 @@ PUBLISHED_CATALOGUE = "results/catalogue.sqlite"
 
 rule compile:
     output:
-        "results/.compiled",
+        COMPILED_STAMP,
     log:
         "logs/compile.log",
     conda:
         GEARSIM_ENV
     priority: 10  # the planes wait for it
-    params:
-        code_version=CODE_VERSION["tiles"],
     shell:
         "gearsim compile --stamp {output} > {log} 2>&1"
 

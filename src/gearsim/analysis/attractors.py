@@ -46,7 +46,10 @@ does not depend on the order in which starts happened to finish.
 Merging: starts that did not settle within the budget (status ``unsettled``) form one entry
 per cell (label ``unsettled``, never labelled early). Two steady motions are the same attractor
 when both have the same period ``n > 0`` and each section point of one lies within
-``merge_rtol * scale`` of a point of the other (so any cyclic shift matches), or when both are
+``merge_rtol * scale`` of a point of the other (so any cyclic shift matches), or, readings of
+one orbit that settled to different degrees (a refined orbit and a ``bifurcation``-status
+window reading of it), the same label and n-p-q, DC within :data:`ORBIT_DC` and points within
+:data:`ORBIT_RTOL` of the range; or when both are
 non-periodic and at least ``cloud_overlap`` of each cloud's points fall in the dilated grid
 occupancy of the other (``g x g`` cells over the joint bounding box, ``g = grid`` or fewer for
 sparse clouds: ``g <= 2 sqrt(points)``, at least 4; so a cell holds ~2 points on average).
@@ -226,6 +229,28 @@ def _in_occupancy(points: np.ndarray, occ: np.ndarray, lo, hi) -> np.ndarray:
     return out
 
 
+#: two periodic readings with one n-p-q and DC within ORBIT_DC of each other, whose points lie
+#: within ORBIT_RTOL of the motion's range of each other, are one orbit (docs/decisions.md)
+ORBIT_DC = 1e-3
+ORBIT_RTOL = 0.05
+
+
+def _one_orbit(a: Steady, b: Steady, pa: np.ndarray, pb: np.ndarray) -> bool:
+    """Two readings of one periodic orbit that the point test keeps apart: e.g. a stable
+    orbit's refined points and the ``bifurcation``-status window reading of the same orbit,
+    or two unrefined readings of a slowly settling long period. Same n-p-q, DC within
+    :data:`ORBIT_DC`, points within :data:`ORBIT_RTOL` of the range (both ways)."""
+    ia, ib = a.info or {}, b.info or {}
+    npq = ia.get("label_npq")
+    if not npq or npq != ib.get("label_npq") or a.label != b.label:
+        return False
+    da, db = ia.get("dc"), ib.get("dc")
+    if da is None or db is None or not abs(float(da) - float(db)) <= ORBIT_DC:
+        return False
+    tx, tv = _tolerances(a, b, ORBIT_RTOL)
+    return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
+
+
 def same_attractor(
     a: Steady, b: Steady, *, merge_rtol: float = 1e-3, grid: int = 32, cloud_overlap: float = 0.5
 ) -> bool:
@@ -240,7 +265,9 @@ def same_attractor(
             return False
         tx, tv = _tolerances(a, b, merge_rtol)
         pa, pb = a.points[-a.period :, :2], b.points[-b.period :, :2]
-        return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
+        if _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv):
+            return True
+        return _one_orbit(a, b, pa, pb)
     both = np.vstack([a.points[:, :2], b.points[:, :2]])
     lo, hi = _cloud_box(both, pad=0.0)
     # a sparse cloud fills few cells of a fine grid: ~2 points per cell on average at least
@@ -468,8 +495,25 @@ def map_attractors(
         _run_full(system, known, starts, labels, periods_run, scout, T)
         _probe(system, known, starts, labels, is_early, periods_run, opts, T)
 
-    # 3. merge again in a canonical order (continuation states, then starts by index), so the
-    #    list does not depend on which start was run first; then basin fractions, most first
+    # 3. merge again in a canonical order, basin fractions
+    return assemble(opts, starts, labels, is_early, periods_run, known, cont_steady)
+
+
+def assemble(opts: _Options, starts, labels, is_early, periods_run, known, cont_steady
+             ) -> list[CellAttractors]:
+    """The cells' attractor lists from the fate of every start (any finder's last step).
+
+    Every start's motion (its own full-length one in ``known[c].own``, or the attractor it was
+    labelled onto) is merged again in a canonical order (continuation states, then starts by
+    index), so the list does not depend on which start finished first; then basin fractions,
+    most starts first. ``labels[c][i]``: index into ``known[c].steadies`` (-1 diverged).
+    """
+    n_cells = len(starts)
+    K = [len(s) for s in starts]
+    cont_labels: list[dict[str, int]] = [{} for _ in range(n_cells)]
+    cont_found: list[dict[int, set[str]]] = [{} for _ in range(n_cells)]
+    labels = list(labels)
+    known = list(known)
     for c in range(n_cells):
         kn = _Known(opts)
         cont_labels[c], cont_found[c] = {}, {}
@@ -857,6 +901,12 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
     fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
     found = find_attractors_many(plist, starts=int(spec["starts"]), seed=int(spec["seed"]),
                                  settings=settings, forward=fwd)  # fmt: skip
+    return tile_records(spec, cells, found)
+
+
+def tile_records(spec: Mapping[str, Any], cells, found: Sequence[CellAttractors]
+                 ) -> list[dict[str, Any]]:
+    """The attractor-tile records (:data:`TILE_COLUMNS`) of ``cells`` and their attractors."""
     out: list[dict[str, Any]] = []
     for (i, j, x, y, _), ca in zip(cells, found, strict=True):
         common = {

@@ -2,8 +2,8 @@
 
 The grid spans the start box of :func:`gearsim.analysis.attractors.start_box` (or a given box) at
 ``n x n`` cell centres; bearings start at their static deflection and at rest. Every start is a
-lane of :func:`gearsim.analysis.attractors.map_attractors` (recurrence-based early labelling), so a
-200 x 200 picture costs ~40 000 starts of a few dozen periods each.
+job of the lane-pool finder :func:`gearsim.analysis.finder.find_attractors_many` (recurrence-based
+early labelling), so a 200 x 200 picture costs ~40 000 starts of a few dozen periods each.
 
 Units: ``x`` is the mesh displacement over the nominal length ``b_c``; ``x' = dx/dtau`` with
 ``tau = w_n t``.
@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from gearsim.analysis.attractors import CellAttractors, GearCells, map_attractors, start_box
+from gearsim.analysis.attractors import CellAttractors, GearCells, start_box
+from gearsim.analysis.finder import find_attractors_many
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 
@@ -80,7 +81,8 @@ def basin_grid(
     """Classify the starts of an ``n x n`` grid over ``box = (xmin, xmax, vmin, vmax)``.
 
     Default box: the :func:`~gearsim.analysis.attractors.start_box` of ``params``. ``options`` go to
-    :func:`~gearsim.analysis.attractors.map_attractors` (e.g. ``early=False``).
+    the lane-pool finder :func:`~gearsim.analysis.finder.find_attractors_many` (e.g.
+    ``early=False``).
     """
     if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 2000:
         raise ParameterError(f"setting 'n' = {n!r} must be an integer in [2, 2000]")
@@ -99,7 +101,7 @@ def basin_grid(
     states = system.start_states(0, unit)
     states[:, 0] = X.ravel()
     states[:, 1] = V.ravel()
-    (ca,) = map_attractors(system, 1, [states], **options)
+    (ca,) = find_attractors_many([params], settings=settings, start_states=[states], **options)
     shape = (n, n)
     return BasinGrid(
         params=params,

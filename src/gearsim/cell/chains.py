@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -402,3 +403,338 @@ def warm_up() -> float:
     )
     simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
     return time.perf_counter() - t0
+
+
+# ============================================================================ the lane pool
+#: what a pool's judge answers for a probing job after each chunk of its transient
+GO, STOP, PARK = "go", "stop", "park"
+#: ... and at the end of its transient
+MEASURE = "measure"
+
+
+@dataclass(eq=False)
+class PoolJob:
+    """One full-length run in a :func:`run_pool`: ``simulate_cell(params, u0,
+    transient=transient, start_period=period0)``, whose transient the judge may cut short (the
+    job is labelled by the caller: :data:`STOP`) or pause (:data:`PARK`: state kept, lane
+    freed; the judge hands the job back to resume it exactly where it stopped).
+
+    ``where``: ``"new"`` (not yet loaded), ``"probe"`` (in its transient), ``"wait"``
+    (transient over, not yet measuring), ``"measure"`` (lead and measurement), ``"done"``.
+    ``hist[-filled:]`` are the last section points ``(x, x')`` of the transient (oldest
+    first), ``probed`` the transient periods run; ``result`` the full-length result (a
+    diverged record for a start that diverged while probing).
+    """
+
+    key: Any
+    params: ModelParameters
+    u0: np.ndarray
+    transient: int
+    probe: bool = True  # record the transient's section points and ask the judge every chunk
+    period0: int = 0
+    history: int = 32  # points kept in hist
+    where: str = "new"
+    probed: int = 0
+    filled: int = 0
+    hist: np.ndarray | None = None
+    result: CellResult | None = None
+    ch: _Chain | None = field(default=None, repr=False)
+    saved: np.ndarray | None = field(default=None, repr=False)
+
+
+class PoolJudge(Protocol):
+    """What :func:`run_pool` asks its caller (the attractor finder)."""
+
+    def take(self, n: int) -> list[PoolJob]:
+        """Up to ``n`` jobs to (re)load into probe lanes, plus any number of ``"wait"`` jobs to
+        measure (all of the pool's step grid); [] when there is nothing to load now."""
+        ...
+
+    def probed(self, jobs: list[PoolJob]) -> list[str]:
+        """After a chunk of their transients: :data:`GO`, :data:`STOP` or :data:`PARK` each."""
+        ...
+
+    def transient_over(self, job: PoolJob) -> str:
+        """An unlabelled job at the end of its transient: :data:`MEASURE` or :data:`PARK`."""
+        ...
+
+    def finished(self, job: PoolJob) -> None:
+        """``job.result`` is set (its full-length run, or a diverged record)."""
+        ...
+
+
+@dataclass
+class PoolStats:
+    """Lane use of a pool: lane-periods integrated by running lanes / lane-periods the kernel
+    computed (every lane of a block with a running lane costs the same)."""
+
+    useful: int = 0
+    computed: int = 0
+    calls: int = 0
+    periods: int = 0  # job periods integrated (probe + measure)
+    steps: int = 0  # lane-steps the kernel computed (blocks x LANES x steps of each call)
+    kernel_cpu_s: float = 0.0  # CPU time inside the kernel calls
+    parked: int = 0  # times a job was parked
+
+    @property
+    def lane_use(self) -> float:
+        return self.useful / self.computed if self.computed else float("nan")
+
+
+class _Pool:
+    """Lanes of one step grid with a job per occupied lane (kept packed at the low lanes)."""
+
+    def __init__(self, capacity: int, records: int):
+        self.records = records
+        self.lanes = Lanes(max(1, capacity), records)
+        self.jobs: list[PoolJob | None] = [None] * self.lanes.size
+
+    def free(self) -> int:
+        return sum(j is None for j in self.jobs)
+
+    def occupied(self) -> list[PoolJob]:
+        return [j for j in self.jobs if j is not None]
+
+    def ensure(self, n: int) -> None:
+        """Room for ``n`` more jobs."""
+        if self.free() < n:
+            self._resize(len(self.occupied()) + n)
+
+    def put(self, job: PoolJob) -> int:
+        if None not in self.jobs:
+            self._resize(len(self.occupied()) + LANES)
+        l = self.jobs.index(None)
+        self.jobs[l] = job
+        job.ch.lane = l
+        return l
+
+    def release(self, job: PoolJob) -> None:
+        l = job.ch.lane
+        self.jobs[l] = None
+        self.lanes.ist[_ST, l] = -1
+        self.lanes.set(l, _H, 0.0)
+
+    def column(self, job: PoolJob) -> np.ndarray:
+        l = job.ch.lane
+        return self.lanes.view[l // LANES, :, l % LANES].copy()
+
+    def restore(self, job: PoolJob, col: np.ndarray) -> None:
+        l = job.ch.lane
+        self.lanes.view[l // LANES, :, l % LANES] = col
+
+    def pack(self) -> None:
+        """Fewer blocks when the occupied lanes fit in them (a block costs the same with 1
+        or 8 running lanes)."""
+        occ = self.occupied()
+        if len(occ) <= (self.lanes.n_blocks - 1) * LANES:
+            self._resize(len(occ))
+
+    def _resize(self, n: int) -> None:
+        occ = [j for j in self.jobs if j is not None]
+        new = Lanes(max(n, len(occ), 1), self.records)
+        if occ:
+            old = np.array([j.ch.lane for j in occ], dtype=np.int64)
+            idx = np.arange(len(occ))
+            new.view[idx // LANES, :, idx % LANES] = self.lanes.view[old // LANES, :,
+                                                                     old % LANES]
+            new.ist[:, idx] = self.lanes.ist[:, old]
+            for a in ("sec", "nface", "nback", "fout"):
+                getattr(new, a)[idx] = getattr(self.lanes, a)[old]
+            for j, l in zip(occ, idx, strict=True):
+                j.ch.lane = int(l)
+        self.lanes = new
+        self.jobs = [None] * new.size
+        for j in occ:
+            self.jobs[j.ch.lane] = j
+
+    def run(self, m: int, N: int, nu, bound: float, tangent: bool, stats: PoolStats) -> list:
+        """Advance every occupied lane ``m`` periods; returns the jobs (all of them)."""
+        occ = self.occupied()
+        ist = self.lanes.ist
+        ist[_ST] = -1
+        ist[_DONE] = 0
+        ist[_STEPS] = 0
+        for j in occ:
+            l, c = j.ch.lane, j.ch
+            ist[_ST, l] = 0
+            ist[_POS, l] = (c.measured if c.phase == _MEASURE
+                            else 0 if j.probe and c.phase == _TRANSIENT else -1)
+            ist[_K, l] = c.k
+        t0 = time.process_time()
+        self.lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
+        stats.kernel_cpu_s += time.process_time() - t0
+        computed = self.lanes.n_blocks * LANES * m  # the kernel steps every block
+        stats.computed += computed
+        stats.steps += computed * N
+        stats.calls += 1
+        for j in occ:
+            c = j.ch
+            done = int(ist[_DONE, j.ch.lane])
+            stats.useful += done
+            stats.periods += done
+            c.k += done
+            c.left -= done
+            c.steps += int(ist[_STEPS, j.ch.lane])
+        return occ
+
+
+def run_pool(
+    judge: PoolJudge,
+    settings: IntegrationSettings,
+    N: int,
+    nu: float | None,
+    *,
+    lanes: int = 256,
+    chunk: int = 8,
+    floquet: str = "slow",
+    orbits: OrbitCache | None = None,
+    stats: PoolStats | None = None,
+) -> PoolStats:
+    """Run full-length runs of one step grid (``N`` RK4 steps per period, variable-ratio order
+    ``nu``) in a pool of SIMD lanes refilled from ``judge`` until it has no job left.
+
+    Every job is exactly its full-length run (:func:`gearsim.cell.simulate.simulate_cell` from
+    its start state with its transient; the phases and the tail of :func:`simulate_rows`:
+    the transient without the tangent vector, then the tangent lead, measuring chunks, the
+    period test and :func:`gearsim.cell.simulate.finish_cell`). Probing jobs record the
+    section points of their transient and are shown to the judge every ``chunk`` periods; a
+    job it labels (:data:`STOP`) frees its lane at once, a parked one is kept with its state
+    (lane column) and resumes bit for bit when the judge hands it back. Lanes that measure
+    (tangent on) are a second, smaller pool, so the probes never integrate a tangent vector.
+    """
+    st = settings
+    if recurrence_probe(st, True, st.transient):
+        raise ParameterError("the lane pool needs integration.transient_recurrence = 0")
+    bound = float(getattr(st, "divergence_bound", 1.0e6))
+    stats = stats or PoolStats()
+    probe = _Pool(lanes, chunk)
+    meas = _Pool(LANES, max(st.max_periods, 1))
+    hist_n = 0
+
+    def load(job: PoolJob) -> None:
+        nonlocal hist_n
+        if job.where == "new":
+            p = job.params
+            if steps_lower_bound(p, st, job.transient + min(st.chunk, st.max_periods)) \
+                    > st.max_steps:
+                job.where = "done"
+                job.result = diverged_result(p, job.period0, 0, status="budget")
+                judge.finished(job)
+                return
+            y = np.asarray(job.u0, dtype=float)[:N_STATE]
+            if y.shape != (N_STATE,) or not np.all(np.isfinite(y)):
+                raise ParameterError("initial state 'u0' must be 10 finite numbers")
+            c = _Chain(index=0, cells=[p], u0=y, period0=job.period0)
+            c.start, c.period, c.k, c.N, c.h, c.nu = y, job.period0, job.period0, N, \
+                p.mesh_period / N, nu
+            c.tangent0 = initial_tangent(p)
+            c.lead = min(st.tangent_lead, job.transient)
+            c.phase, c.left = _TRANSIENT, job.transient - c.lead
+            job.ch = c
+            job.hist = np.full((job.history, 2), np.nan) if job.probe else None
+            if c.left <= 0:
+                job.where = "wait"
+                job.saved = None
+            else:
+                job.where = "probe"
+                probe.put(job)
+                probe.lanes.load_params(c.lane, p, N)
+                probe.lanes.load_state(c.lane, np.concatenate([y, c.tangent0]))
+                return
+        if job.where == "probe":
+            probe.put(job)
+            probe.restore(job, job.saved)
+            job.saved = None
+        elif job.where == "wait":
+            c = job.ch
+            meas.put(job)
+            if job.saved is None:  # no transient before the lead
+                meas.lanes.load_params(c.lane, job.params, N)
+                meas.lanes.load_state(c.lane, np.concatenate([job.ch.start, c.tangent0]))
+            else:
+                meas.restore(job, job.saved)
+            job.saved = None
+            job.where = "measure"
+            c.measured = 0
+            _begin_lead(c, meas.lanes, st)
+
+    def park(pool: _Pool, job: PoolJob) -> None:
+        stats.parked += 1
+        job.saved = pool.column(job)
+        pool.release(job)
+
+    def end(pool: _Pool, job: PoolJob, res: CellResult) -> None:
+        pool.release(job)
+        job.where = "done"
+        job.result = res
+        judge.finished(job)
+
+    while True:
+        new = judge.take(max(0, lanes - len(probe.occupied())))
+        probe.ensure(sum(j.where in ("new", "probe") for j in new))
+        meas.ensure(sum(j.where == "wait" for j in new))
+        for job in new:
+            load(job)
+        if not probe.occupied() and not meas.occupied():
+            if new:
+                continue
+            break
+        if probe.occupied():
+            probe.pack()
+            jobs = probe.occupied()
+            m = min(min(chunk - j.probed % chunk, j.ch.left) for j in jobs)
+            probe.run(m, N, nu, bound, False, stats)
+            ready = []
+            for j in jobs:
+                c = j.ch
+                l = c.lane
+                if probe.lanes.ist[_ST, l] != 0:
+                    end(probe, j, diverged_result(j.params, c.k, c.steps))
+                    continue
+                j.probed += m
+                if j.probe:
+                    pts = probe.lanes.sec[l, :m, :2]
+                    j.hist = np.concatenate([j.hist, pts])[-j.history :]
+                    j.filled = min(j.filled + m, j.history)
+                if c.left == 0 or (j.probe and j.probed % chunk == 0):
+                    ready.append(j)
+            checks = [j for j in ready if j.probe]
+            verdict = dict(zip(checks, judge.probed(checks), strict=True)) if checks else {}
+            for j in ready:
+                v = verdict.get(j, GO)
+                if v == STOP:
+                    probe.release(j)
+                    j.where = "done"
+                    continue
+                if v == GO and j.ch.left == 0:
+                    v = judge.transient_over(j)
+                    if v == MEASURE:
+                        col = probe.column(j)
+                        probe.release(j)
+                        j.where, j.saved = "wait", col
+                        load(j)
+                        continue
+                if v == PARK:
+                    if j.ch.left == 0:
+                        j.where = "wait"  # transient over: it resumes with its lead
+                    park(probe, j)
+        if meas.occupied():
+            meas.pack()
+            jobs = meas.occupied()
+            m = min(j.ch.left for j in jobs)
+            meas.run(m, N, nu, bound, True, stats)
+            for j in jobs:
+                c = j.ch
+                l = c.lane
+                if c.phase == _MEASURE:
+                    c.measured += int(meas.lanes.ist[_DONE, l])
+                if meas.lanes.ist[_ST, l] != 0:
+                    end(meas, j, diverged_result(j.params, c.k, c.steps))
+                elif c.left == 0:
+                    if c.phase == _LEAD:
+                        _begin_measure(c, meas.lanes, st)
+                        continue
+                    _decide(c, meas.lanes, st, False, None, floquet, orbits)
+                    if c.results:  # classified (or over the step budget): the run is over
+                        end(meas, j, c.results[0])
+    return stats

@@ -17,8 +17,20 @@ HELP = (
     "`multistability: {starts, seed}`) and write results/<plane>/attractors/<tile>.parquet"
 )
 
-#: cells per task (x starts = SIMD lanes of one batched call)
-CELLS_PER_TASK = 64
+#: cells per task (their starts share one lane pool: large enough that lanes stay busy)
+CELLS_PER_TASK = 640
+
+
+def _plain(v):
+    """A tile value as plain data (lists for arrays, None for missing)."""
+    import numpy as np
+    import pandas as pd
+
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if v is None or v is pd.NA:
+        return None
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -37,15 +49,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
-    """Plain-data tasks of :func:`gearsim.analysis.attractors.cell_group_records` for one tile."""
+    """Plain-data tasks of :func:`gearsim.analysis.finder.cell_group_records` for one tile
+    (each cell with its forward-continuation state and the tile's row of it: a known motion)."""
     from gearsim.study import tiles
 
     ms = config["planes"][plane]["multistability"]
     rows = tiles.row_specs(config, plane, tile)
-    fwd = {}
+    fwd: dict = {}
+    known: dict = {}
     if tile_df is not None:
-        for i, j, s in zip(tile_df["i"], tile_df["j"], tile_df["final_state"], strict=True):
-            fwd[(int(i), int(j))] = None if s is None else [float(v) for v in s]
+        for rec in tile_df.to_dict("records"):
+            s = rec.get("final_state")
+            key = (int(rec["i"]), int(rec["j"]))
+            fwd[key] = None if s is None else [float(v) for v in s]
+            if "poincare_x" in rec:
+                known[key] = {k: _plain(v) for k, v in rec.items()}
     every = int(ms.get("every", 1))
     cells = [
         (i, r["j"], float(x), float(r["y_value"]), fwd.get((i, r["j"])))
@@ -60,6 +78,7 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
             "plane": plane, "tile": tile, "params": base["params"],
             "settings": base["settings"], "x_name": base["x_name"], "y_name": base["y_name"],
             "cells": cells[k : k + CELLS_PER_TASK], "starts": int(ms["starts"]),
+            "forward_rows": [known.get((c[0], c[1])) for c in cells[k : k + CELLS_PER_TASK]],
             "seed": int(ms.get("seed", 0)),
         }  # fmt: skip
         for k in range(0, len(cells), CELLS_PER_TASK)
@@ -69,7 +88,8 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
 def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from gearsim.analysis.attractors import TILE_COLUMNS, cell_group_records
+    from gearsim.analysis.attractors import TILE_COLUMNS
+    from gearsim.analysis.finder import cell_group_records
     from gearsim.results import catalogue
     from gearsim.study import grid as ggrid
     from gearsim.study import provenance as gprov
@@ -86,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     tile_file = Path(args.tile_file or f"results/{args.plane}/tiles/{args.tile}.parquet")
     tile_df = None
     if tile_file.exists():
-        tile_df = pd.read_parquet(tile_file, columns=["i", "j", "final_state"])
+        tile_df = pd.read_parquet(tile_file)  # the forward motion of every cell: known
     else:
         print(f"note: {tile_file} not found: no forward-continuation states", file=sys.stderr)
     specs = task_specs(config, args.plane, args.tile, tile_df)

@@ -57,7 +57,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gearsim.analysis.attractors import find_attractors, summary_lines
+    from gearsim.analysis.attractors import summary_lines
+    from gearsim.analysis.finder import find_attractors
     from gearsim.dynamics.parameters import ParameterError
 
     if args.starts < 1 or args.starts > 1_000_000:

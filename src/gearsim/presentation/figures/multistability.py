@@ -120,7 +120,8 @@ _PAPER_9_11 = ("1-1-1", "2-2-1", "4-4-2")
 def basin_box(params, settings, starts: int = 32) -> tuple[float, float, float, float]:
     """The finder's start box, widened (15 % margin) to hold the section points of the
     attractors that ``starts`` seeded starts reach (so every attractor is inside the picture)."""
-    from gearsim.analysis.attractors import find_attractors, start_box
+    from gearsim.analysis.attractors import start_box
+    from gearsim.analysis.finder import find_attractors
 
     x0, hx, v0, hv = start_box(params)
     lo = np.array([x0 - hx, v0 - hv])

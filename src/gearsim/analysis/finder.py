@@ -1,0 +1,390 @@
+"""The asynchronous attractor finder: one pool of SIMD lanes across cells and starts.
+
+Same answer as :func:`gearsim.analysis.attractors.map_attractors` with the gear model (the same
+starts, the same recurrence rule :meth:`~gearsim.analysis.attractors._Known.recur`, the same
+merging and the same last step :func:`~gearsim.analysis.attractors.assemble`), scheduled so
+that no lane waits for another start:
+
+* Every start is a job of :func:`gearsim.cell.chains.run_pool` whose trajectory *is* its
+  full-length run (transient, tangent lead, measurement, period test, classification and
+  refinement exactly as :func:`gearsim.cell.chains.simulate_cells` from that start).
+* During its transient a start records its section points; every ``chunk`` periods the starts
+  of a cell are tested for recurrence onto the cell's known attractors. A labelled start frees
+  its lane at once; the lane is refilled from the queue (parked starts of other cells first,
+  then the starts of the next cell).
+* At most one start per cell (its *runner*) goes on past ``patience`` probed periods without a
+  label; the others that reach it are *parked* (lane state and history kept, lane freed). When
+  the runner finishes (its motion joins the cell's list) or is labelled, the parked starts are
+  tested again at once and resume (each with a fresh ``patience``); one of them becomes the
+  next runner. A start is never labelled other than by the rule of ``map_attractors``, so the
+  parking changes when a start is labelled, never what it is labelled onto.
+* The forward-continuation motion of the cell, when the plane tile already simulated it
+  (``forward_results``), is a known attractor at no cost (``found_by = forward``); otherwise
+  the forward state is a job of its own (the cell's first runner).
+* Cells of one step grid share the kernel calls (one pool per grid); probes run without the
+  tangent vector (the measuring lanes are a second pool with it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from gearsim.analysis.attractors import (
+    FOUND_BY,
+    CellAttractors,
+    GearCells,
+    Steady,
+    _Known,
+    _Options,
+    assemble,
+    gear_steady,
+    sobol_unit,
+    tile_records,
+)
+from gearsim.cell.chains import GO, MEASURE, PARK, STOP, PoolJob, PoolStats, run_pool
+from gearsim.cell.simulate import IntegrationSettings, result_columns
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics.batch import steps_per_period
+
+#: lanes of the probing pool (a kernel call of 8 periods over 256 lanes is ~10 ms: the Python
+#: bookkeeping per chunk stays a small share; docs/decisions.md)
+POOL_LANES = 256
+
+
+_CONT = {-1: "forward", -2: "backward"}
+
+
+class _Cell:
+    def __init__(self, c: int, params: ModelParameters, starts: np.ndarray, opts: _Options):
+        self.c = c
+        self.params = params
+        self.starts = starts
+        self.known = _Known(opts)
+        k = len(starts)
+        self.labels = np.full(k, -2, dtype=np.int64)
+        self.early = np.zeros(k, dtype=bool)
+        self.periods = np.zeros(k, dtype=np.int64)
+        self.cont: list[tuple[str, Steady]] = []
+        self.runner: PoolJob | None = None
+        self.parked: list[PoolJob] = []
+
+
+class _Judge:
+    """The finder's side of :func:`gearsim.cell.chains.run_pool` for the cells of one grid."""
+
+    def __init__(self, cells: list[_Cell], forward, backward, forward_results, st,
+                 opts: _Options, history: int, early: bool):
+        self.cells = deque(cells)
+        self.forward = forward
+        self.backward = backward
+        self.early = early
+        self.forward_results = forward_results
+        self.st = st
+        self.opts = opts
+        self.history = history
+        self.ready: deque[PoolJob] = deque()
+        self.waiting: deque[PoolJob] = deque()
+        self.since: dict[int, int] = {}  # id(job) -> probed periods at its last (re)start
+
+    # ---- the queue
+    def _open(self, cell: _Cell) -> None:
+        c = cell.c
+        fr = None if self.forward_results is None else self.forward_results[c]
+        if fr is not None:
+            cell.cont.append(("forward", fr))
+            cell.known.add(fr)
+        elif self.forward is not None and self.forward[c] is not None:
+            self._continuation(cell, -1, self.forward[c])
+        if self.backward is not None and self.backward[c] is not None:
+            self._continuation(cell, -2, self.backward[c])
+        for i, y in enumerate(cell.starts):
+            job = PoolJob(key=(cell, i), params=cell.params, u0=y, transient=int(self.st.transient),
+                          probe=self.early, history=self.history)  # fmt: skip
+            self.ready.append(job)
+
+    def _continuation(self, cell: _Cell, i: int, y) -> None:
+        """A continuation state's full-length run (continuation transient): the cell's runner."""
+        job = PoolJob(key=(cell, i), params=cell.params, u0=np.asarray(y, dtype=float)[:10],
+                      transient=int(self.st.transient_continuation), probe=False)  # fmt: skip
+        if self.early and cell.runner is None:
+            cell.runner = job
+        self.ready.append(job)
+
+    def take(self, n: int) -> list[PoolJob]:
+        out = list(self.waiting)
+        self.waiting.clear()
+        k = 0
+        while k < n:
+            if self.ready:
+                out.append(self.ready.popleft())
+                k += 1
+            elif self.cells:
+                self._open(self.cells.popleft())
+            else:
+                break
+        return out
+
+    # ---- decisions
+    def probed(self, jobs: list[PoolJob]) -> list[str]:
+        by_cell: dict[int, list[int]] = {}
+        for r, j in enumerate(jobs):
+            by_cell.setdefault(id(j.key[0]), []).append(r)
+        out = [GO] * len(jobs)
+        for rows in by_cell.values():
+            cell = jobs[rows[0]].key[0]
+            hit = self._recur(cell, [jobs[r] for r in rows])
+            for r, a in zip(rows, hit, strict=True):
+                j = jobs[r]
+                if a >= 0:
+                    self._label(cell, j, a)
+                    out[r] = STOP
+                elif j is cell.runner:
+                    continue
+                elif j.probed - self.since.get(id(j), 0) >= self.opts.rescout:
+                    if cell.runner is None:
+                        cell.runner = j
+                    else:
+                        cell.parked.append(j)
+                        out[r] = PARK
+            if cell.runner is None or cell.runner.where == "done":
+                self._release(cell)
+        return out
+
+    def transient_over(self, job: PoolJob) -> str:
+        cell = job.key[0]
+        if not self.early or job.key[1] < 0:
+            return MEASURE
+        if cell.runner is None or cell.runner is job:
+            cell.runner = job
+            return MEASURE
+        cell.parked.append(job)
+        return PARK
+
+    def finished(self, job: PoolJob) -> None:
+        cell, i = job.key
+        s = gear_steady(job.result)
+        if i < 0:
+            cell.cont.append((_CONT[i], s))
+            cell.known.add(s)
+        else:
+            cell.labels[i] = cell.known.add(s)
+            cell.known.own[i] = s
+            cell.periods[i] = int(job.result.periods)
+        if cell.runner is job:
+            cell.runner = None
+            self._release(cell)
+
+    # ---- helpers
+    def _recur(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
+        if not cell.known.steadies:
+            return np.full(len(jobs), -1, dtype=np.int64)
+        hist = np.stack([j.hist for j in jobs])
+        filled = np.array([j.filled for j in jobs], dtype=np.int64)
+        return cell.known.recur(hist, filled)
+
+    def _label(self, cell: _Cell, j: PoolJob, a: int) -> None:
+        i = j.key[1]
+        cell.labels[i] = a
+        cell.early[i] = True
+        cell.periods[i] = j.probed
+        if cell.runner is j:
+            cell.runner = None
+
+    def _release(self, cell: _Cell) -> None:
+        """No runner: the parked starts are tested again at once, the rest resume."""
+        if cell.runner is not None or not cell.parked:
+            return
+        parked, cell.parked = cell.parked, []
+        hit = self._recur(cell, parked)
+        rest = []
+        for j, a in zip(parked, hit, strict=True):
+            if a >= 0:
+                self._label(cell, j, a)
+                j.where, j.saved = "done", None
+            else:
+                rest.append(j)
+        for j in rest:
+            self.since[id(j)] = j.probed
+            if j.where == "wait":
+                if cell.runner is None:
+                    cell.runner = j
+                    self.waiting.append(j)
+                else:
+                    cell.parked.append(j)
+            else:
+                self.ready.appendleft(j)
+
+
+def find_attractors_many(
+    params_list: Sequence[ModelParameters],
+    *,
+    starts: int = 16,
+    seed: int = 0,
+    settings=None,
+    forward: Sequence[np.ndarray | None] | None = None,
+    backward: Sequence[np.ndarray | None] | None = None,
+    early: bool = True,
+    forward_results: Sequence[Steady | None] | None = None,
+    start_states: Sequence[np.ndarray] | None = None,
+    lanes: int = POOL_LANES,
+    stats: PoolStats | None = None,
+    **options: Any,
+) -> list[CellAttractors]:
+    """Coexisting attractors of many gear cells through one lane pool (module docstring).
+
+    Same arguments and result as the reference
+    :func:`gearsim.analysis.attractors.find_attractors_many` (``map_attractors``), plus:
+    ``forward_results``, per cell the already classified forward-continuation motion (a
+    :class:`~gearsim.analysis.attractors.Steady`, e.g. :func:`steady_from_row` of the plane
+    tile's row) or None, used instead of running ``forward``; ``start_states``, per cell its own
+    ``(K, 10)`` start states instead of the Sobol starts (basin pictures); ``lanes``, the
+    probing pool's size; ``stats``, a :class:`gearsim.cell.chains.PoolStats` collecting the
+    lane use. ``early=False``: every start its full-length run (through the same pool).
+    """
+    system = GearCells(params_list, settings)
+    st = system.settings
+    n = len(params_list)
+    for name, seq in (("forward", forward), ("backward", backward),
+                      ("forward_results", forward_results), ("start_states", start_states)):
+        if seq is not None and len(seq) != n:
+            raise ParameterError(f"{name}: one entry per cell expected")  # fmt: skip
+    if start_states is None:
+        unit = sobol_unit(starts, seed)
+        st_states = [system.start_states(c, unit) for c in range(n)]
+    else:
+        st_states = [np.atleast_2d(np.asarray(s, dtype=float)) for s in start_states]
+    opts = _make_options(st, options)
+    history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
+    cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
+    groups: dict[tuple, list[_Cell]] = {}
+    for cell in cells:
+        p = cell.params
+        key = (steps_per_period(p, st), p.var_ratio_order if p.var_ratio != 0.0 else None)
+        groups.setdefault(key, []).append(cell)
+    stats = stats if stats is not None else PoolStats()
+    for (N, nu), group in groups.items():
+        judge = _Judge(group, forward, backward, forward_results, st, opts, history,
+                       bool(early))  # fmt: skip
+        run_pool(judge, st, N, nu, lanes=lanes, chunk=opts.chunk, orbits=system.orbits,
+                 stats=stats)  # fmt: skip
+    for cell in cells:
+        if np.any(cell.labels == -2) or cell.parked:
+            raise RuntimeError("attractor pool ended with unlabelled starts")  # a bug, not input
+        cell.cont.sort(key=lambda t: FOUND_BY.index(t[0]))
+    return assemble(opts, [c.starts for c in cells], [c.labels for c in cells],
+                    [c.early for c in cells], [c.periods for c in cells],
+                    [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
+
+
+def find_attractors(
+    params: ModelParameters,
+    *,
+    starts: int = 16,
+    seed: int = 0,
+    settings=None,
+    forward: np.ndarray | None = None,
+    backward: np.ndarray | None = None,
+    early: bool = True,
+    **options: Any,
+) -> CellAttractors:
+    """Coexisting attractors of one gear cell from ``starts`` seeded space-filling starts.
+
+    Starts: scrambled Sobol points (seed ``seed``) over the
+    :func:`~gearsim.analysis.attractors.start_box` in ``(x, x')``, bearings at their static
+    deflection and at rest; plus the ``forward`` / ``backward`` continuation states when given.
+    Integration: the batched RK4 kernel with ``settings`` (``transient`` periods from a start,
+    ``transient_continuation`` from a continuation state). Returns the attractors
+    (classification, basin fraction, section points), most likely first.
+    """
+    return find_attractors_many(
+        [params], starts=starts, seed=seed, settings=settings,
+        forward=None if forward is None else [forward],
+        backward=None if backward is None else [backward], early=early, **options,
+    )[0]  # fmt: skip
+
+
+def steady_from_row(row: Mapping[str, Any], w: float) -> Steady | None:
+    """The :class:`~gearsim.analysis.attractors.Steady` of a plane tile's cell row (its
+    classification, Poincare points and final state; ``w`` the cell's frequency ratio), None
+    without them."""
+    if row.get("poincare_x") is None or row.get("n") is None:
+        return None
+    info = {k: _plain(row.get(k)) for k in result_columns() if k in row}
+    n = int(info.pop("n"))
+    label = str(info.pop("label"))
+    scale = float(info["x_max"]) - float(info["x_min"])
+    scale = scale if math.isfinite(scale) else 0.0
+    status, motion = info.get("status"), info.get("motion")
+    return Steady(
+        status="diverged" if status == "diverged" else (
+            "unsettled" if motion == "unsettled" else "ok"),
+        period=n,
+        points=np.column_stack([np.asarray(row["poincare_x"], dtype=float),
+                                np.asarray(row["poincare_v"], dtype=float)]),
+        scale_x=scale,
+        scale_v=scale * float(w),
+        label=label,
+        info=info,
+        final_state=None if row.get("final_state") is None
+        else np.asarray(row["final_state"], dtype=float),
+    )  # fmt: skip
+
+
+def _plain(v):
+    """A Parquet value as a plain Python one (pandas' NA as None)."""
+    if v is None:
+        return None
+    try:
+        import pandas as pd
+
+        if v is pd.NA:
+            return None
+    except ImportError:  # pragma: no cover
+        pass
+    return v.item() if isinstance(v, np.generic) else v
+
+
+def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Attractor records of a group of plane cells (one task of ``gearsim attractor-tile``).
+
+    ``spec`` (plain data): ``plane``, ``tile``, ``params`` (dict), ``settings`` (dict),
+    ``x_name``, ``y_name``, ``cells`` (list of ``(i, j, x, y, forward_state or None)``),
+    ``starts``, ``seed`` and optionally ``forward_rows`` (per cell the plane tile's row of
+    that cell, or None: its motion is known without a run). One record per attractor of each
+    cell; a cell whose starts all diverged gets one record with ``attractor = -1`` and label
+    ``diverged``.
+    """
+    base = ModelParameters.from_mapping(dict(spec["params"]))
+    settings = IntegrationSettings(**spec["settings"])
+    xn, yn = spec["x_name"], spec["y_name"]
+    cells = spec["cells"]
+    plist = [base.with_(**{xn: float(c[2]), yn: float(c[3])}) for c in cells]
+    fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
+    rows = spec.get("forward_rows")
+    known = None if rows is None else [None if r is None else steady_from_row(r, p.w)
+                                       for r, p in zip(rows, plist, strict=True)]
+    found = find_attractors_many(plist, starts=int(spec["starts"]), seed=int(spec["seed"]),
+                                 settings=settings, forward=fwd, forward_results=known,
+                                 stats=spec.get("stats"))  # fmt: skip
+    return tile_records(spec, cells, found)
+
+
+def _make_options(st, options: dict) -> _Options:
+    allowed = {"chunk", "confirm", "confirm_cloud", "recur_rtol", "merge_rtol", "grid",
+               "cloud_overlap", "rescout", "period_rtol", "early_clouds"}  # fmt: skip
+    bad = set(options) - allowed
+    if bad:
+        raise ParameterError(f"unknown finder option(s) {sorted(bad)}; allowed: "
+                             f"{', '.join(sorted(allowed))}")  # fmt: skip
+    o = dict(options)
+    o.setdefault("period_rtol", st.period_rtol)
+    for name in ("chunk", "confirm", "confirm_cloud", "rescout"):
+        v = o.get(name, getattr(_Options, name))
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= 1")
+    return _Options(**o)

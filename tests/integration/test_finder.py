@@ -1,0 +1,149 @@
+"""The lane-pool attractor finder (gearsim.analysis.finder, gearsim.cell.chains.run_pool).
+
+- A job of the pool is its full-length run: parked and resumed at every chunk, a start gives
+  the result of ``chains.simulate_cells`` from it, section points bit for bit.
+- The pool's early labels are the attractors of the full-length runs of every start (the
+  reference finder ``map_attractors`` with ``early=False``) on gear cells with 1-3 attractors,
+  chaos included, with starts parked and resumed on the way.
+- A plane tile's row of a cell is a known attractor equal to its own run's.
+"""
+
+import numpy as np
+from reference import reference_settings
+
+from gearsim.analysis import attractors as ref
+from gearsim.analysis.attractors import gear_steady, same_attractor
+from gearsim.analysis.finder import find_attractors_many, steady_from_row
+from gearsim.cell import chains
+from gearsim.cell.chains import MEASURE, PARK, PoolJob, PoolStats, run_pool
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics.batch import steps_per_period
+
+GEAR = reference_settings(method="rk4", transient=150, transient_continuation=40)
+REFERENCE = dict(
+    Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,
+)  # the fixed reference set of tests/integration/test_convergence.py
+
+CELLS = [
+    ModelParameters(w=1.1, b=0.15, **REFERENCE),  # 2-2-1 and 3-3-2
+    ModelParameters(w=0.82, b=0.15, **REFERENCE),
+    ModelParameters(w=1.5, b=1.0, **REFERENCE),
+    ModelParameters(w=0.66, b=1.0, **REFERENCE),  # the softening fold: two attractors
+    ModelParameters(w=1.45, b=1.0, **REFERENCE),  # chaos and a 2-1-1
+    ModelParameters(w=1.95, b=0.3, **REFERENCE),
+]
+
+
+class _ParkEveryChunk:
+    """Parks every job at every check and hands it back at once (worst case of the pool)."""
+
+    def __init__(self, jobs):
+        self.queue = list(jobs)
+        self.parked: list[PoolJob] = []
+        self.done: list[PoolJob] = []
+        self.waited: set[int] = set()
+
+    def take(self, n):
+        self.queue += self.parked
+        self.parked = []
+        out = [j for j in self.queue if j.where != "wait"][:n]
+        out += [j for j in self.queue if j.where == "wait"]
+        self.queue = [j for j in self.queue if j not in out]
+        return out
+
+    def probed(self, jobs):
+        self.parked += jobs
+        return [PARK] * len(jobs)
+
+    def transient_over(self, job):
+        if job.key % 2 and job.key not in self.waited:  # every other job waits once more
+            self.waited.add(job.key)
+            self.parked.append(job)
+            return PARK
+        return MEASURE
+
+    def finished(self, job):
+        self.done.append(job)
+
+
+def test_parked_jobs_are_their_full_length_runs_bit_for_bit():
+    p = ModelParameters(w=1.1, b=0.15, **REFERENCE)
+    cells = [p, p.with_(w=1.12), p.with_(w=1.45, b=1.0)]
+    N = steps_per_period(p, GEAR)
+    assert all(steps_per_period(c, GEAR) == N for c in cells)
+    unit = ref.sobol_unit(4, 3)
+    sys_ = ref.GearCells(cells, GEAR)
+    jobs, want = [], []
+    for c, q in enumerate(cells):
+        for y in sys_.start_states(c, unit):
+            jobs.append(PoolJob(key=len(jobs), params=q, u0=y, transient=GEAR.transient))
+            want.append((q, y))
+    judge = _ParkEveryChunk(jobs)
+    stats = run_pool(judge, GEAR, N, None, lanes=8, chunk=8)
+    assert stats.parked > len(jobs) * 10
+    assert len(judge.done) == len(jobs)
+    # a start's full-length run: simulate_cell from it with the transient of a start
+    ref_res = chains.simulate_cells([q for q, _ in want],
+                                    settings=GEAR.with_(transient_continuation=GEAR.transient),
+                                    u0=[y for _, y in want])  # fmt: skip
+    for j in jobs:
+        a, b = j.result, ref_res[j.key]
+        assert a.classification.label == b.classification.label
+        assert a.classification.status == b.classification.status
+        assert np.array_equal(a.poincare, b.poincare)
+        assert np.array_equal(a.final_state, b.final_state)
+        assert a.periods == b.periods and a.steps == b.steps
+
+
+def test_pool_labels_equal_full_length_runs_of_every_start():
+    stats = PoolStats()
+    fast = find_attractors_many(CELLS, starts=24, seed=7, settings=GEAR, stats=stats, lanes=64)
+    full = ref.find_attractors_many(CELLS, starts=24, seed=7, settings=GEAR, early=False)
+    n_early = 0
+    for a, b in zip(fast, full, strict=True):
+        fa = sorted((x.basin_fraction, x.label) for x in a.attractors)
+        fb = sorted((x.basin_fraction, x.label) for x in b.attractors)
+        assert fa == fb
+        for i in range(a.n_starts):  # every start reaches the same attractor
+            la, lb = a.start_labels[i], b.start_labels[i]
+            assert (la < 0) == (lb < 0)
+            if la >= 0:
+                assert same_attractor(a.attractors[la].steady, b.attractors[lb].steady)
+        n_early += int(a.early.sum())
+        assert a.start_periods_run.sum() < b.start_periods_run.sum()
+    assert n_early >= 0.5 * 24 * len(CELLS)
+    assert stats.parked > 0  # starts were parked while a runner of their cell ran
+    assert 0.0 < stats.lane_use <= 1.0
+    assert any(len(a.attractors) >= 2 for a in fast)
+
+
+def test_pool_without_early_labels_equals_the_reference_full_runs():
+    fast = find_attractors_many(CELLS[:3], starts=8, seed=2, settings=GEAR, early=False)
+    full = ref.find_attractors_many(CELLS[:3], starts=8, seed=2, settings=GEAR, early=False)
+    for a, b in zip(fast, full, strict=True):
+        assert not a.early.any()
+        assert np.array_equal(a.start_labels, b.start_labels)
+        assert [x.label for x in a.attractors] == [x.label for x in b.attractors]
+        for x, y in zip(a.attractors, b.attractors, strict=True):
+            assert np.array_equal(x.points, y.points)
+
+
+def test_tile_row_is_a_known_attractor():
+    """The forward motion read from a plane tile's row equals the motion of its own run, and
+    the finder counts it as found by the forward continuation without running it."""
+    row = [CELLS[0].with_(w=w) for w in (1.08, 1.09, 1.1)]
+    res = chains.simulate_rows([row], settings=GEAR)[0]
+    r = res[-1]
+    rec = r.row()
+    rec.update(poincare_x=r.poincare[:, 0].tolist(), poincare_v=r.poincare[:, 1].tolist(),
+               final_state=r.final_state.tolist())  # fmt: skip
+    s = steady_from_row(rec, row[-1].w)
+    g = gear_steady(r)
+    assert s.period == g.period and s.label == g.label
+    assert np.array_equal(s.points, g.points[:, :2])
+    assert same_attractor(s, g)
+    (ca,) = find_attractors_many([row[-1]], starts=8, seed=1, settings=GEAR,
+                                 forward=[r.final_state], forward_results=[s])  # fmt: skip
+    k = ca.continuation["forward"]
+    assert "forward" in ca.attractors[k].found_by
+    assert ca.attractors[k].steady is s  # taken as it is: no run of the forward state
