@@ -147,3 +147,23 @@ def test_tile_row_is_a_known_attractor():
     k = ca.continuation["forward"]
     assert "forward" in ca.attractors[k].found_by
     assert ca.attractors[k].steady is s  # taken as it is: no run of the forward state
+
+
+def test_continuation_reading_is_no_recurrence_target():
+    """At w = 1.99, b = 0.375 (the study's standard set) the forward chain reads 1/5T after
+    its continuation transient, while every start's full-length run ends on 1/1T: the starts
+    that pass near that orbit on their way must not be labelled onto it."""
+    from gearsim.study.config import standard_parameters, study_settings
+
+    base, st = standard_parameters(), study_settings()
+    ws = 0.1 + (np.arange(100) + 0.5) * 2.4 / 100
+    chain = [base.with_(w=float(w), b=0.375) for w in ws]
+    res = chains.simulate_rows([chain], settings=st)[0]
+    pick = [78, 97]
+    cells = [chain[i] for i in pick]
+    known = [gear_steady(res[i]) for i in pick]
+    fast = find_attractors_many(cells, starts=16, seed=0, settings=st, forward_results=known)
+    full = ref.find_attractors_many(cells, starts=16, seed=0, settings=st, early=False)
+    for a, b in zip(fast, full, strict=True):
+        got = sorted((x.label, x.n_starts) for x in a.attractors if x.n_starts)
+        assert got == sorted((x.label, x.n_starts) for x in b.attractors if x.n_starts)

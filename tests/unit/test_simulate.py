@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from reference import reference_settings
 
-from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.cell.simulate import IntegrationSettings, result_columns, simulate_cell
 from gearsim.cell.sweep import continuation_chain, orbit_diagram
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.study.config import study_settings
@@ -36,6 +36,11 @@ def test_diverged_cell_is_recorded_and_the_chain_goes_on():
     res = continuation_chain(plist, settings=st)
     assert [r.classification.status for r in res] == ["diverged", "diverged"]
     assert np.isnan(res[0].classification.dc)
+    # the record fills every column the catalogue requires (NOT NULL) with a value of its type
+    row = res[0].row()
+    for name, (typ, optional) in result_columns().items():
+        if not optional and typ is not float:
+            assert isinstance(row[name], typ), (name, row[name])
     ok = continuation_chain(plist, settings=reference_settings())
     assert all(r.classification.status == "ok" for r in ok)
 

@@ -287,10 +287,17 @@ class _Known:
         self.steadies: list[Steady] = []
         self.own: dict[int, Steady] = {}  # start index -> its full-length steady motion
         self.ambiguous: list[bool] = []
+        self.target: list[bool] = []  # recurrence targets (see add)
         self._clouds: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = []
+        self._near: tuple | None = None  # (attractors seen, orbit points, tolerances)
 
-    def add(self, s: Steady) -> int:
-        """Index of ``s`` in the list (merged with a known attractor, or appended); -1 diverged."""
+    def add(self, s: Steady, target: bool = True) -> int:
+        """Index of ``s`` in the list (merged with a known attractor, or appended); -1 diverged.
+
+        ``target``: starts may be labelled onto it by recurrence (a motion that a start's
+        full-length run reached, or an orbit verified stable); a motion added with False (e.g.
+        a continuation state's reading) becomes a target when a start's run merges into it.
+        """
         if s.status == "diverged":
             return -1
         o = self.opts
@@ -298,9 +305,13 @@ class _Known:
             if same_attractor(
                 s, t, merge_rtol=o.merge_rtol, grid=o.grid, cloud_overlap=o.cloud_overlap
             ):
+                if target and not self.target[k]:
+                    self.target[k] = True
+                    self._near = None
                 return k
         self.steadies.append(s)
         self.ambiguous.append(False)
+        self.target.append(bool(target))
         if s.period > 0:
             # a period-n and a period-2n motion close together: the cell sits at a period
             # doubling, where the full-length label depends on how far a slowly decaying
@@ -318,6 +329,33 @@ class _Known:
             self._clouds.append((_occupancy(s.points, lo, hi, o.grid), lo, hi))
         return len(self.steadies) - 1
 
+    def near(self, last: np.ndarray) -> np.ndarray:
+        """Per start, whether its last section point ``last[i]`` (``(k, 2)``) lies within the
+        recurrence tolerance of a point of a periodic attractor it may be labelled onto: a
+        necessary condition of :meth:`recur` (all of them with ``early_clouds``)."""
+        o = self.opts
+        if o.early_clouds:
+            return np.ones(len(last), dtype=bool)
+        if self._near is None or self._near[0] != len(self.steadies):
+            self._near = (len(self.steadies), *self._orbit_points())
+        _, P, Tl = self._near
+        if P is None:
+            return np.zeros(len(last), dtype=bool)
+        d = np.abs(last[:, None, :2] - P[None, :, :]) <= Tl[None, :, :]
+        return np.any(d[:, :, 0] & d[:, :, 1], axis=1)
+
+    def _orbit_points(self):
+        o = self.opts
+        pts, tol = [], []
+        for a, s in enumerate(self.steadies):
+            if s.period > 0 and not self.ambiguous[a] and self.target[a]:
+                pts.append(s.points[-s.period :, :2])
+                t = [o.recur_rtol * max(s.scale_x, 1e-9), o.recur_rtol * max(s.scale_v, 1e-9)]
+                tol.append(np.repeat(np.array([t]), s.period, axis=0))
+        if not pts:
+            return None, None
+        return np.vstack(pts), np.vstack(tol)
+
     def recur(self, hist: np.ndarray, filled: np.ndarray) -> np.ndarray:
         """Attractor index each history recurs onto (-1: none yet).
 
@@ -329,7 +367,7 @@ class _Known:
         out = np.full(k, -1, dtype=np.int64)
         # periodic attractors first (a periodic start must never be taken for a cloud)
         for a, s in enumerate(self.steadies):
-            if s.period <= 0 or self.ambiguous[a]:
+            if s.period <= 0 or self.ambiguous[a] or not self.target[a]:
                 continue
             n = s.period
             need = min(max(2 * n, o.confirm), L - n)
@@ -357,7 +395,7 @@ class _Known:
             out[rows[close & phase & periodic]] = a
         for a in range(len(self.steadies) if o.early_clouds else 0):
             cloud = self._clouds[a]
-            if cloud is None:
+            if cloud is None or not self.target[a]:
                 continue
             need = min(o.confirm_cloud, L)
             rows = np.nonzero((out < 0) & (filled >= need))[0]

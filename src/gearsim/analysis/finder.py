@@ -59,6 +59,17 @@ POOL_LANES = 256
 _CONT = {-1: "forward", -2: "backward"}
 
 
+def _verified(s: Steady) -> bool:
+    """A continuation state's motion is a recurrence target only as a Newton-refined orbit
+    that is stable (``ok``, |mu|max < 1): its reading after the short continuation transient
+    can be a slowly repelling orbit that starts visit on their way to another attractor (a
+    1/5T forward reading at w = 1.99, b = 0.375 while every start's full-length run ends on
+    1/1T). Other motions become targets once a start's full-length run reaches them."""
+    i = s.info or {}
+    mu = i.get("mu_max")
+    return bool(i.get("refined")) and i.get("status") == "ok" and mu is not None and mu < 1.0
+
+
 class _Cell:
     def __init__(self, c: int, params: ModelParameters, starts: np.ndarray, opts: _Options):
         self.c = c
@@ -89,7 +100,6 @@ class _Judge:
         self.history = history
         self.ready: deque[PoolJob] = deque()
         self.waiting: deque[PoolJob] = deque()
-        self.since: dict[int, int] = {}  # id(job) -> probed periods at its last (re)start
 
     # ---- the queue
     def _open(self, cell: _Cell) -> None:
@@ -97,7 +107,7 @@ class _Judge:
         fr = None if self.forward_results is None else self.forward_results[c]
         if fr is not None:
             cell.cont.append(("forward", fr))
-            cell.known.add(fr)
+            cell.known.add(fr, target=_verified(fr))
         elif self.forward is not None and self.forward[c] is not None:
             self._continuation(cell, -1, self.forward[c])
         if self.backward is not None and self.backward[c] is not None:
@@ -145,7 +155,7 @@ class _Judge:
                     out[r] = STOP
                 elif j is cell.runner:
                     continue
-                elif j.probed - self.since.get(id(j), 0) >= self.opts.rescout:
+                elif j.probed - j.mark >= self.opts.rescout:
                     if cell.runner is None:
                         cell.runner = j
                     else:
@@ -170,7 +180,7 @@ class _Judge:
         s = gear_steady(job.result)
         if i < 0:
             cell.cont.append((_CONT[i], s))
-            cell.known.add(s)
+            cell.known.add(s, target=_verified(s))
         else:
             cell.labels[i] = cell.known.add(s)
             cell.known.own[i] = s
@@ -181,11 +191,16 @@ class _Judge:
 
     # ---- helpers
     def _recur(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
+        out = np.full(len(jobs), -1, dtype=np.int64)
         if not cell.known.steadies:
-            return np.full(len(jobs), -1, dtype=np.int64)
-        hist = np.stack([j.hist for j in jobs])
-        filled = np.array([j.filled for j in jobs], dtype=np.int64)
-        return cell.known.recur(hist, filled)
+            return out
+        # only starts whose last point is near a known orbit can recur (a cheap first test)
+        near = np.nonzero(cell.known.near(np.array([j.hist[-1] for j in jobs])))[0]
+        if len(near):
+            hist = np.stack([jobs[r].hist for r in near])
+            filled = np.array([jobs[r].filled for r in near], dtype=np.int64)
+            out[near] = cell.known.recur(hist, filled)
+        return out
 
     def _label(self, cell: _Cell, j: PoolJob, a: int) -> None:
         i = j.key[1]
@@ -209,7 +224,7 @@ class _Judge:
             else:
                 rest.append(j)
         for j in rest:
-            self.since[id(j)] = j.probed
+            j.mark = j.probed  # a fresh patience
             if j.where == "wait":
                 if cell.runner is None:
                     cell.runner = j

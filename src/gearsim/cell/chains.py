@@ -26,12 +26,13 @@ from gearsim.cell.simulate import (
     seeds_continuation,
 )
 from gearsim.cell.verify import OrbitCache
-from gearsim.dynamics.model import N_STATE, static_state
+from gearsim.dynamics.model import N_PARAMS, N_STATE, pack_parameters, static_state
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import (
     _DONE,
     _H,
     _K,
+    _PAR,
     _POS,
     _ST,
     _STEPS,
@@ -435,6 +436,8 @@ class PoolJob:
     history: int = 32  # points kept in hist
     where: str = "new"
     probed: int = 0
+    rest: int = 0  # transient periods left after the probing chunks (run before the lead)
+    mark: int = 0  # the judge's: probed periods when it last (re)started the job
     filled: int = 0
     hist: np.ndarray | None = None
     result: CellResult | None = None
@@ -482,12 +485,15 @@ class PoolStats:
 
 
 class _Pool:
-    """Lanes of one step grid with a job per occupied lane (kept packed at the low lanes)."""
+    """Lanes of one step grid with a job per occupied lane, and the last ``history`` section
+    points ``(x, x')`` of every lane (probing pool)."""
 
-    def __init__(self, capacity: int, records: int):
+    def __init__(self, capacity: int, records: int, history: int = 0):
         self.records = records
+        self.history = history
         self.lanes = Lanes(max(1, capacity), records)
         self.jobs: list[PoolJob | None] = [None] * self.lanes.size
+        self.hist = np.full((self.lanes.size, history, 2), np.nan)
 
     def free(self) -> int:
         return sum(j is None for j in self.jobs)
@@ -523,8 +529,7 @@ class _Pool:
         self.lanes.view[l // LANES, :, l % LANES] = col
 
     def pack(self) -> None:
-        """Fewer blocks when the occupied lanes fit in them (a block costs the same with 1
-        or 8 running lanes)."""
+        """Fewer blocks when the occupied lanes fit in them (the kernel steps every block)."""
         occ = self.occupied()
         if len(occ) <= (self.lanes.n_blocks - 1) * LANES:
             self._resize(len(occ))
@@ -532,6 +537,7 @@ class _Pool:
     def _resize(self, n: int) -> None:
         occ = [j for j in self.jobs if j is not None]
         new = Lanes(max(n, len(occ), 1), self.records)
+        hist = np.full((new.size, self.history, 2), np.nan)
         if occ:
             old = np.array([j.ch.lane for j in occ], dtype=np.int64)
             idx = np.arange(len(occ))
@@ -540,26 +546,26 @@ class _Pool:
             new.ist[:, idx] = self.lanes.ist[:, old]
             for a in ("sec", "nface", "nback", "fout"):
                 getattr(new, a)[idx] = getattr(self.lanes, a)[old]
+            hist[idx] = self.hist[old]
             for j, l in zip(occ, idx, strict=True):
                 j.ch.lane = int(l)
-        self.lanes = new
+        self.lanes, self.hist = new, hist
         self.jobs = [None] * new.size
         for j in occ:
             self.jobs[j.ch.lane] = j
 
-    def run(self, m: int, N: int, nu, bound: float, tangent: bool, stats: PoolStats) -> list:
-        """Advance every occupied lane ``m`` periods; returns the jobs (all of them)."""
-        occ = self.occupied()
+    def run(self, jobs: list[PoolJob], m: int, N: int, nu, bound: float, tangent: bool,
+            record_transient: bool, stats: PoolStats) -> None:
+        """Advance the lanes of ``jobs`` (all occupied lanes) ``m`` periods."""
         ist = self.lanes.ist
         ist[_ST] = -1
         ist[_DONE] = 0
         ist[_STEPS] = 0
-        for j in occ:
-            l, c = j.ch.lane, j.ch
-            ist[_ST, l] = 0
-            ist[_POS, l] = (c.measured if c.phase == _MEASURE
-                            else 0 if j.probe and c.phase == _TRANSIENT else -1)
-            ist[_K, l] = c.k
+        idx = np.array([j.ch.lane for j in jobs], dtype=np.int64)
+        ist[_ST, idx] = 0
+        ist[_POS, idx] = [j.ch.measured if j.ch.phase == _MEASURE
+                          else 0 if record_transient else -1 for j in jobs]  # fmt: skip
+        ist[_K, idx] = [j.ch.k for j in jobs]
         t0 = time.process_time()
         self.lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         stats.kernel_cpu_s += time.process_time() - t0
@@ -567,15 +573,20 @@ class _Pool:
         stats.computed += computed
         stats.steps += computed * N
         stats.calls += 1
-        for j in occ:
+        done = ist[_DONE, idx].tolist()
+        steps = ist[_STEPS, idx].tolist()
+        stats.useful += sum(done)
+        stats.periods += sum(done)
+        for j, d, n in zip(jobs, done, steps, strict=True):
             c = j.ch
-            done = int(ist[_DONE, j.ch.lane])
-            stats.useful += done
-            stats.periods += done
-            c.k += done
-            c.left -= done
-            c.steps += int(ist[_STEPS, j.ch.lane])
-        return occ
+            c.k += d
+            c.left -= d
+            c.steps += n
+        if self.history:
+            # the last section points of every lane, oldest first
+            h, k = self.hist, min(m, self.history)
+            h[:, : self.history - k] = h[:, k:]
+            h[:, -k:] = self.lanes.sec[:, m - k : m, :2]
 
 
 def run_pool(
@@ -607,12 +618,23 @@ def run_pool(
         raise ParameterError("the lane pool needs integration.transient_recurrence = 0")
     bound = float(getattr(st, "divergence_bound", 1.0e6))
     stats = stats or PoolStats()
-    probe = _Pool(lanes, chunk)
+    history = 0
+    probe: _Pool | None = None
     meas = _Pool(LANES, max(st.max_periods, 1))
-    hist_n = 0
+    packed: dict[int, tuple[ModelParameters, np.ndarray]] = {}  # id(params) -> packed
+
+    def load_new(pool: _Pool, job: PoolJob, y: np.ndarray) -> None:
+        p = job.params
+        pk = packed.get(id(p))
+        if pk is None:
+            pk = packed[id(p)] = (p, pack_parameters(p))
+        l = job.ch.lane
+        v = pool.lanes.view[l // LANES, :, l % LANES]
+        v[_PAR : _PAR + N_PARAMS] = pk[1]
+        v[_H] = job.ch.h
+        pool.lanes.load_state(l, np.concatenate([y, job.ch.tangent0]))
 
     def load(job: PoolJob) -> None:
-        nonlocal hist_n
         if job.where == "new":
             p = job.params
             if steps_lower_bound(p, st, job.transient + min(st.chunk, st.max_periods)) \
@@ -629,38 +651,46 @@ def run_pool(
                 p.mesh_period / N, nu
             c.tangent0 = initial_tangent(p)
             c.lead = min(st.tangent_lead, job.transient)
-            c.phase, c.left = _TRANSIENT, job.transient - c.lead
+            # the probe pool runs whole chunks (its lanes stay in step); the rest of the
+            # transient runs in the measuring pool before the lead
+            c.phase, c.left = _TRANSIENT, (job.transient - c.lead) // chunk * chunk
+            job.rest = job.transient - c.lead - c.left
             job.ch = c
-            job.hist = np.full((job.history, 2), np.nan) if job.probe else None
+            job.hist = None
             if c.left <= 0:
                 job.where = "wait"
                 job.saved = None
             else:
                 job.where = "probe"
                 probe.put(job)
-                probe.lanes.load_params(c.lane, p, N)
-                probe.lanes.load_state(c.lane, np.concatenate([y, c.tangent0]))
+                load_new(probe, job, y)
+                probe.hist[c.lane] = np.nan
                 return
         if job.where == "probe":
             probe.put(job)
             probe.restore(job, job.saved)
+            probe.hist[job.ch.lane] = job.hist
             job.saved = None
         elif job.where == "wait":
             c = job.ch
             meas.put(job)
-            if job.saved is None:  # no transient before the lead
-                meas.lanes.load_params(c.lane, job.params, N)
-                meas.lanes.load_state(c.lane, np.concatenate([job.ch.start, c.tangent0]))
+            if job.saved is None:  # nothing run yet
+                load_new(meas, job, c.start)
             else:
                 meas.restore(job, job.saved)
             job.saved = None
             job.where = "measure"
             c.measured = 0
-            _begin_lead(c, meas.lanes, st)
+            if job.rest > 0:
+                c.phase, c.left = _TRANSIENT, job.rest
+            else:
+                _begin_lead(c, meas.lanes, st)
 
     def park(pool: _Pool, job: PoolJob) -> None:
         stats.parked += 1
         job.saved = pool.column(job)
+        if pool is probe:
+            job.hist = pool.hist[job.ch.lane].copy()
         pool.release(job)
 
     def end(pool: _Pool, job: PoolJob, res: CellResult) -> None:
@@ -670,7 +700,10 @@ def run_pool(
         judge.finished(job)
 
     while True:
-        new = judge.take(max(0, lanes - len(probe.occupied())))
+        new = judge.take(max(0, lanes - (len(probe.occupied()) if probe else 0)))
+        if probe is None:
+            history = max([j.history for j in new if j.probe], default=0)
+            probe = _Pool(lanes, chunk, history)
         probe.ensure(sum(j.where in ("new", "probe") for j in new))
         meas.ensure(sum(j.where == "wait" for j in new))
         for job in new:
@@ -679,22 +712,21 @@ def run_pool(
             if new:
                 continue
             break
-        if probe.occupied():
+        jobs = probe.occupied()
+        if jobs:
             probe.pack()
-            jobs = probe.occupied()
-            m = min(min(chunk - j.probed % chunk, j.ch.left) for j in jobs)
-            probe.run(m, N, nu, bound, False, stats)
+            m = min(chunk, min(j.ch.left for j in jobs))
+            probe.run(jobs, m, N, nu, bound, False, True, stats)
             ready = []
+            status = probe.lanes.ist[_ST]
             for j in jobs:
                 c = j.ch
-                l = c.lane
-                if probe.lanes.ist[_ST, l] != 0:
+                if status[c.lane] != 0:
                     end(probe, j, diverged_result(j.params, c.k, c.steps))
                     continue
                 j.probed += m
                 if j.probe:
-                    pts = probe.lanes.sec[l, :m, :2]
-                    j.hist = np.concatenate([j.hist, pts])[-j.history :]
+                    j.hist = probe.hist[c.lane]  # a view: valid until the next call
                     j.filled = min(j.filled + m, j.history)
                 if c.left == 0 or (j.probe and j.probed % chunk == 0):
                     ready.append(j)
@@ -712,29 +744,35 @@ def run_pool(
                         col = probe.column(j)
                         probe.release(j)
                         j.where, j.saved = "wait", col
+                        meas.ensure(1)
                         load(j)
                         continue
                 if v == PARK:
                     if j.ch.left == 0:
                         j.where = "wait"  # transient over: it resumes with its lead
                     park(probe, j)
-        if meas.occupied():
+        jobs = meas.occupied()
+        if jobs:
             meas.pack()
             jobs = meas.occupied()
             m = min(j.ch.left for j in jobs)
-            meas.run(m, N, nu, bound, True, stats)
+            meas.run(jobs, m, N, nu, bound, True, False, stats)
+            status = meas.lanes.ist[_ST]
+            done = meas.lanes.ist[_DONE]
             for j in jobs:
                 c = j.ch
                 l = c.lane
                 if c.phase == _MEASURE:
-                    c.measured += int(meas.lanes.ist[_DONE, l])
-                if meas.lanes.ist[_ST, l] != 0:
+                    c.measured += int(done[l])
+                if status[l] != 0:
                     end(meas, j, diverged_result(j.params, c.k, c.steps))
                 elif c.left == 0:
-                    if c.phase == _LEAD:
+                    if c.phase == _TRANSIENT:
+                        _begin_lead(c, meas.lanes, st)
+                    elif c.phase == _LEAD:
                         _begin_measure(c, meas.lanes, st)
-                        continue
-                    _decide(c, meas.lanes, st, False, None, floquet, orbits)
-                    if c.results:  # classified (or over the step budget): the run is over
-                        end(meas, j, c.results[0])
+                    else:
+                        _decide(c, meas.lanes, st, False, None, floquet, orbits)
+                        if c.results:  # classified (or over the step budget): the run is over
+                            end(meas, j, c.results[0])
     return stats

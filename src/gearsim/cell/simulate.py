@@ -135,7 +135,7 @@ def diverged_result(params: ModelParameters, k: int, steps: int,
     values = {f.name: nan for f in fields(Classification)}
     values.update(motion="diverged" if status == "diverged" else "unsettled", status=status,
                   I=0, n=0, p=None, q=None, label=status, label_npq="", converged=False,
-                  window_periods=0)
+                  window_periods=0, critical="", refined=False)
     final = static_state(pack_parameters(params))
     return CellResult(Classification(**values), final, 0, np.zeros((0, N_STATE)), k, steps,
                       params)
