@@ -94,6 +94,29 @@ def test_slow_linear_transient_is_labelled_by_its_orbit():
     assert np.max(np.abs(np.array(ends) - ends[0])) < 1e-8
 
 
+def test_margin_column_of_plane_cells_in_the_linear_limit():
+    """The Floquet margin every periodic cell of a plane tile carries (the catalogue's
+    ``mu_max``, per motion period ``n``: the margin of the cells' RK4 map, from the batched
+    monodromy): ``exp(-xi 2 pi n / w)`` to 1e-8. The RK4 map's error decides the steps: at the
+    study's 192 steps per period it is 1.2e-7 here (w = 0.6), at 384 7.7e-9, at 512 (this
+    plane's setting) ~2.4e-9."""
+    from gearsim.study.tiles import simulate_rows_batched
+
+    st = IntegrationSettings(method="rk4", steps_per_period=512, floquet="margin")
+    base = _linear(1.0, 0.05)
+    specs = [{"plane": "linear", "tile": 0, "j": j, "params": base.to_dict(),
+              "settings": st.to_dict(), "x_name": "w", "x_values": [0.6, 0.9, 1.3, 1.7, 2.2],
+              "y_name": "xi", "y_value": xi} for j, xi in enumerate((0.03, 0.08))]  # fmt: skip
+    records = simulate_rows_batched(specs)
+    assert len(records) == 10
+    for r in records:
+        assert r["motion"] == "periodic" and r["status"] == "ok", r
+        exact = math.exp(-r["xi"] * 2 * math.pi * r["n"] / r["w"])
+        assert r["mu_max"] == pytest.approx(exact, abs=1e-8), (r["w"], r["xi"], r["n"])
+        assert r["critical"] == "neimark_sacker"
+    assert sum(not r["refined"] for r in records) >= 8  # the margin path, not the refinement
+
+
 # ---------------------------------------------------------------- the standard (6-DOF) set
 def test_one_orbit_next_to_the_doubling_is_one_attractor(standard):
     """w = 1.003, b = 0.9: the 1T orbit has |mu|max 0.989 (doubling at 1.0055); 150 periods
@@ -108,6 +131,29 @@ def test_one_orbit_next_to_the_doubling_is_one_attractor(standard):
     orbit = find_periodic_orbit(p, 1, a.steady.final_state)
     assert a.steady.info["mu_max"] == pytest.approx(orbit.mu_max, abs=1e-6)
     assert a.steady.info["critical"] == "period_doubling"
+
+
+def test_margin_of_plane_cells_equals_gearsim_orbit(standard):
+    """Every periodic cell of two plane rows (w from 1.0 to 2.4, the study's settings, the
+    batched driver and its margins) against ``gearsim orbit`` (DP5 at 1e-12, Newton from the
+    cell's last state) on a sample: 1e-6. Below w = 1 the RK4 map at 192 steps per period
+    differs from the flow by more (docs/decisions.md, "Floquet margin of every cell")."""
+    from gearsim.cell.chains import simulate_rows
+    from gearsim.cell.verify import fill_margins
+    from gearsim.study.config import study_settings
+
+    st = study_settings().with_(floquet="margin")
+    ws = np.linspace(1.0, 2.4, 36)
+    rows = [[standard.with_(w=float(w), b=b) for w in ws] for b in (0.3, 0.7)]
+    res = [r for row in simulate_rows(rows, settings=st) for r in row]
+    fill_margins(res, st)
+    periodic = [r for r in res if r.classification.n > 0 and r.classification.status == "ok"]
+    assert all(np.isfinite(r.classification.mu_max) for r in periodic)
+    sample = [r for r in periodic if not r.classification.refined and r.classification.n <= 2]
+    assert len(sample) >= 20
+    for r in sample[::2]:
+        orbit = find_periodic_orbit(r.params, r.classification.n, r.final_state, grazing=False)
+        assert r.classification.mu_max == pytest.approx(orbit.mu_max, abs=1e-6), r.params.w
 
 
 @pytest.fixture(scope="module")

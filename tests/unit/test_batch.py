@@ -20,6 +20,7 @@ from gearsim.cell import chains
 from gearsim.cell.classify import estimate_period
 from gearsim.cell.simulate import initial_tangent, run_periods, simulate_cell
 from gearsim.cell.sweep import continuation_chain
+from gearsim.cell.verify import fill_margins
 from gearsim.dynamics.model import (
     N_SWITCH,
     field_state,
@@ -273,6 +274,9 @@ def test_simulate_rows_equals_continuation_chain():
     ws = [0.45, 0.7, 0.95, 1.1, 1.25, 1.32]
     rows = [[ModelParameters(w=w, b=b) for w in ws] for b in (0.15, 1.0)]
     got = chains.simulate_rows(rows, settings=RK4)
+    # the batched callers fill the margins afterwards, many cells per kernel call
+    fill_margins([r for row in got for r in row], RK4)
+    assert sum(np.isfinite(r.classification.mu_max) for row in got for r in row) >= 6
     for row, res in zip(rows, got, strict=True):
         ref = continuation_chain(row, settings=RK4)
         for a, b in zip(res, ref, strict=True):
@@ -448,3 +452,34 @@ def test_a_long_impacting_trajectory_is_pinned_to_the_bit_on_both_paths():
     final = np.array([float.fromhex(v) for v in QUICK_FINAL])
     np.testing.assert_array_equal(ys[:10], final)
     np.testing.assert_array_equal(yb[0, :10], final)
+
+
+# ------------------------------------------------------------------------------ tangent lanes
+@pytest.mark.parametrize("params, n", [
+    (ModelParameters(w=1.3, b=0.3), 2),  # impacts: event redos in every lane
+    (ModelParameters(w=0.4, b=0.9), 3),
+    (ModelParameters(model="1dof", w=1.2, xi=0.05), 1),
+    (ModelParameters(w=1.1, var_ratio=0.05), 2),  # the variable-ratio phase per lane
+])
+def test_tangent_lanes_equal_one_scalar_run_per_column(params, n):
+    """The monodromy's columns as SIMD lanes are the scalar RK4 runs of each column, to the bit
+    (the same steps, the same event redos), so Newton shooting and the Floquet margin of an
+    RK4 cell do not depend on which path computed them."""
+    from gearsim.numerics.variational import monodromies
+
+    y = run_periods(params, np.full(10, 0.1), 50, RK4).state[:10]
+    Z = np.eye(10)
+    y_end, image, status = batch.tangent_lanes(params, y, n, RK4, Z, start_period=7)
+    ref = np.zeros((10, 10))
+    for i in range(10):
+        r = run_periods(params, np.concatenate([y, Z[:, i]]), n, RK4, start_period=7,
+                        tangent=True)  # fmt: skip
+        ref[:, i] = r.state[10:] * math.exp(float(np.sum(r.summaries.lyap)))
+    assert status == 0
+    assert np.array_equal(image, ref) and np.array_equal(y_end, r.state[:10])
+    # many cells in one call (from period 0): each cell's result is that of its own call
+    other = params.with_(b=params.b * 0.9)
+    many = monodromies([params, other], [y, y], n, RK4)
+    d = many[0][1].shape[0]
+    for p, (_, M, _) in zip((params, other), many, strict=True):
+        assert np.array_equal(M, batch.tangent_lanes(p, y, n, RK4, Z)[1][:d, :d])

@@ -212,3 +212,27 @@ def test_a_difference_of_exactly_the_tolerance_is_within():
     assert 1.31 - 1.33 < -LANDMARK_TOL  # the rounding the rule absorbs
     assert within(1.31 - 1.33, LANDMARK_TOL) and within(0.02, LANDMARK_TOL)
     assert not within(0.0201, LANDMARK_TOL) and not within(float("nan"), LANDMARK_TOL)
+
+
+def test_verified_motions_table_counts_each_plane():
+    import numpy as np
+    import pandas as pd
+
+    from gearsim.presentation.report import verified_lines, verified_summary
+
+    cells = pd.DataFrame({
+        "n": [1, 1, 2, 0, 1, 0],
+        "motion": ["periodic"] * 3 + ["chaos", "periodic", "quasi-periodic"],
+        "status": ["ok", "bifurcation", "ok", "ok", "not_converged", "ok"],
+        "refined": [False, True, True, False, False, False],
+        "mu_max": [0.5, 0.9995, 0.97, np.nan, np.nan, np.nan],
+        "n_attractors": [1, 2, np.nan, 3, 1, 1],
+    })  # fmt: skip
+    v = verified_summary("wb", cells)
+    assert v == {"plane": "wb", "cells": 6, "periodic": 4, "refined": 2, "bifurcation": 1,
+                 "not_converged": 1, "with_margin": 3, "near_one": 1, "quasi_periodic": 1,
+                 "searched": 5, "multistable": 2}
+    text = "\n".join(verified_lines([v]))
+    assert "| wb | 6 | 2 | 1 | 1 | 3 (of 4) | 1 | 1 | 2 (of 5) |" in text
+    assert "1e8155c" in text  # the run before, named
+    assert verified_summary("wb", cells.drop(columns="status")) is None

@@ -22,7 +22,7 @@ from gearsim.cell.classify import (
     estimate_period,
     settle_estimate,
 )
-from gearsim.cell.verify import FLOQUET, OrbitCache, verify_motion
+from gearsim.cell.verify import FLOQUET, OrbitCache, fill_margins, verify_motion
 from gearsim.dynamics.model import (
     N_STATE,
     mesh_force_series,
@@ -181,11 +181,15 @@ def finish_cell(
     Whole motion periods only are analysed; the early part of a long measurement is dropped.
     The settle distance is read from all measured periods; a cell that is not settled, or has
     no period and no chaos, is labelled by its Newton-refined orbit where one is found
-    (:func:`gearsim.cell.verify.verify_motion`; ``floquet="all"``: every periodic cell gets its
-    Floquet margin). The one tail of :func:`simulate_cell` and of the batched driver.
+    (:func:`gearsim.cell.verify.verify_motion`; ``floquet``, or ``st.floquet`` when stronger:
+    ``"all"`` refines every periodic cell). The one tail of :func:`simulate_cell` and of the
+    batched driver. The ``"margin"`` of the other periodic cells is the caller's
+    (:func:`gearsim.cell.verify.fill_margins`: a batched driver's cells share kernel calls).
     """
     if floquet not in FLOQUET:
         raise ParameterError(f"floquet = {floquet!r}; allowed: {', '.join(FLOQUET)}")
+    # the stronger of the caller's mode and the settings' (``integration: floquet``)
+    floquet = max(floquet, st.floquet, key=FLOQUET.index)
     if n > 0:
         keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
         window = summaries.tail(keep)
@@ -242,8 +246,10 @@ def simulate_cell(
         the steady motion: ``True`` over ``max(200, analysed window)`` periods, an integer over
         that many periods. Stored in ``CellResult.spectrum`` (sum checked against the trace).
     floquet
-        ``"slow"`` (Newton-refine the cells that settle too slowly) or ``"all"`` (every periodic
-        cell also gets its Floquet margin ``mu_max``): :func:`finish_cell`.
+        ``"slow"`` (Newton-refine the cells that settle too slowly), ``"margin"`` (also the
+        Floquet margin ``mu_max`` of every other periodic cell:
+        :func:`gearsim.cell.verify.fill_margins`) or ``"all"`` (Newton-refine every periodic
+        cell): :func:`finish_cell`; the stronger of this and ``settings.floquet`` applies.
     """
     st = settings or IntegrationSettings()
     if transient is None:
@@ -303,6 +309,7 @@ def simulate_cell(
     if status != STATUS_OK or summaries is None or len(summaries) == 0:
         return diverged_result(params, k, steps)
     res = finish_cell(params, summaries, n, st, yt, k, start_period, steps, floquet)
+    fill_margins([res], st.with_(floquet=max(floquet, st.floquet, key=FLOQUET.index)))
     if spectrum:
         periods = (max(200, res.classification.window_periods) if spectrum is True
                    else int(spectrum))

@@ -11,6 +11,7 @@ import pandas as pd
 
 from gearsim.cell.chains import simulate_rows
 from gearsim.cell.simulate import CellResult, IntegrationSettings, seeds_continuation, simulate_cell
+from gearsim.cell.verify import fill_margins
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 
@@ -98,6 +99,7 @@ def sweep_records(
     if settings is not None and settings.method == "rk4":
         results = simulate_rows([plist], settings=settings, continuation=continuation,
                                 on_cell=lambda _r, i, res: on_cell(i, res))[0]
+        fill_margins(results, settings)  # the Floquet margins, in shared kernel calls
     else:
         results = continuation_chain(plist, settings=settings, continuation=continuation,
                                      on_cell=on_cell)

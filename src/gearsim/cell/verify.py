@@ -43,17 +43,25 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gearsim.cell.classify import Classification, candidate_periods, classify_motion
-from gearsim.dynamics.model import N_STATE
+from gearsim.dynamics.model import N_STATE, P_ACT
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.numerics.integrate import STATUS_OK, IntegrationSettings, PeriodSummaries, run_periods
+from gearsim.numerics.integrate import (
+    FLOQUET_MODES,
+    STATUS_OK,
+    IntegrationSettings,
+    PeriodSummaries,
+    run_periods,
+)
 from gearsim.numerics.shooting import (
     SHOOTING,
     OrbitError,
     multiplier_kind,
     newton_orbit,
+    newton_step,
     section_map,
     sorted_eigs,
 )
+from gearsim.numerics.variational import monodromies
 
 #: a periodic cell farther than this from settled (relative to its x range) is refined: ten
 #: times below the attractor finder's merge tolerance (1e-3), so two starts on one orbit merge
@@ -76,8 +84,101 @@ def refine_settings(st: IntegrationSettings) -> IntegrationSettings:
 #: Newton converged when max |P^n(y) - y| is below this (dimensionless state units)
 REFINE_TOL = 1e-9
 REFINE_MAX_ITER = 12
-#: FLOQUET modes: "slow" refines the cells that need it, "all" every periodic cell too
-FLOQUET = ("slow", "all")
+#: FLOQUET modes: "slow" refines the cells that need it; "margin" also gives every other periodic
+#: cell its Floquet margin (the monodromy of its settled orbit, its label kept); "all" refines
+#: every periodic cell (Newton, relabelled by the orbit)
+FLOQUET = FLOQUET_MODES
+#: the margin of a settled cell: its last section state is polished by Newton on the cell's own
+#: map until ``max |P^n(y) - y|`` is below this (mostly no step: the state is settled to it)
+MARGIN_TOL = 1e-9
+MARGIN_MAX_ITER = 4
+
+
+def _wants_margin(res) -> bool:
+    c = res.classification
+    return (c.n > 0 and c.status == "ok" and not c.refined and not math.isfinite(c.mu_max)
+            and res.params.var_ratio == 0.0)
+
+
+def _switch_free(res) -> bool:
+    """Whether the cell's motion never changes contact region (no mesh contact entered or left,
+    no bearing clearance): the field is then one linear system along the orbit and its
+    neighbourhood, so the monodromy does not depend on the state it is taken at."""
+    c = res.classification
+    if not (c.p == 0 and c.q == 0 and (c.dc == 0.0 or c.I == -2)):
+        return False
+    return not np.any(res.params.to_array()[P_ACT : P_ACT + 4])
+
+
+def fill_margins(results: list, st: IntegrationSettings) -> None:
+    """Give every periodic result (``CellResult``) its Floquet margin ``mu_max`` and the kind of
+    its critical multiplier (:data:`FLOQUET` ``"margin"``; in place), many cells in shared
+    kernel calls.
+
+    The margin is that of the cell's own map (RK4 at the cell's steps) at its last section
+    state ``y`` (:func:`gearsim.numerics.variational.monodromies`, one lane per tangent
+    column) when ``y`` is a fixed point of ``P^n`` to :data:`MARGIN_TOL` or the motion is
+    switch-free (:func:`_switch_free`: the monodromy is the same at every state near the
+    orbit); else at ``y`` after one Newton step
+    (:func:`gearsim.numerics.shooting.newton_step`) when that is a fixed point to the
+    tolerance; else the one orbit solver's (:func:`floquet_margin`).
+    Only with ``st.floquet == "margin"`` and RK4 (a DP5 cell's margin: ``"all"``).
+    """
+    if st.floquet != "margin" or st.method != "rk4":
+        return
+    by_n: dict[int, list] = {}
+    for r in results:
+        if _wants_margin(r):
+            by_n.setdefault(r.classification.n, []).append(r)
+    for n, group in by_n.items():
+        ys = [r.final_state for r in group]
+        for step in (0, 1):
+            if not group:
+                break
+            maps = monodromies([r.params for r in group], ys, n, st)
+            again, y_again = [], []
+            for r, y, (yn, M, status) in zip(group, ys, maps, strict=True):
+                if status == STATUS_OK and np.all(np.isfinite(M)):
+                    d = len(M)
+                    G = yn[:d] - y[:d]
+                    if float(np.max(np.abs(G))) < MARGIN_TOL or _switch_free(r):
+                        _set_margin(r, sorted_eigs(M))
+                        continue
+                    if step == 0:
+                        y1 = np.array(y, dtype=float)[:N_STATE].copy()
+                        y1[:d] += newton_step(M, G)
+                        again.append(r)
+                        y_again.append(y1)
+                        continue
+                m = floquet_margin(r.params, n, r.final_state, st)
+                if m is not None:
+                    r.classification = replace(r.classification, mu_max=m[0], critical=m[1])
+            group, ys = again, y_again
+
+
+def _set_margin(res, mu: np.ndarray) -> None:
+    res.classification = replace(res.classification, mu_max=float(abs(mu[0])),
+                                 critical=multiplier_kind(complex(mu[0])))
+
+
+def floquet_margin(params: ModelParameters, n: int, guess: np.ndarray,
+                   st: IntegrationSettings) -> tuple[float, str] | None:
+    """``(|mu|max, kind of the critical multiplier)`` of the period-``n`` orbit through the
+    settled section state ``guess``: the monodromy of the cell's own map there (RK4: the
+    tangent columns as SIMD lanes, :func:`gearsim.numerics.batch.tangent_lanes`), after Newton
+    steps of the one orbit solver while the state is farther than :data:`MARGIN_TOL` from a
+    fixed point; None without a T-periodic map or when Newton fails."""
+    if params.var_ratio != 0.0:
+        return None
+    try:
+        _, _, M, _, _ = newton_orbit(params, n, guess, st, tol=MARGIN_TOL,
+                                     max_iter=MARGIN_MAX_ITER)  # fmt: skip
+    except OrbitError:
+        return None
+    mu = sorted_eigs(M)
+    if not np.isfinite(mu[0]):
+        return None
+    return float(abs(mu[0])), multiplier_kind(complex(mu[0]))
 
 
 @dataclass
@@ -284,5 +385,6 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
 
 
 __all__ = ["REFINE_RTOL", "BIFURCATION_MARGIN", "FLOQUET", "OrbitCache", "Refinement",
+           "fill_margins", "floquet_margin",
            "needs_refinement",
            "refine", "orbit_classification", "verify_motion"]

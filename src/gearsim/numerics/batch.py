@@ -36,6 +36,7 @@ classification) is :mod:`gearsim.cell.chains`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -474,10 +475,12 @@ class Lanes:
     def set_column(self, row: int, values: np.ndarray) -> None:
         self.view[:, row, :] = np.asarray(values, dtype=float).reshape(self.n_blocks, LANES)
 
-    def load_params(self, lane: int, params: ModelParameters, N: int) -> None:
-        """Write the packed parameters of ``params`` for ``N`` steps per period."""
+    def load_params(self, lane: int, params: ModelParameters, N: int,
+                    packed: np.ndarray | None = None) -> None:
+        """Write the packed parameters of ``params`` (``packed`` if given: the same array
+        computed before) for ``N`` steps per period."""
         v = self._lane(lane)
-        v[_PAR : _PAR + N_PARAMS] = pack_parameters(params)
+        v[_PAR : _PAR + N_PARAMS] = pack_parameters(params) if packed is None else packed
         v[_H] = params.mesh_period / N
 
     def load_state(self, lane: int, y: np.ndarray) -> None:
@@ -564,3 +567,97 @@ def run_periods_batched(
         out.append(lanes.summaries(l, int(lanes.ist[_DONE, l])))
     finals = np.array([lanes.state(l) for l in range(n)])
     return out, finals, lanes.ist[_ST, :n].copy(), lanes.ist[_STEPS, :n].copy()
+
+
+
+def tangent_lanes(
+    params: ModelParameters,
+    y0: np.ndarray,
+    n_periods: int,
+    settings: IntegrationSettings,
+    Z: np.ndarray,
+    *,
+    start_period: int = 0,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`gearsim.numerics.variational.tangent_map` for RK4, one SIMD lane per tangent column.
+
+    Every lane carries the same state and parameters and one column of ``Z``: the state's
+    steps, and so every event redo, are those of the scalar RK4 path, and each column's image is
+    the product of the same per-step tangent maps (bit-identical to the scalar call,
+    tests/unit/test_batch.py), computed in one kernel call instead of one run per column.
+    Returns ``(y_end, DPhi Z, status)``.
+    """
+    return tangent_lanes_many([params], [y0], n_periods, settings, [Z], [start_period])[0]
+
+
+def tangent_lanes_many(
+    params_list: Sequence[ModelParameters],
+    y0s: Sequence[np.ndarray],
+    n_periods: int,
+    settings: IntegrationSettings,
+    Zs: Sequence[np.ndarray],
+    start_periods: Sequence[int] | None = None,
+    packed: Sequence[np.ndarray] | None = None,
+) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """:func:`tangent_lanes` of many cells in one kernel call (one lane per cell and column,
+    the blocks full): the cells must share the step grid (steps per period, variable-ratio
+    order); lanes are independent, so each cell's result is that of its own call. ``packed``:
+    the cells' packed parameters if the caller has them."""
+    N = steps_per_period(params_list[0], settings)
+    p0 = params_list[0]
+    nu = p0.var_ratio_order if p0.var_ratio != 0.0 else 0.0
+    for p in params_list:
+        if steps_per_period(p, settings) != N or (p.var_ratio != 0.0 and p.var_ratio_order != nu):
+            raise ParameterError("tangent_lanes_many: all cells need one step grid")
+    ks = [0] * len(params_list) if start_periods is None else list(start_periods)
+    plan = []  # (columns, indices of the nonzero ones, first lane, norms)
+    lane = 0
+    for Z in Zs:
+        Z = np.asarray(Z, dtype=float).reshape(N_STATE, -1)
+        norms = np.linalg.norm(Z, axis=0)
+        cols = np.flatnonzero(norms > 0.0)
+        plan.append((Z, cols, lane, norms))
+        lane += len(cols)
+    out: list[tuple[np.ndarray, np.ndarray, int]] = []
+    if lane == 0:
+        return [(np.asarray(y, dtype=float)[:N_STATE].copy(), np.zeros_like(Z), 0)
+                for y, (Z, *_rest) in zip(y0s, plan, strict=True)]
+    lanes = Lanes(lane, n_periods)
+    v = lanes.view
+    unit = np.zeros((lane, N_STATE))  # each lane's unit tangent column
+    scale = np.zeros(lane)  # its norm
+    for c, (Z, cols, l0, norms) in enumerate(plan):
+        if len(cols) == 0:
+            continue
+        y0 = np.asarray(y0s[c], dtype=float)[:N_STATE]
+        lanes.load_params(l0, params_list[c], N, None if packed is None else packed[c])
+        lanes.load_state(l0, y0)
+        idx = np.arange(l0, l0 + len(cols))
+        # the first lane's rows (parameters, state, regions) into the cell's other lanes
+        v[idx // LANES, :, idx % LANES] = v[l0 // LANES, :, l0 % LANES]
+        unit[idx] = (Z[:, cols] / norms[cols]).T
+        scale[idx] = norms[cols]
+        lanes.ist[_K, idx] = ks[c]
+    every = np.arange(lane)
+    v[every // LANES, _Y + 10 : _Y + 20, every % LANES] = unit
+    lanes.ist[_ST, :lane] = 0
+    lanes.ist[_POS, :lane] = 0
+    lanes.run(N, n_periods, nu, float(getattr(settings, "divergence_bound", 1.0e6)), True)
+    growth = np.ascontiguousarray(lanes.fout[:lane, :n_periods, O_LYAP]).sum(axis=1)
+    image = v[every // LANES, _Y + 10 : _Y + 20, every % LANES]  # (lanes, 10)
+    status = lanes.ist[_ST, :lane]
+    for ln in range(lane):
+        scale[ln] *= math.exp(growth[ln])  # math.exp: the scalar path's rounding
+    image = image * scale[:, None]
+    image[status != 0] = np.nan
+    finals = v[every // LANES, _Y : _Y + N_STATE, every % LANES]
+    for c, (Z, cols, l0, _) in enumerate(plan):
+        res = np.zeros_like(Z)
+        y0 = np.asarray(y0s[c], dtype=float)[:N_STATE]
+        if len(cols) == 0:
+            out.append((y0.copy(), res, 0))
+            continue
+        st = int(status[l0 : l0 + len(cols)].max())
+        res[:, cols] = image[l0 : l0 + len(cols)].T
+        out.append((finals[l0].copy() if st == 0 else y0.copy(), res, st))
+    return out

@@ -378,6 +378,10 @@ INTEGER_BOUNDS: dict[str, tuple[int, int]] = {
 }
 
 
+#: ``IntegrationSettings.floquet``, weakest first (docs/model.md, "Settled motions")
+FLOQUET_MODES = ("slow", "margin", "all")
+
+
 @dataclass(frozen=True)
 class IntegrationSettings:
     """Numerical settings of a cell simulation (all times in mesh periods unless stated).
@@ -422,6 +426,11 @@ class IntegrationSettings:
         ``k`` must be at least ``tangent_lead`` (the tangent vector's alignment) and 17 (the
         period test's shortest window: 16 confirming points); ``k >= transient_continuation``
         means no probe.
+    floquet
+        Which periodic cells get their Floquet margin ``mu_max``
+        (:mod:`gearsim.cell.verify`): ``"slow"`` only the cells Newton-refined because they
+        settle slowly; ``"margin"`` (the default) also every other periodic cell, from the
+        monodromy of its settled orbit; ``"all"`` refines every periodic cell by Newton.
     """
 
     method: str = "rk4"
@@ -440,11 +449,16 @@ class IntegrationSettings:
     tangent_lead: int = 24
     max_steps: int = 5_000_000
     transient_recurrence: int = 0
+    floquet: str = "margin"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ParameterError(
                 f"setting 'method' = {self.method!r}; allowed: {', '.join(METHODS)}"
+            )
+        if self.floquet not in FLOQUET_MODES:
+            raise ParameterError(
+                f"setting 'floquet' = {self.floquet!r}; allowed: {', '.join(FLOQUET_MODES)}"
             )
         for name, (lo, hi) in REAL_BOUNDS.items():
             v = getattr(self, name)
@@ -487,6 +501,8 @@ class IntegrationSettings:
             d = getattr(defaults, f.name)
             if f.name == "method":
                 out[f.name] = {"type": "string", "enum": list(METHODS), "default": d}
+            elif f.name == "floquet":
+                out[f.name] = {"type": "string", "enum": list(FLOQUET_MODES), "default": d}
             elif f.name in INTEGER_BOUNDS:
                 lo, hi = INTEGER_BOUNDS[f.name]
                 out[f.name] = {"type": "integer", "minimum": lo, "maximum": hi, "default": d}

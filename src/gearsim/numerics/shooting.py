@@ -105,6 +105,16 @@ def sorted_eigs(M: np.ndarray) -> np.ndarray:
     return mu[np.argsort(-np.abs(mu), kind="stable")]
 
 
+def newton_step(M: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """The full Newton step ``dy`` of ``G(y) = P^n(y) - y`` with monodromy ``M``:
+    ``(M - I) dy = -G`` (least squares when singular)."""
+    J = M - np.eye(len(G))
+    try:
+        return np.linalg.solve(J, -G)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(J, -G, rcond=None)[0]
+
+
 def newton_orbit(
     params: ModelParameters,
     n: int,
@@ -125,7 +135,6 @@ def newton_orbit(
     _check_params(params)
     p = params.to_array() if parray is None else parray
     dims = free_states(params)
-    d = len(dims)
     y = np.asarray(guess, dtype=float)[:N_STATE].copy()
     yn, M = section_map(params, y, n, settings, parray=p, tangent_error=tangent_error)
     G = yn[dims] - y[dims]
@@ -134,11 +143,7 @@ def newton_orbit(
     for it in range(1, max_iter + 1):
         if r < tol:
             return y, yn, M, r, it - 1
-        J = M - np.eye(d)
-        try:
-            dy = np.linalg.solve(J, -G)
-        except np.linalg.LinAlgError:
-            dy = np.linalg.lstsq(J, -G, rcond=None)[0]
+        dy = newton_step(M, G)
         nd = float(np.linalg.norm(dy))
         if nd > radius:
             dy *= radius / nd

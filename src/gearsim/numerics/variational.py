@@ -21,6 +21,7 @@ import numpy as np
 
 from gearsim.dynamics.model import N_STATE, n_evolved, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics.batch import steps_per_period, tangent_lanes, tangent_lanes_many
 from gearsim.numerics.integrate import IntegrationSettings, run_periods
 
 
@@ -37,12 +38,17 @@ def tangent_map(
     """Flow ``n_periods`` mesh periods from ``y0`` and map the tangent vectors ``Z`` (columns).
 
     ``tangent_error``: DP5 controls the tangent's error too (see :func:`run_periods`).
+    RK4: the columns run as SIMD lanes of the batched kernel
+    (:func:`gearsim.numerics.batch.tangent_lanes`, the same steps: bit-identical).
 
     Returns ``(y_end, DPhi Z, status)``: the final state (10 entries), the image of every column
     of ``Z`` (shape ``(10, k)``) under the derivative of the ``n_periods``-period map, and the
     integrator status (0 ok). The integrator renormalises the tangent vector each period and
     records the log of its growth; the image is restored from those logs.
     """
+    if settings.method == "rk4":
+        # the same RK4 steps with the columns as SIMD lanes: one kernel call, same numbers
+        return tangent_lanes(params, y0, n_periods, settings, Z, start_period=start_period)
     y0 = np.asarray(y0, dtype=float)[:N_STATE]
     Z = np.asarray(Z, dtype=float).reshape(N_STATE, -1)
     out = np.zeros_like(Z)
@@ -86,6 +92,35 @@ def monodromy(
     y_end, MZ, status = tangent_map(params, y0, n_periods, settings, Z, start_period=start_period,
                                     tangent_error=tangent_error)
     return y_end, MZ[:d, :], status
+
+
+def monodromies(
+    params_list: list[ModelParameters],
+    y0s: list[np.ndarray],
+    n_periods: int,
+    settings: IntegrationSettings,
+) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """:func:`monodromy` of many cells at once: RK4 cells of one step grid share kernel calls
+    (:func:`gearsim.numerics.batch.tangent_lanes_many`, full SIMD blocks; each result is that
+    of its own call), others are computed one by one."""
+    out: list = [None] * len(params_list)
+    groups: dict[tuple, list[int]] = {}
+    for i, p in enumerate(params_list):
+        if settings.method == "rk4":
+            key = (steps_per_period(p, settings), p.var_ratio_order if p.var_ratio else None)
+            groups.setdefault(key, []).append(i)
+        else:
+            out[i] = monodromy(p, y0s[i], n_periods, settings)
+    eye = np.eye(N_STATE)
+    for idx in groups.values():
+        packed = [pack_parameters(params_list[i]) for i in idx]
+        ds = [n_evolved(pa) for pa in packed]
+        res = tangent_lanes_many([params_list[i] for i in idx], [y0s[i] for i in idx],
+                                 n_periods, settings, [eye[:, :d] for d in ds],
+                                 packed=packed)  # fmt: skip
+        for i, d, (y, MZ, st) in zip(idx, ds, res, strict=True):
+            out[i] = (y, MZ[:d, :], st)
+    return out
 
 
 def trace_mean(params: ModelParameters) -> float:

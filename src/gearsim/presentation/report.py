@@ -139,6 +139,66 @@ def load_plane(plane: str, *, catalogue: str | Path | None = None,
     return None
 
 
+# ----------------------------------------------------------------------------- verified motions
+#: the default run before labels were backed by orbits (head 1e8155c, both default planes
+#: together; measured when the refinement was specified): no refinement, no status column,
+#: no Floquet margin
+BEFORE_VERIFIED = {"multistable": 5647, "one_orbit": 393, "wxi_quasi_periodic": 1000}
+
+
+def verified_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] | None:
+    """Per plane: cells refined by their Newton orbit, at a bifurcation (status), without a
+    settled reading, with a Floquet margin, quasi-periodic, and multistable (from the cells'
+    columns ``refined``, ``status``, ``mu_max``, ``motion``, ``n_attractors``)."""
+    if cells is None or "status" not in cells.columns:
+        return None
+    status = cells["status"].astype(str)
+    periodic = pd.to_numeric(cells.get("n"), errors="coerce").fillna(0) > 0
+    mu = pd.to_numeric(cells.get("mu_max", pd.Series(np.nan, index=cells.index)),
+                       errors="coerce")
+    refined = cells.get("refined", pd.Series(False, index=cells.index)).fillna(False).astype(bool)
+    out = {"plane": plane, "cells": len(cells), "periodic": int(periodic.sum()),
+           "refined": int(refined.sum()), "bifurcation": int((status == "bifurcation").sum()),
+           "not_converged": int((status == "not_converged").sum()),
+           "with_margin": int((periodic & mu.notna()).sum()),
+           "near_one": int((mu >= 0.99).sum()),
+           "quasi_periodic": int((cells["motion"].astype(str) == "quasi-periodic").sum())}
+    if "n_attractors" in cells.columns:
+        n = pd.to_numeric(cells["n_attractors"], errors="coerce")
+        out["searched"] = int(n.notna().sum())
+        out["multistable"] = int((n > 1).sum())
+    return out
+
+
+def verified_lines(rows: list[dict[str, Any]], h: str = "##") -> list[str]:
+    """The verified-motions table: per plane after this run, and the run before."""
+    if not rows:
+        return []
+    out = [f"{h} Verified motions", "",
+           "Cells labelled by their Newton-refined orbit (`refined`), at a bifurcation "
+           "(status `bifurcation`: within 1e-3 of |mu| = 1), without a settled reading "
+           "(`not_converged`), with a Floquet margin `mu_max` (of the periodic cells), with "
+           "`mu_max >= 0.99`, quasi-periodic, and multistable (two or more attractors, of the "
+           "cells searched). docs/model.md, \"Settled motions, refined labels and statuses\".", "",
+           "| plane | cells | refined | bifurcation | not converged | with margin (of periodic) "
+           "| mu_max >= 0.99 | quasi-periodic | multistable (of searched) |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        multi = (f"{r['multistable']} (of {r['searched']})" if "multistable" in r
+                 else "not searched")
+        out.append(f"| {r['plane']} | {r['cells']} | {r['refined']} | {r['bifurcation']} | "
+                   f"{r['not_converged']} | {r['with_margin']} (of {r['periodic']}) | "
+                   f"{r['near_one']} | {r['quasi_periodic']} | {multi} |")
+    b = BEFORE_VERIFIED
+    out += ["", f"Before (the default run at head 1e8155c, recorded when this was specified, "
+            f"not recomputed here): no cell refined, no status `bifurcation` (the column did not "
+            f"exist), no Floquet margin; {b['multistable']} multistable cells on the two default "
+            f"planes together, {b['one_orbit']} of them holding attractors that were all one "
+            f"orbit (one n-p-q and one DC); {b['wxi_quasi_periodic']} quasi-periodic cells on "
+            "(w, xi).", ""]
+    return out
+
+
 # ----------------------------------------------------------------------------- thresholds
 @dataclass
 class Threshold:
@@ -214,6 +274,7 @@ class Report:
     sweep_summaries: list[dict[str, Any]] = field(default_factory=list)  # every sweep
     point_summaries: list[dict[str, Any]] = field(default_factory=list)  # every point set
     multistable: list[dict[str, Any]] = field(default_factory=list)  # per plane with attractors
+    verified: list[dict[str, Any]] = field(default_factory=list)  # per plane: verified_summary
     curves: list[str] = field(default_factory=list)  # bifurcation curves skipped or cut short
     paper_material: bool = False  # the study configures a paper sweep or plane
 
@@ -626,6 +687,7 @@ def to_markdown(rep: Report) -> str:
 def _study_lines(rep: Report, heading: str | None) -> list[str]:
     out: list[str] = [heading, ""] if heading else []
     out += plane_lines(rep.planes, "###" if heading else "##")
+    out += verified_lines(rep.verified, "###" if heading else "##")
     out += sweep_lines(rep.sweep_summaries, "###" if heading else "##")
     out += point_lines(rep.point_summaries, "###" if heading else "##")
     return out
@@ -673,6 +735,7 @@ def build_report(
         if f.is_file():
             rep.point_summaries.append(point_summary(name, pd.read_parquet(f)))
     rep.multistable = [m for m in (multistable_summary(p, cells.get(p)) for p in names) if m]
+    rep.verified = [v for v in (verified_summary(p, cells.get(p)) for p in names) if v]
     rep.curves = load_curve_status(results, names)
     # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
     exact_points = Path(results) / "orbits" / "standard_points.parquet"

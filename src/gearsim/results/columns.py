@@ -72,8 +72,11 @@ RESULT: dict[str, tuple[str, str]] = {
     "window_periods": ("mesh periods", "length of the analysed window"),
     "mu_max": (
         "1 (per motion period)",
-        "Floquet margin: largest Floquet multiplier modulus of the Newton-refined periodic orbit "
-        "(< 1 stable; bifurcation curves are where it reaches 1); NULL where not refined",
+        "Floquet margin: largest Floquet multiplier modulus per motion period of the cell's "
+        "periodic orbit (< 1 stable; bifurcation curves are where it reaches 1): the Newton-"
+        "refined orbit's, else the monodromy of the cell's own RK4 map at its settled state "
+        "(integration: floquet: margin); NULL without a period, for variable-ratio and DP5 "
+        "cells, and for the unrefined cells of a run with floquet: slow",
     ),
     "critical": ("", "kind of that multiplier: fold | period_doubling | neimark_sacker"),
     "refined": ("", "true when the label is that of the Newton-refined orbit (slow settling)"),

@@ -23,6 +23,7 @@ import pandas as pd
 from gearsim.cell.chains import simulate_rows
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.cell.sweep import continuation_chain
+from gearsim.cell.verify import fill_margins
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.batch import LANES
 from gearsim.study.cluster import map_unordered
@@ -101,6 +102,8 @@ def simulate_rows_batched(specs: Sequence[Mapping[str, Any]]) -> list[dict[str, 
     results = simulate_rows(
         chains, settings=settings, on_cell=lambda r, i, res: stamps[r].append(time.perf_counter())
     )
+    # the Floquet margins of the periodic cells, their monodromies in shared kernel calls
+    fill_margins([r for row in results for r in row], settings)
     rows = []
     for spec, res_row, st_row in zip(specs, results, stamps, strict=True):
         rows += cell_records(spec, spec["x_values"], res_row, st_row, t0)

@@ -345,12 +345,14 @@ def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
 
 def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
                           title: str | None = None, xlim=None, ylim=None):
-    """Floquet margin of a plane: ``1 - |mu|max`` of each cell's Newton-refined orbit (log
-    scale; the bifurcation curves are where it reaches 0), black where the status is
-    ``bifurcation`` (within 1e-3 of the unit circle), light grey where the cell settled fast
-    and was not refined (its margin is larger than a slow transient's), white where the cell
-    has no periodic orbit (chaos, quasi-periodic, unsettled, diverged).
-    ``cells``: a plane's cell rows (``x``, ``y``, ``motion``, ``status``, ``mu_max``)."""
+    """Floquet margin of a plane: ``1 - |mu|max`` of each periodic cell's orbit per motion period
+    (log scale; the bifurcation curves are where it reaches 0), black where the status is
+    ``bifurcation`` (within 1e-3 of the unit circle), light grey where a periodic cell has no
+    margin (a run with ``floquet: slow`` margins only its refined cells; variable-ratio and
+    DP5 cells have none), white where the cell has no periodic orbit (chaos, quasi-periodic,
+    unsettled, diverged). The top leaves room for a figure title (``suptitle``).
+    ``cells``: a plane's cell rows (``x``, ``y``, ``motion``, ``status``, ``mu_max``, and
+    ``refined`` if present)."""
     from matplotlib.colors import LogNorm
 
     df = cells[["x", "y"]].copy()
@@ -372,23 +374,26 @@ def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
     m = ax.pcolormesh(ex, ey, np.ma.masked_invalid(M), cmap="viridis",
                       norm=LogNorm(vmin=1e-4, vmax=1.0), shading="flat", rasterized=True)
     cb = fig.colorbar(m, ax=ax)
-    cb.set_label("Floquet margin 1 - |mu|max of the refined orbit")
-    n_ref = int(np.isfinite(margin).sum())
+    cb.set_label("Floquet margin 1 - |mu|max per motion period")
+    n_mu = int(np.isfinite(margin).sum())
+    n_ref = (int(cells["refined"].fillna(False).astype(bool).sum())
+             if "refined" in cells.columns else None)
     handles = [
         Patch(facecolor="#000000", label=f"bifurcation ({int((status == 'bifurcation').sum())} "
               "cells: 1 - |mu|max < 1e-3)"),
         Patch(facecolor="#d9d9d9", edgecolor="#555555", lw=0.4,
-              label="periodic, settled fast (not refined)"),
+              label="periodic, no margin computed"),
         Patch(facecolor="#ffffff", edgecolor="#555555", lw=0.4, label="no periodic orbit"),
     ]  # fmt: skip
+    which = f"{n_mu} of {len(df)} cells with a margin"
+    which += f" ({n_ref} refined by Newton)" if n_ref is not None else ""
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.13), ncol=3,
-              fontsize=7, frameon=False, title=f"{n_ref} of {len(df)} cells refined",
-              title_fontsize=7)  # fmt: skip
+              fontsize=7, frameon=False, title=which, title_fontsize=7)  # fmt: skip
     ax.set_xlabel(style.param_label(x_name))
     ax.set_ylabel(style.param_label(y_name))
     if title:
-        ax.set_title(title, fontsize=9)
-    fig.tight_layout()
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.94))  # the top strip: the figure title
     return fig
 
 
@@ -398,22 +403,22 @@ def _map_floquet(df: pd.DataFrame):
 
     xn, yn = plane_axes(df)
     cells = df.assign(x=df[xn], y=df[yn])
-    n_ref = int(pd.to_numeric(cells["mu_max"], errors="coerce").notna().sum())
+    n_mu = int(pd.to_numeric(cells["mu_max"], errors="coerce").notna().sum())
     n_bif = int((cells["status"].astype(str) == "bifurcation").sum())
     fig = figure_floquet_margin(cells, xn, yn)
-    return (fig, f"Floquet margin 1 - |mu|max of the Newton-refined orbit of every cell that "
-            f"settled slowly ({n_ref} of {len(cells)} cells), black at a bifurcation "
-            f"({n_bif} cells within 1e-3 of |mu| = 1); the bifurcation curves are where the "
-            "margin reaches 0.",
-            ["Cells that settled fast were not refined (light grey): their margin is larger "
-             "than a slow transient's, and refining them would cost more than simulating "
-             "them (docs/decisions.md, 'Verified motions')."])
+    return (fig, f"Floquet margin 1 - |mu|max of every periodic cell's orbit per motion period "
+            f"({n_mu} of {len(cells)} cells), black at a bifurcation ({n_bif} cells within "
+            "1e-3 of |mu| = 1); the bifurcation curves are where the margin reaches 0.",
+            ["The margin is that of the cell's own RK4 map (docs/model.md, 'Settled motions'; "
+             "its accuracy against the flow's by w: docs/decisions.md, 'Floquet margin of "
+             "every cell'). Light grey: periodic cells without a margin (a run with "
+             "floquet: slow, variable-ratio or DP5 cells)."])
 
 
 def register_maps() -> None:
     from gearsim.presentation.figures.registry import MapSpec, register_map
 
-    register_map(MapSpec("floquet", "Floquet margin of the refined orbits", _map_floquet,
+    register_map(MapSpec("floquet", "Floquet margin of the periodic cells", _map_floquet,
                          ("mu_max", "status", "motion")))
 
 
