@@ -291,7 +291,7 @@ def test_sweep_passage_next_to_a_saddle_is_labelled_by_where_it_goes(standard, m
     st = study_settings()
     ws = np.round(np.arange(1.300, 1.3405, 0.002), 3)
     cells = [standard.with_(xi=0.15, w=float(w)) for w in ws]
-    left = [verify.leave_saddle]
+    left = [verify.follow_motion]
     calls = []
 
     def spy(*a, **kw):
@@ -299,7 +299,7 @@ def test_sweep_passage_next_to_a_saddle_is_labelled_by_where_it_goes(standard, m
         calls.append(out is not None)
         return out
 
-    monkeypatch.setattr(verify, "leave_saddle", spy)
+    monkeypatch.setattr(verify, "follow_motion", spy)
     again = simulate_rows([cells], settings=st)[0]
     monkeypatch.undo()
     starts = {float(w): (r.final_state, r.final_period) for w, r in zip(ws[1:], again[:-1],
@@ -315,3 +315,29 @@ def test_sweep_passage_next_to_a_saddle_is_labelled_by_where_it_goes(standard, m
         r = ref.classification
         assert (a.n, a.p, a.q) == (r.n, r.p, r.q) and a.label == r.label == "1/2T", ws[k]
         assert abs(a.dc - r.dc) < 2e-3
+
+
+def test_sweep_window_without_period_or_orbit_is_followed(standard, monkeypatch):
+    """xi = 0.15, w = 0.696 (forward continuation from w = 0.6): the budget's window has no
+    period, no chaos (exponent -0.001) and Newton finds no orbit from it (it stalls); the
+    window is a passage, and 4 000 periods on it is the reference's 1/1T."""
+    import gearsim.cell.verify as verify
+    from gearsim.cell.chains import simulate_rows
+    from gearsim.study.config import study_settings
+
+    st = study_settings()
+    ws = np.linspace(0.1, 2.5, 1201)
+    ws = ws[(ws > 0.6) & (ws < 0.697)]
+    cells = [standard.with_(xi=0.15, w=float(w)) for w in ws]
+    res = simulate_rows([cells], settings=st)[0]
+    a = res[-1].classification
+    assert abs(ws[-1] - 0.696) < 1e-9
+    assert a.motion == "periodic" and a.status == "ok" and a.label == "1/1T"
+    monkeypatch.setattr(verify, "needs_refinement", lambda cls, floquet="slow": False)
+    short = simulate_cell(cells[-1], res[-2].final_state, settings=st,
+                          start_period=res[-2].final_period).classification  # fmt: skip
+    assert short.motion != "periodic"  # the budget alone does not settle it
+    ref = simulate_cell(cells[-1], res[-2].final_state, settings=st, transient=4000,
+                        start_period=res[-2].final_period).classification  # fmt: skip
+    assert (a.n, a.p, a.q, a.label) == (ref.n, ref.p, ref.q, ref.label)
+    assert abs(a.dc - ref.dc) < 2e-3

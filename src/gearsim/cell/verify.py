@@ -371,8 +371,9 @@ def orbit_classification(params: ModelParameters, ref: Refinement, st: Integrati
     return cls, run.summaries.section.copy()
 
 
-#: a window without a period next to a saddle is followed for at most this many periods (the
-#: long simulations that decide such cells in tests/integration/test_verify.py: 4 000)
+#: a window next to a saddle, or without a period, chaos or an orbit, is followed for at most
+#: this many periods (the long simulations that decide such cells in
+#: tests/integration/test_verify.py: 4 000)
 SADDLE_MAX_PERIODS = 4000
 
 
@@ -385,26 +386,31 @@ def _is_saddle(ref: Refinement) -> bool:
             and (len(mu) < 2 or abs(mu[1]) < 1.0))
 
 
-def leave_saddle(params: ModelParameters, window: PeriodSummaries, saddle: Refinement,
-                 st: IntegrationSettings, guess: np.ndarray, floquet: str,
-                 orbits: OrbitCache | None) -> tuple[Classification, np.ndarray | None] | None:
-    """A window without a period that lingers next to a saddle (:func:`_is_saddle`) is a
-    reading of the passage, not of the motion: the trajectory leaves along the saddle's
-    unstable direction at the rate of its multiplier. Go on from the last state for the
-    periods leaving takes (``log(1/d) / log(mu_u)`` for the relative distance ``d`` to the
-    saddle, plus one measuring budget; at most :data:`SADDLE_MAX_PERIODS`) and read the last
-    ``max_periods`` of them as the cell's window (period test, classification, refinement).
-    Returns that reading when it is periodic and settled (status ``ok``), else None."""
+def saddle_periods(params: ModelParameters, window: PeriodSummaries, saddle: Refinement,
+                   st: IntegrationSettings, guess: np.ndarray) -> int:
+    """Periods a trajectory at ``guess`` takes to leave the saddle (relative distance ``d``:
+    ``log(1/d) / log|mu_u|``) plus one measuring budget, at most :data:`SADDLE_MAX_PERIODS`."""
     scale = max(float(window.xmax.max() - window.xmin.min()), 1e-9)
     d = float(_distances(np.asarray(guess, dtype=float)[None, :2],
                          saddle.state[None, :2], scale, params.w)[0])  # fmt: skip
     rate = math.log(abs(saddle.multipliers[0]))
     k = int(math.ceil(math.log(1.0 / max(d, 1e-12)) / rate)) + st.max_periods
-    k = min(max(k, st.max_periods), SADDLE_MAX_PERIODS)
+    return min(max(k, st.max_periods), SADDLE_MAX_PERIODS)
+
+
+def follow_motion(params: ModelParameters, periods: int, st: IntegrationSettings,
+                  guess: np.ndarray, floquet: str, orbits: OrbitCache | None
+                  ) -> tuple[Classification, np.ndarray | None] | None:
+    """Go on from the last state ``guess`` for ``periods`` periods and read the last
+    ``max_periods`` of them as the cell's window (the period test, the classification, the
+    refinement). Returns that reading when it is periodic and settled (status ``ok``), else
+    None. For a window that is a reading of a passage, not of the motion: next to a saddle
+    (:func:`saddle_periods`), or without a period, without chaos and without an orbit Newton
+    finds (:data:`SADDLE_MAX_PERIODS`)."""
     y = np.asarray(guess, dtype=float)
     z = y[N_STATE : 2 * N_STATE] if len(y) >= 2 * N_STATE else np.ones(N_STATE)
     z = project_tangent(z / np.linalg.norm(z), params.to_array())
-    run = run_periods(params, np.concatenate([y[:N_STATE], z]), k, st, tangent=True)
+    run = run_periods(params, np.concatenate([y[:N_STATE], z]), periods, st, tangent=True)
     if run.status != STATUS_OK or len(run.summaries) < st.max_periods:
         return None
     s = run.summaries.tail(st.max_periods)
@@ -413,7 +419,7 @@ def leave_saddle(params: ModelParameters, window: PeriodSummaries, saddle: Refin
                             np.ascontiguousarray(s.section[:, 1]), scale, params.w, st.n_max,
                             st.period_rtol, 16))  # fmt: skip
     _, cls = read_window(params, s, n, st)
-    out = verify_motion(params, s, cls, st, run.state, floquet, orbits, follow_saddles=False)
+    out = verify_motion(params, s, cls, st, run.state, floquet, orbits, follow=False)
     c = out[0]
     if c.motion != "periodic" or c.status != "ok":
         return None
@@ -422,7 +428,7 @@ def leave_saddle(params: ModelParameters, window: PeriodSummaries, saddle: Refin
 
 def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classification,
                   st: IntegrationSettings, guess: np.ndarray, floquet: str = "slow",
-                  orbits: OrbitCache | None = None, follow_saddles: bool = True
+                  orbits: OrbitCache | None = None, follow: bool = True
                   ) -> tuple[Classification, np.ndarray | None]:
     """Settle ``cls`` by its orbit where it needs it: ``(classification, orbit section points or
     None)``. A periodic cell whose refinement fails keeps its label with status
@@ -454,8 +460,12 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
                 orbits.add(params, cls.n, *out)
             return out
     near = [r for r in saddles if _is_saddle(r)]
-    if near and follow_saddles and (cls.n == 0 or not cls.settle <= REFINE_RTOL):
-        out = leave_saddle(params, window, near[0], st, guess, floquet, orbits)
+    if follow and (cls.n == 0 or not cls.settle <= REFINE_RTOL):
+        if near:
+            k = saddle_periods(params, window, near[0], st, guess)
+        else:
+            k = SADDLE_MAX_PERIODS if cls.n == 0 else 0
+        out = follow_motion(params, k, st, guess, floquet, orbits) if k else None
         if out is not None:
             return out
     if cls.n > 0 and not cls.settle <= REFINE_RTOL:
