@@ -1,131 +1,202 @@
-"""(g) Coexisting attractors: CPU per start with and without early labelling; projection.
+"""(h) Coexisting attractors: the lane-pool finder side by side with the reference finder.
 
-Workload: cells of the default (w, b) plane -- every 8th w centre of the 400-point axis (50
-values, w = 0.103 ... 2.5) at 8 values of b (rows j = 25, 75, ..., 375) -- with the forward
-continuation state of each cell (from the batched forward chains, the plane's own seeds) and
-16 seeded Sobol starts (the pipeline's attractor-tile task, ``cell_group_records``' call):
+One run measures, on cells of both default planes ((w, b) and (w, xi), the study's settings and
+standard parameters, 16 Sobol starts per cell, seed 0):
 
-* ``early``: :func:`gearsim.analysis.attractors.find_attractors_many` (recurrence-based labelling);
-* ``full``: the same with ``early=False`` (every start runs the full transient + measurement).
+* ``side by side``: the same cells (each finder in tasks of its pipeline size: 640 cells per
+  pool, 64 per reference task) through
+  - ``pool``: :func:`gearsim.analysis.finder.find_attractors_many` (the pipeline's call: the
+    forward-continuation motion of each cell is known from its plane row, no run);
+  - ``reference``: :func:`gearsim.analysis.attractors.find_attractors_many` (``map_attractors``,
+    the synchronous finder: scouts, probes, rescouts; the forward state re-run as before);
+  CPU time (process_time), starts per CPU-second, periods per start, share labelled early, and
+  the lane use and kernel speed of each, counted identically for both by wrapping the one
+  kernel entry (:meth:`gearsim.numerics.batch.Lanes.run`): lane use = lane-periods of lanes
+  that take part in a call / lane-periods of every block the call steps; kernel speed =
+  lane-steps the kernel computed / CPU time inside it.
+* ``agreement`` (``--agree``): every start's label of the pool finder against its full-length
+  run (the pool with ``early=False``) on the side-by-side cells.
+* ``scaling``: the pool finder on a sample of rows of both planes at 100, 200 and 400 cells
+  per axis (the rows are whole continuation chains; their forward motions come from the
+  batched chains, not counted), and the projection of both full planes at 16 starts:
+  ``2 n^2 16 / (2 x starts per CPU-second)`` on 2 cores (two tile jobs at a time).
 
-Both get the same starts; the basin fractions are compared (they must be equal). CPU time
-(process_time) per start and per cell, periods integrated per start, share of starts labelled
-early. Projection: both default 400 x 400 planes (320 000 cells) on 2 cores, i.e. CPU per cell
-x 320 000 / 2 (the tiles run two at a time or two workers per tile; dask overhead not counted),
-plus the grid that fits 15 minutes.
-
-Settings: the integration block of config/config.yaml (RK4, 256 steps per period, transient
-150 from a start, 40 from the continuation state).
-
-Usage: python benchmarks/bench_attractors.py [--quick]
+Usage: python benchmarks/bench_attractors.py [--quick] [--agree]
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import time
-from pathlib import Path
 
 from _common import loadavg, save, setup_env
 
 setup_env()
 
 import numpy as np  # noqa: E402
-import yaml  # noqa: E402
 
-from gearsim.analysis.attractors import find_attractors_many  # noqa: E402
+from gearsim.analysis import attractors as reference  # noqa: E402
+from gearsim.analysis import finder  # noqa: E402
+from gearsim.analysis.attractors import gear_steady, sobol_unit  # noqa: E402
 from gearsim.cell import chains  # noqa: E402
-from gearsim.cell.simulate import IntegrationSettings  # noqa: E402
-from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
-from gearsim.study.config_io import load_standard_parameters  # noqa: E402
+from gearsim.numerics import batch  # noqa: E402
+from gearsim.study.config import standard_parameters, study_settings  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+PLANES = {"wb": ("b", 0.0, 1.0), "wxi": ("xi", 0.04, 0.16)}
+
+
+class KernelMeter:
+    """Counts every call of the batched kernel: lane use and lane-steps per CPU-second."""
+
+    def __init__(self):
+        self.useful = self.computed = self.steps = 0
+        self.cpu = 0.0
+        self._run = batch.Lanes.run
+        meter = self
+
+        def run(lanes, N, m, nu, bound, tangent=True):
+            taking = int(np.sum(lanes.ist[batch._ST] == 0))
+            t0 = time.process_time()
+            meter._run(lanes, N, m, nu, bound, tangent)
+            meter.cpu += time.process_time() - t0
+            meter.useful += taking * m
+            meter.computed += lanes.n_blocks * batch.LANES * m
+            meter.steps += lanes.n_blocks * batch.LANES * m * N
+
+        batch.Lanes.run = run
+
+    def reset(self):
+        self.useful = self.computed = self.steps = 0
+        self.cpu = 0.0
+
+    def read(self) -> dict:
+        return {"lane_use": self.useful / max(self.computed, 1),
+                "kernel_lane_steps_per_cpu_s": self.steps / max(self.cpu, 1e-9),
+                "kernel_cpu_s": self.cpu}  # fmt: skip
+
+
+def rows_of(plane: str, n: int, js, base, st):
+    """Cells, forward states and forward motions of rows ``js`` of a plane at n x n."""
+    yname, lo, hi = PLANES[plane]
+    ws = 0.1 + (np.arange(n) + 0.5) * 2.4 / n
+    cells, states, motions = [], [], []
+    for j in js:
+        y = lo + (j + 0.5) * (hi - lo) / n
+        chain = [base.with_(w=float(w), **{yname: float(y)}) for w in ws]
+        res = chains.simulate_rows([chain], settings=st)[0]
+        cells += chain
+        states += [r.final_state for r in res]
+        motions += [gear_steady(r) for r in res]
+    return cells, states, motions
+
+
+def summary(found, cpu: float, meter: KernelMeter) -> dict:
+    n = sum(ca.n_starts for ca in found)
+    periods = sum(int(ca.start_periods_run.sum()) for ca in found)
+    return {
+        "cells": len(found), "starts": n, "cpu_s": cpu, "starts_per_cpu_s": n / cpu,
+        "cpu_per_start_ms": 1e3 * cpu / n, "periods_per_start": periods / n,
+        "labelled_early": sum(int(ca.early.sum()) for ca in found) / n, **meter.read(),
+    }  # fmt: skip
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="2 rows instead of 8")
-    ap.add_argument("--starts", type=int, default=16)
+    ap.add_argument("--quick", action="store_true", help="fewer rows")
+    ap.add_argument("--agree", action="store_true", help="also every start's full-length run")
     args = ap.parse_args()
-    cfg = yaml.safe_load((ROOT / "config/config.yaml").read_text())
-    st = IntegrationSettings(**cfg["integration"])
-    base = ModelParameters.from_mapping(
-        load_standard_parameters(ROOT / "config/standard_parameters.yaml")
-    )
-    ws = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400
-    bs = (np.arange(400) + 0.5) / 400
-    rows_j = [25, 75, 125, 175, 225, 275, 325, 375][: 2 if args.quick else 8]
+    base, st = standard_parameters(), study_settings()
+    meter = KernelMeter()
     chains.warm_up()
-    cells, fwd = [], []
-    for j in rows_j:
-        chain = [base.with_(w=float(w), b=float(bs[j])) for w in ws]
-        res = chains.simulate_rows([chain], settings=st)[0]
-        keep = range(0, 400, 8)
-        cells += [chain[i] for i in keep]
-        fwd += [res[i].final_state for i in keep]
-    out = {"cells": len(cells), "starts": args.starts, "rows_j": rows_j,
-           "settings": st.to_dict(), "load_before": loadavg()}  # fmt: skip
-    runs = {}
-    for mode in ("early", "full"):
-        find_attractors_many(cells[:2], starts=2, seed=0, settings=st, forward=fwd[:2])  # warm
-        c0, w0 = time.process_time(), time.perf_counter()
-        found = find_attractors_many(cells, starts=args.starts, seed=1, settings=st,
-                                     forward=fwd, early=(mode == "early"))  # fmt: skip
-        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
-        n_starts = sum(ca.n_starts for ca in found)
-        periods = sum(int(ca.start_periods_run.sum()) for ca in found)
-        runs[mode] = {
-            "cpu_s": cpu, "wall_s": wall,
-            "cpu_per_cell_ms": 1e3 * cpu / len(cells),
-            "cpu_per_start_ms": 1e3 * cpu / n_starts,
-            "periods_per_start": periods / n_starts,
-            "labelled_early": float(sum(int(ca.early.sum()) for ca in found) / n_starts),
-            "attractors_per_cell": float(np.mean([len(ca.attractors) for ca in found])),
-            "multistable_cells": float(np.mean([
-                sum(a.steady.status == "ok" for a in ca.attractors) >= 2 for ca in found])),
-        }  # fmt: skip
-        runs[mode]["_found"] = found
-    differ = []
-    for c, (x, y) in enumerate(zip(runs["early"]["_found"], runs["full"]["_found"],
-                                   strict=True)):  # fmt: skip
-        fx = sorted((a.basin_fraction, a.label, a.steady.info.get("label_npq", ""))
-                    for a in x.attractors)  # fmt: skip
-        fy = sorted((a.basin_fraction, a.label, a.steady.info.get("label_npq", ""))
-                    for a in y.attractors)  # fmt: skip
-        if fx != fy:
-            differ.append({"w": cells[c].w, "b": cells[c].b, "early": fx, "full": fy,
-                           "starts_differing": int(np.sum(x.start_labels != y.start_labels))})
-    same = not differ
-    out["cells_differing"] = differ
-    for m in runs.values():
-        m.pop("_found")
-    out.update(runs)
-    out["basin_fractions_equal"] = same
-    out["speedup_cpu"] = runs["full"]["cpu_s"] / runs["early"]["cpu_s"]
-    cpu_cell = runs["early"]["cpu_per_cell_ms"] / 1e3
-    proj = 320_000 * cpu_cell / 2
-    fit = int(math.isqrt(int(15 * 60 * 2 / cpu_cell / 2)))  # n x n per plane, both planes
-    out["projection"] = {
-        "two_400x400_planes_wall_s_2_cores": proj,
-        "target_s": 900,
-        "largest_square_grid_in_15_min": fit,
-    }
+    sobol_unit(4, 0)  # scipy.stats import outside the timings
+    out: dict = {"settings": st.to_dict(), "load_before": loadavg()}
+
+    # ---- side by side: every 4th cell of two rows per plane at 400 x 400
+    cells, states, motions = [], [], []
+    for plane, js in (("wb", (150, 300)), ("wxi", (100, 250))):
+        c, s, m = rows_of(plane, 400, js[:1] if args.quick else js, base, st)
+        cells += c[::4]
+        states += s[::4]
+        motions += m[::4]
+    side = {}
+    for name in ("pool", "reference"):
+        meter.reset()
+        c0 = time.process_time()
+        # each in tasks of its pipeline size (gearsim attractor-tile: 640 cells per pool
+        # task; the reference ran 64 cells per task)
+        found = []
+        size = 640 if name == "pool" else 64
+        for k in range(0, len(cells), size):
+            sl = slice(k, k + size)
+            if name == "pool":
+                found += finder.find_attractors_many(cells[sl], starts=16, seed=0, settings=st,
+                                                     forward_results=motions[sl])
+            else:
+                found += reference.find_attractors_many(cells[sl], starts=16, seed=0,
+                                                        settings=st, forward=states[sl])
+        side[name] = summary(found, time.process_time() - c0, meter)
+        side[name]["_found"] = found
+    if args.agree:
+        meter.reset()
+        full = finder.find_attractors_many(cells, starts=16, seed=0, settings=st,
+                                           forward_results=motions, early=False)
+        wrong = 0
+        differ = []
+        for c, (a, b) in enumerate(zip(side["pool"]["_found"], full, strict=True)):
+            la = [a.attractors[k].steady if k >= 0 else None for k in a.start_labels]
+            lb = [b.attractors[k].steady if k >= 0 else None for k in b.start_labels]
+            bad = sum(1 for x, y in zip(la, lb, strict=True)
+                      if (x is None) != (y is None) or (x is not None and not
+                                                        reference.same_attractor(x, y)))
+            wrong += bad
+            if bad:
+                differ.append({"w": cells[c].w, "b": cells[c].b, "xi": cells[c].xi,
+                               "starts_differing": bad})
+        out["agreement"] = {"starts": 16 * len(cells), "labels_differing": wrong,
+                            "cells_differing": differ}  # fmt: skip
+    for v in side.values():
+        v.pop("_found")
+    out["side_by_side"] = side
+
+    # ---- scaling: rows of both planes at n = 100, 200, 400 (800 cells per size)
+    scaling = []
+    for n, k in ((100, 4), (200, 2), (400, 1)):
+        if args.quick and n > 100:
+            break
+        js = [int(n * (2 * r + 1) / (2 * k)) for r in range(k)]
+        cells, _, motions = [], [], []
+        for plane in PLANES:
+            c, _s, m = rows_of(plane, n, js, base, st)
+            cells += c
+            motions += m
+        meter.reset()
+        c0 = time.process_time()
+        stats = chains.PoolStats()
+        found = finder.find_attractors_many(cells, starts=16, seed=0, settings=st,
+                                            forward_results=motions, stats=stats)
+        row = summary(found, time.process_time() - c0, meter)
+        row["n"] = n
+        row["rows_per_plane"] = k
+        row["projected_both_planes_wall_s_2_cores"] = 2 * n * n * 16 / (2 * row["starts_per_cpu_s"])
+        scaling.append(row)
+    out["scaling"] = scaling
     out["load_after"] = loadavg()
     path = save("attractors", out)
-    print(f"{len(cells)} cells x {args.starts} starts: "
-          f"early {runs['early']['cpu_per_start_ms']:.2f} ms/start "
-          f"({runs['early']['periods_per_start']:.0f} periods, "
-          f"{100 * runs['early']['labelled_early']:.0f}% labelled early), "
-          f"full {runs['full']['cpu_per_start_ms']:.2f} ms/start "
-          f"({runs['full']['periods_per_start']:.0f} periods); "
-          f"x{out['speedup_cpu']:.2f}; basins equal: {same} "
-          f"({len(cells) - len(differ)}/{len(cells)} cells)")
-    for d in differ:
-        print(f"  differs: w = {d['w']:.4f}, b = {d['b']:.4f}: early {d['early']} / full "
-              f"{d['full']}")
-    print(f"projection: 2 x 400 x 400 at {args.starts} starts = {proj / 60:.1f} min on 2 cores "
-          f"(target 15); largest n x n per plane in 15 min: {fit}")
+    print(f"load {out['load_before']} -> {out['load_after']}")
+    for name, v in side.items():
+        print(f"{name:9s} {v['cells']} cells x 16: {v['starts_per_cpu_s']:.0f} starts/CPU-s "
+              f"({v['cpu_per_start_ms']:.2f} ms/start, {v['periods_per_start']:.0f} periods, "
+              f"{100 * v['labelled_early']:.0f} % early), lane use {v['lane_use']:.3f}, kernel "
+              f"{v['kernel_lane_steps_per_cpu_s'] / 1e6:.1f} M lane-steps/CPU-s")
+    if "agreement" in out:
+        a = out["agreement"]
+        print(f"agreement with full-length runs: {a['starts'] - a['labels_differing']}/"
+              f"{a['starts']} starts; cells differing: {a['cells_differing']}")
+    for r in scaling:
+        print(f"n = {r['n']}: {r['cells']} cells, {r['starts_per_cpu_s']:.0f} starts/CPU-s, lane "
+              f"use {r['lane_use']:.3f}, kernel {r['kernel_lane_steps_per_cpu_s'] / 1e6:.1f} M "
+              f"lane-steps/CPU-s; both {r['n']}^2 planes: "
+              f"{r['projected_both_planes_wall_s_2_cores'] / 60:.1f} min on 2 cores")
     print(f"wrote {path}")
 
 
