@@ -275,3 +275,69 @@ def test_closed_curve_test_tells_a_torus_section_from_a_cloud():
     cloud = np.random.default_rng(3).random((200, 2)) * np.array([0.7, 4.0])
     assert not on_closed_curve(cloud, 0.7, 4.0)
     assert not on_closed_curve(curve[:10], 0.7, 4.0)  # too few points to tell
+
+
+def test_sweep_passage_next_to_a_saddle_is_labelled_by_where_it_goes(standard, monkeypatch):
+    """The xi = 0.15 sweep (forward continuation, the study's settings) just past the 1T orbit's
+    period doubling: the continued trajectory lingers next to that orbit, now a saddle
+    (multiplier -1.003 to -1.004), and the budget's window read 'quasi-periodic' (w = 1.338,
+    1.34) or an unsettled 2T. Followed along the saddle's unstable direction, each cell
+    reaches the stable 2T orbit, as the reference does: 4 000 transient periods from the same
+    start (the cell's continuation state), no refinement."""
+    import gearsim.cell.verify as verify
+    from gearsim.cell.chains import simulate_rows
+    from gearsim.study.config import study_settings
+
+    st = study_settings()
+    ws = np.round(np.arange(1.300, 1.3405, 0.002), 3)
+    cells = [standard.with_(xi=0.15, w=float(w)) for w in ws]
+    left = [verify.follow_motion]
+    calls = []
+
+    def spy(*a, **kw):
+        out = left[0](*a, **kw)
+        calls.append(out is not None)
+        return out
+
+    monkeypatch.setattr(verify, "follow_motion", spy)
+    again = simulate_rows([cells], settings=st)[0]
+    monkeypatch.undo()
+    starts = {float(w): (r.final_state, r.final_period) for w, r in zip(ws[1:], again[:-1],
+                                                                          strict=True)}
+    near = [k for k, w in enumerate(ws) if 1.334 <= w <= 1.340]
+    assert any(calls)
+    monkeypatch.setattr(verify, "needs_refinement", lambda cls, floquet="slow": False)
+    for k in near:
+        a = again[k].classification
+        assert a.motion == "periodic" and a.status == "ok", (ws[k], a.label, a.status)
+        y, k0 = starts[float(ws[k])]
+        ref = simulate_cell(cells[k], y, settings=st, transient=4000, start_period=k0)
+        r = ref.classification
+        assert (a.n, a.p, a.q) == (r.n, r.p, r.q) and a.label == r.label == "1/2T", ws[k]
+        assert abs(a.dc - r.dc) < 2e-3
+
+
+def test_sweep_window_without_period_or_orbit_is_followed(standard, monkeypatch):
+    """xi = 0.15, w = 0.696 (forward continuation from w = 0.6): the budget's window has no
+    period, no chaos (exponent -0.001) and Newton finds no orbit from it (it stalls); the
+    window is a passage, and 4 000 periods on it is the reference's 1/1T."""
+    import gearsim.cell.verify as verify
+    from gearsim.cell.chains import simulate_rows
+    from gearsim.study.config import study_settings
+
+    st = study_settings()
+    ws = np.linspace(0.1, 2.5, 1201)
+    ws = ws[(ws > 0.6) & (ws < 0.697)]
+    cells = [standard.with_(xi=0.15, w=float(w)) for w in ws]
+    res = simulate_rows([cells], settings=st)[0]
+    a = res[-1].classification
+    assert abs(ws[-1] - 0.696) < 1e-9
+    assert a.motion == "periodic" and a.status == "ok" and a.label == "1/1T"
+    monkeypatch.setattr(verify, "needs_refinement", lambda cls, floquet="slow": False)
+    short = simulate_cell(cells[-1], res[-2].final_state, settings=st,
+                          start_period=res[-2].final_period).classification  # fmt: skip
+    assert short.motion != "periodic"  # the budget alone does not settle it
+    ref = simulate_cell(cells[-1], res[-2].final_state, settings=st, transient=4000,
+                        start_period=res[-2].final_period).classification  # fmt: skip
+    assert (a.n, a.p, a.q, a.label) == (ref.n, ref.p, ref.q, ref.label)
+    assert abs(a.dc - ref.dc) < 2e-3

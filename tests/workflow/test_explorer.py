@@ -129,6 +129,27 @@ def test_floquet_margin_is_a_layer_when_the_cells_carry_it(page):
     np.testing.assert_allclose(got, margin, atol=0.51 * enc["step"])
 
 
+def test_readout_carries_status_critical_and_refined(page):
+    """The cell readout's verified-motion columns: per cell its status, the kind of its
+    critical multiplier and whether its label is that of the Newton orbit, decoded from the
+    page's arrays exactly."""
+    wd, _ = page
+    cells = pd.read_parquet(wd / "results/wb/cells.parquet")
+    kinds = np.array(["ok", "bifurcation", "not_converged"])[np.arange(len(cells)) % 3]
+    crit = np.array(["", "fold", "period_doubling", "neimark_sacker"])[np.arange(len(cells)) % 4]
+    refined = np.arange(len(cells)) % 5 == 0
+    cells = cells.assign(status=kinds, critical=crit, refined=refined)
+    block = Block()
+    p = plane_payload(plane_from_cells("wb", cells, ("w", "b")), block)
+    raw = decode_block(block.encoded())
+    k = cells["j"].to_numpy() * p["nx"] + cells["i"].to_numpy()
+    v = p["verified"]
+    for col, truth in (("status", kinds), ("critical", crit)):
+        got = np.array(v[col]["names"])[array_of(raw, v[col]["index"])[k]]
+        assert list(got) == list(truth), col
+    assert list(array_of(raw, v["refined"])[k].astype(bool)) == list(refined)
+
+
 def test_page_is_static_and_small(page):
     wd, out = page
     html = out.read_text()

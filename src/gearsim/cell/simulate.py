@@ -18,11 +18,9 @@ import numpy as np
 
 from gearsim.cell.classify import (
     Classification,
-    classify_motion,
     estimate_period,
-    settle_estimate,
 )
-from gearsim.cell.verify import FLOQUET, OrbitCache, fill_margins, verify_motion
+from gearsim.cell.verify import FLOQUET, OrbitCache, fill_margins, read_window, verify_motion
 from gearsim.dynamics.model import (
     N_STATE,
     mesh_force_series,
@@ -190,21 +188,7 @@ def finish_cell(
         raise ParameterError(f"floquet = {floquet!r}; allowed: {', '.join(FLOQUET)}")
     # the stronger of the caller's mode and the settings' (``integration: floquet``)
     floquet = max(floquet, st.floquet, key=FLOQUET.index)
-    if n > 0:
-        keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
-        window = summaries.tail(keep)
-    else:
-        window = summaries
-    cls = classify_motion(
-        window, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
-        Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold,
-    )  # fmt: skip
-    if n > 0:
-        scale = float(summaries.xmax.max() - summaries.xmin.min())
-        # contiguous copies: a strided view of the lanes' records misses Numba's fast dispatch
-        xs = np.ascontiguousarray(summaries.section[:, 0])
-        vs = np.ascontiguousarray(summaries.section[:, 1])
-        cls.settle = float(settle_estimate(xs, vs, int(n), scale, float(params.w), 96)[0])
+    window, cls = read_window(params, summaries, n, st)
     cls, orbit = verify_motion(params, summaries, cls, st, final_state, floquet, orbits)
     if orbit is not None:
         poincare = orbit

@@ -42,8 +42,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gearsim.cell.classify import Classification, candidate_periods, classify_motion
-from gearsim.dynamics.model import N_STATE, P_ACT
+from gearsim.cell.classify import (
+    Classification,
+    candidate_periods,
+    classify_motion,
+    estimate_period,
+    settle_estimate,
+)
+from gearsim.dynamics.model import N_STATE, P_ACT, project_tangent
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.integrate import (
     FLOQUET_MODES,
@@ -256,6 +262,29 @@ def on_closed_curve(points: np.ndarray, scale_x: float, scale_v: float) -> bool:
     return thin >= CURVE_SHARE * m
 
 
+def read_window(params: ModelParameters, summaries: PeriodSummaries, n: int,
+                st: IntegrationSettings) -> tuple[PeriodSummaries, Classification]:
+    """The analysed window of measured periods ``summaries`` (period ``n``, 0 if none: whole
+    motion periods only, the early part of a long measurement dropped) and its classification,
+    with the settle distance read from all measured periods."""
+    if n > 0:
+        keep = n * max(1, min(len(summaries), 4 * max(n, 8)) // n)
+        window = summaries.tail(keep)
+    else:
+        window = summaries
+    cls = classify_motion(
+        window, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
+        Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold,
+    )  # fmt: skip
+    if n > 0:
+        scale = float(summaries.xmax.max() - summaries.xmin.min())
+        # contiguous copies: a strided view of the lanes' records misses Numba's fast dispatch
+        xs = np.ascontiguousarray(summaries.section[:, 0])
+        vs = np.ascontiguousarray(summaries.section[:, 1])
+        cls.settle = float(settle_estimate(xs, vs, int(n), scale, float(params.w), 96)[0])
+    return window, cls
+
+
 def needs_refinement(cls: Classification, floquet: str = "slow") -> bool:
     """Whether :func:`refine` should settle this classification (see the module docstring)."""
     if cls.status in ("diverged", "budget"):
@@ -281,11 +310,11 @@ def _minimal_period(section: np.ndarray, n: int) -> int:
 
 
 def refine(params: ModelParameters, window: PeriodSummaries, n: int, guess: np.ndarray,
-           st: IntegrationSettings) -> Refinement | None:
+           st: IntegrationSettings, saddles: list | None = None) -> Refinement | None:
     """The stable period-``n`` orbit the window approaches, from the section state ``guess``,
     or an orbit that has just lost stability (``|mu|max < 1 +`` :data:`BIFURCATION_MARGIN`, no
     approach test); None when Newton fails, the orbit is farther from stable or the window
-    does not approach it."""
+    does not approach it. An orbit farther from stable is appended to ``saddles`` if given."""
     if params.var_ratio != 0.0:
         return None  # the map is not T-periodic: no orbit to refine
     p = params.to_array()
@@ -311,6 +340,8 @@ def refine(params: ModelParameters, window: PeriodSummaries, n: int, guess: np.n
         if abs(mu[0]) < 1.0 + BIFURCATION_MARGIN:
             # just past a bifurcation: the window leaves this orbit slowly (no approach test)
             return Refinement(m, y[:N_STATE].copy(), mu, r, it, math.nan)
+        if saddles is not None:
+            saddles.append(Refinement(m, y[:N_STATE].copy(), mu, r, it, math.nan))
         return None
     scale = max(float(window.xmax.max() - window.xmin.min()), 1e-9)
     q = max(len(window) // 4, 1)
@@ -340,9 +371,64 @@ def orbit_classification(params: ModelParameters, ref: Refinement, st: Integrati
     return cls, run.summaries.section.copy()
 
 
+#: a window next to a saddle, or without a period, chaos or an orbit, is followed for at most
+#: this many periods (the long simulations that decide such cells in
+#: tests/integration/test_verify.py: 4 000)
+SADDLE_MAX_PERIODS = 4000
+
+
+def _is_saddle(ref: Refinement) -> bool:
+    """One real multiplier outside the unit circle, the others inside: a saddle with one
+    unstable direction (past a fold: mu > 1; past a period doubling: mu < -1, the trajectory
+    leaving on alternate sides)."""
+    mu = ref.multipliers
+    return (abs(mu[0].imag) <= 1e-9 * abs(mu[0]) and abs(mu[0]) > 1.0
+            and (len(mu) < 2 or abs(mu[1]) < 1.0))
+
+
+def saddle_periods(params: ModelParameters, window: PeriodSummaries, saddle: Refinement,
+                   st: IntegrationSettings, guess: np.ndarray) -> int:
+    """Periods a trajectory at ``guess`` takes to leave the saddle (relative distance ``d``:
+    ``log(1/d) / log|mu_u|``) plus one measuring budget, at most :data:`SADDLE_MAX_PERIODS`."""
+    scale = max(float(window.xmax.max() - window.xmin.min()), 1e-9)
+    d = float(_distances(np.asarray(guess, dtype=float)[None, :2],
+                         saddle.state[None, :2], scale, params.w)[0])  # fmt: skip
+    rate = math.log(abs(saddle.multipliers[0]))
+    k = int(math.ceil(math.log(1.0 / max(d, 1e-12)) / rate)) + st.max_periods
+    return min(max(k, st.max_periods), SADDLE_MAX_PERIODS)
+
+
+def follow_motion(params: ModelParameters, periods: int, st: IntegrationSettings,
+                  guess: np.ndarray, floquet: str, orbits: OrbitCache | None
+                  ) -> tuple[Classification, np.ndarray | None] | None:
+    """Go on from the last state ``guess`` for ``periods`` periods and read the last
+    ``max_periods`` of them as the cell's window (the period test, the classification, the
+    refinement). Returns that reading when it is periodic and settled (status ``ok``), else
+    None. For a window that is a reading of a passage, not of the motion: next to a saddle
+    (:func:`saddle_periods`), or without a period, without chaos and without an orbit Newton
+    finds (:data:`SADDLE_MAX_PERIODS`)."""
+    y = np.asarray(guess, dtype=float)
+    z = y[N_STATE : 2 * N_STATE] if len(y) >= 2 * N_STATE else np.ones(N_STATE)
+    z = project_tangent(z / np.linalg.norm(z), params.to_array())
+    run = run_periods(params, np.concatenate([y[:N_STATE], z]), periods, st, tangent=True)
+    if run.status != STATUS_OK or len(run.summaries) < st.max_periods:
+        return None
+    s = run.summaries.tail(st.max_periods)
+    scale = float(s.xmax.max() - s.xmin.min())
+    n = int(estimate_period(np.ascontiguousarray(s.section[:, 0]),
+                            np.ascontiguousarray(s.section[:, 1]), scale, params.w, st.n_max,
+                            st.period_rtol, 16))  # fmt: skip
+    _, cls = read_window(params, s, n, st)
+    out = verify_motion(params, s, cls, st, run.state, floquet, orbits, follow=False)
+    c = out[0]
+    if c.motion != "periodic" or c.status != "ok":
+        return None
+    return out
+
+
 def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classification,
                   st: IntegrationSettings, guess: np.ndarray, floquet: str = "slow",
-                  orbits: OrbitCache | None = None
+                  orbits: OrbitCache | None = None, follow: bool = True
                   ) -> tuple[Classification, np.ndarray | None]:
     """Settle ``cls`` by its orbit where it needs it: ``(classification, orbit section points or
     None)``. A periodic cell whose refinement fails keeps its label with status
@@ -358,8 +444,9 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
         scale = float(window.xmax.max() - window.xmin.min())
         periods = candidate_periods(window.section[:, 0], window.section[:, 1], scale,
                                     params.w, min(st.n_max, 16))  # fmt: skip
+    saddles: list[Refinement] = []
     for n in periods:
-        ref = refine(params, window, n, guess, st)
+        ref = refine(params, window, n, guess, st, saddles)
         if ref is None:
             continue
         if ref.mu_max >= 1.0:
@@ -371,6 +458,15 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
         if out is not None:
             if orbits is not None and cls.n > 0:
                 orbits.add(params, cls.n, *out)
+            return out
+    near = [r for r in saddles if _is_saddle(r)]
+    if follow and (cls.n == 0 or not cls.settle <= REFINE_RTOL):
+        if near:
+            k = saddle_periods(params, window, near[0], st, guess)
+        else:
+            k = SADDLE_MAX_PERIODS if cls.n == 0 else 0
+        out = follow_motion(params, k, st, guess, floquet, orbits) if k else None
+        if out is not None:
             return out
     if cls.n > 0 and not cls.settle <= REFINE_RTOL:
         return replace(cls, status="not_converged", converged=False), None

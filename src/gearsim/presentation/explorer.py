@@ -350,6 +350,16 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
     floquet = next((c for c in FLOQUET_COLUMNS if c in df.columns), None)
     if floquet is not None:
         layers["floquet"] = block.quantised(grid(floquet))
+    # the verified-motion columns of the readout: status, critical multiplier, refined
+    verified: dict[str, Any] = {}
+    for col in ("status", "critical"):
+        if col in df.columns:
+            names, idx = _indexed(df[col].fillna("").astype(str))
+            verified[col] = {"names": names,
+                             "index": block.add(np.where(present, idx[rows], 255), "u1")}
+    if "refined" in df.columns:
+        ref = df["refined"].fillna(False).astype(bool).to_numpy()[rows]
+        verified["refined"] = block.add(np.where(present, ref, 0), "u1")
     payload: dict[str, Any] = {
         "name": plane.name, "nx": nx, "ny": ny,
         "xname": plane.xname, "yname": plane.yname,
@@ -369,6 +379,7 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
         "kmax_cap": float(robust_max(kmax)) if len(finite) else 1.0,
         "kmax_reading": kmax_col,
         "floquet_column": floquet,
+        "verified": verified,
         "counts": block.add(np.clip(counts, 0, 255), "u1"),
         "px": block.quantised(px), "pv": block.quantised(pv),
         "attractors": None, "n_attractors": None,
