@@ -8,7 +8,7 @@ process: refinement off, ``floquet: slow`` (refinement only) and ``floquet: marg
 default: refinement and the margin of every periodic cell, :func:`gearsim.cell.verify.
 fill_margins` after the batched driver, as the tile runner does). Prints per run the CPU time
 of the simulation and of the margins, the motions and statuses, the refined cells and the
-refinement's own CPU, and the load average.
+refinement's own CPU, the windows followed on (docs/model.md, "Passages"), and the load average.
 
 Usage: python benchmarks/bench_refine.py wxi 25,75,125,175,225,275,325,375
        python benchmarks/bench_refine.py wb 25,75,125,175,225,275,325,375
@@ -48,7 +48,19 @@ def run(plane: str, rows_idx: list[int], mode: str) -> dict:
         stats["accepted"] += r is not None
         return r
 
+    follow = {"calls": 0, "kept": 0, "cpu_s": 0.0}
+    orig_follow = verify.follow_motion
+
+    def followed(*a, **k):
+        t = time.process_time()
+        r = orig_follow(*a, **k)
+        follow["calls"] += 1
+        follow["kept"] += r is not None
+        follow["cpu_s"] += time.process_time() - t
+        return r
+
     verify.refine = timed
+    verify.follow_motion = followed
     if mode == "off":
         verify.needs_refinement = lambda cls, floquet="slow": False
     try:
@@ -60,6 +72,7 @@ def run(plane: str, rows_idx: list[int], mode: str) -> dict:
         t2 = time.process_time()
     finally:
         verify.refine, verify.needs_refinement = orig_refine, orig_needs
+        verify.follow_motion = orig_follow
     cls = [r.classification for row in res for r in row]
     return {"plane": plane, "rows": rows_idx, "mode": mode, "cells": len(cls),
             "cpu_s": round(t1 - t0, 2), "margin_cpu_s": round(t2 - t1, 2),
@@ -68,6 +81,7 @@ def run(plane: str, rows_idx: list[int], mode: str) -> dict:
             "with_mu_max": int(sum(np.isfinite(c.mu_max) for c in cls)),
             "refined": sum(bool(c.refined) for c in cls),
             "refinement": {k: round(v, 3) for k, v in stats.items()},
+            "followed": {k: round(v, 3) for k, v in follow.items()},
             "load": [round(v, 2) for v in os.getloadavg()]}  # fmt: skip
 
 

@@ -143,12 +143,13 @@ def fill_margins(results: list, st: IntegrationSettings) -> None:
                 break
             maps = monodromies([r.params for r in group], ys, n, st)
             again, y_again = [], []
+            done: dict[int, list] = {}  # accepted, by dimension: one eigenvalue call each
             for r, y, (yn, M, status) in zip(group, ys, maps, strict=True):
                 if status == STATUS_OK and np.all(np.isfinite(M)):
                     d = len(M)
                     G = yn[:d] - y[:d]
                     if float(np.max(np.abs(G))) < MARGIN_TOL or _switch_free(r):
-                        _set_margin(r, sorted_eigs(M))
+                        done.setdefault(d, []).append((r, M))
                         continue
                     if step == 0:
                         y1 = np.array(y, dtype=float)[:N_STATE].copy()
@@ -159,6 +160,10 @@ def fill_margins(results: list, st: IntegrationSettings) -> None:
                 m = floquet_margin(r.params, n, r.final_state, st)
                 if m is not None:
                     r.classification = replace(r.classification, mu_max=m[0], critical=m[1])
+            for pairs in done.values():
+                mus = sorted_eigs(np.stack([M for _, M in pairs]))
+                for (r, _), mu in zip(pairs, mus, strict=True):
+                    _set_margin(r, mu)
             group, ys = again, y_again
 
 

@@ -101,8 +101,11 @@ def multiplier_kind(mu: complex) -> str:
 
 
 def sorted_eigs(M: np.ndarray) -> np.ndarray:
+    """Eigenvalues of ``M`` (the multipliers of a monodromy), by decreasing modulus; ``M`` may
+    be a stack ``(k, d, d)`` (one LAPACK call for all): then ``(k, d)``, each row sorted."""
     mu = np.linalg.eigvals(M).astype(complex)
-    return mu[np.argsort(-np.abs(mu), kind="stable")]
+    order = np.argsort(-np.abs(mu), axis=-1, kind="stable")
+    return np.take_along_axis(mu, order, axis=-1)
 
 
 def newton_step(M: np.ndarray, G: np.ndarray) -> np.ndarray:
