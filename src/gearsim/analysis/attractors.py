@@ -388,10 +388,16 @@ class _Known:
             # the start itself passes the period-n test the classifier would apply (so a
             # nearby period-2n motion, e.g. just past a period doubling, is not taken for it)
             prev = hist[rows, L - need - n : L - n, :2]
-            px = o.period_rtol * max(s.scale_x, 1e-9)
-            pv = o.period_rtol * max(s.scale_v, 1e-9)
-            periodic = np.all((np.abs(w[:, :, 0] - prev[:, :, 0]) <= px)
-                              & (np.abs(w[:, :, 1] - prev[:, :, 1]) <= pv), axis=1)  # fmt: skip
+            rtol = o.period_rtol if o.recur_period_rtol is None else o.recur_period_rtol
+            px = rtol * max(s.scale_x, 1e-9)
+            pv = rtol * max(s.scale_v, 1e-9)
+            res = np.maximum(np.abs(w[:, :, 0] - prev[:, :, 0]) / px,
+                             np.abs(w[:, :, 1] - prev[:, :, 1]) / pv)  # (r, need)
+            periodic = np.all(res <= 1.0, axis=1)
+            if rtol > o.period_rtol:
+                # looser than the classifier's test: the start's own n-period residual must
+                # not grow over the window (a persisting 2n alternation does not decay)
+                periodic &= res[:, -n:].max(axis=1) <= res[:, :n].max(axis=1)
             out[rows[close & phase & periodic]] = a
         for a in range(len(self.steadies) if o.early_clouds else 0):
             cloud = self._clouds[a]
@@ -421,6 +427,7 @@ class _Options:
     period_rtol: float = 1e-5
     doubling_rtol: float = 0.05
     early_clouds: bool = False
+    recur_period_rtol: float | None = None  # the recurrence's period test (None: period_rtol)
 
 
 # ============================================================================ the engine

@@ -51,6 +51,10 @@ from gearsim.cell.simulate import IntegrationSettings, result_columns
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import steps_per_period
 
+#: the recurrence's own period test: a start's last points repeat after n periods within
+#: 1e-4 of the orbit's range (the classifier's test is 1e-5; docs/decisions.md)
+RECUR_PERIOD_RTOL = 1e-4
+
 #: lanes of the probing pool (a kernel call of 8 periods over 256 lanes is ~10 ms: the Python
 #: bookkeeping per chunk stays a small share; docs/decisions.md)
 POOL_LANES = 256
@@ -391,13 +395,15 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
 
 def _make_options(st, options: dict) -> _Options:
     allowed = {"chunk", "confirm", "confirm_cloud", "recur_rtol", "merge_rtol", "grid",
-               "cloud_overlap", "rescout", "period_rtol", "early_clouds"}  # fmt: skip
+               "cloud_overlap", "rescout", "period_rtol", "early_clouds",
+               "recur_period_rtol"}  # fmt: skip
     bad = set(options) - allowed
     if bad:
         raise ParameterError(f"unknown finder option(s) {sorted(bad)}; allowed: "
                              f"{', '.join(sorted(allowed))}")  # fmt: skip
     o = dict(options)
     o.setdefault("period_rtol", st.period_rtol)
+    o.setdefault("recur_period_rtol", RECUR_PERIOD_RTOL)
     for name in ("chunk", "confirm", "confirm_cloud", "rescout"):
         v = o.get(name, getattr(_Options, name))
         if isinstance(v, bool) or not isinstance(v, int) or v < 1:
