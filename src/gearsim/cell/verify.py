@@ -412,10 +412,11 @@ def follow_motion(params: ModelParameters, periods: int, st: IntegrationSettings
     None. For a window that is a reading of a passage, not of the motion: next to a saddle
     (:func:`saddle_periods`), or without a period, without chaos and without an orbit Newton
     finds (:data:`SADDLE_MAX_PERIODS`)."""
-    y = np.asarray(guess, dtype=float)
-    z = y[N_STATE : 2 * N_STATE] if len(y) >= 2 * N_STATE else np.ones(N_STATE)
-    z = project_tangent(z / np.linalg.norm(z), params.to_array())
-    run = run_periods(params, np.concatenate([y[:N_STATE], z]), periods, st, tangent=True)
+    y = np.asarray(guess, dtype=float)[:N_STATE]
+    # a fixed tangent start (not the caller's: the scalar and batched drivers pass different
+    # ones), aligned over the periods before the read window
+    z = project_tangent(np.ones(N_STATE) / math.sqrt(N_STATE), params.to_array())
+    run = run_periods(params, np.concatenate([y, z]), periods, st, tangent=True)
     if run.status != STATUS_OK or len(run.summaries) < st.max_periods:
         return None
     s = run.summaries.tail(st.max_periods)
