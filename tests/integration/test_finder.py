@@ -151,8 +151,8 @@ def test_tile_row_is_a_known_attractor():
 
 def test_continuation_reading_is_no_recurrence_target():
     """At w = 1.99, b = 0.375 (the study's standard set) the forward chain reads 1/5T after
-    its continuation transient, while every start's full-length run ends on 1/1T: the starts
-    that pass near that orbit on their way must not be labelled onto it."""
+    its continuation transient, while every start's full-length run ends on 1/1T: starts
+    turning about the 1/1T motion match the 1/5T points and must not be labelled onto it."""
     from gearsim.study.config import standard_parameters, study_settings
 
     base, st = standard_parameters(), study_settings()

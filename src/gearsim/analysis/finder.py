@@ -65,10 +65,11 @@ _CONT = {-1: "forward", -2: "backward"}
 
 def _verified(s: Steady) -> bool:
     """A continuation state's motion is a recurrence target only as a Newton-refined orbit
-    that is stable (``ok``, |mu|max < 1): its reading after the short continuation transient
-    can be a slowly repelling orbit that starts visit on their way to another attractor (a
-    1/5T forward reading at w = 1.99, b = 0.375 while every start's full-length run ends on
-    1/1T). Other motions become targets once a start's full-length run reaches them."""
+    that is stable (``ok``, |mu|max < 1). At w = 1.99, b = 0.375 the forward reading is a 1/5T
+    orbit (Floquet margin 0.63, critical multiplier complex) while every start's full-length
+    run ends on 1/1T; starts spiralling into the 1/1T motion at close to 1/5 of a turn per
+    period matched the 1/5T points in phase order within the recurrence tolerance. Other
+    motions become targets once a start's full-length run reaches them."""
     i = s.info or {}
     mu = i.get("mu_max")
     return bool(i.get("refined")) and i.get("status") == "ok" and mu is not None and mu < 1.0
