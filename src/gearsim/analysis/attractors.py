@@ -885,11 +885,15 @@ def find_attractors(
     (``transient`` periods from a start, ``transient_continuation`` from a continuation state).
     Returns the attractors (classification, basin fraction, section points), most likely first.
     """
-    return find_attractors_many(
-        [params], starts=starts, seed=seed, settings=settings,
-        forward=None if forward is None else [forward],
-        backward=None if backward is None else [backward], early=early, **options,
-    )[0]  # fmt: skip
+    return one_cell(find_attractors_many, params, starts=starts, seed=seed, settings=settings,
+                    forward=forward, backward=backward, early=early, **options)
+
+
+def one_cell(find_many, params: ModelParameters, *, forward=None, backward=None,
+             **options: Any) -> CellAttractors:
+    """``find_many`` (a many-cell finder) for the one cell ``params``: its result for that cell."""
+    return find_many([params], forward=None if forward is None else [forward],
+                     backward=None if backward is None else [backward], **options)[0]
 
 
 def n_real(ca: CellAttractors) -> int:

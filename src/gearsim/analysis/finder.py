@@ -43,6 +43,7 @@ from gearsim.analysis.attractors import (
     _Options,
     assemble,
     gear_steady,
+    one_cell,
     sobol_unit,
     tile_records,
 )
@@ -301,31 +302,13 @@ def find_attractors_many(
                     [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
 
 
-def find_attractors(
-    params: ModelParameters,
-    *,
-    starts: int = 16,
-    seed: int = 0,
-    settings=None,
-    forward: np.ndarray | None = None,
-    backward: np.ndarray | None = None,
-    early: bool = True,
-    **options: Any,
-) -> CellAttractors:
-    """Coexisting attractors of one gear cell from ``starts`` seeded space-filling starts.
-
-    Starts: scrambled Sobol points (seed ``seed``) over the
-    :func:`~gearsim.analysis.attractors.start_box` in ``(x, x')``, bearings at their static
-    deflection and at rest; plus the ``forward`` / ``backward`` continuation states when given.
-    Integration: the batched RK4 kernel with ``settings`` (``transient`` periods from a start,
-    ``transient_continuation`` from a continuation state). Returns the attractors
-    (classification, basin fraction, section points), most likely first.
+def find_attractors(params: ModelParameters, **options: Any) -> CellAttractors:
+    """Coexisting attractors of one gear cell: :func:`find_attractors_many` for ``[params]``
+    (same options: ``starts``, ``seed``, ``settings``, ``early``; ``forward`` / ``backward``
+    one continuation state each, or None). Returns the attractors (classification, basin
+    fraction, section points), most likely first.
     """
-    return find_attractors_many(
-        [params], starts=starts, seed=seed, settings=settings,
-        forward=None if forward is None else [forward],
-        backward=None if backward is None else [backward], early=early, **options,
-    )[0]  # fmt: skip
+    return one_cell(find_attractors_many, params, **options)
 
 
 def steady_from_row(row: Mapping[str, Any], w: float) -> Steady | None:
