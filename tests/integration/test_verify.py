@@ -302,10 +302,18 @@ def test_sweep_passage_next_to_a_saddle_is_labelled_by_where_it_goes(standard, m
     monkeypatch.setattr(verify, "follow_motion", spy)
     again = simulate_rows([cells], settings=st)[0]
     monkeypatch.undo()
+    verify.fill_margins(again, st)  # what a sweep or tile does after the chains
     starts = {float(w): (r.final_state, r.final_period) for w, r in zip(ws[1:], again[:-1],
                                                                           strict=True)}
     near = [k for k, w in enumerate(ws) if 1.334 <= w <= 1.340]
     assert any(calls)
+    # a followed cell's points and Floquet margin are those of the orbit it reached:
+    # gearsim orbit's (DP5 at 1e-12) to the RK4 map's error at w > 1 (decisions.md)
+    for k in near:
+        a, pts = again[k].classification, again[k].poincare
+        assert len(pts) == a.n
+        orbit = find_periodic_orbit(cells[k], a.n, pts[0], grazing=False)
+        assert a.mu_max == pytest.approx(orbit.mu_max, abs=1e-5), (ws[k], a.mu_max)
     monkeypatch.setattr(verify, "needs_refinement", lambda cls, floquet="slow": False)
     for k in near:
         a = again[k].classification

@@ -425,11 +425,18 @@ def follow_motion(params: ModelParameters, periods: int, st: IntegrationSettings
                             np.ascontiguousarray(s.section[:, 1]), scale, params.w, st.n_max,
                             st.period_rtol, 16))  # fmt: skip
     _, cls = read_window(params, s, n, st)
-    out = verify_motion(params, s, cls, st, run.state, floquet, orbits, follow=False)
-    c = out[0]
+    c, orbit = verify_motion(params, s, cls, st, run.state, floquet, orbits, follow=False)
     if c.motion != "periodic" or c.status != "ok":
         return None
-    return out
+    if orbit is None:
+        # the reading is the followed window's: so are its points and its margin (the
+        # caller's final state is the passage's, not a state on this orbit)
+        orbit = s.section[-c.n:].copy()
+        if not math.isfinite(c.mu_max) and st.floquet != "slow":
+            m = floquet_margin(params, c.n, run.state, st)
+            if m is not None:
+                c = replace(c, mu_max=m[0], critical=m[1])
+    return c, orbit
 
 
 def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classification,
