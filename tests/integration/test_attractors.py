@@ -9,6 +9,7 @@
 
 import numpy as np
 import pytest
+from attractor_checks import assert_same_attractors_per_start
 from reference import reference_settings
 from scipy.integrate import solve_ivp
 
@@ -184,18 +185,7 @@ def test_gear_early_labelling_equals_full_length_runs():
     ]
     fast = find_attractors_many(cells, starts=24, seed=7, settings=GEAR)
     full = find_attractors_many(cells, starts=24, seed=7, settings=GEAR, early=False)
-    n_early = 0
-    for a, b in zip(fast, full, strict=True):
-        fa = sorted((x.basin_fraction, x.label) for x in a.attractors)
-        fb = sorted((x.basin_fraction, x.label) for x in b.attractors)
-        assert fa == fb
-        for i in range(a.n_starts):  # every start reaches the same attractor
-            la, lb = a.start_labels[i], b.start_labels[i]
-            assert (la < 0) == (lb < 0)
-            if la >= 0:
-                assert same_attractor(a.attractors[la].steady, b.attractors[lb].steady)
-        n_early += int(a.early.sum())
-        assert a.start_periods_run.sum() < b.start_periods_run.sum()
+    n_early = assert_same_attractors_per_start(fast, full)
     assert n_early >= 0.5 * 24 * len(cells)
     assert any(len(a.attractors) >= 2 for a in fast)
 
