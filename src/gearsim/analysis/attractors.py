@@ -806,6 +806,31 @@ class GearCells:
                              orbits=self.orbits)  # fmt: skip
         return [gear_steady(r) for r in res]
 
+    def fill_margins(self, found: Sequence[CellAttractors]) -> None:
+        """Every periodic attractor its Floquet margin where its run did not give one (in
+        place; ``found[c]`` belongs to cell ``c``): the margin of a plane cell's motion
+        (:func:`gearsim.cell.verify.orbit_margins`, the cells' attractors in shared kernel
+        calls; only with ``floquet`` ``"margin"``)."""
+        from gearsim.cell.verify import orbit_margins
+
+        st = self.settings
+        if st.floquet != "margin":
+            return
+        todo = []
+        for p, ca in zip(self.params, found, strict=True):
+            for a in ca.attractors:
+                s = a.steady
+                mu = s.info.get("mu_max")
+                if (s.period > 0 and s.status == "ok" and s.info.get("status", "ok") == "ok"
+                        and not s.info.get("refined") and s.final_state is not None
+                        and p.var_ratio == 0.0 and not (mu is not None and math.isfinite(mu))):
+                    todo.append((p, s))
+        got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
+                            [s.final_state for _, s in todo], st)  # fmt: skip
+        for (_, s), m in zip(todo, got, strict=True):
+            if m is not None:
+                s.info["mu_max"], s.info["critical"] = m
+
 
 def gear_steady(res) -> Steady:
     """:class:`Steady` of a :class:`gearsim.cell.simulate.CellResult`."""
@@ -860,10 +885,12 @@ def find_attractors_many(
                 m["backward"] = np.asarray(backward[c], dtype=float)[:10]
             cont.append(m)
     options.setdefault("period_rtol", system.settings.period_rtol)
-    return map_attractors(
+    found = map_attractors(
         system, len(params_list), st, continuation=cont,
         continuation_transient=system.settings.transient_continuation, early=early, **options,
     )  # fmt: skip
+    system.fill_margins(found)
+    return found
 
 
 def find_attractors(

@@ -297,9 +297,11 @@ def find_attractors_many(
         if np.any(cell.labels == -2) or cell.parked:
             raise RuntimeError("attractor pool ended with unlabelled starts")  # a bug, not input
         cell.cont.sort(key=lambda t: FOUND_BY.index(t[0]))
-    return assemble(opts, [c.starts for c in cells], [c.labels for c in cells],
-                    [c.early for c in cells], [c.periods for c in cells],
-                    [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
+    found = assemble(opts, [c.starts for c in cells], [c.labels for c in cells],
+                     [c.early for c in cells], [c.periods for c in cells],
+                     [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
+    system.fill_margins(found)
+    return found
 
 
 def find_attractors(params: ModelParameters, **options: Any) -> CellAttractors:

@@ -119,57 +119,68 @@ def _switch_free(res) -> bool:
 def fill_margins(results: list, st: IntegrationSettings) -> None:
     """Give every periodic result (``CellResult``) its Floquet margin ``mu_max`` and the kind of
     its critical multiplier (:data:`FLOQUET` ``"margin"``; in place), many cells in shared
-    kernel calls.
-
-    The margin is that of the cell's own map (RK4 at the cell's steps) at its last section
-    state ``y`` (:func:`gearsim.numerics.variational.monodromies`, one lane per tangent
-    column) when ``y`` is a fixed point of ``P^n`` to :data:`MARGIN_TOL` or the motion is
-    switch-free (:func:`_switch_free`: the monodromy is the same at every state near the
-    orbit); else at ``y`` after one Newton step
-    (:func:`gearsim.numerics.shooting.newton_step`) when that is a fixed point to the
-    tolerance; else the one orbit solver's (:func:`floquet_margin`).
+    kernel calls (:func:`orbit_margins`).
     Only with ``st.floquet == "margin"`` and RK4 (a DP5 cell's margin: ``"all"``).
     """
     if st.floquet != "margin" or st.method != "rk4":
         return
-    by_n: dict[int, list] = {}
-    for r in results:
-        if _wants_margin(r):
-            by_n.setdefault(r.classification.n, []).append(r)
+    todo = [r for r in results if _wants_margin(r)]
+    got = orbit_margins([r.params for r in todo], [r.classification.n for r in todo],
+                        [r.final_state for r in todo], st,
+                        [_switch_free(r) for r in todo])  # fmt: skip
+    for r, m in zip(todo, got, strict=True):
+        if m is not None:
+            r.classification = replace(r.classification, mu_max=m[0], critical=m[1])
+
+
+def orbit_margins(params_list: list[ModelParameters], ns: list[int], states: list,
+                  st: IntegrationSettings, switch_free: list[bool] | None = None
+                  ) -> list[tuple[float, str] | None]:
+    """``(|mu|max, kind of the critical multiplier)`` of the period-``ns[i]`` orbit through
+    each settled section state ``states[i]`` (None where no orbit is found), many cells in
+    shared kernel calls.
+
+    The margin is that of the cell's own map (``st``) at ``y`` = ``states[i]``
+    (:func:`gearsim.numerics.variational.monodromies`, one lane per tangent column) when
+    ``y`` is a fixed point of ``P^n`` to :data:`MARGIN_TOL` or the motion is switch-free
+    (``switch_free[i]``, :func:`_switch_free`: the monodromy is the same at every state near the
+    orbit); else at ``y`` after one Newton step
+    (:func:`gearsim.numerics.shooting.newton_step`) when that is a fixed point to the
+    tolerance; else the one orbit solver's (:func:`floquet_margin`).
+    """
+    out: list[tuple[float, str] | None] = [None] * len(params_list)
+    free = switch_free if switch_free is not None else [False] * len(params_list)
+    by_n: dict[int, list[int]] = {}
+    for i, n in enumerate(ns):
+        by_n.setdefault(int(n), []).append(i)
     for n, group in by_n.items():
-        ys = [r.final_state for r in group]
+        ys = [states[i] for i in group]
         for step in (0, 1):
             if not group:
                 break
-            maps = monodromies([r.params for r in group], ys, n, st)
+            maps = monodromies([params_list[i] for i in group], ys, n, st)
             again, y_again = [], []
             done: dict[int, list] = {}  # accepted, by dimension: one eigenvalue call each
-            for r, y, (yn, M, status) in zip(group, ys, maps, strict=True):
+            for i, y, (yn, M, status) in zip(group, ys, maps, strict=True):
                 if status == STATUS_OK and np.all(np.isfinite(M)):
                     d = len(M)
                     G = yn[:d] - y[:d]
-                    if float(np.max(np.abs(G))) < MARGIN_TOL or _switch_free(r):
-                        done.setdefault(d, []).append((r, M))
+                    if float(np.max(np.abs(G))) < MARGIN_TOL or free[i]:
+                        done.setdefault(d, []).append((i, M))
                         continue
                     if step == 0:
                         y1 = np.array(y, dtype=float)[:N_STATE].copy()
                         y1[:d] += newton_step(M, G)
-                        again.append(r)
+                        again.append(i)
                         y_again.append(y1)
                         continue
-                m = floquet_margin(r.params, n, r.final_state, st)
-                if m is not None:
-                    r.classification = replace(r.classification, mu_max=m[0], critical=m[1])
+                out[i] = floquet_margin(params_list[i], n, states[i], st)
             for pairs in done.values():
                 mus = sorted_eigs(np.stack([M for _, M in pairs]))
-                for (r, _), mu in zip(pairs, mus, strict=True):
-                    _set_margin(r, mu)
+                for (i, _), mu in zip(pairs, mus, strict=True):
+                    out[i] = (float(abs(mu[0])), multiplier_kind(complex(mu[0])))
             group, ys = again, y_again
-
-
-def _set_margin(res, mu: np.ndarray) -> None:
-    res.classification = replace(res.classification, mu_max=float(abs(mu[0])),
-                                 critical=multiplier_kind(complex(mu[0])))
+    return out
 
 
 def floquet_margin(params: ModelParameters, n: int, guess: np.ndarray,
