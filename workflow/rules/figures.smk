@@ -22,6 +22,9 @@ for _spec in FIGURE_GROUPS:
         input:
             **gfr.input_paths(_spec, ORBIT_TABLES),
             config=CONFIG,
+            # a figure that simulates its own points waits for the compiled kernels (it would
+            # otherwise compile them again beside the compile job)
+            kernels=[] if _spec.tables_required else [COMPILED],
         output:
             *[
                 report(p, caption=f"../report/{c}", category="Figures")
