@@ -35,8 +35,10 @@ SHARED_GROUPS = {
 LONGEST_FIRST: tuple[str, ...] = (
     "tiny_run",  # the tiny workflow, then rebuilds, dry runs and a killed-and-resumed run
     "test_one_source.py",  # compiles a modified copy of the package from an empty cache
+    "test_attractors_equivalence.py",  # two finders on a 40 x 40 plane, 16 starts per cell
     "test_attractors_pipeline.py",
     "tiny_study",
+    "test_portable.py",  # compiles the kernels for AVX2 in a fresh cache
     "test_pipeline_study.py",
     "test_readme.py",
     "test_trust_config.py",

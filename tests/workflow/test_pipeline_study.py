@@ -27,6 +27,8 @@ STUDY = {
     "integration": {"method": "rk4", "steps_per_period": 64, "transient": 30,
                     "transient_continuation": 10, "chunk": 16, "max_periods": 32, "n_max": 8},
     "audit": {"fraction": 0.01, "threshold": 0.0},
+    # the plane's bifurcation curves (DP5 shooting, ~3 min here) are the curve tests' subject
+    "orbits": {"continuation": False, "curves": False},
 }
 STUDY_RESULTS = "studies/weps/results"
 # targets of a study are named inside its folder (Snakemake runs in studies/<study>/)
