@@ -811,7 +811,7 @@ class GearCells:
         place; ``found[c]`` belongs to cell ``c``): the margin of a plane cell's motion
         (:func:`gearsim.cell.verify.orbit_margins`, the cells' attractors in shared kernel
         calls; only with ``floquet`` ``"margin"``)."""
-        from gearsim.cell.verify import orbit_margins
+        from gearsim.cell.verify import orbit_margins, wants_margin
 
         st = self.settings
         if st.floquet != "margin":
@@ -819,11 +819,10 @@ class GearCells:
         todo = []
         for p, ca in zip(self.params, found, strict=True):
             for a in ca.attractors:
-                s = a.steady
-                mu = s.info.get("mu_max")
-                if (s.period > 0 and s.status == "ok" and s.info.get("status", "ok") == "ok"
-                        and not s.info.get("refined") and s.final_state is not None
-                        and p.var_ratio == 0.0 and not (mu is not None and math.isfinite(mu))):
+                s, i = a.steady, a.steady.info
+                if (s.status == "ok" and s.final_state is not None
+                        and wants_margin(s.period, i.get("status", "ok"), bool(i.get("refined")),
+                                         i.get("mu_max"), p.var_ratio)):
                     todo.append((p, s))
         got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
                             [s.final_state for _, s in todo], st)  # fmt: skip

@@ -100,10 +100,17 @@ MARGIN_TOL = 1e-9
 MARGIN_MAX_ITER = 4
 
 
+def wants_margin(n: int, status: str, refined: bool, mu_max, var_ratio: float) -> bool:
+    """Whether a periodic reading still needs its Floquet margin: a period, status ``ok``, not
+    refined (a refined orbit has its own), no margin yet, a T-periodic map (no variable
+    ratio)."""
+    known = mu_max is not None and math.isfinite(mu_max)
+    return n > 0 and status == "ok" and not refined and not known and var_ratio == 0.0
+
+
 def _wants_margin(res) -> bool:
     c = res.classification
-    return (c.n > 0 and c.status == "ok" and not c.refined and not math.isfinite(c.mu_max)
-            and res.params.var_ratio == 0.0)
+    return wants_margin(c.n, c.status, c.refined, c.mu_max, res.params.var_ratio)
 
 
 def _switch_free(res) -> bool:
