@@ -150,7 +150,7 @@ def standard_from_record(record: Mapping[str, Any], *, bearing_ratio: float,
                    f"{fine['b_threshold_at_Fm1']:.4f} on the paper's 400-cell w grid (6-DOF)")
     elif verify_ and math.isfinite(verify_.get("Fm_from_b_threshold", float("nan"))):
         Fm = float(verify_["Fm_from_b_threshold"])
-        fm_prov = ("derived", f"Fm = 0.4125 / b*(Fm=1), b*(Fm=1) = "
+        fm_prov = ("derived", f"Fm = {PAPER_B_THRESHOLD} / b*(Fm=1), b*(Fm=1) = "
                    f"{verify_['b_threshold_at_Fm1']:.4f} (gearsim calibrate --stage verify)")
     params = search_params(x, DEFAULT_FREE, Fm=Fm, b=1.0, model="6dof")
     kw: dict[str, Any] = {"rho_p": rho_p, "rho_g": rho_g}

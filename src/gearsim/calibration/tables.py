@@ -143,8 +143,8 @@ def _code(rec: Mapping[str, Any]) -> str:
 
 def form_summary_lines(forms: Mapping[str, Mapping[str, Any]]) -> list[str]:
     """Markdown: one row per form with its cost and budget: J, landmarks within 0.02, landmark
-    RMS, xi*, b* (the scale Fm that makes it 0.4125, from b* at the search scale), evaluations
-    (coarse + exact), wall time, load average at its start, code version."""
+    RMS, xi*, b* (the scale Fm that makes it the paper's threshold, from b* at the search
+    scale), evaluations (coarse + exact), wall time, load average at its start, code version."""
     lines = ["| form | J | landmarks within 0.02 | landmark RMS | xi* | b* (Fm derived; b* at "
              "Fm 0.1) | evaluations (coarse + exact) | wall s | load at start | code |",
              "|---|---|---|---|---|---|---|---|---|---|"]
