@@ -112,7 +112,7 @@ def study(tmp_path_factory):
     files = [ROOT / "config/config.yaml", ROOT / "config/tiny.yaml", d / "study.yaml"]
     cfg = gcfg.load_config(files, root=ROOT)
     tiles = [write_tile(cfg, "wb", t, d / f"{t}.parquet") for t in ggrid.tile_ids(cfg, "wb")]
-    cells = gc.combine_tiles(tiles, d / "cells.parquet", plane_record(cfg, "wb"))
+    cells = gc.combine_tiles(tiles, d / "cells.parquet", plane_record(gcfg.Study.of(cfg), "wb"))
     cat = d / "catalogue.sqlite"
     gc.build_catalogue(cat, [cells])
     return {"dir": d, "cfg": cfg, "files": files, "tiles": tiles, "cells": cells, "cat": cat}

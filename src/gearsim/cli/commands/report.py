@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.presentation.report import build_report, study_from_config
 
 NAME = "report"
@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     planes: dict[str, tuple[str, str]] | tuple[str, ...] = ("wb", "wxi")
     sweeps = specs = points = study = None
     if args.configfile or args.config_json:
-        config = config_from_args(args)
+        config = study_from_args(args).config
         planes, sweeps = study_from_config(config)
         specs = dict(config.get("sweeps") or {})
         points = list(config.get("points") or {})
