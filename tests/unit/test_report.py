@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 import pytest
-from test_landmarks import paper_like, row
+from sweep_tables import paper_like, row
 
 from gearsim.cli.main import main
 from gearsim.presentation.report import (
