@@ -15,6 +15,7 @@ from gearsim.dynamics.parameters import ModelParameters
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
+from gearsim.study import schema as gschema
 from gearsim.study import tiles as gt
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,8 +34,9 @@ def _raw():
 
 def _error(config) -> str:
     with pytest.raises(gcfg.ConfigError) as exc:
-        gcfg.validate_schema(config)
-        gcfg.check_config(config)
+        gschema.validate_schema(config)
+        gschema.check_config(config, gcfg.study_root())
+        gcfg.Study.of(config)
     return str(exc.value)
 
 
@@ -53,7 +55,7 @@ def test_configs_load():
 def test_schema_integration_matches_settings():
     """The schema's integration keys are IntegrationSettings' fields, and its defaults are the
     study's (config/config.yaml), so a config file that leaves a key out gets the study's value."""
-    props = gcfg.load_schema()["properties"]["integration"]["properties"]
+    props = gschema.load_schema()["properties"]["integration"]["properties"]
     fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
     assert set(props) == fields
     study = _raw()["integration"]
@@ -64,7 +66,7 @@ def test_schema_integration_matches_settings():
 
 def test_schema_defaults_equal_config_yaml():
     """Every scalar setting config/config.yaml gives equals the schema's default."""
-    schema = gcfg.load_schema()["properties"]
+    schema = gschema.load_schema()["properties"]
     raw = _raw()
     for key in ("standard_parameters", "tile_rows"):
         assert schema[key]["default"] == raw[key], key
@@ -77,7 +79,7 @@ def test_schema_defaults_equal_config_yaml():
 def test_defaults_filled():
     cfg = {"planes": {"p": {"x": {"name": "w", "min": 0.5, "max": 1, "n": 4},
                             "y": {"name": "b", "min": 0, "max": 1, "n": 4}}}}
-    gcfg.validate_schema(cfg)
+    gschema.validate_schema(cfg)
     assert cfg["tile_rows"] == 80 and cfg["integration"]["method"] == "rk4"
     assert cfg["integration"]["transient_continuation"] == 40 and cfg["study"] is None
     assert cfg["planes"]["p"]["fixed"] == {} and cfg["cluster"]["scheduler_address"] is None
@@ -118,7 +120,7 @@ def test_new_plane_from_config_only():
                                "y": {"name": "xi", "min": 0.02, "max": 0.1, "n": 3},
                                "fixed": {"w": 1.2}}
     cfg["tile_rows"] = 2
-    cfg = gcfg.check_config(gcfg.validate_schema(cfg))
+    cfg = gschema.check_config(gschema.validate_schema(cfg), gcfg.study_root())
     assert ggrid.n_tiles({**cfg, "tile_rows": 2}, "eps_xi") == 2
     specs = gt.row_specs(gcfg.Study.of({**cfg, "tile_rows": 2}), "eps_xi", 1)
     assert [s["j"] for s in specs] == [2]
