@@ -42,7 +42,7 @@ if STUDY_NAME is not None and _resolved.get("gear"):
 config.clear()
 config.update(_resolved)
 validate(config, str(SCHEMA))
-# the one study object every rule asks (parameters, settings: gearsim.study.config.Study)
+# the one study object that every job definition asks for parameters and settings
 STUDY = gcfg.Study.of(config, STUDY_ROOT)
 
 # 2. How the jobs see the same config: one JSON file per study, rewritten only when its content
