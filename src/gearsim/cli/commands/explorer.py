@@ -38,7 +38,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gearsim.presentation.explorer import write_explorer
-    from gearsim.presentation.report import study_from_config
+    from gearsim.presentation.report_inputs import study_from_config
 
     study = study_from_args(args)
     config = study.config

@@ -13,7 +13,8 @@ import argparse
 from pathlib import Path
 
 from gearsim.cli.commands._common import add_config_arguments, study_from_args
-from gearsim.presentation.report import build_report, study_from_config
+from gearsim.presentation.report import build_report
+from gearsim.presentation.report_inputs import study_from_config
 
 NAME = "report"
 HELP = ("write the study's report (Markdown): the scorecard against the paper, or the study's "
