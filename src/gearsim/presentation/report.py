@@ -226,8 +226,20 @@ def analyse(
                   else set(configured_sweeps))
     rep.paper_material = bool(({"standard", *PAPER_SWEEPS} & configured) or any(
         tuple(ax) in PAPER_PLANES for ax in axes.values()))
-    std = sweeps.get("standard")
-    if "standard" not in configured:
+    _landmarks(rep, sweeps.get("standard"), "standard" in configured)
+    _hysteresis(rep, sweeps.get("hysteresis"))
+    _thresholds(rep, planes, axes)
+    for plane, ax in axes.items():
+        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane),
+                                        paper=PAPER_PLANES.get(tuple(ax), NOT_APPLICABLE)))
+
+    _sequences(rep, sweeps, configured)
+    return rep
+
+
+def _landmarks(rep: Report, std: pd.DataFrame | None, configured: bool) -> None:
+    """The standard sweep's landmarks matched to the paper's, and the values at the jump."""
+    if not configured:
         rep.notes.append("this study has no sweep 'standard': the paper's landmarks are "
                          f"{NOT_APPLICABLE}")
     elif std is not None and len(std):
@@ -265,7 +277,10 @@ def analyse(
     else:
         rep.notes.append("results/sweeps/standard.parquet missing: landmarks not computed")
 
-    hyst = sweeps.get("hysteresis")
+
+
+def _hysteresis(rep: Report, hyst: pd.DataFrame | None) -> None:
+    """The fold's jump up and jump down, from the forward and backward sweeps."""
     if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
         from gearsim.analysis.attractors import hysteresis
 
@@ -273,6 +288,10 @@ def analyse(
         rep.hysteresis = h.lines()
         rep.hysteresis_band = None if h.band is None else (float(h.band[0]), float(h.band[1]))
 
+
+def _thresholds(rep: Report, planes: dict[str, pd.DataFrame | None],
+                axes: dict[str, tuple[str, str]]) -> None:
+    """The backlash and damping thresholds read off the (w, b) and (w, xi) planes."""
     for paper_axes, fn, name, paper in (
         (("w", "b"), double_sided_rows, "b above which no double-sided impact occurs",
          PAPER_B_THRESHOLD),
@@ -307,10 +326,9 @@ def analyse(
             rep.misses.append(f"{name}: ours {th.value:.4f} (rows {th.last_with:.4f} / "
                               f"{th.first_without:.4f}, plane {plane}), paper {paper}")
 
-    for plane, ax in axes.items():
-        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane),
-                                        paper=PAPER_PLANES.get(tuple(ax), NOT_APPLICABLE)))
 
+def _sequences(rep: Report, sweeps: dict[str, pd.DataFrame], configured: set[str]) -> None:
+    """The pattern sequences along the sweeps of Figs 8 and 15 beside the paper's."""
     for key, (pname, pval) in PAPER_SWEEPS.items():
         df = sweeps.get(key)
         entry: dict[str, Any] = {"parameter": pname, "value": pval,
@@ -341,7 +359,6 @@ def analyse(
             else:
                 entry.update(in_order=None, exact=None)
         rep.sequences[key] = entry
-    return rep
 
 
 def build_report(
