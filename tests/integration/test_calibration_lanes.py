@@ -21,7 +21,7 @@ CANDIDATES = (
 
 
 def test_lane_landmarks_equal_scalar_dp5_to_the_grid_spacing():
-    form = FORMS["today"]
+    form = FORMS["single_dof"]
     xs = [form.start if c is None else [c[f.name] for f in form.free] for c in CANDIDATES]
     # gate below 0: every set stops after the standard sweep (its landmarks, DC and scale)
     lanes = FidelitySettings(lanes=True, gate=-1.0)

@@ -90,14 +90,15 @@ def test_a_form_record_carries_its_own_run_and_the_table_prefers_it(tmp_path):
     assert run["wall_s"] >= 0 and run["user_s"] >= 0 and run["end"] >= run["start"]
     # forms-table: a record's own run wins over the log of the process that ran it; a record
     # without one takes the log's
-    (tmp_path / "today.json").write_text(json.dumps({"form": "today", "J": 1.0, "run": run}))
+    (tmp_path / "single_dof.json").write_text(json.dumps({"form": "single_dof", "J": 1.0,
+                                                          "run": run}))
     (tmp_path / "fixed_start.json").write_text(json.dumps({"form": "fixed_start", "J": 2.0}))
     (tmp_path / "streamA.log").write_text(
-        "=== today start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
+        "=== single_dof start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
         "=== fixed_start start 2026-11-30T03:00:00Z load 1.00 1.00 1.00 code f3f7786\n"
         "10.00 s wall 9.00 s user\n=== fixed_start end 2026-11-30T03:00:10Z rc 0\n")
-    forms = collect_forms(["today", "fixed_start"], tmp_path)
-    assert forms["records"]["today"]["run"] == run
+    forms = collect_forms(["single_dof", "fixed_start"], tmp_path)
+    assert forms["records"]["single_dof"]["run"] == run
     assert forms["records"]["fixed_start"]["run"]["wall_s"] == 10.0
     with pytest.raises(KeyError):
         collect_forms(["te_rate"], tmp_path)

@@ -102,7 +102,7 @@ class Form:
 
 def _forms() -> dict[str, Form]:
     f = [
-        Form("today", "round-1 form: error as inertial load Fe w^2, damping always on, "
+        Form("single_dof", "round-1 form: error as inertial load Fe w^2, damping always on, "
              "rigid bearings (single-DOF), w over sqrt(Km/Me), mean friction arm, continuation "
              "sweep", {"model": "1dof"}),
         Form("fixed_start", "today's equations; the paper's sweep method: every w starts from "
@@ -336,18 +336,18 @@ def run_forms(names: Sequence[str], forms_dir: str | Path, *, search_forms: bool
               time_budget: float | None = None, log: Callable[[str], None] = print) -> None:
     """``<forms_dir>/<form>.json`` for each form of ``names``: its fit (:func:`fit_form`,
     evaluations logged to ``<forms_dir>/logs``) or, without ``search_forms``, its measurement
-    at the standard shape and at the ``today`` form's best of an earlier fit
-    (``<forms_dir>/today.json``, if there) (:func:`evaluate_unsearched`)."""
+    at the standard shape and at the ``single_dof`` form's best of an earlier fit
+    (``<forms_dir>/single_dof.json``, if there) (:func:`evaluate_unsearched`)."""
     d = Path(forms_dir)
     d.mkdir(parents=True, exist_ok=True)
     for name in names:
         form = FORMS[name]
         if not search_forms:
             pts = {"start": form.start}
-            tb = d / "today.json"
+            tb = d / "single_dof.json"
             if tb.is_file():
                 best = json.loads(tb.read_text()).get("best", {})
-                pts["today_best"] = [best.get(f.name, f.start) for f in form.free]
+                pts["single_dof_best"] = [best.get(f.name, f.start) for f in form.free]
             rec = evaluate_unsearched(form, pts)
             (d / f"{name}.json").write_text(json.dumps(rec, indent=1, default=float))
             log(f"{name}: J = {rec['J']:.4f} at {rec['best_point']} (not searched)")
@@ -472,6 +472,39 @@ def run_forms_cmaes(names: Sequence[str], forms_dir: str | Path, *, seeds: Seque
                                  log=log)
             (d / f"{name}.s{seed}.json").write_text(json.dumps(rec, indent=1, default=float))
             log(f"wrote {d / f'{name}.s{seed}.json'}")
+
+
+def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
+    """docs/calibration.json's ``fit`` entry from ``<forms_dir>/<form>.s<seed>.json``: per form
+    its seeds' records (evaluations, why each stopped, best J in lanes and exact, the best-J
+    curve, wall and CPU seconds, the run), the total evaluations, the seeds' best J and their
+    spread ``(max - min) / min``; the Pareto fronts of all logged evaluations
+    (:func:`gearsim.calibration.pareto.pareto_record`) and the per-target evidence."""
+    from gearsim.calibration.pareto import pareto_record
+
+    d = Path(forms_dir)
+    out: dict[str, Any] = {}
+    for name in names:
+        seeds = {}
+        for f in sorted(d.glob(f"{name}.s*.json")):
+            rec = json.loads(f.read_text())
+            seeds[str(rec["seed"])] = {k: rec[k] for k in (
+                "seed", "search", "nfev", "stopped_by", "runs", "J_lanes", "J", "terms", "best",
+                "measured", "cpu_s_search", "wall_s_search", "run", "budget", "curve")
+                if k in rec}
+        if not seeds:
+            continue
+        Js = [v["J_lanes"] for v in seeds.values()]
+        out[name] = {"text": FORMS[name].text if name in FORMS else "",
+                     "seeds": seeds, "n_seeds": len(seeds),
+                     "evaluations": int(sum(v["nfev"] for v in seeds.values())),
+                     "best_J_lanes": Js, "spread": (max(Js) - min(Js)) / min(Js),
+                     "cpu_s": float(sum(v["cpu_s_search"] for v in seeds.values())),
+                     "wall_s": float(sum(v["wall_s_search"] for v in seeds.values()))}
+    logs = d / "logs"
+    return {"forms": out, "lanes": LANES.to_dict(),
+            "pareto": pareto_record(logs) if logs.is_dir() else {},
+            "evidence": best_per_target(logs) if logs.is_dir() else {}}
 
 
 # ============================================================================ evidence

@@ -15,6 +15,8 @@ Stages, each recorded in the output JSON (``--out``) or ``--forms-dir``:
 ``fit``          each model form fitted by CMA-ES with restarts, every population's sweeps in
                  the batched kernel's lanes, once per ``--seeds``; the best set measured
                  exactly (DP5): ``<forms-dir>/<form>.s<seed>.json``.
+``fit-table``    the lane fits' records, the Pareto fronts and the evidence into ``--out``
+                 (key ``fit``), the Pareto figure to ``--pareto-figure``.
 ``forms-table``  the forms' records, Kmax readings and evidence into ``--out`` (key ``forms``).
 """
 
@@ -32,7 +34,7 @@ HELP = "fit Fe/Fm, eps, phi_e, xi, friction to the paper's landmarks (differenti
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stage", choices=("search", "verify", "both", "standard", "forms",
-                                        "fit", "forms-table"),
+                                        "fit", "fit-table", "forms-table"),
                    default="both",
                    help="standard: write --standard-out from --out's result (or MODEL.md's set)")
     p.add_argument("--standard-out", default="config/standard_parameters.yaml",
@@ -59,7 +61,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--box", choices=("wide", "narrow"), default="narrow",
                    help="search bounds (gearsim.calibration.calibrate.BOXES)")
     p.add_argument("--no-start", action="store_true", help="do not seed DE with MODEL.md's set")
-    p.add_argument("--forms", default="today,fixed_start",
+    p.add_argument("--forms", default="single_dof,fixed_start",
                    help="stage forms: comma-separated model forms "
                    "(gearsim.calibration.forms.FORMS)")
     p.add_argument("--generations", type=int, default=10,
@@ -72,7 +74,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="stage forms: one JSON per form and the evaluation logs")
     p.add_argument("--no-search", action="store_true",
                    help="stage forms: measure each form at the standard shape and at the "
-                   "'today' form's best (results of a previous search) without searching")
+                   "'single_dof' form's best (results of a previous search) without searching")
     p.add_argument("--seeds", default="1,2,3", help="stage fit: comma-separated seeds")
     p.add_argument("--max-evals", type=int, default=6000,
                    help="stage fit: most evaluations per form and seed")
@@ -83,6 +85,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "evaluations")
     p.add_argument("--no-final", action="store_true",
                    help="stage fit: skip the exact (DP5) measurement of each best set")
+    p.add_argument("--pareto-figure", default="docs/calibration_pareto.png",
+                   help="stage fit-table: the Pareto figure")
     p.add_argument("--adopt", default=None,
                    help="stage forms-table: the form adopted as the standard set")
     p.add_argument("--decision", default="", help="stage forms-table: why (one paragraph)")
@@ -145,6 +149,26 @@ def _fit(args) -> int:
     return 0
 
 
+def _fit_table(args) -> int:
+    """The lane fits' records and the Pareto fronts into --out (key ``fit``), the figure."""
+    from gearsim.calibration.forms import collect_fit
+    from gearsim.calibration.pareto import pareto_figure
+
+    fit = collect_fit(_form_names(args), args.forms_dir)
+    if not fit["forms"]:
+        raise UsageError(f"--forms-dir {args.forms_dir}: no <form>.s<seed>.json of --forms "
+                         f"{args.forms} (run --stage fit first)")
+    out = Path(args.out)
+    record = json.loads(out.read_text()) if out.is_file() else {}
+    record["fit"] = fit
+    out.write_text(json.dumps(record, indent=1, default=float))
+    for name, f in fit["forms"].items():
+        print(f"{name}: {f['evaluations']} evaluations, {f['n_seeds']} seeds, best J (lanes) "
+              f"{', '.join(f'{v:.4f}' for v in f['best_J_lanes'])}, spread {f['spread']:.1%}")
+    print(f"wrote {out}, {pareto_figure(Path(args.forms_dir) / 'logs', args.pareto_figure)}")
+    return 0
+
+
 def _forms_table(args) -> int:
     """Collect the per-form records into --out (key ``forms``) and print the table."""
     from gearsim.calibration.forms import collect_forms
@@ -185,6 +209,8 @@ def run(args: argparse.Namespace) -> int:
         return _forms(args)
     if args.stage == "fit":
         return _fit(args)
+    if args.stage == "fit-table":
+        return _fit_table(args)
     if args.stage == "forms-table":
         return _forms_table(args)
     out = Path(args.out)
