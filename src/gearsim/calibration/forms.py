@@ -480,7 +480,7 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
     curve, wall and CPU seconds, the run), the total evaluations, the seeds' best J and their
     spread ``(max - min) / min``; the Pareto fronts of all logged evaluations
     (:func:`gearsim.calibration.pareto.pareto_record`) and the per-target evidence."""
-    from gearsim.calibration.pareto import pareto_record
+    from gearsim.calibration.pareto import coexist_tally, pareto_record
 
     d = Path(forms_dir)
     out: dict[str, Any] = {}
@@ -504,6 +504,7 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
     logs = d / "logs"
     return {"forms": out, "lanes": LANES.to_dict(),
             "pareto": pareto_record(logs) if logs.is_dir() else {},
+            "coexist": coexist_tally(logs) if logs.is_dir() else {},
             "evidence": best_per_target(logs) if logs.is_dir() else {}}
 
 
