@@ -54,3 +54,25 @@ def test_points_and_tally_from_logs(tmp_path):
     t = coexist_tally(tmp_path)
     assert t["n_sets"] == 1 and t["motions_found"] == {"1-1-1": 1, "2-2-1": 1}
     assert t["most_of_the_paper_motions"] == 2
+
+
+def test_collect_fit_spread_and_the_report_rows(tmp_path):
+    from gearsim.calibration.forms import collect_fit
+    from gearsim.calibration.tables import fit_report_lines
+    from gearsim.presentation.report import Report, _appendix_lines
+
+    for seed, J in ((1, 2.0), (2, 2.05), (3, 2.1)):
+        rec = {"seed": seed, "search": "cma-es", "nfev": 100 * seed, "stopped_by": "flat",
+               "runs": [], "J_lanes": J, "best": {"xi": 0.06}, "cpu_s_search": 10.0,
+               "wall_s_search": 20.0, "curve": [[8, J + 1], [100 * seed, J]]}
+        (tmp_path / f"single_dof.s{seed}.json").write_text(json.dumps(rec))
+    fit = collect_fit(["single_dof", "te_rate"], tmp_path)
+    f = fit["forms"]["single_dof"]
+    assert "te_rate" not in fit["forms"]  # no record: no row
+    assert (f["evaluations"], f["n_seeds"], f["cpu_s"]) == (600, 3, 30.0)
+    assert np.isclose(f["spread"], 0.05)  # (2.1 - 2.0) / 2.0
+    row = [line for line in fit_report_lines(fit) if line.startswith("| single_dof")]
+    assert row == ["| single_dof | 600 | 3 | 2.000, 2.050, 2.100 | flat, flat, flat | 5.0% | "
+                   "30 | 60 |"]
+    app = _appendix_lines(Report(calibration={"fit": fit}))
+    assert app[0].startswith("## Appendix") and "#### CMA-ES fits in lanes" in "\n".join(app)
