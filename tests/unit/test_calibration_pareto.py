@@ -76,3 +76,14 @@ def test_collect_fit_spread_and_the_report_rows(tmp_path):
                    "30 | 60 |"]
     app = _appendix_lines(Report(calibration={"fit": fit}))
     assert app[0].startswith("## Appendix") and "#### CMA-ES fits in lanes" in "\n".join(app)
+
+
+def test_collect_fit_takes_an_unfinished_seed_from_its_log(tmp_path):
+    from gearsim.calibration.forms import collect_fit
+
+    (tmp_path / "logs").mkdir()
+    lines = [json.dumps({"x": [0.0], "J": J, "measured": None}) for J in (5.0, 4.0, 4.5, 3.0)]
+    (tmp_path / "logs" / "te_rate-lanes.s2.jsonl").write_text("\n".join(lines) + "\n")
+    s = collect_fit(["te_rate"], tmp_path)["forms"]["te_rate"]["seeds"]["2"]
+    assert (s["nfev"], s["stopped_by"], s["J_lanes"]) == (4, "unfinished", 3.0)
+    assert s["curve"] == [[1, 5.0], [3, 4.0], [4, 3.0]]  # where the best J changes, and the end
