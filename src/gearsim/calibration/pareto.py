@@ -128,11 +128,11 @@ def pareto_figure(log_dir: str | Path, out: str | Path) -> Path:
     for i, f in enumerate(forms):
         ps = [p for p in pts if p["form"] == f]
         c = colours[i % len(colours)]
-        ax.scatter([p["lower"] for p in ps], [p["upper"] for p in ps], s=4, alpha=0.25, color=c,
-                   linewidths=0)
+        ax.scatter([p["lower"] for p in ps], [p["upper"] for p in ps], s=10, alpha=0.45,
+                   color=c, linewidths=0)
         fr = front(ps)
         ax.step([p["lower"] for p in fr], [p["upper"] for p in fr], where="post", color=c,
-                lw=1.8, label=f"{f} ({len(ps)} evaluations)")
+                lw=1.8, marker="o", ms=3, label=f"{f} ({len(ps)} evaluations)")
     ax.axvline(1.0, color="k", lw=0.8, ls="--")
     ax.axhline(1.0, color="k", lw=0.8, ls="--")
     ax.fill_between([0.01, 1.0], 0.01, 1.0, color="0.85", zorder=0)
@@ -143,7 +143,8 @@ def pareto_figure(log_dir: str | Path, out: str | Path) -> Path:
     ax.set_ylim(0.03, CAP * 1.1)
     ax.set_xlabel("lower landmarks: RMS error in tolerances (grazing, jump, first doubling)")
     ax.set_ylabel("upper cascade: RMS error in tolerances (3 inverse doublings, period 1)")
-    ax.set_title("Calibration trade-off: every evaluated set, front per model form", fontsize=10)
+    ax.set_title("Calibration trade-off: every evaluated set, front per model form\n"
+                 f"(a landmark not found counts {CAP:g} tolerances)", fontsize=10)
     ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
     out = Path(out)
