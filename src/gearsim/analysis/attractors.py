@@ -251,6 +251,81 @@ def _one_orbit(a: Steady, b: Steady, pa: np.ndarray, pb: np.ndarray) -> bool:
     return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
 
 
+#: a period-kn reading of a period-n orbit has the n orbit's multipliers to the k-th power:
+#: |mu|max within this relative tolerance of (|mu|max of the n reading)^k
+MULTIPLE_MU_RTOL = 1e-3
+
+
+def multiple_copy(short: Steady, long: Steady, merge_rtol: float = 1e-3) -> bool:
+    """Whether the periodic reading ``long`` (period k n, k >= 2) is the period-n orbit
+    ``short`` counted k times: same impact state, DC within :data:`ORBIT_DC`, every point of
+    each within :data:`ORBIT_RTOL` of the range of a point of the other and |mu|max of ``long``
+    the k-th power of that of ``short`` (:data:`MULTIPLE_MU_RTOL`); without both margins, the
+    points within ``merge_rtol`` of each other (the merge test's own tolerance)."""
+    n, m = short.period, long.period
+    if n <= 0 or m <= n or m % n or short.status != "ok" or long.status != "ok":
+        return False
+    ia, ib = short.info or {}, long.info or {}
+    if ia.get("I") != ib.get("I"):
+        return False
+    da, db = ia.get("dc"), ib.get("dc")
+    if da is None or db is None or not abs(float(da) - float(db)) <= ORBIT_DC:
+        return False
+    pa, pb = short.points[-n:, :2], long.points[-m:, :2]
+    mu_a, mu_b = ia.get("mu_max"), ib.get("mu_max")
+    with_mu = (mu_a is not None and mu_b is not None and math.isfinite(mu_a)
+               and math.isfinite(mu_b))  # fmt: skip
+    if with_mu:
+        want = float(mu_a) ** (m // n)
+        if not abs(float(mu_b) - want) <= MULTIPLE_MU_RTOL * max(want, 1e-12):
+            return False
+    tx, tv = _tolerances(short, long, ORBIT_RTOL if with_mu else merge_rtol)
+    return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
+
+
+def least_periods(ca: CellAttractors, merge_rtol: float = 1e-3) -> CellAttractors:
+    """``ca`` with every periodic attractor that is a shorter-period attractor of the cell
+    counted several times (:func:`multiple_copy`) merged into that one (its starts, early
+    labels and finders added): an orbit is reported once, at its least period. Attractors
+    renumbered most starts first."""
+    atts = list(ca.attractors)
+    into: dict[int, int] = {}  # attractor index -> index it merges into
+    by_period = sorted(atts, key=lambda t: t.steady.period)
+    for b in by_period:  # shortest first: every target is itself kept
+        for a in by_period:
+            if a is not b and a.index not in into and multiple_copy(a.steady, b.steady,
+                                                                     merge_rtol):
+                into[b.index] = a.index
+                break
+    if not into:
+        return ca
+    by_index = {a.index: a for a in atts}
+    for b_i, a_i in into.items():
+        a, b = by_index[a_i], by_index[b_i]
+        found = set(a.found_by) | set(b.found_by)
+        a.n_starts += b.n_starts
+        a.n_early += b.n_early
+        a.found_by = tuple(f for f in FOUND_BY if f in found)
+    kept = sorted((a for a in atts if a.index not in into), key=lambda a: (-a.n_starts, a.index))
+    new = {a.index: r for r, a in enumerate(kept)}
+    for b_i, a_i in into.items():
+        new[b_i] = new[a_i]
+    k = ca.n_starts
+    for r, a in enumerate(kept):
+        a.index = r
+        a.basin_fraction = float(a.n_starts / k) if k else 0.0
+    remap = np.array([new.get(i, -1) for i in range(max(new) + 1)] + [-1], dtype=np.int64)
+    labels = np.asarray(ca.start_labels, dtype=np.int64)
+    return CellAttractors(
+        attractors=kept,
+        starts=ca.starts,
+        start_labels=remap[labels] if len(labels) else labels,
+        early=ca.early,
+        start_periods_run=ca.start_periods_run,
+        continuation={name: int(remap[v]) for name, v in ca.continuation.items()},
+    )
+
+
 def same_attractor(
     a: Steady, b: Steady, *, merge_rtol: float = 1e-3, grid: int = 32, cloud_overlap: float = 0.5
 ) -> bool:
@@ -889,7 +964,7 @@ def find_attractors_many(
         continuation_transient=system.settings.transient_continuation, early=early, **options,
     )  # fmt: skip
     system.fill_margins(found)
-    return found
+    return [least_periods(ca, options.get("merge_rtol", 1e-3)) for ca in found]
 
 
 def find_attractors(

@@ -43,6 +43,7 @@ from gearsim.analysis.attractors import (
     _Options,
     assemble,
     gear_steady,
+    least_periods,
     one_cell,
     sobol_unit,
     tile_records,
@@ -301,7 +302,7 @@ def find_attractors_many(
                      [c.early for c in cells], [c.periods for c in cells],
                      [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
     system.fill_margins(found)
-    return found
+    return [least_periods(ca, opts.merge_rtol) for ca in found]
 
 
 def find_attractors(params: ModelParameters, **options: Any) -> CellAttractors:
