@@ -14,8 +14,9 @@ def _steady(n, points, mu, dc=0.3462, I=1):
 
 def _cell(steadies, counts, labels, cont=None):
     k = len(labels)
+    pairs = enumerate(zip(steadies, counts, strict=True))
     atts = [Attractor(index=i, steady=s, n_starts=c, basin_fraction=c / k, found_by=("start",),
-                      n_early=c // 2) for i, (s, c) in enumerate(zip(steadies, counts))]
+                      n_early=c // 2) for i, (s, c) in pairs]
     return CellAttractors(attractors=atts, starts=np.zeros((k, 10)),
                           start_labels=np.array(labels), early=np.zeros(k, dtype=bool),
                           start_periods_run=np.full(k, 10),
