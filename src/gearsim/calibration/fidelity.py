@@ -222,10 +222,10 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
                                      lo, hi, steps=st.xi_bisect)
     # Figs 9-11: coexisting attractors at b = 0.15, w = 0.82
     if np.isfinite(scale):
-        from gearsim.analysis.attractors import find_attractors
+        from gearsim.analysis.attractors import FinderOptions, find_attractors
 
         q = p.with_(b=COEXIST_POINT["b"] / scale, w=COEXIST_POINT["w"] * wf)
-        ca = find_attractors(q, starts=st.attractor_starts, seed=0)
+        ca = find_attractors(q, FinderOptions(starts=st.attractor_starts))
         m.coexist = sorted({str(a.steady.info.get("label_npq") or a.label)
                             for a in ca.attractors if a.steady.status != "unsettled"})
     m.seconds = time.perf_counter() - t0
