@@ -66,7 +66,7 @@ def test_one_byte_in_a_deciding_module_changes_every_version(copy_of_package, re
         ("calibration/fidelity.py", ("tiles", "analysis", "catalogue"),
          ("calibration", "presentation")),
         ("cli/commands/figures.py", tuple(gprov.CODE_SCOPES), ()),
-        ("analysis/attractors.py", ("tiles",), ("analysis", "catalogue", "presentation")),
+        ("analysis/attractors/api.py", ("tiles",), ("analysis", "catalogue", "presentation")),
         ("results/catalogue.py", ("tiles", "analysis"), ("catalogue", "presentation")),
     ],
 )

@@ -5,7 +5,9 @@ MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistabili
 # the finder's source decides the attractor tiles too (CODE_VERSION covers the simulation)
 import gearsim.analysis.attractors as _ga
 
-ATTRACTOR_CODE = hashlib.sha256(Path(_ga.__file__).read_bytes()).hexdigest()[:16]
+ATTRACTOR_CODE = hashlib.sha256(
+    b"".join(p.read_bytes() for p in sorted(Path(_ga.__file__).parent.glob("*.py")))
+).hexdigest()[:16]
 ATTRACTOR_FILES = [
     f"results/{plane}/attractors/{tile}.parquet"
     for plane in MULTISTABLE_PLANES
