@@ -9,7 +9,7 @@ own 256-period window only.
 import numpy as np
 import pytest
 
-from gearsim.cell.classify import GROWTH_MIN, amplitude_grows
+from gearsim.cell.classify import GROWTH_MIN, GROWTH_STEP, amplitude_grows
 from gearsim.cell.simulate import run_periods, simulate_cell
 from gearsim.study.config import standard_parameters, study_settings
 
@@ -33,6 +33,9 @@ def test_amplitude_grows_rule():
     assert not amplitude_grows(flat, -flat)
     slow = np.exp(np.log(GROWTH_MIN) * 0.9 * k / 255)  # rises, but less than GROWTH_MIN
     assert not amplitude_grows(slow, -slow)
+    # settling within the window onto a larger bounded motion: one rise, then flat quarters
+    jump = np.where(k < 40, 0.5, 1.0) * (1.0 + 0.5 * (GROWTH_STEP - 1.0) * np.sin(0.37 * k))
+    assert not amplitude_grows(jump, -jump)
     assert amplitude_grows(np.r_[1.0, 2.0, 3.0, np.inf], np.zeros(4))
 
 

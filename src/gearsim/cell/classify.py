@@ -66,10 +66,13 @@ DEFAULT_KMAX = "kmax_peak_static"
 MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
 
 #: a motion without a period whose largest peak-to-peak amplitude x_max - x_min rises from each
-#: quarter of the analysed window to the next, the last quarter's at least GROWTH_MIN times the
-#: first's, grows without bound (the parametric instability of the nearly linear mesh at w near
-#: 2): it is ``diverged``, never chaos or quasi-periodic (docs/decisions.md)
+#: quarter of the analysed window to the next by at least GROWTH_STEP, the last quarter's at
+#: least GROWTH_MIN times the first's, grows without bound (the parametric instability of the
+#: nearly linear mesh at w near 2): it is ``diverged``, never chaos or quasi-periodic (a motion
+#: that settles onto a larger bounded one within the window rises in one step, not in three;
+#: docs/decisions.md)
 GROWTH_MIN = 1.1
+GROWTH_STEP = 1.02
 
 #: relative lag-n difference below which a section sequence counts as settled whatever its rate
 #: (the RK4 map repeats a settled orbit to ~1e-14 of its scale)
@@ -340,8 +343,9 @@ def impact_state(face: int, back: int, disengaged_time: float, total_time: float
 
 
 def amplitude_grows(xmax: np.ndarray, xmin: np.ndarray) -> bool:
-    """Whether the per-period amplitudes ``xmax - xmin`` of a window grow (:data:`GROWTH_MIN`):
-    the largest of each quarter rises quarter on quarter, the last >= GROWTH_MIN x the first."""
+    """Whether the per-period amplitudes ``xmax - xmin`` of a window grow: the largest of each
+    quarter >= :data:`GROWTH_STEP` x the previous quarter's, the last >= :data:`GROWTH_MIN` x
+    the first's."""
     a = np.asarray(xmax, dtype=float) - np.asarray(xmin, dtype=float)
     q = len(a) // 4
     if q < 1:
@@ -349,7 +353,7 @@ def amplitude_grows(xmax: np.ndarray, xmin: np.ndarray) -> bool:
     top = np.array([a[k * q : (k + 1) * q].max() for k in range(4)])
     if not np.all(np.isfinite(top)):
         return True  # the amplitude left the floating-point range: it grew
-    return bool(np.all(np.diff(top) > 0.0) and top[3] >= GROWTH_MIN * top[0])
+    return bool(np.all(top[1:] >= GROWTH_STEP * top[:-1]) and top[3] >= GROWTH_MIN * top[0])
 
 
 @dataclass
