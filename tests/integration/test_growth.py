@@ -33,9 +33,13 @@ def test_amplitude_grows_rule():
     assert not amplitude_grows(flat, -flat)
     slow = np.exp(np.log(GROWTH_MIN) * 0.9 * k / 255)  # rises, but less than GROWTH_MIN
     assert not amplitude_grows(slow, -slow)
-    # settling within the window onto a larger bounded motion: one rise, then flat quarters
-    jump = np.where(k < 40, 0.5, 1.0) * (1.0 + 0.5 * (GROWTH_STEP - 1.0) * np.sin(0.37 * k))
-    assert not amplitude_grows(jump, -jump)
+    # settling within the window onto a larger bounded motion: rises every quarter, by 13 % in
+    # all, but the later quarters by less than GROWTH_STEP
+    settle = 1.0 - 0.95 * np.exp(-(k + 1) / 30.0)
+    top = settle.reshape(4, 64).max(axis=1)
+    assert np.all(np.diff(top) > 0) and top[3] / top[0] > GROWTH_MIN
+    assert (top[2] / top[1]) < GROWTH_STEP
+    assert not amplitude_grows(settle, -settle)
     assert amplitude_grows(np.r_[1.0, 2.0, 3.0, np.inf], np.zeros(4))
 
 
