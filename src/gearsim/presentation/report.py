@@ -143,12 +143,6 @@ def load_plane(plane: str, *, catalogue: str | Path | None = None,
 
 
 # ----------------------------------------------------------------------------- verified motions
-#: the default run before labels were backed by orbits (head 1e8155c, both default planes
-#: together; measured when the refinement was specified): no refinement, no status column,
-#: no Floquet margin
-BEFORE_VERIFIED = {"multistable": 5647, "one_orbit": 393, "wxi_quasi_periodic": 1000}
-
-
 def verified_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] | None:
     """Per plane: cells refined by their Newton orbit, at a bifurcation (status), without a
     settled reading, with a Floquet margin, quasi-periodic, and multistable (from the cells'
@@ -174,7 +168,7 @@ def verified_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] |
 
 
 def verified_lines(rows: list[dict[str, Any]], h: str = "##") -> list[str]:
-    """The verified-motions table: per plane after this run, and the run before."""
+    """The verified-motions table, per plane of this run."""
     if not rows:
         return []
     out = [f"{h} Verified motions", "",
@@ -192,13 +186,7 @@ def verified_lines(rows: list[dict[str, Any]], h: str = "##") -> list[str]:
         out.append(f"| {r['plane']} | {r['cells']} | {r['refined']} | {r['bifurcation']} | "
                    f"{r['not_converged']} | {r['with_margin']} (of {r['periodic']}) | "
                    f"{r['near_one']} | {r['quasi_periodic']} | {multi} |")
-    b = BEFORE_VERIFIED
-    out += ["", f"Before (the default run at head 1e8155c, recorded when this was specified, "
-            f"not recomputed here): no cell refined, no status `bifurcation` (the column did not "
-            f"exist), no Floquet margin; {b['multistable']} multistable cells on the two default "
-            f"planes together, {b['one_orbit']} of them holding attractors that were all one "
-            f"orbit (one n-p-q and one DC); {b['wxi_quasi_periodic']} quasi-periodic cells on "
-            "(w, xi).", ""]
+    out.append("")
     return out
 
 
