@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gearsim.analysis.paper import PAPER_B_THRESHOLD
 from gearsim.calibration.fidelity import FidelitySettings, measure_many
 from gearsim.calibration.forms import FORMS
 
@@ -42,3 +43,16 @@ def test_lane_landmarks_equal_scalar_dp5_to_the_grid_spacing():
         # the scale: the deepest excursion of the sweep, the same orbit integrated two ways
         assert np.isclose(g.b_star_raw, r.b_star_raw, rtol=2e-3, atol=1e-6)
         assert abs(g.dc_jump - r.dc_jump) <= 0.02 or not np.isfinite(r.dc_jump)
+
+
+def test_coexist_scan_at_the_paper_point_is_the_measurement_s_reading():
+    from gearsim.calibration.fidelity import coexist_scan
+
+    form = FORMS["single_dof"]
+    st = FidelitySettings(lanes=True, gate=1e9)  # every target measured
+    p = form.params(form.start, st)
+    m = measure_many([p], st)[0]
+    rows = coexist_scan([p], [0.82, 0.9], [0.15], st, starts=st.attractor_starts)
+    assert [(r["w"], r["b"]) for r in rows] == [(0.82, 0.15), (0.9, 0.15)]
+    assert rows[0]["motions"] == m.coexist and m.coexist  # the same search at the same cell
+    assert np.isclose(rows[0]["scale"] * m.b_star_raw, PAPER_B_THRESHOLD)

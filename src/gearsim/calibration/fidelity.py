@@ -345,3 +345,38 @@ def kmax_at_jump(params: ModelParameters, df: pd.DataFrame, st: FidelitySettings
     return out
 
 
+
+
+def coexist_scan(params_list: Sequence[ModelParameters], w_values: Sequence[float],
+                 b_values: Sequence[float], st: FidelitySettings = FidelitySettings(lanes=True),
+                 *, starts: int = 64, continuation: bool = True,
+                 w_factors: Sequence[float] | None = None) -> list[dict[str, Any]]:
+    """The Figs 9-11 search around the paper's point: for every set (its scale from its
+    standard sweep, :func:`measure_many` stopped at the gate) and every paper-scale ``(w, b)``,
+    the motions the attractor search (``starts`` seeded starts) finds, all cells of all sets
+    in one :func:`gearsim.analysis.attractors.find_attractors`. One row per set and
+    point: ``set``, ``w``, ``b``, ``motions`` (least-period n-p-q labels of settled
+    attractors), ``scale``."""
+    from dataclasses import replace
+
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+
+    wfs = [1.0] * len(params_list) if w_factors is None else list(w_factors)
+    ms = measure_many(params_list, replace(st, gate=-1.0), continuation=continuation,
+                      w_factors=wfs)
+    cells, rows = [], []
+    for k, (p, m) in enumerate(zip(params_list, ms, strict=True)):
+        if not (np.isfinite(m.b_star_raw) and m.b_star_raw > 0):
+            rows.append({"set": k, "scale": math.nan, "motions": None})
+            continue
+        scale = PAPER_B_THRESHOLD / m.b_star_raw
+        for w in w_values:
+            for b in b_values:
+                cells.append(p.with_(b=float(b) / scale, w=float(w) * wfs[k]))
+                rows.append({"set": k, "w": float(w), "b": float(b), "scale": scale})
+    todo = [r for r in rows if "w" in r]
+    cas = find_attractors(cells, FinderOptions(starts=starts)) if cells else []
+    for r, ca in zip(todo, cas, strict=True):
+        r["motions"] = sorted({str(a.steady.info.get("label_npq") or a.label)
+                               for a in ca.attractors if a.steady.status != "unsettled"})
+    return rows

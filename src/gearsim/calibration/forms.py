@@ -478,9 +478,10 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
     """docs/calibration.json's ``fit`` entry from ``<forms_dir>/<form>.s<seed>.json``: per form
     its seeds' records (evaluations, why each stopped, best J in lanes and exact, the best-J
     curve, wall and CPU seconds, the run), the total evaluations, the seeds' best J and their
-    spread ``(max - min) / min``; the Pareto fronts of all logged evaluations
+    spread ``(max - min) / min`` (a seed with a log but no record: ``unfinished``, its
+    evaluations and curve from the log, no CPU time); the Pareto fronts of all logged evaluations
     (:func:`gearsim.calibration.pareto.pareto_record`) and the per-target evidence."""
-    from gearsim.calibration.pareto import pareto_record
+    from gearsim.calibration.pareto import coexist_tally, pareto_record
 
     d = Path(forms_dir)
     out: dict[str, Any] = {}
@@ -492,6 +493,19 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
                 "seed", "search", "nfev", "stopped_by", "runs", "J_lanes", "J", "terms", "best",
                 "measured", "cpu_s_search", "wall_s_search", "run", "budget", "curve")
                 if k in rec}
+        for f in sorted((d / "logs").glob(f"{name}-lanes.s*.jsonl")):
+            seed = f.name.split(".")[1][1:]
+            if seed in seeds:
+                continue
+            # a search still running or stopped before its record: its logged evaluations
+            Jl = [json.loads(line)["J"] for line in f.read_text().splitlines() if line]
+            if Jl:
+                curve = np.minimum.accumulate(Jl)
+                seeds[seed] = {"seed": int(seed), "nfev": len(Jl), "stopped_by": "unfinished",
+                               "J_lanes": float(curve[-1]), "cpu_s_search": 0.0,
+                               "wall_s_search": 0.0,
+                               "curve": [[i + 1, float(v)] for i, v in enumerate(curve)
+                                         if i == len(Jl) - 1 or curve[i + 1] < v]}
         if not seeds:
             continue
         Js = [v["J_lanes"] for v in seeds.values()]
@@ -504,6 +518,7 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
     logs = d / "logs"
     return {"forms": out, "lanes": LANES.to_dict(),
             "pareto": pareto_record(logs) if logs.is_dir() else {},
+            "coexist": coexist_tally(logs) if logs.is_dir() else {},
             "evidence": best_per_target(logs) if logs.is_dir() else {}}
 
 

@@ -17,6 +17,8 @@ Stages, each recorded in the output JSON (``--out``) or ``--forms-dir``:
                  exactly (DP5): ``<forms-dir>/<form>.s<seed>.json``.
 ``fit-table``    the lane fits' records, the Pareto fronts and the evidence into ``--out``
                  (key ``fit``), the Pareto figure to ``--pareto-figure``.
+``coexist``      the Figs 9-11 search: the motions at w x b around (0.82, 0.15) for the form's
+                 start and each seed's best of ``--forms-dir`` (key ``coexist_scan`` of --out).
 ``forms-table``  the forms' records, Kmax readings and evidence into ``--out`` (key ``forms``).
 """
 
@@ -34,7 +36,7 @@ HELP = "fit Fe/Fm, eps, phi_e, xi, friction to the paper's landmarks (differenti
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stage", choices=("search", "verify", "both", "standard", "forms",
-                                        "fit", "fit-table", "forms-table"),
+                                        "fit", "fit-table", "coexist", "forms-table"),
                    default="both",
                    help="standard: write --standard-out from --out's result (or MODEL.md's set)")
     p.add_argument("--standard-out", default="config/standard_parameters.yaml",
@@ -169,6 +171,44 @@ def _fit_table(args) -> int:
     return 0
 
 
+def _coexist(args) -> int:
+    """The Figs 9-11 search around the paper's point at each form's start and seeds' bests."""
+    import numpy as np
+
+    from gearsim.calibration.fidelity import FidelitySettings, coexist_scan
+    from gearsim.calibration.forms import FORMS
+
+    st = FidelitySettings(lanes=True)
+    ws = np.round(np.arange(0.76, 0.8801, 0.02), 4).tolist()
+    bs = [0.11, 0.13, 0.15, 0.17, 0.19]
+    out = Path(args.out)
+    record = json.loads(out.read_text()) if out.is_file() else {}
+    scan: dict = {"w": ws, "b": bs, "starts": 64, "forms": {}}
+    for name in _form_names(args):
+        if name not in FORMS:
+            raise UsageError(f"--forms: unknown form {name!r}; known: {', '.join(FORMS)}")
+        form = FORMS[name]
+        sets = {"start": form.start}
+        for f in sorted(Path(args.forms_dir).glob(f"{name}.s*.json")):
+            best = json.loads(f.read_text()).get("best")
+            if best:
+                sets[f.stem.split(".")[1]] = [best[q.name] for q in form.free]
+        ps = [form.params(x, st) for x in sets.values()]
+        rows = coexist_scan(ps, ws, bs, st, continuation=form.continuation,
+                            w_factors=[form.w_factor(p) for p in ps])
+        keys = list(sets)
+        for r in rows:
+            r["set"] = keys[r["set"]]
+        scan["forms"][name] = {"sets": {k: [float(v) for v in x] for k, x in sets.items()},
+                               "rows": rows}
+        both = [r for r in rows if r.get("motions") and len(r["motions"]) > 1]
+        print(f"{name}: {len(rows)} points, {len(both)} with more than one motion")
+    record["coexist_scan"] = scan
+    out.write_text(json.dumps(record, indent=1, default=float))
+    print(f"wrote {out}")
+    return 0
+
+
 def _forms_table(args) -> int:
     """Collect the per-form records into --out (key ``forms``) and print the table."""
     from gearsim.calibration.forms import collect_forms
@@ -211,6 +251,8 @@ def run(args: argparse.Namespace) -> int:
         return _fit(args)
     if args.stage == "fit-table":
         return _fit_table(args)
+    if args.stage == "coexist":
+        return _coexist(args)
     if args.stage == "forms-table":
         return _forms_table(args)
     out = Path(args.out)
