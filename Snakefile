@@ -2,6 +2,9 @@
 #   snakemake --cores 2                                    # full reproduction (config/config.yaml)
 #   snakemake --cores 2 --configfile config/quick.yaml     # a fast look
 # How to run, outputs and scale-out: docs/pipeline.md.
+#
+# Every rule names its outputs once; a later rule reads them as rules.<name>.output.<key>, so the
+# files are included in the order the data flows (a rule is read after the rules it reads).
 from pathlib import Path
 
 from snakemake.utils import min_version
@@ -13,26 +16,15 @@ configfile: "config/config.yaml"
 
 
 include: "workflow/rules/common.smk"
+include: "workflow/rules/compile.smk"
 include: "workflow/rules/sweeps.smk"
 include: "workflow/rules/points.smk"
-include: "workflow/rules/multistability.smk"
 include: "workflow/rules/planes.smk"
-
-
-# Stages owned by other engineers extend ALL_TARGETS when their files exist.
-if Path(workflow.basedir, "workflow/rules/figures.smk").exists():
-
-    include: "workflow/rules/figures.smk"
-
-
-if Path(workflow.basedir, "workflow/rules/orbits.smk").exists():
-
-    include: "workflow/rules/orbits.smk"
-
-
-if Path(workflow.basedir, "workflow/rules/report.smk").exists():
-
-    include: "workflow/rules/report.smk"
+include: "workflow/rules/multistability.smk"
+include: "workflow/rules/orbits.smk"
+include: "workflow/rules/catalogue.smk"
+include: "workflow/rules/figures.smk"
+include: "workflow/rules/report.smk"
 
 
 rule all:

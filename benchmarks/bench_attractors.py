@@ -38,7 +38,7 @@ import numpy as np  # noqa: E402
 from gearsim.analysis import attractors as reference  # noqa: E402
 from gearsim.analysis import finder  # noqa: E402
 from gearsim.analysis.attractors import gear_steady, sobol_unit  # noqa: E402
-from gearsim.cell import chains  # noqa: E402
+from gearsim.cell import chains, pool  # noqa: E402
 from gearsim.numerics import batch  # noqa: E402
 from gearsim.study.config import standard_parameters, study_settings  # noqa: E402
 
@@ -171,7 +171,7 @@ def main() -> None:
             motions += m
         meter.reset()
         c0 = time.process_time()
-        stats = chains.PoolStats()
+        stats = pool.PoolStats()
         found = finder.find_attractors_many(cells, starts=16, seed=0, settings=st,
                                             forward_results=motions, stats=stats)
         row = summary(found, time.process_time() - c0, meter)

@@ -294,14 +294,9 @@ def cmd_landmarks(args) -> dict:
     import pandas as pd
 
     from gearsim.analysis.landmarks import find_landmarks, match_paper
+    from gearsim.analysis.paper import PAPER_B_THRESHOLD, PAPER_XI_THRESHOLD
     from gearsim.dynamics.parameters import ModelParameters
-    from gearsim.presentation.report import (
-        PAPER_B_THRESHOLD,
-        PAPER_XI_THRESHOLD,
-        double_sided,
-        not_period_one,
-        row_threshold,
-    )
+    from gearsim.presentation.report import double_sided_rows, not_period_one, row_threshold
     from gearsim.study.config import base_parameters, integration_settings
     from gearsim.study.grid import sweep_values
     from gearsim.study.sweeps import sweep_frame
@@ -320,7 +315,7 @@ def cmd_landmarks(args) -> dict:
     for f in args.frames or []:
         cells = pd.read_parquet(f)
         y = "b" if "b" in cells.columns and cells["b"].nunique() > 1 else "xi"
-        fn, paper = (double_sided, PAPER_B_THRESHOLD) if y == "b" else (not_period_one,
+        fn, paper = (double_sided_rows, PAPER_B_THRESHOLD) if y == "b" else (not_period_one,
                                                                         PAPER_XI_THRESHOLD)
         t = row_threshold(cells, y, fn(cells), name=y, paper=paper)
         out[f"threshold {Path(f).stem}"] = None if t is None else {

@@ -8,13 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gearsim.analysis.landmarks import PAPER_LANDMARKS
+from gearsim.analysis.paper import PAPER_COEXIST, PAPER_LANDMARKS, PAPER_SEQUENCES
 from gearsim.calibration.search import refine, run_de, sobol_population
 from gearsim.calibration.sweeps import backlash_from_sweep
 from gearsim.calibration.targets import (
     CAP,
-    PAPER_COEXIST,
-    PAPER_SEQUENCES,
     TARGETS,
     Measured,
     score,

@@ -1,4 +1,4 @@
-"""The lane-pool attractor finder (gearsim.analysis.finder, gearsim.cell.chains.run_pool).
+"""The lane-pool attractor finder (gearsim.analysis.finder, gearsim.cell.pool.run_pool).
 
 - A job of the pool is its full-length run: parked and resumed at every chunk, a start gives
   the result of ``chains.simulate_cells`` from it, section points bit for bit.
@@ -16,7 +16,7 @@ from gearsim.analysis import attractors as ref
 from gearsim.analysis.attractors import gear_steady, same_attractor
 from gearsim.analysis.finder import find_attractors_many, steady_from_row
 from gearsim.cell import chains
-from gearsim.cell.chains import MEASURE, PARK, PoolJob, PoolStats, run_pool
+from gearsim.cell.pool import MEASURE, PARK, PoolJob, PoolStats, run_pool
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.batch import steps_per_period
 

@@ -8,13 +8,13 @@ import pytest
 from reference import reference_settings
 
 from gearsim.analysis.landmarks import (
-    PAPER_LANDMARKS,
     find_landmarks,
     is_subsequence,
     match_paper,
     pattern_sequence,
     refine_landmarks,
 )
+from gearsim.analysis.paper import PAPER_LANDMARKS
 
 
 def row(w, npq=None, motion="periodic", I=None, dc=0.0, kmax=1.0):

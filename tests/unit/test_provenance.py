@@ -66,7 +66,10 @@ def test_one_byte_in_a_deciding_module_changes_every_version(copy_of_package, re
         ("calibration/fidelity.py", ("tiles", "analysis", "catalogue"),
          ("calibration", "presentation")),
         ("cli/commands/figures.py", tuple(gprov.CODE_SCOPES), ()),
-        ("analysis/attractors.py", ("tiles",), ("analysis", "catalogue", "presentation")),
+        ("analysis/attractors.py", ("tiles",),
+         ("attractors", "analysis", "catalogue", "presentation")),
+        ("analysis/finder.py", ("tiles",), ("attractors", "analysis")),
+        ("analysis/bifcurves.py", ("tiles", "attractors"), ("analysis", "presentation")),
         ("results/catalogue.py", ("tiles", "analysis"), ("catalogue", "presentation")),
     ],
 )
@@ -87,13 +90,34 @@ def test_every_module_of_a_scope_is_hashed():
     """code_files of a scope are exactly the .py files of its layers and of the package root."""
     every = {f.relative_to(PKG).as_posix() for f in PKG.rglob("*.py")
              if "__pycache__" not in f.parts}
-    for scope, layers in gprov.CODE_SCOPES.items():
+    for scope, entries in gprov.CODE_SCOPES.items():
         files = {f.relative_to(PKG).as_posix() for f in gprov.code_files(scope)}
-        expected = {r for r in every if "/" not in r or r.split("/", 1)[0] in layers}
+        inner = [e for e in entries if "/" in e]
+        expected = {r for r in every if "/" not in r or r.split("/", 1)[0] in entries
+                    or any(r == f"{e}.py" or r.startswith(f"{e}/") for e in inner)
+                    or any(r == f"{e.split('/')[0]}/__init__.py" for e in inner)}
         assert files == expected
     tiles = {f.relative_to(PKG).as_posix() for f in gprov.code_files("tiles")}
     assert {"study/tiles.py", "cell/chains.py", "numerics/batch.py", "errors.py"} <= tiles
     assert not any(r.startswith(("presentation/", "calibration/", "cli/")) for r in tiles)
+
+
+def test_a_scope_that_loses_its_modules_is_refused(copy_of_package, monkeypatch):
+    """A renamed module must not drop out of the jobs' code versions unseen; one of a scope's
+    modules may go while another of them is there."""
+    monkeypatch.setitem(gprov.CODE_SCOPES, "probe", (*gprov.SIMULATION, "analysis/gone"))
+    with pytest.raises(ValueError, match="analysis/gone"):
+        gprov.code_version("probe", copy_of_package)
+    monkeypatch.setitem(gprov.CODE_SCOPES, "probe",
+                        (*gprov.SIMULATION, "analysis/gone", "analysis/finder"))
+    files = {f.relative_to(copy_of_package).as_posix()
+             for f in gprov.code_files("probe", copy_of_package)}
+    assert {"analysis/finder.py", "analysis/__init__.py"} <= files
+    assert not any(f.startswith("analysis/") and f not in ("analysis/finder.py",
+                   "analysis/__init__.py") for f in files)
+    monkeypatch.setitem(gprov.CODE_SCOPES, "probe", ("nolayer",))
+    with pytest.raises(ValueError, match="nolayer"):
+        gprov.code_version("probe", copy_of_package)
 
 
 def test_an_unknown_scope_is_refused():

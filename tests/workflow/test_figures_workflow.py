@@ -33,20 +33,33 @@ def test_dry_run_plans_every_figure(tmp_path):
     assert "gearsim figures --maps --plane wb=results/wb/cells.parquet" in r.stdout
 
 
+def _files(sweeps=(), planes=(), points=(), orbits=()):
+    """Table name -> path, as figures.smk gives them (stand-in paths that name the table)."""
+    return {"sweeps": {s: f"s/{s}.pq" for s in sweeps}, "planes": {p: f"p/{p}.pq" for p in planes},
+            "points": {q: f"q/{q}.pq" for q in points}, "orbits": {o: f"o/{o}.pq" for o in orbits}}
+
+
 def test_one_table_drives_rules_cli_and_index():
     """The rules' inputs and CLI arguments are those of the figure table, for every figure."""
-    for spec in gfr.groups(["standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"],
-                           ["wb", "wxi"], ["fig5", "fig6", "fig9_11"]):
-        paths = gfr.input_paths(spec)
-        args = gfr.cli_args(spec)
-        for name, path in zip(spec.inputs.sweeps, paths["sweeps"], strict=True):
-            assert f"--sweep {name}={path}" in args
-        for name, path in zip(spec.inputs.planes, paths["planes"], strict=True):
-            assert f"--plane {name}={path}" in args
+    files = _files(["standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"],
+                   ["wb", "wxi"], ["fig5", "fig6", "fig9_11"], ["standard", "wb_curves"])
+    groups = gfr.groups(files)
+    assert 21 in gfr.built_figures(files) and 22 not in gfr.built_figures(files)  # wxi_curves
+    for spec in groups:
+        paths = gfr.input_paths(spec, files)
+        args = gfr.cli_args(spec, files)
+        for kind, option in gfr.KINDS.items():
+            for path in paths[kind]:
+                name = path.split("/")[1].removesuffix(".pq")
+                assert files[kind][name] == path and f"--{option} {name}={path}" in args
+        for name in spec.inputs.sweeps:
+            assert files["sweeps"][name] in paths["sweeps"]
         assert gfr.outputs(spec)["png"] == [f"results/figures/fig{n:02d}.png"
                                             for n in spec.members]
-    # Figs 5 and 6 read their recorded points (the two tables disagreed before)
-    assert gfr.input_paths(registry.FIGURES[5])["points"] == ["results/points/fig5.parquet"]
+    # Figs 5 and 6 read their recorded points; Fig 4 the continuation when it is made
+    assert gfr.input_paths(registry.FIGURES[5], files)["points"] == ["q/fig5.pq"]
+    assert gfr.input_paths(registry.FIGURES[4], files)["orbits"] == ["o/standard.pq"]
+    assert gfr.input_paths(registry.FIGURES[4], _files(["standard"]))["orbits"] == []
 
 
 def test_a_new_figure_registers_in_one_place():
@@ -58,9 +71,9 @@ def test_a_new_figure_registers_in_one_place():
         n, "Basins in the (w, b) plane.", registry.Inputs(planes=("wb",)), build_new,
         in_paper=False))
     try:
-        assert n in gfr.built_figures([], ["wb"], [])
-        assert n not in gfr.built_figures([], ["wxi"], [])
-        assert gfr.cli_args(spec) == f"--fig {n} --plane wb=results/wb/cells.parquet"
+        assert n in gfr.built_figures(_files(planes=["wb"]))
+        assert n not in gfr.built_figures(_files(planes=["wxi"]))
+        assert gfr.cli_args(spec, _files(planes=["wb"])) == f"--fig {n} --plane wb=p/wb.pq"
         assert gfr.rule_name(spec) == f"figure_{n:02d}"
         assert gfr.caption_params(spec)["in_paper"] is False
         assert gfr.caption_params(registry.FIGURES[7])["in_paper"] is True

@@ -75,6 +75,14 @@ if STUDY is not None:
     workdir: f"studies/{STUDY}"
 
 
+# The catalogue's two files. Snakemake deletes a job's declared outputs before the job starts,
+# so the catalogue rule (workflow/rules/catalogue.smk) declares the build file and publishes it
+# as the catalogue that readers open (hard link renamed into place): readers never see it missing
+# or partial, and a failed rebuild keeps the last good one (docs/pipeline.md, Guarantees).
+CATALOGUE_BUILD = "results/catalogue.d/build.sqlite"
+PUBLISHED_CATALOGUE = "results/catalogue.sqlite"
+
+
 # 3. Before any job: the output folders can be written (a read-only or full disk is one line
 #    now, not a traceback after minutes of simulation), and a catalogue that readers would
 #    refuse (damaged, foreign, of another schema version) is set aside so that the catalogue
@@ -101,7 +109,7 @@ def _preflight():
                 print(f"gearsim: error: {exc}", file=sys.stderr)
                 raise SystemExit(2) from None
     for line in set_aside_damaged(
-        "results/catalogue.sqlite", "results/catalogue.d/build.sqlite", dry_run=_DRY_RUN
+        PUBLISHED_CATALOGUE, CATALOGUE_BUILD, dry_run=_DRY_RUN
     ):
         print(f"gearsim: {line}", file=sys.stderr)
 
@@ -165,17 +173,18 @@ def point_params(wildcards):
 
 
 def tiles_of_plane(wildcards):
+    """Every tile file of the plane ``wildcards.plane`` (rule simulate_tile's outputs)."""
     return expand(
-        "results/{plane}/tiles/{tile}.parquet",
+        rules.simulate_tile.output.tile,
         plane=wildcards.plane,
         tile=TILES[wildcards.plane],
     )
 
 
-# The compile stamp is named by the simulation code's version. It only orders jobs (ancient:
-# rewriting it makes no tile out of date); a code edit asks for a stamp of a new name, so the
-# compile job and every job after it run again. (One stamp name for every version would hide
-# those jobs' own code_version param: Snakemake does not check the jobs after a job it re-runs
-# when their only link to it is an ancient input that exists.)
-COMPILED_STAMP = f"results/.kernels/{CODE_VERSION['tiles']}"
-COMPILED = ancient(COMPILED_STAMP)
+def attractors_of_plane(wildcards):
+    """Every attractor-tile file of the plane ``wildcards.plane`` (rule attractor_tile's)."""
+    return expand(
+        rules.attractor_tile.output.attractors,
+        plane=wildcards.plane,
+        tile=TILES[wildcards.plane],
+    )

@@ -1,17 +1,20 @@
-# Figures of the study (figures owner). One rule per figure group, generated from the one figure
-# table gearsim.presentation.figures.registry.FIGURES (inputs, CLI arguments, outputs, captions); a figure
-# whose tables are not configured is left out. Every plane, whatever its axes, also gets its
-# maps (pattern, DC, Kmax, and any registered later) from rule plane_maps.
+# Figures of the study. One rule per figure group, generated from the one figure table
+# gearsim.presentation.figures.registry.FIGURES (inputs, CLI arguments, outputs, captions); a
+# figure whose tables are not made for this config is left out. Every plane, whatever its axes,
+# also gets its maps (pattern, DC, Kmax, and any registered later) from rule plane_maps.
 # Outputs: results/figures/figNN.{png,pdf,json}, results/figures/planes/<plane>-<kind>.*, and
-# the index results/figures/README.md.
-from gearsim.analysis.bifcurves import pipeline_orbit_tables
+# the index results/figures/README.md (the figure table names them: presentation.figures.rules).
 from gearsim.presentation.figures import rules as gfr
 
 FIGURE_PARAMS = gfr.figure_params(config)
-# continuation tables made by workflow/rules/orbits.smk (config `orbits:`)
-ORBIT_TABLES = pipeline_orbit_tables(config)
-FIGURE_GROUPS = gfr.groups(SWEEPS, PLANES, POINT_SETS, ORBIT_TABLES)
-FIGURES_BUILT = gfr.built_figures(SWEEPS, PLANES, POINT_SETS, ORBIT_TABLES)
+# the tables a figure can read: kind -> name -> the file its rule makes
+TABLE_FILES = {
+    "sweeps": dict(zip(SWEEPS, SWEEP_FILES)),
+    "planes": dict(zip(PLANES, CELL_FILES)),
+    "points": dict(zip(POINT_SETS, POINT_FILES)),
+    "orbits": ORBIT_FILES,
+}
+FIGURE_GROUPS = gfr.groups(TABLE_FILES)
 
 
 for _spec in FIGURE_GROUPS:
@@ -20,7 +23,7 @@ for _spec in FIGURE_GROUPS:
         name:
             gfr.rule_name(_spec)
         input:
-            **gfr.input_paths(_spec, ORBIT_TABLES),
+            **gfr.input_paths(_spec, TABLE_FILES),
             config=CONFIG,
             # a figure that simulates its own points waits for the compiled kernels (it would
             # otherwise compile them again beside the compile job)
@@ -37,18 +40,22 @@ for _spec in FIGURE_GROUPS:
             GEARSIM_ENV
         threads: 1
         params:
-            args=gfr.cli_args(_spec, ORBIT_TABLES),
+            args=gfr.cli_args(_spec, TABLE_FILES),
             caption=gfr.caption_params(_spec),
             figure=FIGURE_PARAMS,
+            outdir=lambda wildcards, output: Path(output[0]).parent,
             code_version=CODE_VERSION["presentation"],
         shell:
             "gearsim figures {params.args} --configfile {input.config} "
-            "--outdir results/figures > {log} 2>&1"
+            "--outdir {params.outdir} > {log} 2>&1"
+
+
+FIGURE_FILES = [f for g in FIGURE_GROUPS for fs in gfr.outputs(g).values() for f in fs]
 
 
 rule plane_maps:
     input:
-        cells="results/{plane}/cells.parquet",
+        cells=rules.plane_cells.output.cells,
         config=CONFIG,
     output:
         [
@@ -65,16 +72,20 @@ rule plane_maps:
         GEARSIM_ENV
     threads: 1
     params:
+        outdir=lambda wildcards, output: Path(output[0]).parent.parent,
         code_version=CODE_VERSION["presentation"],
     shell:
         "gearsim figures --maps --plane {wildcards.plane}={input.cells} "
-        "--configfile {input.config} --outdir results/figures > {log} 2>&1"
+        "--configfile {input.config} --outdir {params.outdir} > {log} 2>&1"
+
+
+MAP_FILES = expand(rules.plane_maps.output, plane=PLANES)
 
 
 # Every sweep of every study: its bifurcation diagram in the sweep's own units.
 rule sweep_diagram:
     input:
-        sweep="results/sweeps/{sweep}.parquet",
+        sweep=rules.sweep.output.table,
         config=CONFIG,
     output:
         gfr.sweep_diagram_outputs("{sweep}"),
@@ -86,53 +97,54 @@ rule sweep_diagram:
         GEARSIM_ENV
     threads: 1
     params:
+        outdir=lambda wildcards, output: Path(output[0]).parent.parent,
         code_version=CODE_VERSION["presentation"],
     shell:
         "gearsim figures --sweep-diagrams --sweep {wildcards.sweep}={input.sweep} "
-        "--configfile {input.config} --outdir results/figures > {log} 2>&1"
+        "--configfile {input.config} --outdir {params.outdir} > {log} 2>&1"
+
+
+DIAGRAM_FILES = expand(rules.sweep_diagram.output, sweep=SWEEPS)
 
 
 rule figures_index:
     input:
-        expand("results/figures/fig{n:02d}.json", n=FIGURES_BUILT),
-        [f for plane in PLANES for f in gfr.map_outputs(plane) if f.endswith(".json")],
-        [f for s in SWEEPS for f in gfr.sweep_diagram_outputs(s) if f.endswith(".json")],
+        [f for f in FIGURE_FILES + MAP_FILES + DIAGRAM_FILES if f.endswith(".json")],
     output:
-        "results/figures/README.md",
+        index=f"{gfr.FIGURE_DIR}/README.md",
     log:
         "logs/figures/index.log",
     conda:
         GEARSIM_ENV
+    params:
+        outdir=lambda wildcards, output: Path(output.index).parent,
     shell:
-        "gearsim figures --index --outdir results/figures > {log} 2>&1"
+        "gearsim figures --index --outdir {params.outdir} > {log} 2>&1"
 
 
-ALL_TARGETS += expand(
-    "results/figures/fig{n:02d}.{ext}", n=FIGURES_BUILT, ext=["png", "pdf"]
-)
-ALL_TARGETS += [f for plane in PLANES for f in gfr.map_outputs(plane)]
-ALL_TARGETS += [f for s in SWEEPS for f in gfr.sweep_diagram_outputs(s)]
-ALL_TARGETS += ["results/figures/README.md"]
+ALL_TARGETS += [f for f in FIGURE_FILES if not f.endswith(".json")]
+ALL_TARGETS += MAP_FILES + DIAGRAM_FILES + [rules.figures_index.output.index]
 
 
 # The explorer: one static page with every plane's maps and every sweep's diagram.
 rule explorer:
     input:
-        cells=expand("results/{plane}/cells.parquet", plane=PLANES),
-        sweeps=expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS),
-        catalogue=CATALOGUE,
+        cells=CELL_FILES,
+        sweeps=SWEEP_FILES,
+        catalogue=rules.catalogue.output.build,
         config=CONFIG,
     output:
-        "results/explorer/index.html",
+        page="results/explorer/index.html",
     log:
         "logs/figures/explorer.log",
     conda:
         GEARSIM_ENV
     params:
+        results=lambda wildcards, output: Path(output.page).parent.parent,
         code_version=CODE_VERSION["presentation"],
     shell:
-        "gearsim explorer --results results --catalogue {input.catalogue} "
-        "--configfile {input.config} --out {output} > {log} 2>&1"
+        "gearsim explorer --results {params.results} --catalogue {input.catalogue} "
+        "--configfile {input.config} --out {output.page} > {log} 2>&1"
 
 
-ALL_TARGETS += ["results/explorer/index.html"]
+ALL_TARGETS += [rules.explorer.output.page]

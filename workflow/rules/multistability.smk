@@ -2,24 +2,15 @@
 # (docs/multistability.md): one job per tile, after the plane's simulated tile (its
 # forward-continuation states seed the finder), into the catalogue's `attractors` table.
 MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
-# the finder's source decides the attractor tiles too (CODE_VERSION covers the simulation)
-import gearsim.analysis.attractors as _ga
-
-ATTRACTOR_CODE = hashlib.sha256(Path(_ga.__file__).read_bytes()).hexdigest()[:16]
-ATTRACTOR_FILES = [
-    f"results/{plane}/attractors/{tile}.parquet"
-    for plane in MULTISTABLE_PLANES
-    for tile in TILES[plane]
-]
 
 
 rule attractor_tile:
     input:
         compiled=COMPILED,
         config=CONFIG,
-        tile="results/{plane}/tiles/{tile}.parquet",
+        tile=rules.simulate_tile.output.tile,
     output:
-        "results/{plane}/attractors/{tile}.parquet",
+        attractors="results/{plane}/attractors/{tile}.parquet",
     log:
         "logs/{plane}/attractors_{tile}.log",
     benchmark:
@@ -32,37 +23,40 @@ rule attractor_tile:
     threads: 1
     params:
         config=plane_params,
-        code_version=CODE_VERSION["analysis"],
-        attractor_code=ATTRACTOR_CODE,
+        code_version=CODE_VERSION["attractors"],
     shell:
         "gearsim attractor-tile --plane {wildcards.plane} --tile {wildcards.tile} "
         "--tile-file {input.tile} --configfile {input.config} --workers {threads} "
-        "--out {output} > {log} 2>&1"
+        "--out {output.attractors} > {log} 2>&1"
 
 
+ATTRACTOR_FILES = [
+    f
+    for plane in MULTISTABLE_PLANES
+    for f in expand(
+        rules.attractor_tile.output.attractors, plane=plane, tile=TILES[plane]
+    )
+]
 ALL_TARGETS += ATTRACTOR_FILES
 
 
 rule attractor_maps:
     input:
-        attractors=lambda wc: expand(
-            "results/{plane}/attractors/{tile}.parquet", plane=wc.plane, tile=TILES[wc.plane]
-        ),
+        attractors=attractors_of_plane,
         config=CONFIG,
     output:
-        "results/figures/planes/{plane}-coexistence.png",
-        "results/figures/planes/{plane}-forward-basin.png",
+        coexistence="results/figures/planes/{plane}-coexistence.png",
+        forward_basin="results/figures/planes/{plane}-forward-basin.png",
     log:
         "logs/{plane}/attractor_maps.log",
     conda:
         GEARSIM_ENV
+    params:
+        out_dir=lambda wildcards, output: Path(output.coexistence).parent,
+        code_version=CODE_VERSION["presentation"],
     shell:
         "gearsim attractor-maps --plane {wildcards.plane} --attractors {input.attractors} "
-        "--configfile {input.config} --out-dir results/figures/planes > {log} 2>&1"
+        "--configfile {input.config} --out-dir {params.out_dir} > {log} 2>&1"
 
 
-ALL_TARGETS += expand(
-    "results/figures/planes/{plane}-{kind}.png",
-    plane=MULTISTABLE_PLANES,
-    kind=("coexistence", "forward-basin"),
-)
+ALL_TARGETS += expand(rules.attractor_maps.output, plane=MULTISTABLE_PLANES)

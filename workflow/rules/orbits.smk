@@ -17,19 +17,15 @@ from gearsim.study.config import sweep_set_arguments
 
 ORBIT_TABLES = pipeline_orbit_tables(config)  # config `orbits: {continuation, curves}`
 ORBITS_STANDARD = "standard" in ORBIT_TABLES
-ORBIT_CURVES = {
-    plane: f"results/orbits/{plane}_curves.parquet"
-    for plane in PLANES
-    if f"{plane}_curves" in ORBIT_TABLES
-}
+CURVE_PLANES = [plane for plane in PLANES if f"{plane}_curves" in ORBIT_TABLES]
 
 
 rule refine_orbits:
     input:
-        cells="results/{plane}/cells.parquet",
+        cells=rules.plane_cells.output.cells,
         config=CONFIG,
     output:
-        "results/{plane}/orbits.parquet",
+        orbits="results/{plane}/orbits.parquet",
     log:
         "logs/{plane}/orbits.log",
     benchmark:
@@ -41,13 +37,13 @@ rule refine_orbits:
         code_version=CODE_VERSION["analysis"],
     shell:
         "gearsim refine-orbits --plane {wildcards.plane} --cells {input.cells} "
-        "--configfile {input.config} --out {output} > {log} 2>&1"
+        "--configfile {input.config} --out {output.orbits} > {log} 2>&1"
 
 
 # Exact landmarks of the standard sweep: continuation over the sweep's range from its start.
 rule standard_continuation:
     input:
-        sweep="results/sweeps/standard.parquet",
+        sweep=expand(rules.sweep.output.table, sweep="standard"),
         config=CONFIG,
     output:
         branches="results/orbits/standard.parquet",
@@ -74,8 +70,8 @@ rule standard_continuation:
 # Two-parameter bifurcation curves over a plane's pattern map.
 rule bifurcation_curves:
     input:
-        cells="results/{plane}/cells.parquet",
-        points=["results/orbits/standard_points.parquet"] if ORBITS_STANDARD else [],
+        cells=rules.plane_cells.output.cells,
+        points=[rules.standard_continuation.output.points] if ORBITS_STANDARD else [],
         config=CONFIG,
     output:
         curves="results/orbits/{plane}_curves.parquet",
@@ -101,15 +97,33 @@ rule bifurcation_curves:
         "--out {output.curves} > {log} 2>&1"
 
 
-# what the catalogue loads (bifurcation_points, bifurcation_curves) and the report reads
+# the continuation tables by the names the figures read (figures.registry, `Inputs.orbits`)
+ORBIT_FILES = (
+    {"standard": rules.standard_continuation.output.branches} if ORBITS_STANDARD else {}
+)
+ORBIT_FILES.update(
+    {
+        f"{plane}_curves": expand(rules.bifurcation_curves.output.curves, plane=plane)[
+            0
+        ]
+        for plane in CURVE_PLANES
+    }
+)
+# what the catalogue loads (bifurcation_points, bifurcation_curves)
 ORBIT_CATALOGUE_FILES = [
     f
-    for plane in ORBIT_CURVES
-    for f in (f"results/orbits/{plane}_curves_points.parquet", ORBIT_CURVES[plane])
+    for plane in CURVE_PLANES
+    for f in expand(
+        [
+            rules.bifurcation_curves.output.points,
+            rules.bifurcation_curves.output.curves,
+        ],
+        plane=plane,
+    )
 ]
+# what the report reads: the located points of the standard continuation, and each plane's
+# curves (the report says which planes' curves were skipped or cut)
 ORBIT_REPORT_INPUTS = (
-    ["results/orbits/standard_points.parquet"] if ORBITS_STANDARD else []
-) + list(
-    ORBIT_CURVES.values()
-)  # the report says which planes' curves were skipped or cut
+    [rules.standard_continuation.output.points] if ORBITS_STANDARD else []
+) + expand(rules.bifurcation_curves.output.curves, plane=CURVE_PLANES)
 ALL_TARGETS += ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS

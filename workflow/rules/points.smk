@@ -7,7 +7,7 @@ rule points:
         compiled=COMPILED,
         config=CONFIG,
     output:
-        "results/points/{fig}.parquet",
+        table="results/points/{fig}.parquet",
     log:
         "logs/points/{fig}.log",
     benchmark:
@@ -19,7 +19,9 @@ rule points:
         config=point_params,
         code_version=CODE_VERSION["tiles"],
     shell:
-        "gearsim sweep --points {wildcards.fig} --configfile {input.config} --out {output} > {log} 2>&1"
+        "gearsim sweep --points {wildcards.fig} --configfile {input.config} "
+        "--out {output.table} > {log} 2>&1"
 
 
-ALL_TARGETS += expand("results/points/{fig}.parquet", fig=POINT_SETS)
+POINT_FILES = expand(rules.points.output.table, fig=POINT_SETS)
+ALL_TARGETS += POINT_FILES

@@ -6,7 +6,7 @@ rule sweep:
         compiled=COMPILED,
         config=CONFIG,
     output:
-        "results/sweeps/{sweep}.parquet",
+        table="results/sweeps/{sweep}.parquet",
     log:
         "logs/sweeps/{sweep}.log",
     benchmark:
@@ -18,7 +18,9 @@ rule sweep:
         config=sweep_params,
         code_version=CODE_VERSION["tiles"],
     shell:
-        "gearsim sweep --name {wildcards.sweep} --configfile {input.config} --out {output} > {log} 2>&1"
+        "gearsim sweep --name {wildcards.sweep} --configfile {input.config} "
+        "--out {output.table} > {log} 2>&1"
 
 
-ALL_TARGETS += expand("results/sweeps/{sweep}.parquet", sweep=SWEEPS)
+SWEEP_FILES = expand(rules.sweep.output.table, sweep=SWEEPS)
+ALL_TARGETS += SWEEP_FILES

@@ -2,17 +2,25 @@
 in a second parameter (e.g. the (w, b) and (w, xi) planes).
 
 Method (re-location with a predictor, not an augmented system): a point located by
-:func:`gearsim.analysis.continuation.continue_orbit` at ``name2 = mu_0`` is moved to ``mu_1 = mu_0
-+ h``;
-the predictor extrapolates the curve's ``(w, y)`` linearly in ``mu`` from the last two points
-(constant for the first step); at ``mu_1`` a short continuation in ``name`` across the window
-``w_pred +/- window`` (started from a Newton orbit at one end, seeded with the predicted state)
-locates every event of the same kind (and, for grazing, the same boundary) to 1e-8 in ``w``; the
-one nearest the prediction is the new curve point. If none is found the window is doubled once,
-then the step ``h`` is halved (down to ``h_min``); the curve ends when the second parameter
-leaves its range or the point is lost (a codimension-2 point, e.g. the period doubling meeting a
-grazing, or the branch ceasing to exist). Every point carries its multipliers, so the curve's
-kind is checked at every step (a PD point has a multiplier -1 to 1e-7).
+:func:`gearsim.analysis.continuation.continue_orbit` at ``name2 = mu_0`` is moved along the
+curve: the curve's secant direction in the plane (each axis scaled by its range) predicts the
+next point ``(w, y)`` a step ``h`` away, and the point is re-located there (:func:`follow_curve`;
+where the curve runs more along ``name`` than along ``name2`` the two swap roles).
+
+Re-location, ``method="secant"`` (the default, :func:`_relocate_secant`): the test function of the
+point's kind (``mu + 1`` of the real multiplier nearest -1 for a period doubling, the signed
+distance of the turning point to the boundary for a grazing) is a scalar function of ``w`` once the
+orbit is corrected by Newton at each trial; its zero is found by the secant method, safeguarded by
+bisection once bracketed and by a trust window, to 1e-9 in ``w`` (a fold by
+:func:`_relocate_fold`). ``method="window"`` (also the fallback for the first failures of the
+secant, and the method for Neimark-Sacker points): a short continuation in ``name`` across ``w_pred
++/- window`` (started from a Newton orbit at one end, seeded with the predicted state) locates
+every event of the same kind (and, for grazing, the same boundary) to 1e-8 in ``w``; the one
+nearest the prediction is the new point. If none is found the window is doubled once, then the step
+``h`` is halved (down to ``h_min``); the curve ends when the second parameter leaves its range or
+the point is lost (a codimension-2 point, e.g. the period doubling meeting a grazing, or the branch
+ceasing to exist). Every point carries its multipliers, so the curve's kind is checked at every
+step (a PD point has a multiplier -1 to 1e-7).
 
 Why not a minimally augmented system: the test functions are not smooth across grazing (the
 3/2-power singularity), and the re-location reuses the one event locator, so a curve point is

@@ -18,7 +18,8 @@ import math
 import numpy as np
 import pandas as pd
 
-from gearsim.analysis.landmarks import PAPER_LANDMARKS, find_landmarks, match_paper
+from gearsim.analysis.landmarks import find_landmarks, match_paper
+from gearsim.analysis.paper import PAPER_LANDMARKS
 
 PAIRS = {
     "grazing": ("grazing",),

@@ -5,7 +5,7 @@ starts, the same recurrence rule :meth:`~gearsim.analysis.attractors._Known.recu
 merging and the same last step :func:`~gearsim.analysis.attractors.assemble`), scheduled so
 that no lane waits for another start:
 
-* Every start is a job of :func:`gearsim.cell.chains.run_pool` whose trajectory *is* its
+* Every start is a job of :func:`gearsim.cell.pool.run_pool` whose trajectory *is* its
   full-length run (transient, tangent lead, measurement, period test, classification and
   refinement exactly as :func:`gearsim.cell.chains.simulate_cells` from that start).
 * During its transient a start records its section points; every ``chunk`` periods the starts
@@ -47,7 +47,7 @@ from gearsim.analysis.attractors import (
     sobol_unit,
     tile_records,
 )
-from gearsim.cell.chains import GO, MEASURE, PARK, STOP, PoolJob, PoolStats, run_pool
+from gearsim.cell.pool import GO, MEASURE, PARK, STOP, PoolJob, PoolStats, run_pool
 from gearsim.cell.simulate import IntegrationSettings, result_columns
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import steps_per_period
@@ -92,7 +92,7 @@ class _Cell:
 
 
 class _Judge:
-    """The finder's side of :func:`gearsim.cell.chains.run_pool` for the cells of one grid."""
+    """The finder's side of :func:`gearsim.cell.pool.run_pool` for the cells of one grid."""
 
     def __init__(self, cells: list[_Cell], forward, backward, forward_results, st,
                  opts: _Options, history: int, early: bool):
@@ -264,7 +264,7 @@ def find_attractors_many(
     :class:`~gearsim.analysis.attractors.Steady`, e.g. :func:`steady_from_row` of the plane
     tile's row) or None, used instead of running ``forward``; ``start_states``, per cell its own
     ``(K, 10)`` start states instead of the Sobol starts (basin pictures); ``lanes``, the
-    probing pool's size; ``stats``, a :class:`gearsim.cell.chains.PoolStats` collecting the
+    probing pool's size; ``stats``, a :class:`gearsim.cell.pool.PoolStats` collecting the
     lane use. ``early=False``: every start its full-length run (through the same pool).
     """
     system = GearCells(params_list, settings)

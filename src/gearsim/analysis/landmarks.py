@@ -34,7 +34,8 @@ periodic cells) are classifier indecision next to a bifurcation, not dynamics: b
 bridged, and the landmark spans the whole gap (``lo`` and ``hi`` are the flanking periodic
 cells). Set ``bridge=0`` to keep them.
 
-The paper's landmark table for the standard sweep is :data:`PAPER_LANDMARKS`;
+The paper's landmark table for the standard sweep is
+:data:`gearsim.analysis.paper.PAPER_LANDMARKS`;
 :func:`match_paper` pairs it with the extracted landmarks in sweep order.
 """
 
@@ -42,11 +43,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import pandas as pd
+
+from gearsim.analysis.paper import PAPER_LANDMARKS, PaperLandmark
 
 KINDS = (
     "grazing",
@@ -92,61 +94,6 @@ COLUMNS = (
 )
 
 _NONPERIODIC_BRIDGEABLE = ("quasi-periodic", "unsettled")
-
-
-@dataclass(frozen=True)
-class PaperLandmark:
-    """One row of the paper's landmark table (standard parameters, forward sweep in w)."""
-
-    key: str
-    kind: str
-    w: float
-    w_range: tuple[float, float]  # interval the paper gives (w, w) when a single value
-    from_npq: str | None  # pattern before ('chaos' for chaos); None = any
-    to_npq: str | None
-    text: str
-
-    def error(self, w: float) -> float:
-        """Signed distance of ``w`` from the paper's interval (0 inside it)."""
-        lo, hi = self.w_range
-        if w < lo:
-            return w - lo
-        if w > hi:
-            return w - hi
-        return 0.0
-
-
-def _pl(key, kind, w, fr, to, text, w_range=None) -> PaperLandmark:
-    return PaperLandmark(key, kind, w, w_range or (w, w), fr, to, text)
-
-
-#: The paper's landmarks, in sweep order (MODEL.md table; paper Sect 3.1).
-PAPER_LANDMARKS: tuple[PaperLandmark, ...] = (
-    _pl("grazing_1", "grazing", 0.569, "1-0-0", "1-1-0", "grazing 1-0-0 -> 1-1-0 (I 0 -> 1)"),
-    _pl("jump", "jump", 0.66, None, None, "jump: DC -> 0.66, Kmax -> 1.311"),
-    _pl("pd_1_2", "period_doubling", 0.988, "1-1-0", "2-2-0", "period doubling 1-1-0 -> 2-2-0"),
-    _pl("grazing_2", "grazing", 1.072, "2-2-0", "2-1-0", "grazing 2-2-0 -> 2-1-0"),
-    _pl("pd_2_4", "period_doubling", 1.33, "2-1-0", "4-2-0", "period doubling 2-1-0 -> 4-2-0"),
-    _pl("grazing_4", "grazing", 1.354, "4-2-0", "4-3-0", "grazing 4-2-0 -> 4-3-0"),
-    _pl(
-        "pd_4_8",
-        "period_doubling",
-        1.377,
-        None,
-        "8-6-0",
-        "period doubling -> 8-6-0 (1.37-1.384)",
-        w_range=(1.37, 1.384),
-    ),
-    _pl("chaos_onset", "chaos_onset", 1.396, None, "chaos", "chaos onset"),
-    _pl("ipd_chaos_8", "inverse_period_doubling", 1.642, "chaos", "8-6-0", "chaos -> 8-6-0"),
-    _pl("ipd_8_4", "inverse_period_doubling", 1.672, "8-6-0", "4-3-0", "8-6-0 -> 4-3-0"),
-    _pl("ipd_4_2", "inverse_period_doubling", 1.714, "4-3-0", "2-2-0", "4-3-0 -> 2-2-0"),
-    _pl("period_one", "period_one", 1.864, "2-2-0", "1-1-0", "back to period 1 (2-2-0 -> 1-1-0)"),
-)
-
-#: paper values at the jump (Sect 3.1)
-PAPER_JUMP_DC = 0.66
-PAPER_JUMP_KMAX = 1.311
 
 
 # ---------------------------------------------------------------------------- extraction

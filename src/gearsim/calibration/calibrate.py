@@ -6,11 +6,12 @@ Without back contact the model is invariant under scaling ``x, Fm, Fe, b`` toget
 w-sequence of the standard sweep depends on the *shape* parameters only: ``Fe/Fm``, ``eps``,
 ``xi``, ``phi_e`` and the friction factor (and, in the 6-DOF model, the bearing stiffness and mass
 ratios). Those are fitted to the w of each landmark of
-:data:`gearsim.analysis.landmarks.PAPER_LANDMARKS`.
+:data:`gearsim.analysis.paper.PAPER_LANDMARKS`.
 The *scale* ``Fm`` then follows from the paper's backlash threshold: with ``Fm = 1`` we find the
 backlash ``b*_1`` above which no double-sided impact occurs for w in [0.1, 2.5]
 (:func:`gearsim.calibration.sweeps.backlash_threshold`); the threshold scales with ``Fm``,
-so ``Fm = 0.4125 / b*_1``.
+so ``Fm = b* / b*_1`` with the paper's threshold ``b*``
+(:data:`gearsim.analysis.paper.PAPER_B_THRESHOLD`).
 
 Objective (:func:`evaluate`), smaller is better::
 
@@ -43,7 +44,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from gearsim.analysis.landmarks import PAPER_LANDMARKS, find_landmarks, match_paper
+from gearsim.analysis.landmarks import find_landmarks, match_paper
+from gearsim.analysis.paper import PAPER_B_THRESHOLD, PAPER_LANDMARKS, PAPER_XI_THRESHOLD
 from gearsim.calibration.search import (
     FreeParameter,
     LoggedObjective,
@@ -60,7 +62,6 @@ from gearsim.calibration.sweeps import (
     has_subharmonics,
     w_sweep,
 )
-from gearsim.calibration.targets import PAPER_B_THRESHOLD, PAPER_XI_THRESHOLD
 from gearsim.dynamics.parameters import ModelParameters
 
 #: the kinds whose unmatched occurrences count as pattern-order violations

@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from gearsim.analysis.landmarks import find_landmarks, match_paper, pattern_sequence
+from gearsim.analysis.paper import COEXIST_POINT, PAPER_B_THRESHOLD, SEQUENCE_SWEEPS
 from gearsim.calibration.search import bisect_bool
 from gearsim.calibration.sweeps import (
     SweepSettings,
@@ -42,13 +43,7 @@ from gearsim.calibration.sweeps import (
     w_sweep,
 )
 from gearsim.calibration.tables import form_report_lines  # noqa: F401  (the report's import)
-from gearsim.calibration.targets import (
-    COEXIST_POINT,
-    PAPER_B_THRESHOLD,
-    SEQUENCE_SWEEPS,
-    Measured,
-    landmark_part,
-)
+from gearsim.calibration.targets import Measured, landmark_part
 from gearsim.dynamics.parameters import ModelParameters
 
 

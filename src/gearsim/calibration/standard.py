@@ -8,8 +8,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from gearsim.analysis.paper import PAPER_B_THRESHOLD
 from gearsim.calibration.calibrate import DEFAULT_FREE, START, search_params
-from gearsim.calibration.targets import PAPER_B_THRESHOLD
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.physical.geometry import DERIVED_UNITS as _GEOMETRY_DERIVED_UNITS
 from gearsim.physical.geometry import GearGeometry
@@ -98,8 +98,8 @@ FIXED_PROVENANCE: dict[str, dict[str, str]] = {
     },
     "assumed": {
         "w": "sweep variable; every sweep overrides it",
-        "b": "standard backlash: any b above 0.4125 gives the same patterns (paper Sect 3.2); "
-             "Table 1's value is lost",
+        "b": f"standard backlash: any b above {PAPER_B_THRESHOLD} gives the same patterns (paper "
+             "Sect 3.2); Table 1's value is lost",
         "var_ratio": "variable-ratio inertial term off: its 9-mesh-period cycle would turn the "
                      "paper's 1T motions into 9T (MODEL.md)",
         "model": "6-DOF bending-torsional model",
@@ -141,15 +141,16 @@ def standard_from_record(record: Mapping[str, Any], *, bearing_ratio: float,
         x = [START[fp.name] for fp in DEFAULT_FREE]
         src = "MODEL.md feasibility-study single-DOF fit (starting set, not yet recalibrated)"
     Fm = 0.1
-    fm_prov = ("assumed", "scale of the starting set; will follow from the b = 0.4125 threshold")
+    fm_prov = ("assumed", "scale of the starting set; will follow from the b = "
+               f"{PAPER_B_THRESHOLD} threshold")
     fine = record.get("b_threshold_fine")
     if fine and math.isfinite(fine.get("b_threshold_at_Fm1", float("nan"))):
         Fm = PAPER_B_THRESHOLD / float(fine["b_threshold_at_Fm1"])
-        fm_prov = ("derived", f"Fm = 0.4125 / b*(Fm=1), b*(Fm=1) = "
+        fm_prov = ("derived", f"Fm = {PAPER_B_THRESHOLD} / b*(Fm=1), b*(Fm=1) = "
                    f"{fine['b_threshold_at_Fm1']:.4f} on the paper's 400-cell w grid (6-DOF)")
     elif verify_ and math.isfinite(verify_.get("Fm_from_b_threshold", float("nan"))):
         Fm = float(verify_["Fm_from_b_threshold"])
-        fm_prov = ("derived", f"Fm = 0.4125 / b*(Fm=1), b*(Fm=1) = "
+        fm_prov = ("derived", f"Fm = {PAPER_B_THRESHOLD} / b*(Fm=1), b*(Fm=1) = "
                    f"{verify_['b_threshold_at_Fm1']:.4f} (gearsim calibrate --stage verify)")
     params = search_params(x, DEFAULT_FREE, Fm=Fm, b=1.0, model="6dof")
     kw: dict[str, Any] = {"rho_p": rho_p, "rho_g": rho_g}

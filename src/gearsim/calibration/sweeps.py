@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from gearsim.calibration.search import bisect_bool
+from gearsim.cell.motion import double_sided
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.cell.sweep import sweep_records
 from gearsim.dynamics.parameters import ModelParameters
@@ -90,9 +91,9 @@ def has_subharmonics(df: pd.DataFrame) -> bool:
 
 
 def has_back_contact(df: pd.DataFrame) -> bool:
-    """Whether any cell of a sweep impacts double-sided (I = 2 or -1, or back contact q > 0)."""
-    q = df["q"].fillna(0).astype(int)
-    return bool(((df["I"] == 2) | (df["I"] == -1) | (q > 0)).any())
+    """Whether any cell of a sweep impacts double-sided
+    (:func:`gearsim.cell.motion.double_sided`)."""
+    return bool(double_sided(df["I"], df["q"]).any())
 
 
 def double_sided_anywhere(params: ModelParameters, grid: np.ndarray,

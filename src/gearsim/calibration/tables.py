@@ -10,12 +10,14 @@ from typing import Any
 
 import numpy as np
 
-from gearsim.analysis.landmarks import PAPER_LANDMARKS
-from gearsim.calibration.targets import (
+from gearsim.analysis.paper import (
     PAPER_COEXIST,
+    PAPER_JUMP_KMAX,
     PAPER_KMAX_FIG17,
-    PAPER_KMAX_JUMP,
+    PAPER_LANDMARKS,
     PAPER_SEQUENCES,
+)
+from gearsim.calibration.targets import (
     TARGET_KEYS,
     TARGETS,
     sequence_distance,
@@ -141,8 +143,8 @@ def _code(rec: Mapping[str, Any]) -> str:
 
 def form_summary_lines(forms: Mapping[str, Mapping[str, Any]]) -> list[str]:
     """Markdown: one row per form with its cost and budget: J, landmarks within 0.02, landmark
-    RMS, xi*, b* (the scale Fm that makes it 0.4125, from b* at the search scale), evaluations
-    (coarse + exact), wall time, load average at its start, code version."""
+    RMS, xi*, b* (the scale Fm that makes it the paper's threshold, from b* at the search
+    scale), evaluations (coarse + exact), wall time, load average at its start, code version."""
     lines = ["| form | J | landmarks within 0.02 | landmark RMS | xi* | b* (Fm derived; b* at "
              "Fm 0.1) | evaluations (coarse + exact) | wall s | load at start | code |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -174,7 +176,7 @@ def kmax_lines(kmax: Mapping[str, Any]) -> list[str]:
         return ["Kmax readings: not computed (no jump found)."]
     lo, hi = kmax["lo"], kmax["hi"]
     lines = [f"Kmax readings at the jump (w = {lo['w']:.3f} -> {hi['w']:.3f}, DC {lo['dc']:.3f} "
-             f"-> {hi['dc']:.3f}); paper: {PAPER_KMAX_JUMP} at the jump (Sect 3.1), "
+             f"-> {hi['dc']:.3f}); paper: {PAPER_JUMP_KMAX} at the jump (Sect 3.1), "
              f"{PAPER_KMAX_FIG17[0]}-{PAPER_KMAX_FIG17[1]} in Fig 17 at the jump for small xi.",
              "", "| reading | before | after | after - 1.311 | in 1.8-2.1 |",
              "|---|---|---|---|---|"]
@@ -183,7 +185,7 @@ def kmax_lines(kmax: Mapping[str, Any]) -> list[str]:
             continue
         a = hi[k]
         inside = "yes" if PAPER_KMAX_FIG17[0] <= a <= PAPER_KMAX_FIG17[1] else "no"
-        lines.append(f"| {text} | {lo[k]:.3f} | {a:.3f} | {a - PAPER_KMAX_JUMP:+.3f} | {inside} |")
+        lines.append(f"| {text} | {lo[k]:.3f} | {a:.3f} | {a - PAPER_JUMP_KMAX:+.3f} | {inside} |")
     return lines
 
 

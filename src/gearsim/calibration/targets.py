@@ -1,19 +1,20 @@
 """The paper's targets and the one objective over them (pure: no simulation).
 
-Targets (:data:`TARGETS`; each with a tolerance ``tol``, the error is counted in tolerances):
+Targets (:data:`TARGETS`, the paper's values from :mod:`gearsim.analysis.paper`; each with a
+tolerance ``tol``, the error is counted in tolerances):
 
-* the 12 standard-sweep landmarks (:data:`gearsim.analysis.landmarks.PAPER_LANDMARKS`), tol 0.02
+* the 12 standard-sweep landmarks (:data:`gearsim.analysis.paper.PAPER_LANDMARKS`), tol 0.02
   in w;
-* the backlash threshold 0.4125 (tol 0.01): without back contact the model is invariant under
+* the backlash threshold (tol 0.01): without back contact the model is invariant under
   scaling ``x, Fm, Fe, b`` together, so the threshold fixes the *scale* ``Fm`` and is matched by
   construction (:func:`gearsim.calibration.fidelity.measure`);
-* the damping threshold 0.1436 (tol 0.01): the xi above which only 0/1T and 1/1T remain;
-* DC after the jump 0.66 (tol 0.03) and the grazing-to-jump gap 0.66 - 0.569 = 0.091 (tol 0.02);
+* the damping threshold (tol 0.01): the xi above which only 0/1T and 1/1T remain;
+* DC after the jump (tol 0.03) and the grazing-to-jump gap in w (tol 0.02);
 * the pattern sequences of Fig 8 (b = 0.15) and Fig 15 (xi = 0.05, 0.09, 0.15), tol 1 pattern:
   the error is the insert/delete distance between the paper's sequence and ours
   (:func:`sequence_distance`; the paper's "..." matches any run of patterns);
-* the three motions of Figs 9-11 at b = 0.15, w = 0.82 (1-1-1, 2-2-1, 4-4-2), tol 1: the error is
-  the number of them that the attractor search does not find there.
+* the three motions of Figs 9-11 at their point (:data:`gearsim.analysis.paper.COEXIST_POINT`),
+  tol 1: the error is the number of them that the attractor search does not find there.
 
 Cost (:func:`score`)::
 
@@ -21,7 +22,7 @@ Cost (:func:`score`)::
     J   = sqrt(sum_t c_t / number of targets)
 
 so J is the RMS error in tolerances over all 21 targets (J <= 1: on average within tolerance).
-The paper's values appear only here, as targets; nothing in the model reads them.
+Nothing in the model reads the paper's values.
 """
 
 from __future__ import annotations
@@ -33,26 +34,21 @@ from typing import Any
 
 import numpy as np
 
-from gearsim.analysis.landmarks import PAPER_JUMP_DC, PAPER_LANDMARKS
+from gearsim.analysis.paper import (
+    COEXIST_POINT,
+    JUMP_DC_TOL,
+    LANDMARK_TOL,
+    PAPER_B_THRESHOLD,
+    PAPER_COEXIST,
+    PAPER_GAP,
+    PAPER_JUMP_DC,
+    PAPER_LANDMARKS,
+    PAPER_SEQUENCES,
+    PAPER_XI_THRESHOLD,
+    SEQUENCE_SWEEPS,
+    THRESHOLD_TOL,
+)
 
-PAPER_B_THRESHOLD = 0.4125
-PAPER_XI_THRESHOLD = 0.1436
-PAPER_GAP = round(PAPER_JUMP_DC - 0.569, 6)  # grazing 0.569 -> jump 0.66
-#: the Figs 9-11 point and its three motions (n-p-q)
-COEXIST_POINT = {"b": 0.15, "w": 0.82}
-PAPER_COEXIST = ("1-1-1", "2-2-1", "4-4-2")
-#: paper sequences (Fig 8a, Fig 15a-c); "..." = any run of patterns (the paper's ellipsis)
-PAPER_SEQUENCES: dict[str, tuple[str, ...]] = {
-    "b015": ("0/1T", "1/1T", "2/1T", "2/2T", "1/2T", "1/1T"),
-    "xi005": ("0/1T", "1/1T", "1/2T", "1/4T", "...", "chaos", "1/8T", "1/4T", "1/2T", "1/1T"),
-    "xi009": ("0/1T", "1/1T", "1/2T", "1/4T", "1/2T", "1/1T"),
-    "xi015": ("0/1T", "1/1T"),
-}
-SEQUENCE_SWEEPS = {"b015": ("b", 0.15), "xi005": ("xi", 0.05), "xi009": ("xi", 0.09),
-                   "xi015": ("xi", 0.15)}
-#: the paper's Kmax at the jump (Sect 3.1) and Fig 17's range at the jump for small xi
-PAPER_KMAX_JUMP = 1.311
-PAPER_KMAX_FIG17 = (1.8, 2.1)
 CAP = 10.0
 
 
@@ -66,20 +62,22 @@ class Target:
 
 
 def _targets() -> tuple[Target, ...]:
-    out = [Target(pl.key, pl.w, 0.02, "w", pl.text) for pl in PAPER_LANDMARKS]
+    out = [Target(pl.key, pl.w, LANDMARK_TOL, "w", pl.text) for pl in PAPER_LANDMARKS]
     out += [
-        Target("b_threshold", PAPER_B_THRESHOLD, 0.01, "b",
+        Target("b_threshold", PAPER_B_THRESHOLD, THRESHOLD_TOL, "b",
                "backlash above which no double-sided impact occurs"),
-        Target("xi_threshold", PAPER_XI_THRESHOLD, 0.01, "xi",
+        Target("xi_threshold", PAPER_XI_THRESHOLD, THRESHOLD_TOL, "xi",
                "damping above which only 0/1T and 1/1T remain"),
-        Target("dc_jump", PAPER_JUMP_DC, 0.03, "DC", "disengagement duty cycle after the jump"),
+        Target("dc_jump", PAPER_JUMP_DC, JUMP_DC_TOL, "DC",
+               "disengagement duty cycle after the jump"),
         Target("gap", PAPER_GAP, 0.02, "w", "grazing-to-jump gap (jump - first grazing)"),
     ]
     out += [Target(f"seq_{k}", " ".join(v), 1.0, "patterns",
                    f"pattern sequence at {SEQUENCE_SWEEPS[k][0]} = {SEQUENCE_SWEEPS[k][1]}")
             for k, v in PAPER_SEQUENCES.items()]
     out.append(Target("coexist", " ".join(PAPER_COEXIST), 1.0, "motions",
-                      "Figs 9-11 motions at b = 0.15, w = 0.82 (attractor search)"))
+                      f"Figs 9-11 motions at b = {COEXIST_POINT['b']}, w = {COEXIST_POINT['w']} "
+                      "(attractor search)"))
     return tuple(out)
 
 

@@ -340,18 +340,19 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
         np.zeros(0, dtype=np.int64),
     )  # fmt: skip
     wz = np.zeros(N_STATE)
-    bearings = False  # any lane with a bearing clearance (its switching channels watched)
+    # the two lane-set properties, read back from an array: a variable assigned the constant
+    # False would be typed Literal[bool](False) first, and every block step compiled twice
+    anyof = np.zeros(2, dtype=np.bool_)
     for l in range(n_lanes):
         r = (l // L) * BLOCK + (l % L)
         for c in range(4):
             if blk[r + (_PAR + P_ACT + c) * L] != 0.0:
-                bearings = True
-    forms = False  # any lane with a model-form option (docs/model.md)
-    for l in range(n_lanes):
-        r = (l // L) * BLOCK + (l % L)
+                anyof[0] = True  # a lane with a bearing clearance (its channels watched)
         if (blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0
                 or blk[r + (_PAR + P_GAM1) * L] != 0.0):
-            forms = True
+            anyof[1] = True  # a lane with a model-form option (docs/model.md)
+    bearings = anyof[0]
+    forms = anyof[1]
     for k in range(m):
         # ---- period start: section, accumulators, variable-ratio phase of the lane
         for l in range(n_lanes):

@@ -269,9 +269,9 @@ def integrate_periods(
     gaps = np.zeros(N_SWITCH)
     active = np.zeros(N_SWITCH, dtype=np.bool_)
     channels(p, mode, y, gaps, active, True)
-    bearings = False
-    for c in range(1, N_SWITCH):
-        bearings = bearings or active[c]
+    # from the array, never the constant False: a Literal[bool] first guess would compile the
+    # grid step twice
+    bearings = active[1] | active[2] | active[3] | active[4]
     acc = np.zeros(N_ACC)
     cnt = np.zeros(N_CNT, dtype=np.int64)
     acc[ACC_H] = h_init if h_init > 0.0 else min(hmax, T / 64.0)

@@ -82,6 +82,24 @@ _C2, _C3, _C4, _C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0
 
 
 # ---------------------------------------------------------------------------- RK4 on tuples
+# Compile cost: Numba's ``inline="always"`` copies the callee's IR at every call site and types
+# it again (deep copies: most of a cold compile), so the large pieces of the RK4 step (the field,
+# its Jacobian product, the state and tangent steps) are compiled once each and inlined by LLVM
+# instead (``forceinline``: the ``alwaysinline`` attribute). Each carries ``fastmath=FASTMATH``
+# itself, the flag its RK4 callers compile with, so the arithmetic and its FMA contraction are
+# those of the IR-inlined code; the DP5 field (``model.rhs``) keeps its own, uncontracted copy.
+@njit(cache=True, nogil=True, fastmath=FASTMATH, forceinline=True)
+def _state_rate(c, s, lam, q, vr, y, P, M):
+    """:func:`gearsim.dynamics.model.field_state` as one LLVM-inlined function (RK4 stages)."""
+    return field_state(c, s, lam, q, vr, y, P, M)
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, forceinline=True)
+def _tangent_rate(c, lam, q, z, P, M):
+    """:func:`gearsim.dynamics.model.field_tangent` as one LLVM-inlined function."""
+    return field_tangent(c, lam, q, z, P, M)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def axpy10(y, a, k):
     """``y + a k`` for 10-tuples."""
@@ -109,7 +127,7 @@ def _add(s, k):
     )  # fmt: skip
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, fastmath=FASTMATH, forceinline=True)
 def rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M):
     """One RK4 step of the state, ``y + h/6 (k1 + 2 k2 + 2 k3 + k4)``.
 
@@ -120,28 +138,28 @@ def rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M):
     values: no register spills in the vector loop).
     """
     a = 0.5 * h
-    k = field_state(cA, sA, lam, qA, vA, y, P, M)
+    k = _state_rate(cA, sA, lam, qA, vA, y, P, M)
     acc = k
-    k = field_state(cM, sM, lam, qM, vM, axpy10(y, a, k), P, M)
+    k = _state_rate(cM, sM, lam, qM, vM, axpy10(y, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_state(cM, sM, lam, qM, vM, axpy10(y, a, k), P, M)
+    k = _state_rate(cM, sM, lam, qM, vM, axpy10(y, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_state(cB, sB, lam, qB, vB, axpy10(y, h, k), P, M)
+    k = _state_rate(cB, sB, lam, qB, vB, axpy10(y, h, k), P, M)
     acc = _add(acc, k)
     return axpy10(y, h / 6.0, acc)
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, fastmath=FASTMATH, forceinline=True)
 def rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M):
     """The same RK4 step for the tangent vector (linear; independent of the state)."""
     a = 0.5 * h
-    k = field_tangent(cA, lam, qA, z, P, M)
+    k = _tangent_rate(cA, lam, qA, z, P, M)
     acc = k
-    k = field_tangent(cM, lam, qM, axpy10(z, a, k), P, M)
+    k = _tangent_rate(cM, lam, qM, axpy10(z, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_tangent(cM, lam, qM, axpy10(z, a, k), P, M)
+    k = _tangent_rate(cM, lam, qM, axpy10(z, a, k), P, M)
     acc = _add2(acc, k)
-    k = field_tangent(cB, lam, qB, axpy10(z, h, k), P, M)
+    k = _tangent_rate(cB, lam, qB, axpy10(z, h, k), P, M)
     acc = _add(acc, k)
     return axpy10(z, h / 6.0, acc)
 

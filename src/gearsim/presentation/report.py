@@ -34,27 +34,28 @@ import numpy as np
 import pandas as pd
 
 from gearsim.analysis.landmarks import (
-    PAPER_JUMP_DC,
-    PAPER_JUMP_KMAX,
     find_landmarks,
     is_subsequence,
     match_paper,
     pattern_sequence,
 )
-from gearsim.cell.classify import KMAX_READINGS
-from gearsim.presentation.paper import (
+from gearsim.analysis.paper import (
     JUMP_DC_TOL,
     LANDMARK_TOL,
-    NOT_APPLICABLE,
     PAPER_B_THRESHOLD,
+    PAPER_JUMP_DC,
+    PAPER_JUMP_KMAX,
     PAPER_PLANES,
     PAPER_SEQUENCE_TEXT,
     PAPER_SEQUENCES,
+    PAPER_SWEEPS,
     PAPER_XI_THRESHOLD,
-    SEQUENCE_SWEEPS,
     THRESHOLD_TOL,
+    listed_patterns,
     within,
 )
+from gearsim.cell.classify import KMAX_READINGS
+from gearsim.cell.motion import double_sided, face_impact, no_impact
 from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import (
     axis_column,
@@ -67,6 +68,8 @@ from gearsim.presentation.study_summary import (
     sweep_spec_of,
     sweep_summary,
 )
+
+NOT_APPLICABLE = "not applicable"
 
 
 # ----------------------------------------------------------------------------- loading
@@ -140,12 +143,6 @@ def load_plane(plane: str, *, catalogue: str | Path | None = None,
 
 
 # ----------------------------------------------------------------------------- verified motions
-#: the default run before labels were backed by orbits (head 1e8155c, both default planes
-#: together; measured when the refinement was specified): no refinement, no status column,
-#: no Floquet margin
-BEFORE_VERIFIED = {"multistable": 5647, "one_orbit": 393, "wxi_quasi_periodic": 1000}
-
-
 def verified_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] | None:
     """Per plane: cells refined by their Newton orbit, at a bifurcation (status), without a
     settled reading, with a Floquet margin, quasi-periodic, and multistable (from the cells'
@@ -171,7 +168,7 @@ def verified_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] |
 
 
 def verified_lines(rows: list[dict[str, Any]], h: str = "##") -> list[str]:
-    """The verified-motions table: per plane after this run, and the run before."""
+    """The verified-motions table, per plane of this run."""
     if not rows:
         return []
     out = [f"{h} Verified motions", "",
@@ -189,13 +186,7 @@ def verified_lines(rows: list[dict[str, Any]], h: str = "##") -> list[str]:
         out.append(f"| {r['plane']} | {r['cells']} | {r['refined']} | {r['bifurcation']} | "
                    f"{r['not_converged']} | {r['with_margin']} (of {r['periodic']}) | "
                    f"{r['near_one']} | {r['quasi_periodic']} | {multi} |")
-    b = BEFORE_VERIFIED
-    out += ["", f"Before (the default run at head 1e8155c, recorded when this was specified, "
-            f"not recomputed here): no cell refined, no status `bifurcation` (the column did not "
-            f"exist), no Floquet margin; {b['multistable']} multistable cells on the two default "
-            f"planes together, {b['one_orbit']} of them holding attractors that were all one "
-            f"orbit (one n-p-q and one DC); {b['wxi_quasi_periodic']} quasi-periodic cells on "
-            "(w, xi).", ""]
+    out.append("")
     return out
 
 
@@ -236,16 +227,22 @@ def row_threshold(
                      float(ys[last + 1]), len(ys), paper, note)
 
 
-def double_sided(cells: pd.DataFrame) -> pd.Series:
-    """Cells with impacts on the tooth back (I = 2 or -1, or q > 0)."""
-    q = cells["q"].fillna(0) if "q" in cells.columns else 0
-    return (cells["I"].isin([2, -1])) | (q > 0)
+def _listed(key: str) -> list[str] | None:
+    """The patterns of the paper's sequence along sweep ``key``; None when it has none."""
+    seq = PAPER_SEQUENCES.get(key)
+    return None if seq is None else listed_patterns(seq)
+
+
+def double_sided_rows(cells: pd.DataFrame) -> pd.Series:
+    """Cells with double-sided impact (:func:`gearsim.cell.motion.double_sided`)."""
+    return double_sided(cells["I"], cells.get("q"))
 
 
 def not_period_one(cells: pd.DataFrame) -> pd.Series:
     """Cells other than 0/1T and 1/1T (period n != 1, or not periodic)."""
     periodic = cells["motion"] == "periodic" if "motion" in cells.columns else cells["n"] > 0
-    return ~(periodic & (cells["n"] == 1) & cells["I"].isin([0, 1]))
+    I = cells["I"]
+    return ~(periodic & (cells["n"] == 1) & (no_impact(I) | face_impact(I)))
 
 
 # ----------------------------------------------------------------------------- report
@@ -377,9 +374,9 @@ def analyse(
     rep = Report(calibration=calibration)
     axes = dict(plane_axes) if plane_axes is not None else {
         p: _table_axes(p, df) for p, df in planes.items()}
-    configured = ({"standard", *SEQUENCE_SWEEPS, *sweeps} if configured_sweeps is None
+    configured = ({"standard", *PAPER_SWEEPS, *sweeps} if configured_sweeps is None
                   else set(configured_sweeps))
-    rep.paper_material = bool(({"standard", *SEQUENCE_SWEEPS} & configured) or any(
+    rep.paper_material = bool(({"standard", *PAPER_SWEEPS} & configured) or any(
         tuple(ax) in PAPER_PLANES for ax in axes.values()))
     std = sweeps.get("standard")
     if "standard" not in configured:
@@ -429,7 +426,7 @@ def analyse(
         rep.hysteresis_band = None if h.band is None else (float(h.band[0]), float(h.band[1]))
 
     for paper_axes, fn, name, paper in (
-        (("w", "b"), double_sided, "b above which no double-sided impact occurs",
+        (("w", "b"), double_sided_rows, "b above which no double-sided impact occurs",
          PAPER_B_THRESHOLD),
         (("w", "xi"), not_period_one, "xi above which only 0/1T and 1/1T remain",
          PAPER_XI_THRESHOLD),
@@ -466,11 +463,11 @@ def analyse(
         rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane),
                                         paper=PAPER_PLANES.get(tuple(ax), NOT_APPLICABLE)))
 
-    for key, (pname, pval) in SEQUENCE_SWEEPS.items():
+    for key, (pname, pval) in PAPER_SWEEPS.items():
         df = sweeps.get(key)
         entry: dict[str, Any] = {"parameter": pname, "value": pval,
                                  "paper_text": PAPER_SEQUENCE_TEXT[key],
-                                 "paper": PAPER_SEQUENCES[key]}
+                                 "paper": _listed(key)}
         if key not in configured:
             entry.update(ours=None, in_order=None, exact=None, applicable=False)
         elif df is None or len(df) == 0:
@@ -480,7 +477,7 @@ def analyse(
             seq = pattern_sequence(df)
             entry["ours"] = seq
             entry["ours_npq"] = pattern_sequence(df, use_npq=True)
-            expected = PAPER_SEQUENCES[key]
+            expected = _listed(key)
             if expected is not None:
                 rep.compared += 1
                 entry["in_order"] = is_subsequence(expected, seq)

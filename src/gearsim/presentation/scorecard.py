@@ -7,11 +7,13 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from gearsim.analysis.landmarks import PAPER_JUMP_DC, PAPER_JUMP_KMAX, PAPER_LANDMARKS
-from gearsim.presentation.paper import (
+from gearsim.analysis.paper import (
     JUMP_DC_TOL,
     LANDMARK_TOL,
     PAPER_B_THRESHOLD,
+    PAPER_JUMP_DC,
+    PAPER_JUMP_KMAX,
+    PAPER_LANDMARKS,
     PAPER_XI_THRESHOLD,
     THRESHOLD_TOL,
     within,

@@ -39,13 +39,17 @@ def config_hash(obj: Any) -> str:
     return hashlib.sha256(canonical_json(obj).encode()).hexdigest()[:16]
 
 
-#: What each kind of job's results depend on: the layers (subpackages of ``src/gearsim``) whose
-#: sources go into its :func:`code_version`. The package root's modules (``errors.py``,
-#: ``__init__.py``) count for every scope. Editing a layer re-runs exactly the jobs whose scope
-#: names it: a presentation or calibration edit re-runs no tile.
+#: What each kind of job's results depend on: the sources that go into its
+#: :func:`code_version`. An entry is a layer (a subpackage of ``src/gearsim``) or a module or
+#: package inside one (``analysis/finder``: ``analysis/finder.py`` or ``analysis/finder/``, with
+#: the layer's ``__init__.py``); the package root's modules (``errors.py``, ``__init__.py``)
+#: count for every scope. Editing a source re-runs exactly the jobs whose scope names it: a
+#: presentation or calibration edit re-runs no tile, an orbit-module edit no attractor tile.
 SIMULATION = ("dynamics", "physical", "numerics", "cell", "study")
 CODE_SCOPES: dict[str, tuple[str, ...]] = {
     "tiles": SIMULATION,
+    # the attractor tiles run the finder (its modules and the simulation layers below them)
+    "attractors": SIMULATION + ("analysis/attractors", "analysis/finder"),
     "analysis": SIMULATION + ("analysis",),
     "calibration": SIMULATION + ("analysis", "calibration"),
     "catalogue": SIMULATION + ("analysis", "results"),
@@ -64,10 +68,22 @@ def code_files(scope: str = "tiles", package: str | Path | None = None) -> list[
         raise ValueError(f"code scope {scope!r}: one of {', '.join(CODE_SCOPES)}")
     pkg = Path(package) if package is not None else _package_dir()
     files = list(pkg.glob("*.py"))
-    for layer in CODE_SCOPES[scope]:
-        files += (pkg / layer).rglob("*.py")
+    missing = []
+    for entry in CODE_SCOPES[scope]:
+        if "/" in entry:
+            files += [pkg / entry.split("/")[0] / "__init__.py"]
+        part = [pkg / f"{entry}.py"] if (pkg / f"{entry}.py").is_file() else []
+        if (pkg / entry).is_dir():
+            part += (pkg / entry).rglob("*.py")
+        files += part
+        missing += [] if part else [entry]
+    inner = [e for e in CODE_SCOPES[scope] if "/" in e]
+    if any("/" not in e for e in missing) or (inner and set(inner) <= set(missing)):
+        # a renamed layer, module or package must not drop out of the jobs' code versions
+        # (one of a scope's modules may go when another takes over its code)
+        raise ValueError(f"code scope {scope!r}: {', '.join(missing)} not in {pkg}")
     rel = lambda f: f.relative_to(pkg).as_posix()  # noqa: E731
-    return sorted((f for f in files if "__pycache__" not in rel(f)), key=rel)
+    return sorted(set(f for f in files if "__pycache__" not in rel(f)), key=rel)
 
 
 def code_version(scope: str = "tiles", package: str | Path | None = None) -> str:

@@ -31,18 +31,17 @@ def _scalar_kernels() -> None:
 
 def run(args: argparse.Namespace) -> int:
     import os
-    from concurrent.futures import ProcessPoolExecutor
 
     from gearsim.cell.chains import warm_up
     from gearsim.study.provenance import code_version
 
     t0 = time.perf_counter()
-    # the scalar kernels compile in a second process beside the batched one (the longest,
-    # ~3 min cold): the cache files are per function, written atomically by Numba
-    with ProcessPoolExecutor(max_workers=1) as pool:
-        scalar = pool.submit(_scalar_kernels)
-        warm_up()  # the batched RK4 kernel (tiles, sweeps, attractors)
-        scalar.result()
+    # one process: the batched kernel's warm-up verifies its cells with the scalar RK4 path and
+    # the tangent lanes, so a second process compiling the scalar kernels would compile most of
+    # the same functions again (and Numba's per-function cache index is not safe for two
+    # processes adding different specialisations at once)
+    warm_up()  # the batched RK4 kernel (tiles, sweeps, attractors) and the RK4 verification
+    _scalar_kernels()  # DP5, the dense trajectory
     dt = time.perf_counter() - t0
     cache = os.environ.get("NUMBA_CACHE_DIR", "(numba default)")
     msg = f"kernels ready in {dt:.1f} s; NUMBA_CACHE_DIR={cache}; code_version={code_version()}"

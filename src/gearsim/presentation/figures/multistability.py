@@ -16,6 +16,7 @@ import pandas as pd
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.patches import Patch
 
+from gearsim.analysis.paper import COEXIST_POINT, PAPER_COEXIST
 from gearsim.presentation.figures import style
 
 # distinct colours for attractor indices of one cell (basin pictures)
@@ -114,7 +115,6 @@ def figure_hysteresis(sweeps: pd.DataFrame, *, title: str | None = None):
 
 
 # ------------------------------------------------------------------------------ registry
-_PAPER_9_11 = ("1-1-1", "2-2-1", "4-4-2")
 
 
 def basin_box(params, settings, starts: int = 32) -> tuple[float, float, float, float]:
@@ -159,7 +159,7 @@ def _fig18(ctx):
 def _fig19(ctx):
     from gearsim.presentation.figures.registry import Built
 
-    spec = ctx.point_specs.get("fig9_11", {"b": 0.15, "w": 0.82})
+    spec = ctx.point_specs.get("fig9_11", COEXIST_POINT)
     fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
     p = ctx.params.with_(**fixed)
     n = basin_n(ctx)
@@ -169,14 +169,14 @@ def _fig19(ctx):
                         f"b = {p.b:g} (Figs 9-11's point)")  # fmt: skip
     found = {r["label_npq"]: r["basin_fraction"] for _, r in att.iterrows()}
     which = "; ".join(
-        f"{t}: " + (f"basin {found[t]:.3f}" if t in found else "not found") for t in _PAPER_9_11
+        f"{t}: " + (f"basin {found[t]:.3f}" if t in found else "not found") for t in PAPER_COEXIST
     )
     return [Built(19, fig, f"Basins of attraction at the point of Figs 9-11 (w = {p.w:g}, "
                   f"b = {p.b:g}): {n} x {n} starts in (x, x') (the finder's start "
                   "box widened to hold the attractors), bearings at rest, "
                   "coloured by the attractor reached. The paper's three motions in our model: "
                   f"{which}.",
-                  [f"The paper shows 1-1-1, 2-2-1 and 4-4-2 at this point; {len(att)} "
+                  [f"The paper shows {', '.join(PAPER_COEXIST)} at this point; {len(att)} "
                    "attractor(s) found over the picture's box."],
                   [])]
 
@@ -224,8 +224,9 @@ def register_figures() -> None:
                         "over the softening fold: bifurcation diagram and DC, hysteresis band.",
                         Inputs(sweeps=("hysteresis",)), _fig18, in_paper=False,
                         caption="Hysteresis: forward and backward sweeps over the fold."))
-    register(FigureSpec(19, "(Not in the paper.) Basins of attraction at b = 0.15, w = 0.82 "
-                        "(the point of Figs 9-11).", Inputs(config_points=("fig9_11",)),
+    register(FigureSpec(19, "(Not in the paper.) Basins of attraction at b = "
+                        f"{COEXIST_POINT['b']}, w = {COEXIST_POINT['w']} (the point of Figs 9-11).",
+                        Inputs(config_points=("fig9_11",)),
                         _fig19, tables_required=False, in_paper=False,
                         caption="Basins of attraction at Figs 9-11's point."))
     register(FigureSpec(20, "(Not in the paper.) Basins of attraction inside the fold's "

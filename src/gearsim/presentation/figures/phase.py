@@ -17,6 +17,7 @@ import pandas as pd
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from gearsim.analysis.paper import PAPER_COEXIST, PAPER_FIG5
 from gearsim.cell.simulate import IntegrationSettings, simulate_cell
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.presentation.figures import style
@@ -28,12 +29,6 @@ from gearsim.presentation.figures.data import (
     seed_state,
     simulate_point,
 )
-
-# the paper's labels of the Fig 5 / Fig 6 panels, by w
-PAPER_FIG5 = {0.48: "1-0-0", 0.569: "grazing", 0.86: "1-1-0", 1.02: "2-2-0", 1.072: "grazing",
-              1.25: "2-1-0", 1.37: "4-3-0", 1.384: "8-6-0", 1.53: "chaotic", 1.7: "4-3-0",
-              1.81: "2-2-0", 2.24: "1-1-0"}
-PAPER_FIG9_11 = {9: "1-1-1", 10: "2-2-1", 11: "4-4-2"}
 
 
 def _paper_label(w: float, table: dict[float, str]) -> str:
@@ -259,7 +254,7 @@ def initial_conditions(params: ModelParameters, scale: tuple[float, float, float
 
 def search_attractors(params: ModelParameters, *, settings: IntegrationSettings | None = None,
                       sweep: pd.DataFrame | None = None, grid: tuple[int, int] = (6, 5),
-                      targets: Sequence[str] = ("1-1-1", "2-2-1", "4-4-2"),
+                      targets: Sequence[str] = PAPER_COEXIST,
                       min_periods: int = 16, backward_from: float = 0.5,
                       backward_step: float = 0.01, max_retries: int = 4) -> AttractorSearch:
     """Steady motions reached from several initial conditions at one parameter point.

@@ -31,19 +31,22 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from gearsim.analysis.paper import (
+    COEXIST_POINT,
+    PAPER_B_THRESHOLD,
+    PAPER_FIG5,
+    PAPER_FIG6,
+    PAPER_FIG9_11,
+    PAPER_JUMP_DC,
+    PAPER_JUMP_KMAX,
+    PAPER_SEQUENCE_TEXT,
+    PAPER_XI_THRESHOLD,
+)
+from gearsim.cell.motion import double_sided
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.errors import UsageError
 
-# the paper's pattern sequences along the sweeps of Figs 8 and 15 (Sect 3.2, 3.3)
-PAPER_SEQUENCES: dict[str, str] = {
-    "b015": "0/1T → 1/1T → 2/1T → 2/2T → 1/2T → 1/1T",
-    "b025": "0/1T … double-sided interval with period 4 and 8 … face impacts",
-    "b035": "0/1T … double-sided 2/4T and 2/2T … face impacts",
-    "xi005": "0/1T → 1/1T → 1/2T → 1/4T → … chaos … → 1/8T → 1/4T → 1/2T → 1/1T",
-    "xi009": "0/1T → 1/1T → 1/2T → 1/4T → 1/2T → 1/1T",
-    "xi015": "0/1T → 1/1T",
-}
 
 @dataclass
 class Context:
@@ -190,8 +193,9 @@ def _fig4(ctx: Context) -> list[Built]:
     jump = df[df["dc"] == df["dc"].max()]
     diffs += _landmark_diffs(df)
     if len(jump):
-        diffs.append(f"Largest DC {float(df['dc'].max()):.3f} (paper 0.66 after the jump); "
-                     f"Kmax at the jump in the paper 1.311; our Kmax reading is the default "
+        diffs.append(f"Largest DC {float(df['dc'].max()):.3f} (paper {PAPER_JUMP_DC} after the "
+                     f"jump); Kmax at the jump in the paper {PAPER_JUMP_KMAX}; our Kmax reading "
+                     "is the default "
                      "catalogue column 'kmax'.")
     fig = figure4(df)
     inputs = ["sweeps/standard"]
@@ -239,7 +243,7 @@ def _label_diffs(pts, paper: dict[float, str]) -> list[str]:
 
 
 def _fig5(ctx: Context) -> list[Built]:
-    from gearsim.presentation.figures.phase import PAPER_FIG5, figure5
+    from gearsim.presentation.figures.phase import figure5
 
     pts, inputs, how = _point_motions(ctx, "fig5", list(PAPER_FIG5))
     diffs = _label_diffs(pts, PAPER_FIG5) or ["every panel has the paper's pattern"]
@@ -253,7 +257,7 @@ def _fig5(ctx: Context) -> list[Built]:
 
 
 def _fig6(ctx: Context) -> list[Built]:
-    from gearsim.presentation.figures.spectra import PAPER_FIG6, figure6
+    from gearsim.presentation.figures.spectra import figure6
 
     pts, inputs, how = _point_motions(ctx, "fig6", list(PAPER_FIG6))
     diffs = _label_diffs(pts, PAPER_FIG6) or ["every panel has the paper's pattern"]
@@ -278,11 +282,11 @@ def axes_text(df: pd.DataFrame) -> str:
 
 
 def _threshold_b(df: pd.DataFrame) -> str:
-    two = df[df["I"] == 2]
+    two = df[double_sided(df["I"], df.get("q"))]
     if not len(two):
-        return "no double-sided (I = 2) cells in our (ω, b) plane"
-    return (f"double-sided (I = 2) cells up to b = {float(two['b'].max()):.4f} in ours "
-            "(paper: only for b < 0.4125)")
+        return "no double-sided cells (back impacts) in our (ω, b) plane"
+    return (f"double-sided cells (back impacts) up to b = {float(two['b'].max()):.4f} in ours "
+            f"(paper: only for b < {PAPER_B_THRESHOLD})")
 
 
 def _threshold_xi(df: pd.DataFrame) -> str:
@@ -290,7 +294,7 @@ def _threshold_xi(df: pd.DataFrame) -> str:
     if not len(other):
         return "only 0/1T and 1/1T in our (ω, ξ) plane"
     return (f"patterns other than 0/1T and 1/1T up to ξ = {float(other['xi'].max()):.4f} in "
-            "ours (paper: only 0/1T and 1/1T for ξ > 0.1436)")
+            f"ours (paper: only 0/1T and 1/1T for ξ > {PAPER_XI_THRESHOLD})")
 
 
 def paper_comparison(df: pd.DataFrame) -> str:
@@ -338,7 +342,7 @@ def _fig_sweeps(number: int, names: tuple[str, ...]):
                 diffs.append(_sweep_note(df))
             title = sweep_title(n, ctx.sweep_fixed.get(n))
             dfs[title] = df
-            diffs.append(f"{title}: paper {PAPER_SEQUENCES.get(n, '?')}; ours "
+            diffs.append(f"{title}: paper {PAPER_SEQUENCE_TEXT.get(n, '?')}; ours "
                          f"{sequence_text(df)}")
         what = "backlash b" if number == 8 else "mesh damping ratio ξ"
         return [Built(number, figure_sweeps(dfs), "Bifurcation diagrams of the Poincaré "
@@ -388,13 +392,12 @@ def _fig_kmax(number: int, plane: str):
 
 def _fig9_11(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.phase import (
-        PAPER_FIG9_11,
         choose_motion,
         figure_double_sided,
         search_attractors,
     )
 
-    spec = ctx.point_specs.get("fig9_11", {"b": 0.15, "w": 0.82})
+    spec = ctx.point_specs.get("fig9_11", COEXIST_POINT)
     fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
     p = ctx.params.with_(**fixed)
     sweep = ctx.sweeps.get("b015")
@@ -571,10 +574,11 @@ register(FigureSpec(8, "Single-parameter bifurcation diagrams of mesh displaceme
                     _fig_sweeps(8, ("b015", "b025", "b035")),
                     caption="Bifurcation diagrams at b = 0.15, 0.25 and 0.35."))
 _DOUBLE_SIDED = {
-    n: f"{npq} double-sided impact motion, when b = 0.15, ω = 0.82: (a) superposition of phase "
-       "diagram and Poincaré map, (b) time history diagram, (c) dynamic load coefficient "
-       "diagram." for n, npq in ((9, "1-1-1"), (10, "2-2-1"), (11, "4-4-2"))}
-for _n in (9, 10, 11):
+    n: f"{npq} double-sided impact motion, when b = {COEXIST_POINT['b']}, ω = "
+       f"{COEXIST_POINT['w']}: (a) superposition of phase diagram and Poincaré map, (b) time "
+       "history diagram, (c) dynamic load coefficient diagram."
+    for n, npq in PAPER_FIG9_11.items()}
+for _n in PAPER_FIG9_11:
     register(FigureSpec(_n, _DOUBLE_SIDED[_n], Inputs(sweeps=("b015",),
                         config_points=("fig9_11",)), _fig9_11, group=(9, 10, 11),
                         tables_required=False, report_caption=f"fig{_n:02d}.rst"))

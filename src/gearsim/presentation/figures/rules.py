@@ -9,68 +9,70 @@ those of the config (``sweeps``, ``planes``, ``points``).
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 from gearsim.presentation.figures import registry
 
+#: where the figures, plane maps and sweep diagrams go (``gearsim figures --outdir``)
+FIGURE_DIR = "results/figures"
 
-def groups(sweeps: Iterable[str], planes: Iterable[str], points: Iterable[str],
-           orbits: Iterable[str] | None = None) -> list[registry.FigureSpec]:
-    """The lead spec of every figure group whose inputs are all configured (one job each);
-    ``orbits``: the continuation tables the pipeline makes (default: by their sweep / plane)."""
-    sweeps, planes, points = list(sweeps), list(planes), list(points)
-    orbits = None if orbits is None else list(orbits)
+
+def groups(files: Mapping[str, Mapping[str, str]]) -> list[registry.FigureSpec]:
+    """The lead spec of every figure group whose inputs are all configured (one job each).
+    ``files``: kind (``sweeps``, ``planes``, ``points``, ``orbits``) -> table name -> path, the
+    tables the pipeline makes."""
+    names = {kind: list(files.get(kind, {})) for kind in KINDS}
     out, seen = [], set()
     for spec in registry.figures().values():
         if spec.lead in seen:
             continue
         seen.add(spec.lead)
         lead = registry.FIGURES[spec.lead]
-        if lead.available(sweeps, planes, points, orbits):
+        if lead.available(names["sweeps"], names["planes"], names["points"], names["orbits"]):
             out.append(lead)
     return out
 
 
-def built_figures(sweeps, planes, point_sets, orbits=None) -> list[int]:
-    """Every figure number the pipeline draws for this config."""
-    return sorted(n for g in groups(sweeps, planes, point_sets, orbits) for n in g.members)
+def built_figures(files: Mapping[str, Mapping[str, str]]) -> list[int]:
+    """Every figure number the pipeline draws for these tables (:func:`groups`)."""
+    return sorted(n for g in groups(files) for n in g.members)
 
 
-def _orbit_names(spec: registry.FigureSpec, orbits) -> list[str]:
+#: the kinds of table a figure reads, as ``Inputs`` fields and CLI options
+KINDS = {"sweeps": "sweep", "planes": "plane", "points": "points", "orbits": "orbits"}
+
+
+def _names(spec: registry.FigureSpec, kind: str, files: Mapping[str, Mapping[str, str]]
+           ) -> list[str]:
     i = spec.inputs
-    return [*i.orbits, *(o for o in i.optional_orbits if orbits is not None and o in orbits)]
+    if kind != "orbits":
+        return list(getattr(i, kind))
+    return [*i.orbits, *(o for o in i.optional_orbits if o in files.get("orbits", {}))]
 
 
-def input_paths(spec: registry.FigureSpec, orbits=None) -> dict[str, list[str]]:
-    """Rule inputs of a figure: its tables' paths, by kind (``orbits``: the continuation
-    tables the pipeline makes; optional ones are inputs only when listed there)."""
-    i = spec.inputs
-    return {
-        "sweeps": [f"results/sweeps/{s}.parquet" for s in i.sweeps],
-        "planes": [f"results/{p}/cells.parquet" for p in i.planes],
-        "points": [f"results/points/{p}.parquet" for p in i.points],
-        "orbits": [f"results/orbits/{o}.parquet" for o in _orbit_names(spec, orbits)],
-    }
+def input_paths(spec: registry.FigureSpec, files: Mapping[str, Mapping[str, str]]
+                ) -> dict[str, list[str]]:
+    """Rule inputs of a figure: its tables' paths, by kind. ``files``: kind -> table name ->
+    path, the outputs of the rules that make them (``workflow/rules/figures.smk``); an optional
+    continuation table is an input only when ``files["orbits"]`` has it."""
+    return {kind: [files[kind][n] for n in _names(spec, kind, files)] for kind in KINDS}
 
 
-def cli_args(spec: registry.FigureSpec, orbits=None) -> str:
+def cli_args(spec: registry.FigureSpec, files: Mapping[str, Mapping[str, str]]) -> str:
     """``--fig N [M ...] --sweep NAME=PATH --plane NAME=PATH --points NAME=PATH``
-    (``--orbits NAME=PATH``)."""
-    paths = input_paths(spec, orbits)
-    i = spec.inputs
+    (``--orbits NAME=PATH``), the paths those of :func:`input_paths`."""
+    paths = input_paths(spec, files)
     args = ["--fig", *(str(n) for n in spec.members)]
-    args += [f"--sweep {n}={p}" for n, p in zip(i.sweeps, paths["sweeps"], strict=True)]
-    args += [f"--plane {n}={p}" for n, p in zip(i.planes, paths["planes"], strict=True)]
-    args += [f"--points {n}={p}" for n, p in zip(i.points, paths["points"], strict=True)]
-    args += [f"--orbits {n}={p}" for n, p in zip(_orbit_names(spec, orbits), paths["orbits"],
-                                                  strict=True)]
+    for kind, option in KINDS.items():
+        args += [f"--{option} {n}={p}"
+                 for n, p in zip(_names(spec, kind, files), paths[kind], strict=True)]
     return " ".join(args)
 
 
 def outputs(spec: registry.FigureSpec) -> dict[str, list[str]]:
     """``png`` (report items), and the ``other`` files (PDF, JSON record) of a group."""
-    stems = [f"results/figures/fig{n:02d}" for n in spec.members]
+    stems = [f"{FIGURE_DIR}/fig{n:02d}" for n in spec.members]
     return {"png": [f"{s}.png" for s in stems],
             "other": [f"{s}.{ext}" for s in stems for ext in ("pdf", "json")]}
 
@@ -92,13 +94,13 @@ def caption_params(spec: registry.FigureSpec) -> dict[str, Any]:
 def map_outputs(plane: str) -> list[str]:
     """The maps drawn for a plane of any axes (PNG, PDF, JSON of each registered kind)."""
     registry.figures()
-    return [f"results/figures/planes/{plane}-{kind}.{ext}" for kind in registry.PLANE_MAPS
+    return [f"{FIGURE_DIR}/planes/{plane}-{kind}.{ext}" for kind in registry.PLANE_MAPS
             for ext in ("png", "pdf", "json")]
 
 
 def sweep_diagram_outputs(sweep: str) -> list[str]:
     """The bifurcation diagram of a sweep (PNG, PDF, JSON record)."""
-    return [f"results/figures/sweeps/{sweep}.{ext}" for ext in ("png", "pdf", "json")]
+    return [f"{FIGURE_DIR}/sweeps/{sweep}.{ext}" for ext in ("png", "pdf", "json")]
 
 
 def figure_params(config: Mapping[str, Any]) -> str:

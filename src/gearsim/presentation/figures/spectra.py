@@ -14,9 +14,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.lines import Line2D
 
+from gearsim.analysis.paper import PAPER_FIG6
 from gearsim.presentation.figures.data import PointMotion, spectrum
 
-PAPER_FIG6 = {0.48: "1-0-0", 1.02: "2-2-0", 1.37: "4-3-0", 1.53: "chaotic"}
 SUBHARMONICS = (1, 2, 4, 8)
 _SUB_COLOURS = {1: "#d62728", 2: "#ff7f0e", 4: "#2ca02c", 8: "#9467bd"}
 

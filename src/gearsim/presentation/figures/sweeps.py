@@ -53,16 +53,22 @@ def figure_sweep_diagram(df: pd.DataFrame, *, name: str,
         sub = df[df["direction"] == d] if "direction" in df.columns else df
         back = d == "backward"
         vals = sub["value"].to_numpy(dtype=float) * factor
+        groups: dict[int, tuple[list, list]] = {}  # impact state -> (values, points)
         for v, px, imp in zip(vals, sub["poincare_x"], sub["I"], strict=True):
             pts = np.asarray(px if px is not None else [], dtype=float)[-MAX_POINTS:]
             pts = pts[np.isfinite(pts)]
             if not len(pts):
                 continue
             i = int(imp) if pd.notna(imp) else -9
+            xs, ys = groups.setdefault(i, ([], []))
+            xs.append(np.full(len(pts), v))
+            ys.append(pts)
+        # one collection per impact state (one per sweep value cost ~5 s of drawing a sweep)
+        for i, (xs, ys) in groups.items():
             colour = style.impact_colour(i)
             first = i not in seen and not back
             seen.add(i)
-            ax_x.scatter(np.full(len(pts), v), pts, s=3 if not back else 9,
+            ax_x.scatter(np.concatenate(xs), np.concatenate(ys), s=3 if not back else 9,
                          facecolors="none" if back else colour, edgecolors=colour,
                          linewidths=0.6, label=style.IMPACT_NAMES.get(i, f"I = {i}")
                          if first else None, rasterized=len(df) > 400)

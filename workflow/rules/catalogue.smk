@@ -1,0 +1,45 @@
+# The SQLite catalogue, the only writer of the published catalogue: every plane's cells and
+# audit, every sweep, the attractor tiles and the bifurcation points and curves. It builds
+# CATALOGUE_BUILD and publishes it as PUBLISHED_CATALOGUE (workflow/rules/common.smk).
+
+
+rule catalogue:
+    input:
+        cells=CELL_FILES,
+        sweeps=SWEEP_FILES,
+        audits=AUDIT_FILES,
+        attractors=ATTRACTOR_FILES,
+        orbits=ORBIT_CATALOGUE_FILES,
+    output:
+        build=CATALOGUE_BUILD,
+    log:
+        "logs/catalogue.log",
+    conda:
+        GEARSIM_ENV
+    params:
+        published=PUBLISHED_CATALOGUE,
+        code_version=CODE_VERSION["catalogue"],
+    shell:
+        "gearsim catalogue build --cells {input.cells} --sweeps {input.sweeps} "
+        "--audits {input.audits} --attractors {input.attractors} --orbits {input.orbits} "
+        "--out {output.build} --publish {params.published} > {log} 2>&1"
+
+
+# The file users query as a target of its own (`snakemake results/catalogue.sqlite`): the build
+# above publishes it; this job only asks for that build and publishes again (idempotent).
+# update(): Snakemake does not delete the published file before the job, and a failed build
+# never reaches this job, so the last good catalogue stays in place, untouched.
+rule published_catalogue:
+    input:
+        rules.catalogue.output.build,
+    output:
+        update(PUBLISHED_CATALOGUE),
+    log:
+        "logs/catalogue_publish.log",
+    conda:
+        GEARSIM_ENV
+    shell:
+        "gearsim catalogue publish --from {input} --to {output} > {log} 2>&1"
+
+
+ALL_TARGETS += [rules.catalogue.output.build]
