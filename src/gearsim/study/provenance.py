@@ -41,7 +41,7 @@ def config_hash(obj: Any) -> str:
 
 #: What each kind of job's results depend on: the sources that go into its
 #: :func:`code_version`. An entry is a layer (a subpackage of ``src/gearsim``) or a module or
-#: package inside one (``analysis/finder``: ``analysis/finder.py`` or ``analysis/finder/``, with
+#: package inside one (``analysis/attractors``: ``analysis/attractors.py`` or the package, with
 #: the layer's ``__init__.py``); the package root's modules (``errors.py``, ``__init__.py``)
 #: count for every scope. Editing a source re-runs exactly the jobs whose scope names it: a
 #: presentation or calibration edit re-runs no tile, an orbit-module edit no attractor tile.
@@ -49,7 +49,7 @@ SIMULATION = ("dynamics", "physical", "numerics", "cell", "study")
 CODE_SCOPES: dict[str, tuple[str, ...]] = {
     "tiles": SIMULATION,
     # the attractor tiles run the finder (its modules and the simulation layers below them)
-    "attractors": SIMULATION + ("analysis/attractors", "analysis/finder"),
+    "attractors": SIMULATION + ("analysis/attractors",),
     "analysis": SIMULATION + ("analysis",),
     "calibration": SIMULATION + ("analysis", "calibration"),
     "catalogue": SIMULATION + ("analysis", "results"),
