@@ -106,8 +106,9 @@ def instrument() -> None:
     G = attractors.GearCells
     G.advance = staged("probe", G.advance)
     G.steady = staged("full", G.steady)
-    attractors._Known.recur = timed("recurrence test", attractors._Known.recur)
-    attractors._Known.add = timed("merge (_Known.add)", attractors._Known.add)
+    K = attractors.matching._Known
+    K.recur = timed("recurrence test", K.recur)
+    K.add = timed("merge (_Known.add)", K.add)
 
 
 def use(st):

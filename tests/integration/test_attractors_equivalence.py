@@ -16,10 +16,9 @@ import math
 
 import numpy as np
 import pytest
+from attractor_checks import reference_attractors
 
-from gearsim.analysis import attractors as reference
-from gearsim.analysis import finder
-from gearsim.analysis.attractors import gear_steady
+from gearsim.analysis.attractors import FinderOptions, find_attractors, gear_steady
 from gearsim.cell import chains
 from gearsim.study.config import standard_parameters, study_settings
 
@@ -37,9 +36,9 @@ def plane():
     cells = [c for r in rows for c in r]
     states = [x.final_state for r in res for x in r]
     motions = [gear_steady(x) for r in res for x in r]
-    new = finder.find_attractors_many(cells, starts=16, seed=0, settings=st,
-                                      forward_results=motions)  # fmt: skip
-    old = reference.find_attractors_many(cells, starts=16, seed=0, settings=st, forward=states)
+    opts = FinderOptions(starts=16, seed=0)
+    new = find_attractors(cells, opts, settings=st, forward_results=motions)
+    old = reference_attractors(cells, opts, st, forward=states)
     return cells, new, old
 
 

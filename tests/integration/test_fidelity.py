@@ -185,9 +185,9 @@ def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monke
     grid = st.grid()
     monkeypatch.setattr(ff, "FINAL", st)
     monkeypatch.setattr(ff, "B_GRID", grid)  # the scale's bisection on the same short window
-    assert main(["calibrate", "--stage", "forms", "--no-search", "--forms", "today",
+    assert main(["calibrate", "--stage", "forms", "--no-search", "--forms", "single_dof",
                  "--forms-dir", str(tmp_path)]) == 0
-    rec = json.loads((tmp_path / "today.json").read_text())
+    rec = json.loads((tmp_path / "single_dof.json").read_text())
     m = rec["measured"]
     # the same parameters, written out here (the search scale: Fm 0.1, b 1; the start shape)
     p = standard_parameters().with_(model="1dof", Fm=0.1, Fe=0.17854, eps=0.3175,
@@ -261,25 +261,25 @@ def test_unfinished_form_stream_log_and_tradeoff_evidence(tmp_path):
     def line(x, m):
         return json.dumps({"x": x, "J": score(m)[0], "measured": m.to_dict()}) + "\n"
 
-    x0 = [f.start for f in FORMS["today"].free]
-    (logs / "today-coarse.11.jsonl").write_text(line(x0, good) + json.dumps(
+    x0 = [f.start for f in FORMS["single_dof"].free]
+    (logs / "single_dof-coarse.11.jsonl").write_text(line(x0, good) + json.dumps(
         {"x": x0, "J": 1e3, "error": "boom"}) + "\n")
-    (logs / "today-exact.11.jsonl").write_text(line(x0, bad) + line(x0, hit))
-    rec = partial_record(FORMS["today"], logs)
+    (logs / "single_dof-exact.11.jsonl").write_text(line(x0, bad) + line(x0, hit))
+    rec = partial_record(FORMS["single_dof"], logs)
     assert rec["unfinished"] == {"n_coarse": 2, "n_exact": 2, "level": "exact"}
     assert rec["J"] == pytest.approx(score(bad)[0])  # the exact level wins over a better coarse
     assert landmarks_within(rec["measured"]) == 11
     assert partial_record(FORMS["te_rate"], logs) is None
     (tmp_path / "streamA.log").write_text(
-        "=== today start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
-        "[today] start J (coarse) = 2.3\n321.56 s wall 249.23 s user\n"
-        "=== today end 2026-11-30T02:44:22Z rc 0\n")
+        "=== single_dof start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
+        "[single_dof] start J (coarse) = 2.3\n321.56 s wall 249.23 s user\n"
+        "=== single_dof end 2026-11-30T02:44:22Z rc 0\n")
     runs = stream_runs(tmp_path)
-    assert runs["today"] == {"stream": "streamA", "start": "2026-11-30T02:39:00Z",
+    assert runs["single_dof"] == {"stream": "streamA", "start": "2026-11-30T02:39:00Z",
                              "load": "0.32 1.43 1.80", "code": "f3f7786", "wall_s": 321.56,
                              "user_s": 249.23, "end": "2026-11-30T02:44:22Z"}
-    rec["run"] = runs["today"]
-    row = form_summary_lines({"today": rec})[2]
+    rec["run"] = runs["single_dof"]
+    row = form_summary_lines({"single_dof": rec})[2]
     assert "11 of 12" in row and "0 + 2" not in row and "2 + 2 (unfinished)" in row
     assert "| 322 | 0.32 1.43 1.80 | f3f7786 |" in row
     best = best_per_target(logs)
@@ -292,7 +292,7 @@ def test_unfinished_form_stream_log_and_tradeoff_evidence(tmp_path):
     # with `hit` alone: hitting the first grazing, the jump (lost) and 2>1 miss, both named
     logs2 = tmp_path / "logs2"
     logs2.mkdir()
-    (logs2 / "today-exact.12.jsonl").write_text(line(x0, hit))
+    (logs2 / "single_dof-exact.12.jsonl").write_text(line(x0, hit))
     g2 = best_per_target(logs2)["grazing_1"]
     assert g2["hit_misses"].keys() == {"jump", "period_one"}
     assert g2["hit_misses"]["jump"] is None

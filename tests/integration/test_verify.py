@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from gearsim.analysis.attractors import find_attractors, n_real
+from gearsim.analysis.attractors import FinderOptions, find_attractors, n_real
 from gearsim.analysis.orbits import find_periodic_orbit
 from gearsim.cell.classify import candidate_periods, settle_estimate
 from gearsim.cell.simulate import IntegrationSettings, simulate_cell
@@ -124,7 +124,7 @@ def test_one_orbit_next_to_the_doubling_is_one_attractor(standard):
     ``gearsim orbit``."""
     p = standard.with_(w=1.003, b=0.9)
     st = IntegrationSettings(method="rk4", steps_per_period=192)
-    ca = find_attractors(p, starts=16, settings=st)
+    ca = find_attractors(p, FinderOptions(starts=16), settings=st)
     assert n_real(ca) == 1
     a = ca.attractors[0]
     assert a.label == "1/1T" and a.steady.info["refined"]

@@ -90,14 +90,70 @@ def test_a_form_record_carries_its_own_run_and_the_table_prefers_it(tmp_path):
     assert run["wall_s"] >= 0 and run["user_s"] >= 0 and run["end"] >= run["start"]
     # forms-table: a record's own run wins over the log of the process that ran it; a record
     # without one takes the log's
-    (tmp_path / "today.json").write_text(json.dumps({"form": "today", "J": 1.0, "run": run}))
+    (tmp_path / "single_dof.json").write_text(json.dumps({"form": "single_dof", "J": 1.0,
+                                                          "run": run}))
     (tmp_path / "fixed_start.json").write_text(json.dumps({"form": "fixed_start", "J": 2.0}))
     (tmp_path / "streamA.log").write_text(
-        "=== today start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
+        "=== single_dof start 2026-11-30T02:39:00Z load 0.32 1.43 1.80 code f3f7786\n"
         "=== fixed_start start 2026-11-30T03:00:00Z load 1.00 1.00 1.00 code f3f7786\n"
         "10.00 s wall 9.00 s user\n=== fixed_start end 2026-11-30T03:00:10Z rc 0\n")
-    forms = collect_forms(["today", "fixed_start"], tmp_path)
-    assert forms["records"]["today"]["run"] == run
+    forms = collect_forms(["single_dof", "fixed_start"], tmp_path)
+    assert forms["records"]["single_dof"]["run"] == run
     assert forms["records"]["fixed_start"]["run"]["wall_s"] == 10.0
     with pytest.raises(KeyError):
         collect_forms(["te_rate"], tmp_path)
+
+
+_C = np.array([0.7, -1.2, 0.3, 1.5])
+
+
+def _rosen_batch(calls):
+    """An ill-conditioned ellipsoid (axes 1 : 1000) plus 1, minimum 1 at _C."""
+    def batch(xs):
+        calls.append(len(xs))
+        return [1.0 + float(np.sum(np.logspace(0, 3, 4) * (x - _C) ** 2)) for x in xs]
+    return batch
+
+
+def test_cmaes_finds_the_ellipsoid_minimum_and_stops_on_a_flat_curve():
+    from gearsim.calibration.search import run_cmaes
+
+    calls: list[int] = []
+    bounds = [(-2.0, 2.0)] * 4
+    res = run_cmaes(_rosen_batch(calls), bounds, seed=3, x0=[-1.0, 1.5, 0.5, -0.5],
+                    max_evals=20000, flat_evals=400, flat_rtol=1e-3)
+    # the known minimum: J = 1 at _C (a flat curve at 1e-3 relative: J within ~1e-3 of it)
+    assert res["J"] - 1.0 < 2e-3
+    np.testing.assert_allclose(res["x"], _C, atol=0.05)
+    assert res["stopped_by"] == "flat" and res["nfev"] < 20000
+    assert res["nfev"] == sum(calls)
+    # the curve: nondecreasing evaluations, nonincreasing best J, its last point the result
+    c = np.asarray(res["curve"])
+    assert np.all(np.diff(c[:, 0]) > 0) and np.all(np.diff(c[:, 1]) <= 0)
+    assert c[-1, 1] == res["J"] and c[-1, 0] == res["nfev"]
+    # flat: the last restart did not lower the best J by flat_rtol; over its evaluations too
+    then = c[c[:, 0] <= c[-1, 0] - 400][-1, 1]
+    assert then - c[-1, 1] <= 1e-3 * then
+    # the same seed gives the same search; every point stays in the box
+    again = run_cmaes(_rosen_batch([]), bounds, seed=3, x0=[-1.0, 1.5, 0.5, -0.5],
+                      max_evals=20000, flat_evals=400, flat_rtol=1e-3)
+    assert again["curve"] == res["curve"]
+
+
+def test_cmaes_restarts_with_a_doubled_population_and_keeps_the_box():
+    from gearsim.calibration.search import run_cmaes
+
+    seen = []
+
+    def rastrigin(xs):
+        seen.extend(xs)
+        return [float(10 * len(x) + np.sum(x**2 - 10 * np.cos(2 * np.pi * x))) for x in xs]
+
+    res = run_cmaes(rastrigin, [(-5.12, 5.12)] * 3, seed=1, x0=[3.0, 3.0, 3.0], sigma0=0.05,
+                    max_evals=6000, flat_evals=300, restarts=6)
+    pops = [r["popsize"] for r in res["runs"]]
+    assert len(pops) >= 2 and all(b == 2 * a for a, b in zip(pops, pops[1:], strict=False))
+    x = np.asarray(seen)
+    assert x.min() >= -5.12 and x.max() <= 5.12
+    assert sum(r["nfev"] for r in res["runs"]) == res["nfev"]
+    assert res["J"] <= min(r["best_J"] for r in res["runs"])

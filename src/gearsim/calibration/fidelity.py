@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,12 +35,11 @@ import pandas as pd
 
 from gearsim.analysis.landmarks import find_landmarks, match_paper, pattern_sequence
 from gearsim.analysis.paper import COEXIST_POINT, PAPER_B_THRESHOLD, SEQUENCE_SWEEPS
-from gearsim.calibration.search import bisect_bool
 from gearsim.calibration.sweeps import (
     SweepSettings,
     backlash_from_sweep,
     has_subharmonics,
-    w_sweep,
+    w_sweeps,
 )
 from gearsim.calibration.tables import form_report_lines  # noqa: F401  (the report's import)
 from gearsim.calibration.targets import Measured, landmark_part
@@ -138,17 +137,114 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
     (:func:`gearsim.calibration.sweeps.backlash_threshold`), used for the scale instead of the
     standard sweep's reading (:func:`gearsim.calibration.sweeps.backlash_from_sweep`, a lower
     bound: it sees only the branch the sweep follows, not a double-sided attractor that a
-    transient can reach)."""
-    t0 = time.perf_counter()
-    m = Measured()
+    transient can reach). :func:`measure_many` for one parameter set."""
+    m = measure_many([params], st, continuation=continuation, b_stars=[b_star],
+                     w_factors=[w_factor])[0]
+    if log:
+        log(f"measured in {m.seconds:.1f} s")
+    return m
+
+
+def measure_many(params_list: Sequence[ModelParameters], st: FidelitySettings = FidelitySettings(),
+                 *, continuation: bool = True, b_stars: Sequence[float | None] | None = None,
+                 w_factors: Sequence[float] | None = None) -> list[Measured]:
+    """:func:`measure` for many parameter sets (e.g. a search population), stage by stage: the
+    standard sweeps of all sets, then (sets past the gate) their sequence sweeps, the xi
+    bisection (one sweep per set and step) and the Figs 9-11 attractor search. With
+    ``st.lanes`` each stage's sweeps are the chains of one batched-kernel call
+    (:func:`gearsim.calibration.sweeps.w_sweeps`, the study's RK4 settings); otherwise each
+    sweep is a scalar DP5 chain. ``seconds`` of each result is the stages' wall time shared
+    out over the sets measured in them."""
+    n = len(params_list)
+    ps = list(params_list)
+    wfs = [1.0] * n if w_factors is None else [float(w) for w in w_factors]
+    bss = [None] * n if b_stars is None else list(b_stars)
     integ = st.integration()
-    p = params
-    wf = w_factor
+    ms = [Measured() for _ in range(n)]
+    secs = [0.0] * n
 
-    def sweep(q: ModelParameters, grid: np.ndarray) -> pd.DataFrame:
-        return w_sweep(q, grid, integ, continuation=continuation, w_factor=wf)
+    def sweeps(specs: list[tuple[int, ModelParameters, np.ndarray]]) -> list[pd.DataFrame]:
+        t0 = time.perf_counter()
+        out = w_sweeps([(q, g, wfs[k]) for k, q, g in specs], integ, continuation=continuation)
+        dt = (time.perf_counter() - t0) / max(len(specs), 1)
+        for k, _q, _g in specs:
+            secs[k] += dt
+        return out
 
-    df = sweep(p, st.grid())
+    dfs = sweeps([(k, ps[k], st.grid()) for k in range(n)])
+    scales = [math.nan] * n
+    t0 = time.perf_counter()
+    for k in range(n):
+        scales[k] = _from_standard(ms[k], ps[k], dfs[k], st, bss[k], wfs[k])
+    for k in range(n):
+        secs[k] += (time.perf_counter() - t0) / max(n, 1)
+    live = [k for k in range(n) if not ms[k].gated]
+    # sequences (the b sweep needs the scale)
+    seq_grid = st.grid(st.seq_dw)
+    xi_grid = st.grid(st.xi_dw, st.xi_w_min)
+    specs, keys = [], []
+    for k in live:
+        for key, (name, val) in SEQUENCE_SWEEPS.items():
+            if name == "b":
+                if not np.isfinite(scales[k]):
+                    continue
+                q = ps[k].with_(b=val / scales[k])
+            else:
+                q = ps[k].with_(xi=val)
+            specs.append((k, q, seq_grid))
+            keys.append((k, key, name, val))
+    sub: dict[int, dict[float, bool]] = {k: {} for k in live}
+    for (k, key, name, val), d in zip(keys, sweeps(specs), strict=True):
+        ms[k].sequences[key] = pattern_sequence(d)
+        if name == "xi":
+            sub[k][val] = has_subharmonics(d[d["value"] >= st.xi_w_min])
+    # xi threshold: bracket from the sequence sweeps, then bisection on a coarse grid
+    br: dict[int, list[float]] = {}
+    top = []
+    for k in live:
+        s = sub[k]
+        if s.get(0.09, True) and not s.get(0.15, True):
+            br[k] = [0.09, 0.15]
+        elif s.get(0.15, False):
+            br[k] = [0.15, 0.3]
+            top.append(k)
+    if top:
+        for k, d in zip(top, sweeps([(k, ps[k].with_(xi=0.3), xi_grid) for k in top]),
+                        strict=True):
+            if has_subharmonics(d):
+                del br[k]
+                ms[k].notes.append("subharmonics at xi = 0.3: threshold above the bracket")
+    for _ in range(st.xi_bisect):  # bisect_bool's steps, all sets at once
+        todo = sorted(br)
+        mids = [0.5 * (br[k][0] + br[k][1]) for k in todo]
+        got = sweeps([(k, ps[k].with_(xi=x), xi_grid) for k, x in zip(todo, mids, strict=True)])
+        for k, x, d in zip(todo, mids, got, strict=True):
+            br[k][0 if has_subharmonics(d) else 1] = x
+    for k, (lo, hi) in br.items():
+        ms[k].xi_threshold = 0.5 * (lo + hi)
+    # Figs 9-11: coexisting attractors at b = 0.15, w = 0.82
+    cx = [k for k in live if np.isfinite(scales[k])]
+    if cx:
+        from gearsim.analysis.attractors import FinderOptions, find_attractors
+
+        t0 = time.perf_counter()
+        qs = [ps[k].with_(b=COEXIST_POINT["b"] / scales[k], w=COEXIST_POINT["w"] * wfs[k])
+              for k in cx]
+        cas = find_attractors(qs, FinderOptions(starts=st.attractor_starts))
+        for k, ca in zip(cx, cas, strict=True):
+            ms[k].coexist = sorted({str(a.steady.info.get("label_npq") or a.label)
+                                    for a in ca.attractors if a.steady.status != "unsettled"})
+            secs[k] += (time.perf_counter() - t0) / len(cx)
+    for k in range(n):
+        ms[k].seconds = secs[k]
+    return ms
+
+
+def _from_standard(m: Measured, p: ModelParameters, df: pd.DataFrame, st: FidelitySettings,
+                   b_star: float | None, wf: float) -> float:
+    """The standard sweep's targets into ``m`` (landmarks, exact with ``st.exact``; Kmax at
+    the jump, DC after it, gap, the scale, the gate); returns the scale (paper-scale lengths
+    over search-scale ones, NaN if not derived)."""
     lms = find_landmarks(df)
     matched = match_paper(lms)
     for r in matched.itertuples():
@@ -168,7 +264,6 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
             v, src = locate_exact(p, df, lms.iloc[i].to_dict(), w_factor=wf)
             m.landmarks[r.key] = v
             m.landmark_source[r.key] = src
-    if st.exact:
         try:
             m.kmax = kmax_at_jump(p, df, st)
         except Exception as exc:  # noqa: BLE001 - recorded, not fatal
@@ -176,8 +271,7 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
     # DC after the jump, gap
     jump = lms[lms["kind"] == "jump"]
     if len(jump):
-        j = jump.iloc[0]
-        m.dc_jump = float(j["dc_hi"])
+        m.dc_jump = float(jump.iloc[0]["dc_hi"])
     g1, jv = m.landmarks.get("grazing_1"), m.landmarks.get("jump")
     if g1 is not None and jv is not None:
         m.gap = float(jv - g1)
@@ -187,51 +281,12 @@ def measure(params: ModelParameters, st: FidelitySettings = FidelitySettings(), 
     if np.isfinite(b_star) and b_star > 0:
         m.Fm_derived = p.Fm * PAPER_B_THRESHOLD / b_star
         m.b_threshold = PAPER_B_THRESHOLD  # by construction: Fm derived from it
-        scale = PAPER_B_THRESHOLD / b_star  # paper-scale lengths = search-scale * scale
+        scale = PAPER_B_THRESHOLD / b_star
     else:
         m.notes.append("back contact in the standard sweep at b0: scale not derived")
         scale = math.nan
-    if landmark_part(m) > st.gate:
-        m.gated = True
-        m.seconds = time.perf_counter() - t0
-        return m
-    # sequences
-    seq_grid = st.grid(st.seq_dw)
-    xi_grid = st.grid(st.xi_dw, st.xi_w_min)
-    sub: dict[float, bool] = {}
-    for key, (name, val) in SEQUENCE_SWEEPS.items():
-        if name == "b":
-            if not np.isfinite(scale):
-                continue
-            q = p.with_(b=val / scale)
-        else:
-            q = p.with_(xi=val)
-        d = sweep(q, seq_grid)
-        m.sequences[key] = pattern_sequence(d)
-        if name == "xi":
-            sub[val] = has_subharmonics(d[d["value"] >= st.xi_w_min])
-    # xi threshold: bracket from the sequence sweeps, then bisection on a coarse grid
-    lo, hi = (0.09, 0.15) if sub.get(0.09, True) and not sub.get(0.15, True) else (None, None)
-    if lo is None and sub.get(0.15, False):
-        lo, hi = 0.15, 0.3
-        if has_subharmonics(sweep(p.with_(xi=hi), xi_grid)):
-            lo = hi = None
-            m.notes.append("subharmonics at xi = 0.3: threshold above the bracket")
-    if lo is not None:
-        m.xi_threshold = bisect_bool(lambda x: has_subharmonics(sweep(p.with_(xi=x), xi_grid)),
-                                     lo, hi, steps=st.xi_bisect)
-    # Figs 9-11: coexisting attractors at b = 0.15, w = 0.82
-    if np.isfinite(scale):
-        from gearsim.analysis.attractors import find_attractors
-
-        q = p.with_(b=COEXIST_POINT["b"] / scale, w=COEXIST_POINT["w"] * wf)
-        ca = find_attractors(q, starts=st.attractor_starts, seed=0)
-        m.coexist = sorted({str(a.steady.info.get("label_npq") or a.label)
-                            for a in ca.attractors if a.steady.status != "unsettled"})
-    m.seconds = time.perf_counter() - t0
-    if log:
-        log(f"measured in {m.seconds:.1f} s")
-    return m
+    m.gated = landmark_part(m) > st.gate
+    return scale
 
 
 # ============================================================================ Kmax readings
@@ -290,3 +345,38 @@ def kmax_at_jump(params: ModelParameters, df: pd.DataFrame, st: FidelitySettings
     return out
 
 
+
+
+def coexist_scan(params_list: Sequence[ModelParameters], w_values: Sequence[float],
+                 b_values: Sequence[float], st: FidelitySettings = FidelitySettings(lanes=True),
+                 *, starts: int = 64, continuation: bool = True,
+                 w_factors: Sequence[float] | None = None) -> list[dict[str, Any]]:
+    """The Figs 9-11 search around the paper's point: for every set (its scale from its
+    standard sweep, :func:`measure_many` stopped at the gate) and every paper-scale ``(w, b)``,
+    the motions the attractor search (``starts`` seeded starts) finds, all cells of all sets
+    in one :func:`gearsim.analysis.attractors.find_attractors`. One row per set and
+    point: ``set``, ``w``, ``b``, ``motions`` (least-period n-p-q labels of settled
+    attractors), ``scale``."""
+    from dataclasses import replace
+
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+
+    wfs = [1.0] * len(params_list) if w_factors is None else list(w_factors)
+    ms = measure_many(params_list, replace(st, gate=-1.0), continuation=continuation,
+                      w_factors=wfs)
+    cells, rows = [], []
+    for k, (p, m) in enumerate(zip(params_list, ms, strict=True)):
+        if not (np.isfinite(m.b_star_raw) and m.b_star_raw > 0):
+            rows.append({"set": k, "scale": math.nan, "motions": None})
+            continue
+        scale = PAPER_B_THRESHOLD / m.b_star_raw
+        for w in w_values:
+            for b in b_values:
+                cells.append(p.with_(b=float(b) / scale, w=float(w) * wfs[k]))
+                rows.append({"set": k, "w": float(w), "b": float(b), "scale": scale})
+    todo = [r for r in rows if "w" in r]
+    cas = find_attractors(cells, FinderOptions(starts=starts)) if cells else []
+    for r, ca in zip(todo, cas, strict=True):
+        r["motions"] = sorted({str(a.steady.info.get("label_npq") or a.label)
+                               for a in ca.attractors if a.steady.status != "unsettled"})
+    return rows

@@ -219,3 +219,101 @@ def search(fun: Callable[[np.ndarray], float], bounds: Bounds, *, seed: int,
     out.update(x=np.asarray(xbest), J=Jbest, candidates=scored, refine=nm,
                nfev_refine=len(scored) + nm["nfev"])
     return out
+
+
+def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, *, seed: int,
+              x0: Sequence[float] | None = None, sigma0: float = 0.25,
+              popsize: int | None = None, max_evals: int = 3000, min_evals: int = 0,
+              flat_evals: int = 600, flat_rtol: float = 0.01, restarts: int = 9,
+              time_budget: float | None = None,
+              on_generation: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
+    """CMA-ES (the ``cma`` package) with IPOP restarts on ``batch`` (a whole population's
+    vectors -> their J, e.g. one batched-kernel measurement), in the unit cube mapped onto
+    ``bounds``.
+
+    The first run starts at ``x0`` (else the box centre), each restart at a seeded uniform point
+    with twice the population. A run ends on cma's own criteria or on a flat curve: its best J
+    fell by less than ``flat_rtol`` (relative) over its last ``flat_evals`` evaluations. The
+    search ends flat when a whole restart did not lower the best J of the runs before it by
+    ``flat_rtol`` (and at least ``min_evals`` were made), at ``max_evals``, after ``restarts``
+    restarts, or past ``time_budget`` seconds (each recorded in ``stopped_by``).
+
+    Returns the best vector and J, ``nfev``, the best-J curve (``curve``: ``[nfev, best J]``
+    after every generation), the runs (population, evaluations, best J, why each ended).
+    """
+    import cma
+
+    lo = np.array([b[0] for b in bounds], dtype=float)
+    hi = np.array([b[1] for b in bounds], dtype=float)
+    d = len(lo)
+    rng = np.random.default_rng(seed)
+    t0 = time.time()
+    c0 = time.process_time()
+    u0 = np.full(d, 0.5) if x0 is None else (np.asarray(x0, dtype=float) - lo) / (hi - lo)
+    lam = popsize or (4 + int(3 * math.log(d)))
+    best = {"J": math.inf, "x": None}
+    curve: list[list[float]] = []
+    runs: list[dict[str, Any]] = []
+    nfev = 0
+    stopped_by = ""
+
+    def flat(c: list[list[float]], since: int) -> bool:
+        """Best J fell by less than flat_rtol over the last flat_evals evaluations."""
+        c = [p for p in c if p[0] >= since]
+        if not c or c[-1][0] - c[0][0] < flat_evals:
+            return False
+        past = [J for n, J in c if n <= c[-1][0] - flat_evals]
+        if not past:
+            return False
+        then = past[-1]
+        return not (then - c[-1][1] > flat_rtol * abs(then))
+
+    for r in range(restarts + 1):
+        es = cma.CMAEvolutionStrategy(
+            np.clip(u0, 0.0, 1.0).tolist(), sigma0,
+            {"bounds": [0.0, 1.0], "popsize": lam, "seed": int(rng.integers(1, 2**31 - 1)),
+             "verbose": -9, "verb_log": 0, "verb_disp": 0})
+        run = {"popsize": lam, "start_nfev": nfev, "best_J": math.inf}
+        rcurve: list[list[float]] = []
+        why = ""
+        while True:
+            us = es.ask()
+            xs = [lo + np.asarray(u) * (hi - lo) for u in us]
+            Js = [float(v) for v in batch(xs)]
+            es.tell(us, Js)
+            nfev += len(xs)
+            k = int(np.argmin(Js))
+            if Js[k] < run["best_J"]:
+                run["best_J"] = Js[k]
+            if Js[k] < best["J"]:
+                best.update(J=Js[k], x=[float(v) for v in xs[k]])
+            curve.append([nfev, best["J"]])
+            rcurve.append([nfev, run["best_J"]])
+            if on_generation:
+                on_generation({"nfev": nfev, "best_J": best["J"], "run": r,
+                               "t": time.time() - t0})
+            if nfev >= max_evals:
+                stopped_by = why = "max_evals"
+            elif time_budget is not None and time.time() - t0 > time_budget:
+                stopped_by = why = "time_budget"
+            elif es.stop():
+                why = "cma: " + ",".join(sorted(es.stop()))
+            elif flat(rcurve, run["start_nfev"]):
+                why = "run flat"
+            if why:
+                break
+        run.update(nfev=nfev - run["start_nfev"], stopped_by=why)
+        before = min((q["best_J"] for q in runs), default=math.inf)
+        runs.append(run)
+        if not stopped_by and nfev >= min_evals and math.isfinite(before) and not (
+                before - run["best_J"] > flat_rtol * abs(before)):
+            stopped_by = "flat"
+        if stopped_by:
+            break
+        lam *= 2
+        u0 = rng.random(d)
+    else:
+        stopped_by = "restarts"
+    return {"x": best["x"], "J": best["J"], "nfev": nfev, "curve": curve, "runs": runs,
+            "stopped_by": stopped_by, "seed": seed, "wall_s": time.time() - t0,
+            "cpu_s": time.process_time() - c0}

@@ -7,6 +7,7 @@ damping (subharmonics), each by :func:`gearsim.calibration.search.bisect_bool`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -16,7 +17,7 @@ import pandas as pd
 from gearsim.calibration.search import bisect_bool
 from gearsim.cell.motion import double_sided
 from gearsim.cell.simulate import IntegrationSettings
-from gearsim.cell.sweep import sweep_records
+from gearsim.cell.sweep import sweep_records, sweep_records_many
 from gearsim.dynamics.parameters import ModelParameters
 
 #: the integration of every calibration sweep: DP5 at rtol 1e-7 and 40 periods of transient on
@@ -48,6 +49,9 @@ class SweepSettings:
     b0: float = 1.0  # backlash of the search scale (above the backlash threshold)
     xi_w_min: float = 0.6
     xi_dw: float = 0.03
+    #: sweeps as continuation chains in the batched kernel's lanes with the study's RK4
+    #: settings (:func:`gearsim.study.config.study_settings`) instead of ``sim``
+    lanes: bool = False
 
     def grid(self, dw: float | None = None, lo: float | None = None, hi: float | None = None
              ) -> np.ndarray:
@@ -59,10 +63,17 @@ class SweepSettings:
         return lo + (np.arange(n) + 0.5) * (hi - lo) / n
 
     def integration(self) -> IntegrationSettings:
+        if self.lanes:
+            from gearsim.study.config import study_settings
+
+            return study_settings()
         return self.sim
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        d = asdict(self)
+        if self.lanes:
+            d["sim"] = asdict(self.integration())
+        return d
 
 
 def w_sweep(params: ModelParameters, grid: np.ndarray, settings: IntegrationSettings | None = None,
@@ -82,6 +93,27 @@ def w_sweep(params: ModelParameters, grid: np.ndarray, settings: IntegrationSett
     df["w_sim"] = df["value"]
     df["value"] = grid
     return df
+
+
+def w_sweeps(specs: Sequence[tuple[ModelParameters, np.ndarray, float]],
+             settings: IntegrationSettings, *, continuation: bool = True) -> list[pd.DataFrame]:
+    """Many :func:`w_sweep` at once: ``specs[k] = (params, grid, w_factor)``. RK4 ``settings``:
+    every sweep is one chain of one batched-kernel call
+    (:func:`gearsim.cell.sweep.sweep_records_many`); otherwise scalar sweeps one by one."""
+    if settings.method != "rk4":
+        return [w_sweep(p, g, settings, continuation=continuation, w_factor=wf)
+                for p, g, wf in specs]
+    grids = [np.sort(np.asarray(g, dtype=float)) for _p, g, _wf in specs]
+    recs = sweep_records_many([(p, g * wf) for (p, _g, wf), g in zip(specs, grids, strict=True)],
+                              "w", settings=settings, continuation=continuation)
+    out = []
+    for g, rows in zip(grids, recs, strict=True):
+        df = pd.DataFrame(rows)
+        if len(df):
+            df["w_sim"] = df["value"]
+            df["value"] = g
+        out.append(df)
+    return out
 
 
 def has_subharmonics(df: pd.DataFrame) -> bool:

@@ -253,3 +253,43 @@ def evidence_lines(best: dict[str, dict[str, Any]]) -> list[str]:
         lines.append(f"| {SHORT_HEAD[t.key]} | {t.tol:g} | {b['error']:+.4g} | {b['form']} | "
                      f"{b['level']} | {b['J']:.2f} | {b['n']} | {b.get('n_hit', 0)} | {hit} |")
     return lines
+
+
+def fit_report_lines(fit: Mapping[str, Any]) -> list[str]:
+    """Markdown: the lane fits (per form evaluations, seeds, each seed's best J and why it
+    stopped, the spread, CPU), the Pareto fronts' ends per form, the Figs 9-11 tally and the
+    per-target evidence of the lane evaluations."""
+    lines = ["### CMA-ES fits in lanes (docs/calibration.md Sect 8)", "",
+             "| form | evaluations | seeds | best J per seed (lanes) | stopped by | spread | "
+             "CPU s | wall s |", "|---|---|---|---|---|---|---|---|"]
+    for name, f in fit.get("forms", {}).items():
+        seeds = f["seeds"].values()
+        lines.append(
+            f"| {name} | {f['evaluations']} | {f['n_seeds']} | "
+            f"{', '.join(format(s['J_lanes'], '.3f') for s in seeds)} | "
+            f"{', '.join(s['stopped_by'] for s in seeds)} | {f['spread']:.1%} | "
+            f"{f['cpu_s']:.0f} | {f['wall_s']:.0f} |")
+    par = fit.get("pareto") or {}
+    if par.get("forms"):
+        lines += ["", "Trade-off (RMS error in tolerances; lower: grazing, jump, first doubling; "
+                  "upper: the inverse cascade and period 1), the front's ends per form "
+                  "(figure: docs/calibration_pareto.png):", "",
+                  "| form | evaluations | front points | best lower (its upper) | "
+                  "best upper (its lower) |", "|---|---|---|---|---|"]
+        for name, f in par["forms"].items():
+            fr = f["front"]
+            if not fr:
+                continue
+            lo, up = fr[0], fr[-1]
+            lines.append(f"| {name} | {f['n']} | {len(fr)} | {lo['lower']:.2f} "
+                         f"({lo['upper']:.2f}) | {up['upper']:.2f} ({up['lower']:.2f}) |")
+    co = fit.get("coexist") or {}
+    if co:
+        found = ", ".join(f"{k} {v}" for k, v in sorted(co["motions_found"].items())) or "none"
+        lines += ["", f"Figs 9-11 (b = 0.15, w = 0.82, {co['n_sets']} evaluated sets past the "
+                  f"gate): motions found (sets) {found}; at most "
+                  f"{co['most_of_the_paper_motions']} of the paper's "
+                  f"{' / '.join(co['paper'])} in one set."]
+    if fit.get("evidence"):
+        lines += ["", *evidence_lines(fit["evidence"])]
+    return lines

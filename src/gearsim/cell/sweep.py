@@ -103,17 +103,54 @@ def sweep_records(
     else:
         results = continuation_chain(plist, settings=settings, continuation=continuation,
                                      on_cell=on_cell)
+    return _records(name, vals, direction, results, [t - prev for t, prev in
+                                                      zip(stamps, [t0, *stamps[:-1]], strict=True)])
+
+
+def _records(name: str, vals: np.ndarray, direction: str, results: Sequence[CellResult],
+             elapsed: Sequence[float]) -> list[dict[str, Any]]:
+    """The records of :func:`sweep_records` from a chain's results."""
     rows: list[dict[str, Any]] = []
-    for v, r, t, prev in zip(vals, results, stamps, [t0, *stamps[:-1]], strict=True):
+    for v, r, dt in zip(vals, results, elapsed, strict=True):
         row = {"parameter": name, "value": float(v), "direction": direction}
         row.update(r.row())
         row["poincare_x"] = r.poincare[:, 0].tolist()
         row["poincare_v"] = r.poincare[:, 1].tolist()
         row["final_state"] = r.final_state.tolist()
         row["final_period"] = int(r.final_period)
-        row["elapsed_s"] = t - prev
+        row["elapsed_s"] = dt
         rows.append(row)
     return rows
+
+
+def sweep_records_many(
+    specs: Sequence[tuple[ModelParameters, Sequence[float] | np.ndarray]],
+    name: str,
+    *,
+    settings: IntegrationSettings,
+    continuation: bool = True,
+) -> list[list[dict[str, Any]]]:
+    """Many forward sweeps of parameter ``name`` in one batched-kernel call: ``specs[k] =
+    (params, values)``; ``out[k] == sweep_records(params, name, values, settings=settings,
+    continuation=continuation)`` (each sweep one chain of :func:`simulate_rows`, the Floquet
+    margins in shared kernel calls). ``settings.method`` must be ``"rk4"``; ``elapsed_s`` is the
+    call's wall time shared out over its cells."""
+    if settings.method != "rk4":
+        raise ParameterError("sweep_records_many: the batched path needs method rk4")
+    if name not in ModelParameters.names():
+        raise ParameterError(
+            f"unknown sweep parameter '{name}'; allowed: {', '.join(ModelParameters.names())}"
+        )
+    vals = [np.sort(np.asarray(v, dtype=float)) for _p, v in specs]
+    rows = [[p.with_(**{name: float(x)}) for x in vs] for (p, _v), vs in zip(specs, vals,
+                                                                          strict=True)]
+    t0 = time.perf_counter()
+    results = simulate_rows(rows, settings=settings, continuation=continuation)
+    fill_margins([r for chain in results for r in chain], settings)
+    n = sum(len(v) for v in vals)
+    dt = (time.perf_counter() - t0) / max(n, 1)
+    return [_records(name, vs, "forward", res, [dt] * len(vs))
+            for vs, res in zip(vals, results, strict=True)]
 
 
 def orbit_diagram(params: ModelParameters, name: str, values: Sequence[float] | np.ndarray,

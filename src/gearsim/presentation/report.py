@@ -641,6 +641,10 @@ def _appendix_lines(rep: Report) -> list[str]:
         from gearsim.calibration.tables import form_report_lines
 
         out += [_demote(line) for line in form_report_lines(rep.calibration["forms"])]
+    if rep.calibration and rep.calibration.get("fit"):
+        from gearsim.calibration.tables import fit_report_lines
+
+        out += ["", *(_demote(line) for line in fit_report_lines(rep.calibration["fit"]))]
     return (["## Appendix: calibration and model forms", ""] + out) if out else []
 
 

@@ -49,7 +49,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
-    """Plain-data tasks of :func:`gearsim.analysis.finder.cell_group_records` for one tile
+    """Plain-data tasks of :func:`gearsim.analysis.attractors.cell_group_records` for one tile
     (each cell with its forward-continuation state and the tile's row of it: a known motion)."""
     from gearsim.study import tiles
 
@@ -88,8 +88,7 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
 def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from gearsim.analysis.attractors import TILE_COLUMNS
-    from gearsim.analysis.finder import cell_group_records
+    from gearsim.analysis.attractors import TILE_COLUMNS, cell_group_records
     from gearsim.results import catalogue
     from gearsim.study import grid as ggrid
     from gearsim.study import provenance as gprov

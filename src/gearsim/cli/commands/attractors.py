@@ -57,16 +57,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gearsim.analysis.attractors import summary_lines
-    from gearsim.analysis.finder import find_attractors
+    from gearsim.analysis.attractors import FinderOptions, find_attractors, summary_lines
     from gearsim.dynamics.parameters import ParameterError
 
     if args.starts < 1 or args.starts > 1_000_000:
         raise ParameterError(f"--starts = {args.starts} must be in [1, 1000000]")
     params, source, settings = load_point(args)
     t0 = time.perf_counter()
-    ca = find_attractors(params, starts=args.starts, seed=args.seed, settings=settings,
-                         early=not args.full)  # fmt: skip
+    options = FinderOptions(starts=args.starts, seed=args.seed, early=not args.full)
+    ca = find_attractors(params, options, settings=settings)
     elapsed = time.perf_counter() - t0
     if args.json:
         out = {

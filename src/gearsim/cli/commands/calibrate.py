@@ -12,6 +12,13 @@ Stages, each recorded in the output JSON (``--out``) or ``--forms-dir``:
 ``standard``     ``--standard-out`` from ``--out``'s record (:mod:`gearsim.calibration.standard`).
 ``forms``        each model form fitted with the same search (or, ``--no-search``, measured at
                  given points): ``<forms-dir>/<form>.json`` (:mod:`gearsim.calibration.forms`).
+``fit``          each model form fitted by CMA-ES with restarts, every population's sweeps in
+                 the batched kernel's lanes, once per ``--seeds``; the best set measured
+                 exactly (DP5): ``<forms-dir>/<form>.s<seed>.json``.
+``fit-table``    the lane fits' records, the Pareto fronts and the evidence into ``--out``
+                 (key ``fit``), the Pareto figure to ``--pareto-figure``.
+``coexist``      the Figs 9-11 search: the motions at w x b around (0.82, 0.15) for the form's
+                 start and each seed's best of ``--forms-dir`` (key ``coexist_scan`` of --out).
 ``forms-table``  the forms' records, Kmax readings and evidence into ``--out`` (key ``forms``).
 """
 
@@ -29,7 +36,7 @@ HELP = "fit Fe/Fm, eps, phi_e, xi, friction to the paper's landmarks (differenti
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--stage", choices=("search", "verify", "both", "standard", "forms",
-                                        "forms-table"),
+                                        "fit", "fit-table", "coexist", "forms-table"),
                    default="both",
                    help="standard: write --standard-out from --out's result (or MODEL.md's set)")
     p.add_argument("--standard-out", default="config/standard_parameters.yaml",
@@ -56,7 +63,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--box", choices=("wide", "narrow"), default="narrow",
                    help="search bounds (gearsim.calibration.calibrate.BOXES)")
     p.add_argument("--no-start", action="store_true", help="do not seed DE with MODEL.md's set")
-    p.add_argument("--forms", default="today,fixed_start",
+    p.add_argument("--forms", default="single_dof,fixed_start",
                    help="stage forms: comma-separated model forms "
                    "(gearsim.calibration.forms.FORMS)")
     p.add_argument("--generations", type=int, default=10,
@@ -69,7 +76,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="stage forms: one JSON per form and the evaluation logs")
     p.add_argument("--no-search", action="store_true",
                    help="stage forms: measure each form at the standard shape and at the "
-                   "'today' form's best (results of a previous search) without searching")
+                   "'single_dof' form's best (results of a previous search) without searching")
+    p.add_argument("--seeds", default="1,2,3", help="stage fit: comma-separated seeds")
+    p.add_argument("--max-evals", type=int, default=6000,
+                   help="stage fit: most evaluations per form and seed")
+    p.add_argument("--min-evals", type=int, default=3000,
+                   help="stage fit: fewest evaluations before a flat curve may stop a search")
+    p.add_argument("--flat-evals", type=int, default=600,
+                   help="stage fit: a search stops when its best J fell by < 1 %% over this many "
+                   "evaluations")
+    p.add_argument("--no-final", action="store_true",
+                   help="stage fit: skip the exact (DP5) measurement of each best set")
+    p.add_argument("--pareto-figure", default="docs/calibration_pareto.png",
+                   help="stage fit-table: the Pareto figure")
     p.add_argument("--adopt", default=None,
                    help="stage forms-table: the form adopted as the standard set")
     p.add_argument("--decision", default="", help="stage forms-table: why (one paragraph)")
@@ -104,6 +123,89 @@ def _forms(args) -> int:
               generations=args.generations, population=args.population,
               refine_fev=args.refine_fev, workers=args.workers, time_budget=args.time_budget,
               log=lambda s: print(s, flush=True))
+    return 0
+
+
+def _fit(args) -> int:
+    """CMA-ES of each form in lanes, once per seed."""
+    from gearsim.calibration.forms import FORMS, run_forms_cmaes
+
+    names = _form_names(args)
+    unknown = [n for n in names if n not in FORMS]
+    if unknown:
+        raise UsageError(f"--forms: unknown form(s) {', '.join(unknown)}; known: "
+                         f"{', '.join(FORMS)}")
+    try:
+        seeds = [int(v) for v in args.seeds.split(",") if v.strip()]
+    except ValueError:
+        raise UsageError(f"--seeds {args.seeds!r}: comma-separated integers expected") from None
+    if not seeds or args.max_evals < 1 or args.min_evals < 0 or args.flat_evals < 1:
+        raise UsageError("--seeds: at least one; --max-evals >= 1, --min-evals >= 0, "
+                         "--flat-evals >= 1 required")
+    if args.time_budget <= 0:
+        raise UsageError("--time-budget: seconds > 0 per form and seed")
+    run_forms_cmaes(names, args.forms_dir, seeds=seeds, max_evals=args.max_evals,
+                    min_evals=args.min_evals, flat_evals=args.flat_evals,
+                    time_budget=args.time_budget, final=not args.no_final,
+                    log=lambda s: print(s, flush=True))
+    return 0
+
+
+def _fit_table(args) -> int:
+    """The lane fits' records and the Pareto fronts into --out (key ``fit``), the figure."""
+    from gearsim.calibration.forms import collect_fit
+    from gearsim.calibration.pareto import pareto_figure
+
+    fit = collect_fit(_form_names(args), args.forms_dir)
+    if not fit["forms"]:
+        raise UsageError(f"--forms-dir {args.forms_dir}: no <form>.s<seed>.json of --forms "
+                         f"{args.forms} (run --stage fit first)")
+    out = Path(args.out)
+    record = json.loads(out.read_text()) if out.is_file() else {}
+    record["fit"] = fit
+    out.write_text(json.dumps(record, indent=1, default=float))
+    for name, f in fit["forms"].items():
+        print(f"{name}: {f['evaluations']} evaluations, {f['n_seeds']} seeds, best J (lanes) "
+              f"{', '.join(f'{v:.4f}' for v in f['best_J_lanes'])}, spread {f['spread']:.1%}")
+    print(f"wrote {out}, {pareto_figure(Path(args.forms_dir) / 'logs', args.pareto_figure)}")
+    return 0
+
+
+def _coexist(args) -> int:
+    """The Figs 9-11 search around the paper's point at each form's start and seeds' bests."""
+    import numpy as np
+
+    from gearsim.calibration.fidelity import FidelitySettings, coexist_scan
+    from gearsim.calibration.forms import FORMS
+
+    st = FidelitySettings(lanes=True)
+    ws = np.round(np.arange(0.76, 0.8801, 0.02), 4).tolist()
+    bs = [0.11, 0.13, 0.15, 0.17, 0.19]
+    out = Path(args.out)
+    record = json.loads(out.read_text()) if out.is_file() else {}
+    scan: dict = {"w": ws, "b": bs, "starts": 64, "forms": {}}
+    for name in _form_names(args):
+        if name not in FORMS:
+            raise UsageError(f"--forms: unknown form {name!r}; known: {', '.join(FORMS)}")
+        form = FORMS[name]
+        sets = {"start": form.start}
+        for f in sorted(Path(args.forms_dir).glob(f"{name}.s*.json")):
+            best = json.loads(f.read_text()).get("best")
+            if best:
+                sets[f.stem.split(".")[1]] = [best[q.name] for q in form.free]
+        ps = [form.params(x, st) for x in sets.values()]
+        rows = coexist_scan(ps, ws, bs, st, continuation=form.continuation,
+                            w_factors=[form.w_factor(p) for p in ps])
+        keys = list(sets)
+        for r in rows:
+            r["set"] = keys[r["set"]]
+        scan["forms"][name] = {"sets": {k: [float(v) for v in x] for k, x in sets.items()},
+                               "rows": rows}
+        both = [r for r in rows if r.get("motions") and len(r["motions"]) > 1]
+        print(f"{name}: {len(rows)} points, {len(both)} with more than one motion")
+    record["coexist_scan"] = scan
+    out.write_text(json.dumps(record, indent=1, default=float))
+    print(f"wrote {out}")
     return 0
 
 
@@ -145,6 +247,12 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--workers must be >= 1")
     if args.stage == "forms":
         return _forms(args)
+    if args.stage == "fit":
+        return _fit(args)
+    if args.stage == "fit-table":
+        return _fit_table(args)
+    if args.stage == "coexist":
+        return _coexist(args)
     if args.stage == "forms-table":
         return _forms_table(args)
     out = Path(args.out)

@@ -1,0 +1,89 @@
+"""The landmark trade-off read from evaluation logs: group errors by hand, the front against a
+brute-force dominance check, the Figs 9-11 tally."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from gearsim.analysis.paper import PAPER_LANDMARKS
+from gearsim.calibration.pareto import (
+    LOWER,
+    UPPER,
+    coexist_tally,
+    front,
+    group_error,
+    pareto_points,
+)
+from gearsim.calibration.targets import CAP
+
+PAPER = {pl.key: pl.w for pl in PAPER_LANDMARKS}
+
+
+def test_group_error_is_the_capped_rms_in_tolerances():
+    e = {"grazing_1": 0.04, "jump": -0.02, "pd_1_2": math.nan}
+    # 2 and 1 tolerances, the missing landmark the cap
+    assert group_error(e, LOWER) == math.sqrt((4 + 1 + CAP**2) / 3)
+    assert group_error({k: 1.0 for k in UPPER}, UPPER) == CAP
+
+
+def test_front_keeps_exactly_the_undominated_points():
+    rng = np.random.default_rng(4)
+    pts = [{"lower": float(a), "upper": float(b)} for a, b in rng.random((300, 2))]
+    got = {(p["lower"], p["upper"]) for p in front(pts)}
+    brute = {(p["lower"], p["upper"]) for p in pts
+             if not any(q["lower"] <= p["lower"] and q["upper"] <= p["upper"] and q is not p
+                        for q in pts)}
+    assert got == brute
+
+
+def test_points_and_tally_from_logs(tmp_path):
+    lm = dict(PAPER)
+    lm["grazing_1"] += 0.04  # lower: 2 tolerances on one of three
+    lm["period_one"] = None  # upper: the cap on one of four
+    rec = {"x": [1.0], "J": 3.0, "measured": {"landmarks": lm, "coexist": ["1-1-1", "2-2-1"]}}
+    other = {"x": [2.0], "J": 1e3, "error": "RuntimeError()"}  # a failed evaluation
+    (tmp_path / "single_dof-lanes.s1.jsonl").write_text(json.dumps(rec) + "\n"
+                                                        + json.dumps(other) + "\n")
+    pts = pareto_points(tmp_path)
+    assert len(pts) == 1 and pts[0]["form"] == "single_dof" and pts[0]["level"] == "lanes"
+    assert np.isclose(pts[0]["lower"], math.sqrt(4 / 3))
+    assert np.isclose(pts[0]["upper"], math.sqrt(CAP**2 / 4))
+    t = coexist_tally(tmp_path)
+    assert t["n_sets"] == 1 and t["motions_found"] == {"1-1-1": 1, "2-2-1": 1}
+    assert t["most_of_the_paper_motions"] == 2
+
+
+def test_collect_fit_spread_and_the_report_rows(tmp_path):
+    from gearsim.calibration.forms import collect_fit
+    from gearsim.calibration.tables import fit_report_lines
+    from gearsim.presentation.report import Report, _appendix_lines
+
+    for seed, J in ((1, 2.0), (2, 2.05), (3, 2.1)):
+        rec = {"seed": seed, "search": "cma-es", "nfev": 100 * seed, "stopped_by": "flat",
+               "runs": [], "J_lanes": J, "best": {"xi": 0.06}, "cpu_s_search": 10.0,
+               "wall_s_search": 20.0, "curve": [[8, J + 1], [100 * seed, J]]}
+        (tmp_path / f"single_dof.s{seed}.json").write_text(json.dumps(rec))
+    fit = collect_fit(["single_dof", "te_rate"], tmp_path)
+    f = fit["forms"]["single_dof"]
+    assert "te_rate" not in fit["forms"]  # no record: no row
+    assert (f["evaluations"], f["n_seeds"], f["cpu_s"]) == (600, 3, 30.0)
+    assert np.isclose(f["spread"], 0.05)  # (2.1 - 2.0) / 2.0
+    row = [line for line in fit_report_lines(fit) if line.startswith("| single_dof")]
+    assert row == ["| single_dof | 600 | 3 | 2.000, 2.050, 2.100 | flat, flat, flat | 5.0% | "
+                   "30 | 60 |"]
+    app = _appendix_lines(Report(calibration={"fit": fit}))
+    assert app[0].startswith("## Appendix") and "#### CMA-ES fits in lanes" in "\n".join(app)
+
+
+def test_collect_fit_takes_an_unfinished_seed_from_its_log(tmp_path):
+    from gearsim.calibration.forms import collect_fit
+
+    (tmp_path / "logs").mkdir()
+    lines = [json.dumps({"x": [0.0], "J": J, "measured": None}) for J in (5.0, 4.0, 4.5, 3.0)]
+    (tmp_path / "logs" / "te_rate-lanes.s2.jsonl").write_text("\n".join(lines) + "\n")
+    s = collect_fit(["te_rate"], tmp_path)["forms"]["te_rate"]["seeds"]["2"]
+    assert (s["nfev"], s["stopped_by"], s["J_lanes"]) == (4, "unfinished", 3.0)
+    assert s["curve"] == [[1, 5.0], [3, 4.0], [4, 3.0]]  # where the best J changes, and the end
