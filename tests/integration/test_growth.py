@@ -68,3 +68,22 @@ def _rest(p):
     from gearsim.dynamics.model import static_state
 
     return static_state(p.to_array())
+
+
+def test_the_issue_cell_holds_one_orbit_at_its_least_period_and_no_growing_attractor():
+    """w = 2.029, b = 0.06875 (standard set, study settings, 16 starts): starts that grow end
+    diverged (they used to make a "chaos" attractor with Kmax 6e5) and the 1/1T orbit is listed
+    once (a start whose window read it as 1/2T, |mu|max the square of the 1T one's, used to be a
+    second attractor); the early labels are those of every start's full-length run."""
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+
+    p = standard_parameters(w=2.029, b=0.06875)
+    opts = FinderOptions(starts=16)
+    ca = find_attractors(p, opts, settings=ST)
+    full = find_attractors(p, opts.with_(early=False), settings=ST)
+    for c in (ca, full):
+        assert [(a.label, a.steady.period) for a in c.attractors] == [("1/1T", 1)]
+        assert all(a.steady.info["kmax"] < 10 for a in c.attractors)
+        assert 0 < c.diverged_fraction < 1
+    assert np.array_equal(ca.start_labels, full.start_labels)
+    assert ca.early.sum() > 0
