@@ -77,7 +77,7 @@ def test_the_issue_cell_holds_one_orbit_at_its_least_period_and_no_growing_attra
     second attractor); the early labels are those of every start's full-length run."""
     from gearsim.analysis.attractors import FinderOptions, find_attractors
 
-    p = standard_parameters(w=2.029, b=0.06875)
+    p = Study.load().parameters(w=2.029, b=0.06875).model
     opts = FinderOptions(starts=16)
     ca = find_attractors(p, opts, settings=ST)
     full = find_attractors(p, opts.with_(early=False), settings=ST)
