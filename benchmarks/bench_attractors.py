@@ -47,7 +47,7 @@ from gearsim.analysis.attractors import (  # noqa: E402
 from gearsim.analysis.attractors.recurrence import map_attractors  # noqa: E402
 from gearsim.cell import chains, pool  # noqa: E402
 from gearsim.numerics import batch  # noqa: E402
-from gearsim.study.config import standard_parameters, study_settings  # noqa: E402
+from gearsim.study.config import Study  # noqa: E402
 
 OPTS = FinderOptions(starts=16, seed=0)
 
@@ -129,7 +129,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer rows")
     ap.add_argument("--agree", action="store_true", help="also every start's full-length run")
     args = ap.parse_args()
-    base, st = standard_parameters(), study_settings()
+    base, st = Study.load().parameters().model, Study.load().settings
     meter = KernelMeter()
     chains.warm_up()
     sobol_unit(4, 0)  # scipy.stats import outside the timings

@@ -20,15 +20,15 @@ from attractor_checks import reference_attractors
 
 from gearsim.analysis.attractors import FinderOptions, find_attractors, gear_steady
 from gearsim.cell import chains
-from gearsim.study.config import standard_parameters, study_settings
+from gearsim.study.config import Study
 
 N = 40
 
 
 @pytest.fixture(scope="module")
 def plane():
-    base = standard_parameters()
-    st = study_settings().with_(transient=400, transient_continuation=200)
+    base = Study.load().parameters().model
+    st = Study.load().settings.with_(transient=400, transient_continuation=200)
     ws = 0.1 + (np.arange(N) + 0.5) * 2.4 / N
     bs = (np.arange(N) + 0.5) / N
     rows = [[base.with_(w=float(w), b=float(b)) for w in ws] for b in bs]

@@ -150,9 +150,9 @@ def test_continuation_reading_is_no_recurrence_target():
     """At w = 1.99, b = 0.375 (the study's standard set) the forward chain reads 1/5T after
     its continuation transient, while every start's full-length run ends on 1/1T: starts
     turning about the 1/1T motion match the 1/5T points and must not be labelled onto it."""
-    from gearsim.study.config import standard_parameters, study_settings
+    from gearsim.study.config import Study
 
-    base, st = standard_parameters(), study_settings()
+    base, st = Study.load().parameters().model, Study.load().settings
     ws = 0.1 + (np.arange(100) + 0.5) * 2.4 / 100
     chain = [base.with_(w=float(w), b=0.375) for w in ws]
     res = chains.simulate_rows([chain], settings=st)[0]

@@ -11,9 +11,9 @@ import pytest
 
 from gearsim.cell.classify import GROWTH_MIN, GROWTH_STEP, amplitude_grows
 from gearsim.cell.simulate import run_periods, simulate_cell
-from gearsim.study.config import standard_parameters, study_settings
+from gearsim.study.config import Study
 
-ST = study_settings()
+ST = Study.load().settings
 #: a wb plane cell whose chain restarts from the static state (its left neighbour diverged):
 #: a growing motion that the window alone called chaos (Kmax 1.5e4)
 GROWING = dict(w=1.897, b=0.00625)
@@ -44,7 +44,7 @@ def test_amplitude_grows_rule():
 
 
 def test_growing_motion_is_diverged_and_the_long_run_confirms_it():
-    p = standard_parameters(**GROWING)
+    p = Study.load().parameters(**GROWING).model
     res = simulate_cell(p, settings=ST, transient=ST.transient)
     c = res.classification
     assert (c.motion, c.status, c.label, c.label_npq) == ("diverged", "diverged", "diverged", "")
@@ -54,7 +54,7 @@ def test_growing_motion_is_diverged_and_the_long_run_confirms_it():
 
 
 def test_bounded_chaos_stays_chaos_and_the_long_run_stays_bounded():
-    p = standard_parameters(**BOUNDED)
+    p = Study.load().parameters(**BOUNDED).model
     res = simulate_cell(p, np.array(BOUNDED_U0), settings=ST,
                         transient=ST.transient_continuation)  # fmt: skip
     assert res.classification.motion == "chaos"
@@ -68,3 +68,22 @@ def _rest(p):
     from gearsim.dynamics.model import static_state
 
     return static_state(p.to_array())
+
+
+def test_the_issue_cell_holds_one_orbit_at_its_least_period_and_no_growing_attractor():
+    """w = 2.029, b = 0.06875 (standard set, study settings, 16 starts): starts that grow end
+    diverged (they used to make a "chaos" attractor with Kmax 6e5) and the 1/1T orbit is listed
+    once (a start whose window read it as 1/2T, |mu|max the square of the 1T one's, used to be a
+    second attractor); the early labels are those of every start's full-length run."""
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+
+    p = Study.load().parameters(w=2.029, b=0.06875).model
+    opts = FinderOptions(starts=16)
+    ca = find_attractors(p, opts, settings=ST)
+    full = find_attractors(p, opts.with_(early=False), settings=ST)
+    for c in (ca, full):
+        assert [(a.label, a.steady.period) for a in c.attractors] == [("1/1T", 1)]
+        assert all(a.steady.info["kmax"] < 10 for a in c.attractors)
+        assert 0 < c.diverged_fraction < 1
+    assert np.array_equal(ca.start_labels, full.start_labels)
+    assert ca.early.sum() > 0

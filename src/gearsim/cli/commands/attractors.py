@@ -28,23 +28,22 @@ def add_multistability_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The point's parameters (:func:`gearsim.cli.commands._common.point_parameters`)."""
-    from gearsim.cli.commands._common import point_parameters
+    """The point's parameters (:func:`gearsim.cli.commands._common.command_parameters`)."""
+    from gearsim.cli.commands._common import command_parameters
 
-    return point_parameters(args, args.omega)
+    return command_parameters(args, omega_required=True, w=args.omega)
 
 
 def load_point(args: argparse.Namespace):
     """Parameters and settings of a multistability command: the shared parameter resolution
     and the study's integration settings (RK4, the production path) with ``--transient``."""
     from gearsim.dynamics.parameters import ParameterError
-    from gearsim.study.config import integration_settings
 
     if args.transient < 0:
         raise ParameterError(f"--transient = {args.transient} must be an integer >= 0")
     r = resolve(args)
     # the study's settings (config/config.yaml: RK4, 192 steps per period), this transient
-    settings = integration_settings(r.config).with_(method="rk4", transient=int(args.transient))
+    settings = r.study.settings.with_(method="rk4", transient=int(args.transient))
     return r.params, r.source, settings
 
 
