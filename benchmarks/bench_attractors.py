@@ -5,10 +5,10 @@ standard parameters, 16 Sobol starts per cell, seed 0):
 
 * ``side by side``: the same cells (each finder in tasks of its pipeline size: 640 cells per
   pool, 64 per reference task) through
-  - ``pool``: :func:`gearsim.analysis.finder.find_attractors_many` (the pipeline's call: the
+  - ``pool``: :func:`gearsim.analysis.attractors.find_attractors` (the pipeline's call: the
     forward-continuation motion of each cell is known from its plane row, no run);
-  - ``reference``: :func:`gearsim.analysis.attractors.find_attractors_many` (``map_attractors``,
-    the synchronous finder: scouts, probes, rescouts; the forward state re-run as before);
+  - ``reference``: :func:`gearsim.analysis.attractors.recurrence.map_attractors` on the gear
+    cells (the synchronous mapper: scouts, probes, rescouts; the forward state re-run);
   CPU time (process_time), starts per CPU-second, periods per start, share labelled early, and
   the lane use and kernel speed of each, counted identically for both by wrapping the one
   kernel entry (:meth:`gearsim.numerics.batch.Lanes.run`): lane use = lane-periods of lanes
@@ -35,12 +35,36 @@ setup_env()
 
 import numpy as np  # noqa: E402
 
-from gearsim.analysis import attractors as reference  # noqa: E402
-from gearsim.analysis import finder  # noqa: E402
-from gearsim.analysis.attractors import gear_steady, sobol_unit  # noqa: E402
+from gearsim.analysis.attractors import (  # noqa: E402
+    FinderOptions,
+    GearCells,
+    find_attractors,
+    gear_steady,
+    least_periods,
+    same_attractor,
+    sobol_unit,
+)
+from gearsim.analysis.attractors.recurrence import map_attractors  # noqa: E402
 from gearsim.cell import chains, pool  # noqa: E402
 from gearsim.numerics import batch  # noqa: E402
-from gearsim.study.config import standard_parameters, study_settings  # noqa: E402
+from gearsim.study.config import Study  # noqa: E402
+
+OPTS = FinderOptions(starts=16, seed=0)
+
+
+def reference(cells, st, states):
+    """The recurrence mapper on gear cells (the forward states re-run)."""
+    system = GearCells(cells, st)
+    opts = OPTS.resolved(system.settings.period_rtol)
+    unit = sobol_unit(opts.starts, opts.seed)
+    found = map_attractors(system, len(cells), [system.start_states(c, unit)
+                                                for c in range(len(cells))], opts,
+                           continuation=[{"forward": np.asarray(y, dtype=float)[:10]}
+                                         for y in states],
+                           continuation_transient=system.settings.transient_continuation)
+    system.fill_margins(found)
+    return [least_periods(ca, opts.merge_rtol) for ca in found]
+
 
 PLANES = {"wb": ("b", 0.0, 1.0), "wxi": ("xi", 0.04, 0.16)}
 
@@ -105,7 +129,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer rows")
     ap.add_argument("--agree", action="store_true", help="also every start's full-length run")
     args = ap.parse_args()
-    base, st = standard_parameters(), study_settings()
+    base, st = Study.load().parameters().model, Study.load().settings
     meter = KernelMeter()
     chains.warm_up()
     sobol_unit(4, 0)  # scipy.stats import outside the timings
@@ -129,17 +153,16 @@ def main() -> None:
         for k in range(0, len(cells), size):
             sl = slice(k, k + size)
             if name == "pool":
-                found += finder.find_attractors_many(cells[sl], starts=16, seed=0, settings=st,
-                                                     forward_results=motions[sl])
+                found += find_attractors(cells[sl], OPTS, settings=st,
+                                         forward_results=motions[sl])
             else:
-                found += reference.find_attractors_many(cells[sl], starts=16, seed=0,
-                                                        settings=st, forward=states[sl])
+                found += reference(cells[sl], st, states[sl])
         side[name] = summary(found, time.process_time() - c0, meter)
         side[name]["_found"] = found
     if args.agree:
         meter.reset()
-        full = finder.find_attractors_many(cells, starts=16, seed=0, settings=st,
-                                           forward_results=motions, early=False)
+        full = find_attractors(cells, OPTS.with_(early=False), settings=st,
+                               forward_results=motions)
         wrong = 0
         differ = []
         for c, (a, b) in enumerate(zip(side["pool"]["_found"], full, strict=True)):
@@ -147,7 +170,7 @@ def main() -> None:
             lb = [b.attractors[k].steady if k >= 0 else None for k in b.start_labels]
             bad = sum(1 for x, y in zip(la, lb, strict=True)
                       if (x is None) != (y is None) or (x is not None and not
-                                                        reference.same_attractor(x, y)))
+                                                        same_attractor(x, y)))
             wrong += bad
             if bad:
                 differ.append({"w": cells[c].w, "b": cells[c].b, "xi": cells[c].xi,
@@ -172,8 +195,8 @@ def main() -> None:
         meter.reset()
         c0 = time.process_time()
         stats = pool.PoolStats()
-        found = finder.find_attractors_many(cells, starts=16, seed=0, settings=st,
-                                            forward_results=motions, stats=stats)
+        found = find_attractors(cells, OPTS, settings=st, forward_results=motions,
+                                stats=stats)
         row = summary(found, time.process_time() - c0, meter)
         row["n"] = n
         row["rows_per_plane"] = k

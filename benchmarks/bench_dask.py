@@ -124,10 +124,12 @@ def cpu_speedup(res):
 
 def specs_for(config, stride, rows):
     from gearsim.study import tiles
+    from gearsim.study.config import Study
 
     cfg = dict(config)
     cfg["tile_rows"] = rows
-    specs = tiles.row_specs(cfg, "wb", 10, ROOT)  # rows 10*rows ... (b around 0.4 for 16 rows)
+    # rows 10*rows ... (b around 0.4 for 16 rows)
+    specs = tiles.row_specs(Study.of(cfg, ROOT), "wb", 10)
     for s in specs:
         s["x_values"] = s["x_values"][::stride]
     return specs

@@ -108,6 +108,7 @@ def cmd_cells(args) -> dict:
 
 
 def cmd_plane(args) -> dict:
+    from gearsim.study.config import Study
     from gearsim.study.grid import tile_ids
     from gearsim.study.tiles import records_to_frame, row_specs, simulate_rows_batched
 
@@ -115,7 +116,8 @@ def cmd_plane(args) -> dict:
     if args.n:
         for ax in ("x", "y"):
             config["planes"][args.plane][ax]["n"] = args.n
-    specs = [s for t in tile_ids(config, args.plane) for s in row_specs(config, args.plane, t)]
+    study = Study.of(config)
+    specs = [s for t in tile_ids(config, args.plane) for s in row_specs(study, args.plane, t)]
     if args.every > 1:  # every k-th row: the plane's w step, fewer rows
         specs = specs[:: args.every]
     l0 = loadavg()
@@ -140,13 +142,14 @@ def cmd_plane(args) -> dict:
 def _dp5_label(config, plane, ref, r):
     """The audit's reference (DP5 at tightened tolerance) for row ``r`` of frame ``ref``."""
     from gearsim.study.audit import audit_frame
+    from gearsim.study.config import Study
 
     config = dict(config, audit={**config["audit"], "fraction": 1.0, "seed": 0})
     sub = ref.iloc[[r]]
     # audit_frame starts from the left neighbour in the frame it is given: pass both rows
     i, j = int(sub["i"].iloc[0]), int(sub["j"].iloc[0])
     pair = ref[(ref["j"] == j) & ref["i"].isin([i - 1, i])]
-    df = audit_frame(config, plane, pair.reset_index(drop=True))
+    df = audit_frame(Study.of(config), plane, pair.reset_index(drop=True))
     hit = df[(df["i"] == i) & (df["j"] == j)].iloc[0]
     return f"{hit['tight_label']} {hit['tight_label_npq']}"
 
@@ -204,6 +207,7 @@ def cmd_audit(args) -> dict:
     import pandas as pd
 
     from gearsim.study.audit import audit_frame
+    from gearsim.study.config import Study
 
     config = _config(args.config, {})
     if args.audit:
@@ -211,7 +215,7 @@ def cmd_audit(args) -> dict:
     cells = pd.read_parquet(args.frame)
     l0 = loadavg()
     c0 = time.process_time()
-    df = audit_frame(config, args.plane, cells)
+    df = audit_frame(Study.of(config), args.plane, cells)
     cpu = time.process_time() - c0
     if args.save:
         df.to_parquet(SCRATCH / args.save)
@@ -228,6 +232,7 @@ def cmd_audit_ab(args) -> dict:
     import pandas as pd
 
     from gearsim.study.audit import audit_frame
+    from gearsim.study.config import Study
 
     config = _config(args.config, {})
     cells = pd.read_parquet(args.frame)
@@ -238,7 +243,7 @@ def cmd_audit_ab(args) -> dict:
         for f in args.tighten:
             config["audit"] = {**config["audit"], "fraction": args.fraction, "tighten": f}
             c0 = time.process_time()
-            df = audit_frame(config, args.plane, cells)
+            df = audit_frame(Study.of(config), args.plane, cells)
             cpu[f].append(time.process_time() - c0)
             labels[f] = (df["tight_label"] + " " + df["tight_label_npq"]).tolist()
     ref = labels[args.tighten[0]]
@@ -257,6 +262,7 @@ def cmd_audit_ab(args) -> dict:
 def cmd_tile_ab(args) -> dict:
     """Tile CPU per variant, side by side: every ``--every``-th row of the plane (its w step)
     through the tiles' batched path, variants alternated ``--repeats`` times in one process."""
+    from gearsim.study.config import Study
     from gearsim.study.grid import tile_ids
     from gearsim.study.tiles import row_specs, simulate_rows_batched
 
@@ -264,7 +270,8 @@ def cmd_tile_ab(args) -> dict:
     specs = {}
     for k, v in enumerate(variants):
         config = _config(args.config, v)
-        rows = [s for t in tile_ids(config, args.plane) for s in row_specs(config, args.plane, t)]
+        study = Study.of(config)
+        rows = [s for t in tile_ids(config, args.plane) for s in row_specs(study, args.plane, t)]
         specs[k] = rows[:: args.every]
     cpu: dict = {k: [] for k in specs}
     steps: dict = {}
@@ -295,16 +302,14 @@ def cmd_landmarks(args) -> dict:
 
     from gearsim.analysis.landmarks import find_landmarks, match_paper
     from gearsim.analysis.paper import PAPER_B_THRESHOLD, PAPER_XI_THRESHOLD
-    from gearsim.dynamics.parameters import ModelParameters
     from gearsim.presentation.report import double_sided_rows, not_period_one, row_threshold
-    from gearsim.study.config import base_parameters, integration_settings
+    from gearsim.study.config import Study, integration_settings
     from gearsim.study.grid import sweep_values
     from gearsim.study.sweeps import sweep_frame
 
     config = _config(args.config, _sets(args.set))
     sw = config["sweeps"]["standard"]
-    values, _ = base_parameters(config, CONFIG_ROOT)
-    base = ModelParameters.from_mapping({**values, **(sw.get("fixed") or {})})
+    base = Study.of(config, CONFIG_ROOT).parameters(sweep="standard").model
     c0 = time.process_time()
     df = sweep_frame(base, sw["name"], sweep_values(sw), sw["direction"],
                      integration_settings(config))

@@ -25,14 +25,14 @@ def main(argv: list[str]) -> None:
     from gearsim.cell.simulate import simulate_cell
     from gearsim.numerics.batch import steps_per_period
     from gearsim.numerics.shooting import SHOOTING, newton_orbit, sorted_eigs
-    from gearsim.study.config import standard_parameters, study_settings
+    from gearsim.study.config import Study
 
-    st = study_settings()
+    st = Study.load().settings
     for spec in argv or CELLS:
         parts = spec.split(":")
         w, b = float(parts[0]), float(parts[1])
         n = int(parts[2]) if len(parts) > 2 else 1
-        p = standard_parameters(w=w, b=b)
+        p = Study.load().parameters(w=w, b=b).model
         y = simulate_cell(p, settings=st).final_state
         row = [f"w={w:g} b={b:g} n={n} N={steps_per_period(p, st)}"]
         for k in (1, 2, 4, 8):

@@ -36,6 +36,7 @@ from gearsim.analysis.continuation import Continuation, continue_orbit  # noqa: 
 from gearsim.analysis.orbit_cells import refine_cell  # noqa: E402
 from gearsim.cell.simulate import IntegrationSettings, simulate_cell  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
+from gearsim.study.config import Study  # noqa: E402
 from gearsim.study.config_io import load_standard_parameters  # noqa: E402
 
 STANDARD = ModelParameters.from_mapping(load_standard_parameters("config/standard_parameters.yaml"))
@@ -72,7 +73,7 @@ def plane_tile_estimate(plane: str, rows: int = 8) -> dict:
     from gearsim.study.tiles import row_specs, simulate_rows_batched
 
     cfg = study_config()
-    specs = [s for t in tile_ids(cfg, plane) for s in row_specs(cfg, plane, t)]
+    specs = [s for t in tile_ids(cfg, plane) for s in row_specs(Study.of(cfg), plane, t)]
     ny = len(specs)
     pick = [specs[int(k)] for k in np.linspace(0, ny - 1, rows).round()]
     c0, w0 = time.process_time(), time.perf_counter()
@@ -85,7 +86,7 @@ def plane_tile_estimate(plane: str, rows: int = 8) -> dict:
 
 def curves_default(workers: int, method: str, out_dir: str | None = None) -> dict:
     """The pipeline's curves of both default planes (standard continuation + follow_curves)."""
-    from gearsim.study.config import plane_base, study_config
+    from gearsim.study.config import Study, study_config
 
     cfg = study_config()
     out: dict = {"workers": workers, "method": method}
@@ -107,7 +108,7 @@ def curves_default(workers: int, method: str, out_dir: str | None = None) -> dic
     for plane in ("wb", "wxi"):
         pl = cfg["planes"][plane]
         yn, y0, y1 = pl["y"]["name"], float(pl["y"]["min"]), float(pl["y"]["max"])
-        base = plane_base(cfg, plane)
+        base = Study.of(cfg).parameters(plane=plane).model
         at = min(max(float(getattr(base, yn)), y0), y1)
         p = base.with_(**{yn: at, "w": 0.1})
         import resource

@@ -42,7 +42,7 @@ from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
 from gearsim.numerics import batch  # noqa: E402
 from gearsim.results import catalogue  # noqa: E402
 from gearsim.study import tiles  # noqa: E402
-from gearsim.study.config import study_config  # noqa: E402
+from gearsim.study.config import Study, study_config  # noqa: E402
 
 T_CPU: dict[str, float] = defaultdict(float)
 CALLS: dict[str, int] = defaultdict(int)
@@ -106,8 +106,9 @@ def instrument() -> None:
     G = attractors.GearCells
     G.advance = staged("probe", G.advance)
     G.steady = staged("full", G.steady)
-    attractors._Known.recur = timed("recurrence test", attractors._Known.recur)
-    attractors._Known.add = timed("merge (_Known.add)", attractors._Known.add)
+    K = attractors.matching._Known
+    K.recur = timed("recurrence test", K.recur)
+    K.add = timed("merge (_Known.add)", K.add)
 
 
 def use(st):
@@ -158,7 +159,7 @@ def main(argv=None):
     instrument()
 
     # ---- simulate tile: one worker's group of rows
-    specs = tiles.row_specs(config, args.plane, args.tile)[: args.rows]
+    specs = tiles.row_specs(Study.of(config), args.plane, args.tile)[: args.rows]
     c0, w0 = time.process_time(), time.perf_counter()
     with stage("tile"):
         recs = tiles.simulate_rows_batched(specs)

@@ -30,10 +30,10 @@ AXES = {"wb": ("b", 0.0, 1.0), "wxi": ("xi", 0.04, 0.16)}
 def run(plane: str, rows_idx: list[int], mode: str) -> dict:
     import gearsim.cell.verify as verify
     from gearsim.cell.chains import simulate_rows
-    from gearsim.study.config import standard_parameters, study_settings
+    from gearsim.study.config import Study
 
     name, lo, hi = AXES[plane]
-    base, st = standard_parameters(), study_settings()
+    base, st = Study.load().parameters().model, Study.load().settings
     st = st.with_(floquet="slow" if mode == "off" else mode)
     ys = lo + (np.array(rows_idx) + 0.5) * (hi - lo) / 400
     ws = 0.1 + (np.arange(400) + 0.5) * 2.4 / 400

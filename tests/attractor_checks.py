@@ -23,3 +23,26 @@ def assert_same_attractors_per_start(fast, full) -> int:
         n_early += int(a.early.sum())
         assert a.start_periods_run.sum() < b.start_periods_run.sum()
     return n_early
+
+
+def reference_attractors(cells, options, settings, forward=None):
+    """The recurrence mapper (``gearsim.analysis.attractors.recurrence.map_attractors``, the
+    reference the lane pool is checked against) on gear cells: the same Sobol starts, forward
+    states and last steps (margins, least periods) as ``find_attractors``."""
+    import numpy as np
+
+    from gearsim.analysis.attractors import GearCells, least_periods, sobol_unit
+    from gearsim.analysis.attractors.recurrence import map_attractors
+
+    system = GearCells(cells, settings)
+    opts = options.resolved(system.settings.period_rtol)
+    unit = sobol_unit(opts.starts, opts.seed)
+    starts = [system.start_states(c, unit) for c in range(len(cells))]
+    cont = None
+    if forward is not None:
+        cont = [{} if y is None else {"forward": np.asarray(y, dtype=float)[:10]}
+                for y in forward]  # fmt: skip
+    found = map_attractors(system, len(cells), starts, opts, continuation=cont,
+                           continuation_transient=system.settings.transient_continuation)
+    system.fill_margins(found)
+    return [least_periods(ca, opts.merge_rtol) for ca in found]

@@ -17,6 +17,7 @@ import pandas as pd
 from gearsim.results import catalogue as gc
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
+from gearsim.study.config import Study
 
 
 def tile_frame(config: dict, plane: str, tile: int) -> pd.DataFrame:
@@ -81,7 +82,8 @@ def write_tile(config: dict, plane: str, tile: int, path: Path, df: pd.DataFrame
         df = tile_frame(config, plane, tile)
     rows = ggrid.tile_rows(config, plane, tile)
     prov = gprov.provenance(
-        gprov.plane_subtree(config, plane), kind="tile", name=plane, config=config, tile=tile,
+        gprov.plane_subtree(Study.of(config), plane), kind="tile", name=plane,
+        study=Study.of(config), tile=tile,
         rows=[rows.start, rows.stop], workers="in-process", started=gc.now_iso(),
         finished=gc.now_iso(), wall_s=1.0, cells=len(df),
     )

@@ -48,3 +48,25 @@ def targets(workdir: Path, *configs: str) -> list[str]:
     out += [f"results/sweeps/{s}.parquet" for s in cfg["sweeps"]]
     out += [f"results/points/{f}.parquet" for f in cfg["points"]]
     return [*out, "results/catalogue.d/build.sqlite"]
+
+
+def job_counts(output: str) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    block = output.split("Job stats:", 1)[1] if "Job stats:" in output else ""
+    for line in block.splitlines()[3:]:
+        parts = line.split()
+        if len(parts) != 2 or not parts[1].isdigit():
+            break
+        counts[parts[0]] = int(parts[1])
+    return counts
+
+
+def smk_in(workdir, *args, check=True, timeout=900):
+    """Snakemake run in ``workdir`` as a user runs it: from that directory, without
+    --directory (which would override the study's folder and is refused)."""
+    cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), *args]
+    r = subprocess.run(cmd, cwd=workdir, env=_env(), capture_output=True, text=True,
+                       timeout=timeout)
+    if check and r.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
+    return r

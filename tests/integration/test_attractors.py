@@ -14,13 +14,13 @@ from reference import reference_settings
 from scipy.integrate import solve_ivp
 
 from gearsim.analysis.attractors import (
+    FinderOptions,
     Steady,
     find_attractors,
-    find_attractors_many,
-    map_attractors,
     same_attractor,
     sobol_unit,
 )
+from gearsim.analysis.attractors.recurrence import map_attractors
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 ZETA, GAMMA, FORCE = 0.02, 0.1, 0.1
@@ -118,7 +118,7 @@ def test_duffing_early_equals_full_length():
     sys_ = Duffing([1.12])
     st = [sys_.start_states(0, sobol_unit(6, 2))]
     fast = map_attractors(sys_, 1, st)
-    full = map_attractors(sys_, 1, st, early=False)
+    full = map_attractors(sys_, 1, st, FinderOptions(early=False))
     for a, b in zip(fast, full, strict=True):
         assert [x.basin_fraction for x in a.attractors] == [x.basin_fraction for x in b.attractors]
         assert np.array_equal(a.start_labels, b.start_labels)
@@ -151,7 +151,7 @@ def test_readings_of_one_orbit_merge():
     """A refined 1/2T orbit and the bifurcation-status window reading of the same orbit (its
     points a few 1e-3 of the range off, DC within 1e-3) are one attractor; a different n-p-q,
     DC or orbit is not; the basin of the merged attractor counts both starts."""
-    from gearsim.analysis.attractors import _Known, _Options
+    from gearsim.analysis.attractors.matching import _Known
 
     orbit = [[0.08371, -0.18005], [-0.10163, -0.23235]]
     info = {"label_npq": "2-1-1", "dc": 0.4683, "status": "ok", "refined": True}
@@ -165,7 +165,7 @@ def test_readings_of_one_orbit_merge():
     other_orbit = Steady("ok", 2, np.array(orbit) + 0.1, 0.5, 0.5, "1/2T", dict(bif.info))
     for s in (other_npq, other_dc, other_orbit):
         assert not same_attractor(ok, s)
-    kn = _Known(_Options())
+    kn = _Known(FinderOptions())
     assert kn.add(ok) == kn.add(bif) == 0 and kn.add(other_orbit) == 1
 
 
@@ -183,16 +183,17 @@ def test_gear_early_labelling_equals_full_length_runs():
         ModelParameters(w=0.66, b=1.0, **REFERENCE),
         ModelParameters(w=1.95, b=0.3, **REFERENCE),
     ]
-    fast = find_attractors_many(cells, starts=24, seed=7, settings=GEAR)
-    full = find_attractors_many(cells, starts=24, seed=7, settings=GEAR, early=False)
+    opts = FinderOptions(starts=24, seed=7)
+    fast = find_attractors(cells, opts, settings=GEAR)
+    full = find_attractors(cells, opts.with_(early=False), settings=GEAR)
     n_early = assert_same_attractors_per_start(fast, full)
     assert n_early >= 0.5 * 24 * len(cells)
     assert any(len(a.attractors) >= 2 for a in fast)
 
 
 def test_gear_chaotic_attractor_counted_once():
-    ca = find_attractors(ModelParameters(w=1.45, b=1.0, **REFERENCE), starts=32, seed=3,
-                         settings=GEAR)  # fmt: skip
+    ca = find_attractors(ModelParameters(w=1.45, b=1.0, **REFERENCE),
+                         FinderOptions(starts=32, seed=3), settings=GEAR)  # fmt: skip
     chaos = [a for a in ca.attractors if a.label == "chaos"]
     assert len(chaos) == 1
     assert chaos[0].n_starts >= 8  # many starts landed on it, one attractor
@@ -205,7 +206,7 @@ def test_gear_continuation_states_found_by():
 
     p = ModelParameters(w=1.1, b=0.15, **REFERENCE)
     fwd = simulate_cell(p.with_(w=1.09), settings=GEAR).final_state
-    ca = find_attractors(p, starts=8, seed=1, settings=GEAR, forward=fwd)
+    ca = find_attractors(p, FinderOptions(starts=8, seed=1), settings=GEAR, forward=fwd)
     assert "forward" in ca.continuation
     k = ca.continuation["forward"]
     assert "forward" in ca.attractors[k].found_by
@@ -216,7 +217,7 @@ def test_bad_settings_rejected():
     with pytest.raises(ParameterError, match="starts"):
         sobol_unit(0, 1)
     with pytest.raises(ParameterError, match="chunk"):
-        map_attractors(Duffing([1.0]), 1, [np.zeros((1, 2))], chunk=0)
+        map_attractors(Duffing([1.0]), 1, [np.zeros((1, 2))], FinderOptions(chunk=0))
 
 
 def test_forward_backward_sweeps_differ_only_inside_fold_band():

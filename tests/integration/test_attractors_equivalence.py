@@ -16,20 +16,19 @@ import math
 
 import numpy as np
 import pytest
+from attractor_checks import reference_attractors
 
-from gearsim.analysis import attractors as reference
-from gearsim.analysis import finder
-from gearsim.analysis.attractors import gear_steady
+from gearsim.analysis.attractors import FinderOptions, find_attractors, gear_steady
 from gearsim.cell import chains
-from gearsim.study.config import standard_parameters, study_settings
+from gearsim.study.config import Study
 
 N = 40
 
 
 @pytest.fixture(scope="module")
 def plane():
-    base = standard_parameters()
-    st = study_settings().with_(transient=400, transient_continuation=200)
+    base = Study.load().parameters().model
+    st = Study.load().settings.with_(transient=400, transient_continuation=200)
     ws = 0.1 + (np.arange(N) + 0.5) * 2.4 / N
     bs = (np.arange(N) + 0.5) / N
     rows = [[base.with_(w=float(w), b=float(b)) for w in ws] for b in bs]
@@ -37,9 +36,9 @@ def plane():
     cells = [c for r in rows for c in r]
     states = [x.final_state for r in res for x in r]
     motions = [gear_steady(x) for r in res for x in r]
-    new = finder.find_attractors_many(cells, starts=16, seed=0, settings=st,
-                                      forward_results=motions)  # fmt: skip
-    old = reference.find_attractors_many(cells, starts=16, seed=0, settings=st, forward=states)
+    opts = FinderOptions(starts=16, seed=0)
+    new = find_attractors(cells, opts, settings=st, forward_results=motions)
+    old = reference_attractors(cells, opts, st, forward=states)
     return cells, new, old
 
 

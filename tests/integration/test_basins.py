@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from reference import reference_settings
 
+from gearsim.analysis.attractors import FinderOptions
 from gearsim.analysis.basins import basin_grid, read_basin_grid, write_basin_grid
 from gearsim.cli.main import main
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
@@ -15,7 +16,7 @@ GEAR = reference_settings(method="rk4")
 def test_basin_grid_equals_full_length_runs_and_round_trips(tmp_path):
     p = ModelParameters(w=1.1, b=0.15, **REFERENCE)
     fast = basin_grid(p, n=10, settings=GEAR)
-    full = basin_grid(p, n=10, settings=GEAR, early=False)
+    full = basin_grid(p, n=10, settings=GEAR, options=FinderOptions(early=False))
     assert fast.labels.shape == (10, 10)
     assert len(fast.cell.attractors) == len(full.cell.attractors) >= 2
     assert np.array_equal(fast.labels, full.labels)

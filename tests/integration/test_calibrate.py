@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from test_landmarks import paper_like
+from sweep_tables import paper_like
 
 import gearsim.calibration.calibrate as cal
 import gearsim.calibration.standard as std

@@ -10,7 +10,7 @@ import yaml
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.cli.main import main
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.study.config import standard_parameters, study_settings
+from gearsim.study.config import Study
 
 
 def test_point_prints_pattern(capsys):
@@ -71,8 +71,8 @@ def test_point_json_names_source_and_settings(capsys):
     study = yaml.safe_load((project_root() / "config/config.yaml").read_text())["integration"]
     assert row["settings"] == study
     std = load_standard_parameters(project_root() / DEFAULT_STANDARD_PARAMETERS)
-    assert standard_parameters(w=0.48) == ModelParameters.from_mapping({**std, "w": 0.48})
-    assert study_settings() == IntegrationSettings(**study)
+    assert Study.load().parameters(w=0.48).model == ModelParameters.from_mapping({**std, "w": 0.48})
+    assert Study.load().settings == IntegrationSettings(**study)
 
 
 def test_point_configfile_is_merged_over_config_yaml(tmp_path, capsys):

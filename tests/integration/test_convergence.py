@@ -11,7 +11,7 @@ from reference import reference_settings
 
 from gearsim.cell.simulate import simulate_cell
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.study.config import study_settings
+from gearsim.study.config import Study
 
 REFERENCE_SET = dict(
     Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,
@@ -84,7 +84,7 @@ def test_recurrence_probe_keeps_every_label_of_the_set():
     multistability is not the probe's, docs in benchmarks/CHANGELOG.md (l).)"""
     from gearsim.cell.chains import simulate_rows
 
-    base = study_settings().with_(transient_recurrence=0)
+    base = Study.load().settings.with_(transient_recurrence=0)
     rows = [[ModelParameters(w=w, b=b, **REFERENCE_SET)] * 2 for w, b, _, _ in CELLS]
     off = simulate_rows(rows, settings=base)
     on = simulate_rows(rows, settings=base.with_(transient_recurrence=24))

@@ -19,7 +19,7 @@ from gearsim.calibration.targets import (
     sequence_distance,
     target_errors,
 )
-from gearsim.study.config import standard_parameters
+from gearsim.study.config import Study
 
 
 def perfect() -> Measured:
@@ -190,7 +190,7 @@ def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monke
     rec = json.loads((tmp_path / "single_dof.json").read_text())
     m = rec["measured"]
     # the same parameters, written out here (the search scale: Fm 0.1, b 1; the start shape)
-    p = standard_parameters().with_(model="1dof", Fm=0.1, Fe=0.17854, eps=0.3175,
+    p = Study.load().parameters().model.with_(model="1dof", Fm=0.1, Fe=0.17854, eps=0.3175,
                                          phi_e=math.radians(-41.59), xi=0.0609, friction=0.0,
                                          b=1.0)
     assert rec["best"] == {"Fe_over_Fm": 1.7854, "eps": 0.3175, "phi_e_deg": -41.59,

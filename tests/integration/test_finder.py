@@ -1,20 +1,25 @@
-"""The lane-pool attractor finder (gearsim.analysis.finder, gearsim.cell.pool.run_pool).
+"""The lane-pool attractor finder (gearsim.analysis.attractors.pool, gearsim.cell.pool.run_pool).
 
 - A job of the pool is its full-length run: parked and resumed at every chunk, a start gives
   the result of ``chains.simulate_cells`` from it, section points bit for bit.
 - The pool's early labels are the attractors of the full-length runs of every start (the
-  reference finder ``map_attractors`` with ``early=False``) on gear cells with 1-3 attractors,
+  recurrence mapper ``map_attractors`` with ``early=False``) on gear cells with 1-3 attractors,
   chaos included, with starts parked and resumed on the way.
 - A plane tile's row of a cell is a known attractor equal to its own run's.
 """
 
 import numpy as np
-from attractor_checks import assert_same_attractors_per_start
+from attractor_checks import assert_same_attractors_per_start, reference_attractors
 from reference import reference_settings
 
 from gearsim.analysis import attractors as ref
-from gearsim.analysis.attractors import gear_steady, same_attractor
-from gearsim.analysis.finder import find_attractors_many, steady_from_row
+from gearsim.analysis.attractors import (
+    FinderOptions,
+    find_attractors,
+    gear_steady,
+    same_attractor,
+    steady_from_row,
+)
 from gearsim.cell import chains
 from gearsim.cell.pool import MEASURE, PARK, PoolJob, PoolStats, run_pool
 from gearsim.dynamics.parameters import ModelParameters
@@ -98,8 +103,9 @@ def test_parked_jobs_are_their_full_length_runs_bit_for_bit():
 
 def test_pool_labels_equal_full_length_runs_of_every_start():
     stats = PoolStats()
-    fast = find_attractors_many(CELLS, starts=24, seed=7, settings=GEAR, stats=stats, lanes=64)
-    full = ref.find_attractors_many(CELLS, starts=24, seed=7, settings=GEAR, early=False)
+    opts = FinderOptions(starts=24, seed=7)
+    fast = find_attractors(CELLS, opts.with_(lanes=64), settings=GEAR, stats=stats)
+    full = reference_attractors(CELLS, opts.with_(early=False), GEAR)
     n_early = assert_same_attractors_per_start(fast, full)
     assert n_early >= 0.5 * 24 * len(CELLS)
     assert stats.parked > 0  # starts were parked while a runner of their cell ran
@@ -108,8 +114,9 @@ def test_pool_labels_equal_full_length_runs_of_every_start():
 
 
 def test_pool_without_early_labels_equals_the_reference_full_runs():
-    fast = find_attractors_many(CELLS[:3], starts=8, seed=2, settings=GEAR, early=False)
-    full = ref.find_attractors_many(CELLS[:3], starts=8, seed=2, settings=GEAR, early=False)
+    opts = FinderOptions(starts=8, seed=2, early=False)
+    fast = find_attractors(CELLS[:3], opts, settings=GEAR)
+    full = reference_attractors(CELLS[:3], opts, GEAR)
     for a, b in zip(fast, full, strict=True):
         assert not a.early.any()
         assert np.array_equal(a.start_labels, b.start_labels)
@@ -132,8 +139,8 @@ def test_tile_row_is_a_known_attractor():
     assert s.period == g.period and s.label == g.label
     assert np.array_equal(s.points, g.points[:, :2])
     assert same_attractor(s, g)
-    (ca,) = find_attractors_many([row[-1]], starts=8, seed=1, settings=GEAR,
-                                 forward=[r.final_state], forward_results=[s])  # fmt: skip
+    (ca,) = find_attractors([row[-1]], FinderOptions(starts=8, seed=1), settings=GEAR,
+                            forward=[r.final_state], forward_results=[s])  # fmt: skip
     k = ca.continuation["forward"]
     assert "forward" in ca.attractors[k].found_by
     assert ca.attractors[k].steady is s  # taken as it is: no run of the forward state
@@ -143,17 +150,18 @@ def test_continuation_reading_is_no_recurrence_target():
     """At w = 1.99, b = 0.375 (the study's standard set) the forward chain reads 1/5T after
     its continuation transient, while every start's full-length run ends on 1/1T: starts
     turning about the 1/1T motion match the 1/5T points and must not be labelled onto it."""
-    from gearsim.study.config import standard_parameters, study_settings
+    from gearsim.study.config import Study
 
-    base, st = standard_parameters(), study_settings()
+    base, st = Study.load().parameters().model, Study.load().settings
     ws = 0.1 + (np.arange(100) + 0.5) * 2.4 / 100
     chain = [base.with_(w=float(w), b=0.375) for w in ws]
     res = chains.simulate_rows([chain], settings=st)[0]
     pick = [78, 97]
     cells = [chain[i] for i in pick]
     known = [gear_steady(res[i]) for i in pick]
-    fast = find_attractors_many(cells, starts=16, seed=0, settings=st, forward_results=known)
-    full = ref.find_attractors_many(cells, starts=16, seed=0, settings=st, early=False)
+    opts = FinderOptions(starts=16, seed=0)
+    fast = find_attractors(cells, opts, settings=st, forward_results=known)
+    full = reference_attractors(cells, opts.with_(early=False), st)
     for a, b in zip(fast, full, strict=True):
         got = sorted((x.label, x.n_starts) for x in a.attractors if x.n_starts)
         assert got == sorted((x.label, x.n_starts) for x in b.attractors if x.n_starts)
@@ -167,7 +175,7 @@ def test_every_periodic_attractor_carries_the_floquet_margin_of_its_orbit():
     docs/decisions.md), far below the distance between distinct orbits' margins."""
     from gearsim.analysis.orbits import find_periodic_orbit
 
-    found = find_attractors_many(CELLS, starts=8, seed=5, settings=GEAR)
+    found = find_attractors(CELLS, FinderOptions(starts=8, seed=5), settings=GEAR)
     checked = 0
     for p, ca in zip(CELLS, found, strict=True):
         for a in ca.attractors:

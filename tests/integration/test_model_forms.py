@@ -39,7 +39,7 @@ from gearsim.dynamics.parameters import (
     mesh_mode_ratio,
 )
 from gearsim.numerics.batch import run_periods_batched
-from gearsim.study.config import standard_parameters
+from gearsim.study.config import Study
 
 ROOT = Path(__file__).resolve().parents[2]
 N_PER = 10  # mesh periods compared
@@ -251,7 +251,7 @@ def test_tangent_is_the_jacobian(name, region):
 
 
 def test_default_options_pack_exact_zeros():
-    p = standard_parameters().to_array()
+    p = Study.load().parameters().model.to_array()
     assert p[m.P_VTE] == 0.0 and p[m.P_XIO] == 0.0 and p[m.P_GAM1] == 0.0
 
 

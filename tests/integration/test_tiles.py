@@ -15,6 +15,7 @@ from gearsim.dynamics.parameters import ModelParameters
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
+from gearsim.study import schema as gschema
 from gearsim.study import tiles as gt
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,8 +34,9 @@ def _raw():
 
 def _error(config) -> str:
     with pytest.raises(gcfg.ConfigError) as exc:
-        gcfg.validate_schema(config)
-        gcfg.check_config(config)
+        gschema.validate_schema(config)
+        gschema.check_config(config, gcfg.study_root())
+        gcfg.Study.of(config)
     return str(exc.value)
 
 
@@ -53,7 +55,7 @@ def test_configs_load():
 def test_schema_integration_matches_settings():
     """The schema's integration keys are IntegrationSettings' fields, and its defaults are the
     study's (config/config.yaml), so a config file that leaves a key out gets the study's value."""
-    props = gcfg.load_schema()["properties"]["integration"]["properties"]
+    props = gschema.load_schema()["properties"]["integration"]["properties"]
     fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
     assert set(props) == fields
     study = _raw()["integration"]
@@ -64,7 +66,7 @@ def test_schema_integration_matches_settings():
 
 def test_schema_defaults_equal_config_yaml():
     """Every scalar setting config/config.yaml gives equals the schema's default."""
-    schema = gcfg.load_schema()["properties"]
+    schema = gschema.load_schema()["properties"]
     raw = _raw()
     for key in ("standard_parameters", "tile_rows"):
         assert schema[key]["default"] == raw[key], key
@@ -77,7 +79,7 @@ def test_schema_defaults_equal_config_yaml():
 def test_defaults_filled():
     cfg = {"planes": {"p": {"x": {"name": "w", "min": 0.5, "max": 1, "n": 4},
                             "y": {"name": "b", "min": 0, "max": 1, "n": 4}}}}
-    gcfg.validate_schema(cfg)
+    gschema.validate_schema(cfg)
     assert cfg["tile_rows"] == 80 and cfg["integration"]["method"] == "rk4"
     assert cfg["integration"]["transient_continuation"] == 40 and cfg["study"] is None
     assert cfg["planes"]["p"]["fixed"] == {} and cfg["cluster"]["scheduler_address"] is None
@@ -118,9 +120,9 @@ def test_new_plane_from_config_only():
                                "y": {"name": "xi", "min": 0.02, "max": 0.1, "n": 3},
                                "fixed": {"w": 1.2}}
     cfg["tile_rows"] = 2
-    cfg = gcfg.check_config(gcfg.validate_schema(cfg))
+    cfg = gschema.check_config(gschema.validate_schema(cfg), gcfg.study_root())
     assert ggrid.n_tiles({**cfg, "tile_rows": 2}, "eps_xi") == 2
-    specs = gt.row_specs({**cfg, "tile_rows": 2}, "eps_xi", 1)
+    specs = gt.row_specs(gcfg.Study.of({**cfg, "tile_rows": 2}), "eps_xi", 1)
     assert [s["j"] for s in specs] == [2]
     assert specs[0]["params"]["w"] == 1.2 and specs[0]["x_name"] == "eps"
 
@@ -143,28 +145,40 @@ def test_parameters_builtin_defaults_only_when_asked(tiny, tmp_path):
     cfg = copy.deepcopy(tiny)
     cfg["standard_parameters"] = str(tmp_path / "absent.yaml")
     with pytest.raises(gcfg.ConfigError, match=r"standard_parameters.*not found.*absent\.yaml"):
-        gcfg.base_parameters(cfg)  # a misspelled path is an error, never a silent fallback
+        gcfg.Study.of(cfg)  # a misspelled path is an error, never a silent fallback
     cfg["standard_parameters"] = None
-    values, source = gcfg.base_parameters(cfg)
-    assert source == "builtin-defaults" and values == {}
-    assert gcfg.resolved_parameters(cfg) == ModelParameters().to_dict()
+    p = gcfg.Study.of(cfg).parameters()
+    assert p.source == "builtin-defaults" and set(p.origin.values()) == {"default"}
+    assert p.model == ModelParameters()
     f = tmp_path / "sp.yaml"
     f.write_text("dimensionless:\n  xi: {value: 0.07, provenance: calibrated}\n")
     cfg["standard_parameters"] = str(f)
     cfg["parameters"] = {"eps": 0.3}
-    values, source = gcfg.base_parameters(cfg)
-    assert source == f"{f} + parameters eps=0.3" and values == {"xi": 0.07, "eps": 0.3}
-    prov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg)
+    study = gcfg.Study.of(cfg)
+    p = study.parameters(plane="wb")
+    assert p.source == f"{f} + parameters eps=0.3"
+    assert (p.model.xi, p.model.eps) == (0.07, 0.3)
+    assert p.origin["xi"] == str(f) and p.origin["eps"] == "parameters"
+    assert p.origin["b"] == "default"
+    assert all(p.origin[k] == "planes.wb.fixed" for k in cfg["planes"]["wb"].get("fixed", {}))
+    changed = study.parameters(plane="wb", words="--set xi=0.05", xi=0.05)
+    assert changed.model.xi == 0.05 and changed.origin["xi"] == "--set xi=0.05"
+    assert changed.source == f"{f} + parameters eps=0.3 + --set xi=0.05"
+    prov = gprov.provenance(gprov.plane_subtree(study, "wb"), kind="tile", name="wb", study=study)
     assert prov["parameters_source"] == f"{f} + parameters eps=0.3"
+    with pytest.raises(AttributeError):
+        study.root = tmp_path  # frozen
+    with pytest.raises(TypeError):
+        study.config["tile_rows"] = 3  # read-only
 
 
 def test_hashes_track_the_plane_subtree(tiny):
-    a = gprov.config_hash(gprov.plane_subtree(tiny, "wb"))
+    a = gprov.config_hash(gprov.plane_subtree(gcfg.Study.of(tiny), "wb"))
     cfg = copy.deepcopy(tiny)
     cfg["planes"]["wxi"]["fixed"] = {"b": 0.5}
-    assert gprov.config_hash(gprov.plane_subtree(cfg, "wb")) == a
-    assert gprov.config_hash(gprov.plane_subtree(cfg, "wxi")) != gprov.config_hash(
-        gprov.plane_subtree(tiny, "wxi")
+    assert gprov.config_hash(gprov.plane_subtree(gcfg.Study.of(cfg), "wb")) == a
+    assert gprov.config_hash(gprov.plane_subtree(gcfg.Study.of(cfg), "wxi")) != gprov.config_hash(
+        gprov.plane_subtree(gcfg.Study.of(tiny), "wxi")
     )
     assert gprov.code_version() == gprov.code_version() and len(gprov.code_version()) == 16
 
@@ -173,11 +187,11 @@ def test_row_is_a_continuation_chain(tiny):
     """A tile row equals simulate_cell run cell by cell with continuation."""
     cfg = copy.deepcopy(tiny)
     cfg["planes"]["wb"]["x"]["n"] = 4
-    df = gt.run_tile(cfg, "wb", 0, client=None)
+    df = gt.run_tile(gcfg.Study.of(cfg), "wb", 0, client=None)
     assert len(df) == 4 * 4 and list(df.columns[:8]) == ["plane", "tile", "i", "j", "x", "y",
                                                          "w", "b"]
     settings = gcfg.integration_settings(cfg)
-    base = gcfg.plane_base(cfg, "wb")
+    base = gcfg.Study.of(cfg).parameters(plane="wb").model
     row = df[df.j == 2].sort_values("i")
     u0, start = None, 0
     for _, c in row.iterrows():
@@ -200,10 +214,10 @@ def test_rk4_tiles_use_the_batched_kernel(tiny):
     cfg["integration"].update(transient=150, transient_continuation=16, chunk=24,
                               max_periods=256, n_max=64)
     cfg["planes"]["wb"]["x"]["n"] = 5
-    df = gt.run_tile(cfg, "wb", 1, client=None)
+    df = gt.run_tile(gcfg.Study.of(cfg), "wb", 1, client=None)
     assert len(df) == 5 * 4 and list(df["j"].unique()) == [4, 5, 6, 7]
     settings = gcfg.integration_settings(cfg)
-    base = gcfg.plane_base(cfg, "wb")
+    base = gcfg.Study.of(cfg).parameters(plane="wb").model
     for j in (4, 7):
         row = df[df.j == j].sort_values("i")
         ref = continuation_chain([base.with_(w=c.w, b=c.b) for c in row.itertuples()],
@@ -233,8 +247,8 @@ def test_tile_records_do_not_depend_on_the_worker_split(tiny, tmp_path, capsys):
     for plane in ("wb", "wxi"):
         cfg["planes"][plane]["y"]["n"] = 16
     cfg["planes"]["wb"]["x"]["n"] = 6
-    whole = gt.run_tile(cfg, "wb", 0, client=None)
-    specs = gt.row_specs(cfg, "wb", 0)
+    whole = gt.run_tile(gcfg.Study.of(cfg), "wb", 0, client=None)
+    specs = gt.row_specs(gcfg.Study.of(cfg), "wb", 0)
     groups = gt.row_groups(specs, 2)
     assert [len(g) for g in groups] == [8, 8]
     split = gt.records_to_frame([r for g in groups for r in gt.simulate_rows_batched(g)])

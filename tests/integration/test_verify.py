@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from gearsim.analysis.attractors import find_attractors, n_real
+from gearsim.analysis.attractors import FinderOptions, find_attractors, n_real
 from gearsim.analysis.orbits import find_periodic_orbit
 from gearsim.cell.classify import candidate_periods, settle_estimate
 from gearsim.cell.simulate import IntegrationSettings, simulate_cell
@@ -124,7 +124,7 @@ def test_one_orbit_next_to_the_doubling_is_one_attractor(standard):
     ``gearsim orbit``."""
     p = standard.with_(w=1.003, b=0.9)
     st = IntegrationSettings(method="rk4", steps_per_period=192)
-    ca = find_attractors(p, starts=16, settings=st)
+    ca = find_attractors(p, FinderOptions(starts=16), settings=st)
     assert n_real(ca) == 1
     a = ca.attractors[0]
     assert a.label == "1/1T" and a.steady.info["refined"]
@@ -140,9 +140,9 @@ def test_margin_of_plane_cells_equals_gearsim_orbit(standard):
     differs from the flow by more (docs/decisions.md, "Floquet margin of every cell")."""
     from gearsim.cell.chains import simulate_rows
     from gearsim.cell.verify import fill_margins
-    from gearsim.study.config import study_settings
+    from gearsim.study.config import Study
 
-    st = study_settings().with_(floquet="margin")
+    st = Study.load().settings.with_(floquet="margin")
     ws = np.linspace(1.0, 2.4, 36)
     rows = [[standard.with_(w=float(w), b=b) for w in ws] for b in (0.3, 0.7)]
     res = [r for row in simulate_rows(rows, settings=st) for r in row]
@@ -158,9 +158,9 @@ def test_margin_of_plane_cells_equals_gearsim_orbit(standard):
 
 @pytest.fixture(scope="module")
 def standard():
-    from gearsim.study.config import standard_parameters
+    from gearsim.study.config import Study
 
-    return standard_parameters()
+    return Study.load().parameters().model
 
 
 def test_refine_threshold_is_below_the_merge_tolerance():
@@ -190,9 +190,9 @@ def test_labels_next_to_bifurcations_agree_with_long_simulations(standard, monke
     a periodic label is the long run's (cells at a bifurcation excepted: there the two sides
     are one grid step apart and both labels are readings of the same critical orbit)."""
     from gearsim.cell.chains import simulate_cells
-    from gearsim.study.config import study_settings
+    from gearsim.study.config import Study
 
-    st = study_settings()
+    st = Study.load().settings
     cells = []
     for w, b, xi in NEAR_BIFURCATIONS:
         ch = {"w": w} | ({"b": b} if b is not None else {}) | ({"xi": xi} if xi else {})
@@ -286,9 +286,9 @@ def test_sweep_passage_next_to_a_saddle_is_labelled_by_where_it_goes(standard, m
     start (the cell's continuation state), no refinement."""
     import gearsim.cell.verify as verify
     from gearsim.cell.chains import simulate_rows
-    from gearsim.study.config import study_settings
+    from gearsim.study.config import Study
 
-    st = study_settings()
+    st = Study.load().settings
     ws = np.round(np.arange(1.300, 1.3405, 0.002), 3)
     cells = [standard.with_(xi=0.15, w=float(w)) for w in ws]
     left = [verify.follow_motion]
@@ -331,9 +331,9 @@ def test_sweep_window_without_period_or_orbit_is_followed(standard, monkeypatch)
     window is a passage, and 4 000 periods on it is the reference's 1/1T."""
     import gearsim.cell.verify as verify
     from gearsim.cell.chains import simulate_rows
-    from gearsim.study.config import study_settings
+    from gearsim.study.config import Study
 
-    st = study_settings()
+    st = Study.load().settings
     ws = np.linspace(0.1, 2.5, 1201)
     ws = ws[(ws > 0.6) & (ws < 0.697)]
     cells = [standard.with_(xi=0.15, w=float(w)) for w in ws]

@@ -18,6 +18,7 @@ from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
 from gearsim.study import tiles as gt
 from gearsim.study.audit import audit_frame
+from gearsim.study.config import Study
 from gearsim.study.provenance import plane_record
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,24 +35,26 @@ def small(tmp_path_factory):
     cfg["tile_rows"] = 2
     files = []
     for t in ggrid.tile_ids(cfg, "wb"):
-        df = gt.run_tile(cfg, "wb", t)
-        prov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="tile", name="wb", config=cfg,
-                             tile=t, started=gc.now_iso(), finished=gc.now_iso(), wall_s=1.0,
-                             cells=len(df), workers="in-process")
+        df = gt.run_tile(Study.of(cfg), "wb", t)
+        study = Study.of(cfg)
+        prov = gprov.provenance(gprov.plane_subtree(study, "wb"), kind="tile", name="wb",
+                                study=study, tile=t, started=gc.now_iso(),
+                                finished=gc.now_iso(), wall_s=1.0, cells=len(df),
+                                workers="in-process")
         files.append(gc.write_parquet(df, d / f"tiles/{t}.parquet", {gc.PROVENANCE_KEY: prov}))
-    cells = gc.combine_tiles(files, d / "cells.parquet", plane_record(cfg, "wb"))
+    cells = gc.combine_tiles(files, d / "cells.parquet", plane_record(Study.of(cfg), "wb"))
     from gearsim.dynamics.parameters import ModelParameters
     from gearsim.study.sweeps import sweep_frame
 
     sw = sweep_frame(ModelParameters(b=0.15), "w", np.array([0.5, 1.0, 1.5]), "forward",
                      gcfg.integration_settings(cfg))
-    sprov = gprov.provenance(gprov.sweep_subtree(cfg, "b015"), kind="sweep", name="b015",
-                             config=cfg)
+    sprov = gprov.provenance(gprov.sweep_subtree(Study.of(cfg), "b015"), kind="sweep", name="b015",
+                             study=Study.of(cfg))
     sweep = gc.write_parquet(sw, d / "sweeps/b015.parquet", {gc.PROVENANCE_KEY: sprov})
     cfg["audit"]["fraction"] = 0.25
-    aud = audit_frame(cfg, "wb", pd.read_parquet(cells))
-    aprov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="audit", name="wb", config=cfg,
-                          audit_seed=1)
+    aud = audit_frame(Study.of(cfg), "wb", pd.read_parquet(cells))
+    aprov = gprov.provenance(gprov.plane_subtree(Study.of(cfg), "wb"), kind="audit", name="wb",
+                             study=Study.of(cfg), audit_seed=1)
     audit = gc.write_parquet(aud, d / "audit.parquet", {gc.PROVENANCE_KEY: aprov})
     db = d / "catalogue.sqlite"
     counts = gc.build_catalogue(db, [cells], [sweep], [audit])
@@ -64,7 +67,8 @@ def test_tile_provenance(small):
     for key in ("config_hash", "code_version", "package_versions", "tangent_seed",
                 "parameters_source", "started", "finished"):
         assert key in prov, key
-    assert prov["config_hash"] == gprov.config_hash(gprov.plane_subtree(small["cfg"], "wb"))
+    subtree = gprov.plane_subtree(Study.of(small["cfg"]), "wb")
+    assert prov["config_hash"] == gprov.config_hash(subtree)
     assert prov["code_version"] == gprov.code_version()
     assert {"numpy", "numba", "dask", "pyarrow"} <= set(prov["package_versions"])
     assert prov["tile"] == 1
@@ -193,7 +197,7 @@ def test_sweep_parameters_are_the_values_used(small):
     assert name == "b015" and fixed == {"b": 0.15}
     assert params["b"] == 0.15
     assert "w" not in params  # the swept parameter is in sweep_points.value
-    base = gcfg.resolved_parameters(small["cfg"])
+    base = Study.of(small["cfg"]).parameters().model.to_dict()
     assert base["b"] != 0.15
     assert {k: v for k, v in params.items() if k != "b"} == {
         k: v for k, v in base.items() if k not in ("b", "w")}

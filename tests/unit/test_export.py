@@ -23,6 +23,7 @@ from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
 from gearsim.study import tiles as gt
+from gearsim.study.config import Study
 from gearsim.study.provenance import plane_record
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -46,7 +47,7 @@ def db(tmp_path_factory):
             df.loc[k, "lyapunov"] = 0.05
             df.loc[k, "dc"] = np.nan
         tiles.append(write_tile(cfg, "wb", t, d / f"{t}.parquet", df=df))
-    cells = gc.combine_tiles(tiles, d / "cells.parquet", plane_record(cfg, "wb"))
+    cells = gc.combine_tiles(tiles, d / "cells.parquet", plane_record(Study.of(cfg), "wb"))
     out = d / "catalogue.sqlite"
     gc.build_catalogue(out, [cells])
     return out
@@ -173,12 +174,13 @@ def test_simulated_plane_round_trips_through_netcdf(tmp_path):
     cfg["planes"]["wb"]["x"]["n"], cfg["planes"]["wb"]["y"]["n"] = 3, 4
     tiles = []
     for t in ggrid.tile_ids(cfg, "wb"):
-        df = gt.run_tile(cfg, "wb", t)
+        df = gt.run_tile(Study.of(cfg), "wb", t)
         rows = ggrid.tile_rows(cfg, "wb", t)
-        prov = gprov.provenance(gprov.plane_subtree(cfg, "wb"), kind="tile", name="wb",
-                                config=cfg, tile=t, rows=[rows.start, rows.stop], cells=len(df))
+        prov = gprov.provenance(gprov.plane_subtree(Study.of(cfg), "wb"), kind="tile", name="wb",
+                                study=Study.of(cfg), tile=t, rows=[rows.start, rows.stop],
+                                cells=len(df))
         tiles.append(gc.write_parquet(df, tmp_path / f"{t}.parquet", {gc.PROVENANCE_KEY: prov}))
-    cells = gc.combine_tiles(tiles, tmp_path / "cells.parquet", plane_record(cfg, "wb"))
+    cells = gc.combine_tiles(tiles, tmp_path / "cells.parquet", plane_record(Study.of(cfg), "wb"))
     db = tmp_path / "catalogue.sqlite"
     gc.build_catalogue(db, [cells])
     assert main(["export", "--catalogue", str(db), "--plane", "wb", "--out",

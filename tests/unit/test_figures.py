@@ -20,6 +20,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 from reference import reference_settings
+from sweep_tables import synthetic_sweep
 
 from gearsim.cell.classify import Classification  # noqa: E402
 from gearsim.cell.simulate import CellResult, Trajectory  # noqa: E402
@@ -35,44 +36,6 @@ TINY = reference_settings(rtol=1e-7, atol=1e-10, transient=20, transient_continu
 
 
 # ------------------------------------------------------------------------------ synthetic data
-def _row(value, motion, I, n, p, q, dc, xs, **extra):
-    label = f"{I}/{n}T" if motion == "periodic" else motion
-    return {
-        "parameter": "w", "value": value, "direction": "forward", "motion": motion,
-        "status": "ok", "I": I, "n": n if motion == "periodic" else 0,
-        "p": p if motion == "periodic" else None, "q": q if motion == "periodic" else None,
-        "label": label, "label_npq": f"{n}-{p}-{q}" if motion == "periodic" else "",
-        "dc": dc, "kmax": 1.0 + dc, "kmax_peak_mean": 2 + dc, "kmax_peak_static": 1.0 + dc,
-        "kmax_section_mean": 1.0, "kmax_section_static": 0.5, "kmin_peak_mean": 0.0,
-        "lyapunov": 0.1 if motion == "chaos" else -0.1, "x_min": min(xs) - 0.1,
-        "x_max": max(xs) + 0.1, "converged": True, "window_periods": 32, "periods": 100,
-        "steps": 1000, "poincare_x": list(xs), "poincare_v": [0.1 * x for x in xs], **extra,
-    }
-
-
-def synthetic_sweep(n: int = 24) -> pd.DataFrame:
-    """0/1T -> 1/1T (grazing) -> jump -> 1/2T (PD) -> chaos -> 1/2T -> 1/1T, plus some I = 2."""
-    rows = []
-    rng = np.random.default_rng(0)
-    for k, w in enumerate(np.linspace(0.1, 2.5, n)):
-        f = k / (n - 1)
-        if f < 0.2:
-            rows.append(_row(w, "periodic", 0, 1, 0, 0, 0.0, [1.1]))
-        elif f < 0.3:
-            rows.append(_row(w, "periodic", 1, 1, 1, 0, 0.05, [1.0]))
-        elif f < 0.45:
-            rows.append(_row(w, "periodic", 1, 1, 1, 0, 0.6, [0.8]))
-        elif f < 0.55:
-            rows.append(_row(w, "periodic", 1, 2, 2, 0, 0.5, [0.7, 0.9]))
-        elif f < 0.7:
-            rows.append(_row(w, "chaos", 1, 0, 0, 0, 0.55, list(rng.uniform(0.4, 1.0, 20))))
-        elif f < 0.8:
-            rows.append(_row(w, "periodic", 2, 2, 2, 1, 0.3, [0.2, -0.3]))
-        else:
-            rows.append(_row(w, "periodic", 1, 1, 1, 0, 0.35, [0.95]))
-    return pd.DataFrame(rows)
-
-
 def synthetic_plane(yname: str = "b", nx: int = 10, ny: int = 6) -> pd.DataFrame:
     sweep = synthetic_sweep(nx)
     rows = []

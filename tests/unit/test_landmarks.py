@@ -2,10 +2,10 @@
 
 import math
 
-import numpy as np
 import pandas as pd
 import pytest
 from reference import reference_settings
+from sweep_tables import paper_like, row
 
 from gearsim.analysis.landmarks import (
     find_landmarks,
@@ -15,42 +15,6 @@ from gearsim.analysis.landmarks import (
     refine_landmarks,
 )
 from gearsim.analysis.paper import PAPER_LANDMARKS
-
-
-def row(w, npq=None, motion="periodic", I=None, dc=0.0, kmax=1.0):
-    if npq is not None:
-        n, p, q = (int(v) for v in npq.split("-"))
-        I = I if I is not None else (2 if p and q else 1 if p else -1 if q else 0)
-        label = f"{I}/{n}T"
-    else:
-        n, p, q, I, label, npq = 0, None, None, 1 if I is None else I, motion, ""
-    return {"value": w, "motion": motion, "I": I, "n": n, "p": p, "q": q, "label": label,
-            "label_npq": npq, "dc": dc, "kmax_peak_static": kmax, "kmax_peak_mean": 2 * kmax,
-            "kmax_section_mean": kmax, "kmax_section_static": kmax}
-
-
-def paper_like(w0=0.0, quasi_at=None):
-    """A sweep with every landmark of the paper, each between two 0.01-spaced values."""
-    seq = [
-        (0.50, "1-0-0", 0.0), (0.56, "1-1-0", 0.05), (0.65, "1-1-0", 0.66), (0.98, "2-2-0", 0.6),
-        (1.07, "2-1-0", 0.5), (1.33, "4-2-0", 0.6), (1.35, "4-3-0", 0.6), (1.37, "8-6-0", 0.6),
-        (1.39, "chaos", 0.7), (1.64, "8-6-0", 0.6), (1.67, "4-3-0", 0.6), (1.71, "2-2-0", 0.5),
-        (1.86, "1-1-0", 0.4),
-    ]
-    rows = []
-    ws = np.round(np.arange(0.50, 2.0, 0.01) + w0, 4)
-    for w in ws:
-        cur = [s for s in seq if s[0] <= w + 1e-9][-1]
-        dc = cur[2]
-        if cur[1] == "1-1-0" and cur[0] == 0.56:
-            dc = 0.05 + (w - 0.56)  # DC grows before the jump
-        if cur[1] == "chaos":
-            rows.append(row(w, motion="chaos", dc=dc))
-        elif quasi_at is not None and abs(w - quasi_at) < 1e-9:
-            rows.append(row(w, motion="quasi-periodic", dc=dc))
-        else:
-            rows.append(row(w, cur[1], dc=dc))
-    return pd.DataFrame(rows)
 
 
 def test_every_kind_found_in_order():

@@ -66,9 +66,9 @@ def test_one_byte_in_a_deciding_module_changes_every_version(copy_of_package, re
         ("calibration/fidelity.py", ("tiles", "analysis", "catalogue"),
          ("calibration", "presentation")),
         ("cli/commands/figures.py", tuple(gprov.CODE_SCOPES), ()),
-        ("analysis/attractors.py", ("tiles",),
+        ("analysis/attractors/api.py", ("tiles",),
          ("attractors", "analysis", "catalogue", "presentation")),
-        ("analysis/finder.py", ("tiles",), ("attractors", "analysis")),
+        ("analysis/attractors/pool.py", ("tiles",), ("attractors", "analysis")),
         ("analysis/bifcurves.py", ("tiles", "attractors"), ("analysis", "presentation")),
         ("results/catalogue.py", ("tiles", "analysis"), ("catalogue", "presentation")),
     ],
@@ -109,11 +109,11 @@ def test_a_scope_that_loses_its_modules_is_refused(copy_of_package, monkeypatch)
     with pytest.raises(ValueError, match="analysis/gone"):
         gprov.code_version("probe", copy_of_package)
     monkeypatch.setitem(gprov.CODE_SCOPES, "probe",
-                        (*gprov.SIMULATION, "analysis/gone", "analysis/finder"))
+                        (*gprov.SIMULATION, "analysis/gone", "analysis/basins"))
     files = {f.relative_to(copy_of_package).as_posix()
              for f in gprov.code_files("probe", copy_of_package)}
-    assert {"analysis/finder.py", "analysis/__init__.py"} <= files
-    assert not any(f.startswith("analysis/") and f not in ("analysis/finder.py",
+    assert {"analysis/basins.py", "analysis/__init__.py"} <= files
+    assert not any(f.startswith("analysis/") and f not in ("analysis/basins.py",
                    "analysis/__init__.py") for f in files)
     monkeypatch.setitem(gprov.CODE_SCOPES, "probe", ("nolayer",))
     with pytest.raises(ValueError, match="nolayer"):

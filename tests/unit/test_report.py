@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 import pytest
-from test_landmarks import paper_like, row
+from sweep_tables import paper_like, row
 
 from gearsim.cli.main import main
 from gearsim.presentation.report import (
@@ -12,8 +12,8 @@ from gearsim.presentation.report import (
     double_sided_rows,
     not_period_one,
     row_threshold,
-    to_markdown,
 )
+from gearsim.presentation.report_markdown import to_markdown
 
 
 def plane_wb(threshold=0.41):
@@ -218,7 +218,8 @@ def test_verified_motions_table_counts_each_plane():
     import numpy as np
     import pandas as pd
 
-    from gearsim.presentation.report import verified_lines, verified_summary
+    from gearsim.presentation.report import verified_summary
+    from gearsim.presentation.report_markdown import verified_lines
 
     cells = pd.DataFrame({
         "n": [1, 1, 2, 0, 1, 0],

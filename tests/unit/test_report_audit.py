@@ -2,7 +2,9 @@
 
 import pandas as pd
 
-from gearsim.presentation.report import Report, load_audits, to_markdown
+from gearsim.presentation.report import Report
+from gearsim.presentation.report_inputs import load_audits
+from gearsim.presentation.report_markdown import to_markdown
 from gearsim.results.catalogue import PROVENANCE_KEY, write_parquet
 
 

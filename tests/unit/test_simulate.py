@@ -7,7 +7,7 @@ from reference import reference_settings
 from gearsim.cell.simulate import IntegrationSettings, result_columns, simulate_cell
 from gearsim.cell.sweep import continuation_chain, orbit_diagram
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.study.config import study_settings
+from gearsim.study.config import Study
 
 
 def test_early_stop_for_period_one_and_full_budget_for_chaos():
@@ -213,10 +213,10 @@ def test_audit_tighten_bad_value_is_one_config_error_and_sets_the_dp5_reference(
     with pytest.raises(ConfigError, match="tighten"):
         study_config([f])
     cfg = study_config()
-    st = study_settings(cfg)
+    st = Study.of(cfg).settings
     for k in (1, 10, 100):
-        ref = audit_settings({**cfg, "audit": {**cfg["audit"], "tighten": k}})
+        ref = audit_settings(Study.of({**cfg, "audit": {**cfg["audit"], "tighten": k}}))
         assert ref.method == "dp5" and ref.rtol == st.rtol / k and ref.hmax == st.hmax / 2
     t = st.with_(method="dp5").tightened()
-    ref = audit_settings({**cfg, "audit": {**cfg["audit"], "tighten": 100}})
+    ref = audit_settings(Study.of({**cfg, "audit": {**cfg["audit"], "tighten": 100}}))
     assert (ref.rtol, ref.atol, ref.hmax) == (t.rtol, t.atol, t.hmax)

@@ -8,7 +8,7 @@ import json
 import matplotlib
 import numpy as np
 import pytest
-from test_figures import synthetic_sweep
+from sweep_tables import synthetic_sweep
 
 from gearsim.cli.main import main
 from gearsim.presentation.figures.sweeps import figure_sweep_diagram

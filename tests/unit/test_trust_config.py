@@ -168,7 +168,7 @@ def test_alias_bomb_as_configfile_and_params(tmp_path):
 
 def test_builtin_defaults_only_with_explicit_null(tmp_path):
     cfg = gcfg.study_config([TINY, _write(tmp_path, {"standard_parameters": None})], root=ROOT)
-    assert gcfg.base_parameters(cfg)[1] == "builtin-defaults"
+    assert gcfg.Study.of(cfg, ROOT).parameters().source == "builtin-defaults"
 
 
 def test_subnormal_and_nonfinite_values_refused_everywhere():

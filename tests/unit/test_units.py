@@ -293,7 +293,7 @@ def test_pipeline_config_in_physical_units_converts_in_place():
 
 def test_torque_sweep_study_example_loads_in_dimensionless_units(tmp_path, capsys):
     """config/torque_sweep.yaml (the README's example) through the pipeline's config loader."""
-    from gearsim.study.config import ConfigError, base_parameters, study_config
+    from gearsim.study.config import ConfigError, Study, study_config
 
     config = study_config([ROOT / "config/torque_sweep.yaml"], root=ROOT)
     assert config["study"] == "torque" and list(config["sweeps"]) == ["torque"]
@@ -304,9 +304,9 @@ def test_torque_sweep_study_example_loads_in_dimensionless_units(tmp_path, capsy
     assert (sw["min"], sw["max"]) == (pytest.approx(2 * k_t, rel=1e-12),
                                       pytest.approx(40 * k_t, rel=1e-12))
     assert sw["fixed"] == {"w": pytest.approx(12000 * k_rpm, rel=1e-12)}
-    values, source = base_parameters(config, ROOT)
-    assert source == "gear file config/gears/standard.yaml"
-    assert values == GearGeometry().to_model_parameters().to_dict()
+    p = Study.of(config, ROOT).parameters()
+    assert p.source == "gear file config/gears/standard.yaml"
+    assert p.model.to_dict() == GearGeometry().to_model_parameters().to_dict()
     # physical units without a gear file, or a bad gear file: one line naming the key
     bad = tmp_path / "bad.yaml"
     bad.write_text("study: mine\nsweeps:\n  t: {name: torque_Nm, min: 1, max: 2, n: 3}\n")
@@ -319,7 +319,7 @@ def test_torque_sweep_study_example_loads_in_dimensionless_units(tmp_path, capsy
     # a sweep's frame: 'value' is the swept parameter; the rest from the sweep's base set
     frame = pd.DataFrame({"parameter": ["Fm", "Fm"], "value": [2 * k_t, 40 * k_t],
                           "kmax_peak_mean": [2.0, 1.1]})
-    base = ModelParameters.from_mapping({**values, **sw["fixed"]})
+    base = Study.of(config, ROOT).parameters(sweep="torque").model
     phys = units.physical_columns(frame, GearGeometry(), base)
     np.testing.assert_allclose(phys["torque_Nm"], [2.0, 40.0], rtol=1e-12)
     np.testing.assert_allclose(phys["speed_rpm"], [12000.0, 12000.0], rtol=1e-12)

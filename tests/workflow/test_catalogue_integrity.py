@@ -76,7 +76,8 @@ def study(tmp_path_factory):
     cfg = gcfg.load_config([config_yaml, ROOT / "config/tiny.yaml", cfg_file], root=ROOT)
     tiles = {p: [write_tile(cfg, p, t, d / p / f"{t}.parquet") for t in ggrid.tile_ids(cfg, p)]
              for p in ("wb", "wxi")}
-    cells = {p: gc.combine_tiles(tiles[p], d / p / "cells.parquet", plane_record(cfg, p))
+    study = gcfg.Study.of(cfg)
+    cells = {p: gc.combine_tiles(tiles[p], d / p / "cells.parquet", plane_record(study, p))
              for p in ("wb", "wxi")}
     conf = ["--configfile", config_yaml, ROOT / "config/tiny.yaml", cfg_file]
     return {"dir": d, "cfg": cfg, "tiles": tiles, "cells": cells, "conf": conf}
@@ -337,7 +338,7 @@ def test_catalogue_stays_valid_through_rebuilds(study, tmp_path):
         big_cfg["tile_rows"] = 100
         big_tiles = [write_tile(big_cfg, "wb", t, tmp_path / f"big/{t}.parquet") for t in (0, 1)]
         big = gc.combine_tiles(big_tiles, tmp_path / "big/cells.parquet",
-                               plane_record(big_cfg, "wb"))
+                               plane_record(gcfg.Study.of(big_cfg), "wb"))
         proc = subprocess.Popen(_build_cmd([big], build, pub), env=env,
                                 stderr=subprocess.DEVNULL)
         deadline = time.monotonic() + 60

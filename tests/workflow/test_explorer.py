@@ -7,6 +7,7 @@ under the test's tmp dir (path printed)."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
@@ -25,6 +26,7 @@ from gearsim.presentation.explorer import (
     Block,
     array_of,
     decode_block,
+    json_of,
     plane_from_cells,
     plane_payload,
     quantised_of,
@@ -82,6 +84,20 @@ def test_block_round_trips_within_half_a_step():
     assert enc["step"] == pytest.approx(np.ptp(v[ok]) / (MISSING - 1))
     q = quantised_of(raw, enc)
     assert q.max() == MISSING and np.array_equal(q == MISSING, ~ok)
+
+
+def test_attractor_lines_round_trip_in_the_block():
+    """The attractor lines of the searched cells travel as JSON text inside the compressed
+    block (not beside it): the same lines back, and gzip packs them to a fraction."""
+    lines = {str(k): [f"#0 1/1T (1-1-0), basin {k % 100}.0 %, DC 0.{k:04d}",
+                      "#1 2/2T (2-2-1), basin 37.5 %, λ -0.01234"] for k in range(3000)}
+    block = Block()
+    enc = block.add_json(lines)
+    assert set(enc) == {"json"}
+    encoded = block.encoded()
+    assert json_of(decode_block(encoded), enc) == lines
+    text = len(json.dumps(lines, ensure_ascii=False).encode())
+    assert len(encoded) < text / 4  # base64 of gzip: a quarter of the text or less
 
 
 def test_payload_of_a_plane(page):

@@ -112,7 +112,7 @@ def study(tmp_path_factory):
     files = [ROOT / "config/config.yaml", ROOT / "config/tiny.yaml", d / "study.yaml"]
     cfg = gcfg.load_config(files, root=ROOT)
     tiles = [write_tile(cfg, "wb", t, d / f"{t}.parquet") for t in ggrid.tile_ids(cfg, "wb")]
-    cells = gc.combine_tiles(tiles, d / "cells.parquet", plane_record(cfg, "wb"))
+    cells = gc.combine_tiles(tiles, d / "cells.parquet", plane_record(gcfg.Study.of(cfg), "wb"))
     cat = d / "catalogue.sqlite"
     gc.build_catalogue(cat, [cells])
     return {"dir": d, "cfg": cfg, "files": files, "tiles": tiles, "cells": cells, "cat": cat}
@@ -244,7 +244,7 @@ def test_damaged_catalogue_is_refused_by_readers(tmp_path, gearsim, study, how, 
 
 def test_report_refuses_a_damaged_catalogue(tmp_path, study):
     """No silent fallback to the Parquet cells: the report stops on a damaged catalogue."""
-    from gearsim.presentation.report import load_plane
+    from gearsim.presentation.report_inputs import load_plane
 
     db = tmp_path / "catalogue.sqlite"
     db.write_bytes(os.urandom(100_000))
@@ -518,7 +518,7 @@ def test_plane_of_diverged_cells_skips_its_curves(tmp_path, gearsim, study):
             ("skipped",), ("skipped",)]
     finally:
         con.close()
-    from gearsim.presentation.report import load_curve_status
+    from gearsim.presentation.report_inputs import load_curve_status
 
     lines = load_curve_status(tmp_path, ["wb"])
     assert lines == [f"plane wb: {prov['reasons'][0]}"]

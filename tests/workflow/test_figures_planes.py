@@ -13,7 +13,9 @@ from tiny_study import CONFIGS, tiny_study
 from workflow_helpers import make_workdir, smk
 
 from gearsim.cli.main import main
-from gearsim.presentation.report import analyse, load_plane, to_markdown
+from gearsim.presentation.report import analyse
+from gearsim.presentation.report_inputs import load_plane
+from gearsim.presentation.report_markdown import to_markdown
 from gearsim.results.catalogue import CatalogueError
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk, targets
+from workflow_helpers import ROOT, SNAKEMAKE, _env, job_counts, make_workdir, smk, targets
 
 from gearsim.cell.simulate import simulate_cell
 from gearsim.study import config as gcfg
@@ -21,17 +21,6 @@ from gearsim.study import config as gcfg
 PIPELINE_RULES = {"compile", "simulate_tile", "plane_cells", "audit", "sweep", "points",
                   "catalogue"}
 PIPELINE_FILES = ("Snakefile", "common.smk", "planes.smk", "sweeps.smk", "points.smk")
-
-
-def job_counts(output: str) -> dict[str, int]:
-    counts: dict[str, int] = {}
-    block = output.split("Job stats:", 1)[1] if "Job stats:" in output else ""
-    for line in block.splitlines()[3:]:
-        parts = line.split()
-        if len(parts) != 2 or not parts[1].isdigit():
-            break
-        counts[parts[0]] = int(parts[1])
-    return counts
 
 
 def planned_outputs(output: str) -> set[str]:
@@ -170,7 +159,7 @@ def test_end_to_end_tiny(tiny_run):
     for plane in ("wb", "wxi"):
         df = pd.read_parquet(wd / f"results/{plane}/cells.parquet")
         assert len(df) == 64 and {"poincare_x", "poincare_v"} <= set(df.columns)
-        base = gcfg.plane_base(cfg, plane, root=wd)
+        base = gcfg.Study.of(cfg, wd).parameters(plane=plane).model
         pl = cfg["planes"][plane]
         for k in rng.choice(len(df), size=3, replace=False):
             c = df.iloc[k]

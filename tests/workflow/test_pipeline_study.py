@@ -5,13 +5,11 @@ results/ of the paper's study; the same content under another file name re-runs 
 from __future__ import annotations
 
 import sqlite3
-import subprocess
 
 import pandas as pd
 import pytest
 import yaml
-from test_pipeline import job_counts
-from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir
+from workflow_helpers import job_counts, make_workdir, smk_in
 
 from gearsim.study import config as gcfg
 
@@ -36,17 +34,6 @@ TARGETS = ["results/weps/cells.parquet", "results/sweeps/load.parquet",
            "results/catalogue.d/build.sqlite"]
 
 
-def smk(workdir, *args, check=True, timeout=900):
-    """Snakemake run in ``workdir`` as a user runs it: from that directory, without
-    --directory (which would override the study's folder and is refused)."""
-    cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), *args]
-    r = subprocess.run(cmd, cwd=workdir, env=_env(), capture_output=True, text=True,
-                       timeout=timeout)
-    if check and r.returncode != 0:
-        raise AssertionError(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
-    return r
-
-
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     wd = make_workdir(tmp_path_factory.mktemp("study"))
@@ -64,18 +51,18 @@ def test_study_config_replaces_the_papers_lists(study):
 
 
 def test_study_plans_only_its_own_jobs(study):
-    r = smk(study, "-n", "--quiet", "rules", "--configfile", "config/weps.yaml")
+    r = smk_in(study, "-n", "--quiet", "rules", "--configfile", "config/weps.yaml")
     counts = job_counts(r.stdout + r.stderr)
     assert counts["simulate_tile"] == 2 and counts["sweep"] == 1 and counts["plane_cells"] == 1
     assert "points" not in counts and counts["catalogue"] == 1
-    r = smk(study, "-n", "--configfile", "config/weps.yaml")
+    r = smk_in(study, "-n", "--configfile", "config/weps.yaml")
     out = r.stdout + r.stderr
     for other in ("plane=wb", "plane=wxi", "sweep=standard", "sweep=b015"):
         assert other not in out
 
 
 def test_study_refuses_directory_option(study):
-    r = smk(study, "-n", "-d", str(study), "--configfile", "config/weps.yaml", check=False)
+    r = smk_in(study, "-n", "-d", str(study), "--configfile", "config/weps.yaml", check=False)
     out = r.stdout + r.stderr
     assert r.returncode != 0 and "without --directory" in out and "Traceback" not in out
 
@@ -83,7 +70,7 @@ def test_study_refuses_directory_option(study):
 @pytest.mark.slow
 def test_study_runs_into_its_own_folder(study):
     # targets first: --configfile takes a list
-    smk(study, *TARGETS, "--cores", "2", "--configfile", "config/weps.yaml", timeout=1800)
+    smk_in(study, *TARGETS, "--cores", "2", "--configfile", "config/weps.yaml", timeout=1800)
     assert not (study / "results").exists()  # the paper's study is not touched
     cells = pd.read_parquet(study / f"{STUDY_RESULTS}/weps/cells.parquet")
     assert len(cells) == 900 and set(cells["i"]) == set(range(30))
@@ -98,9 +85,9 @@ def test_study_runs_into_its_own_folder(study):
 
 @pytest.mark.slow
 def test_same_content_under_another_name_reruns_nothing(study):
-    smk(study, *TARGETS, "--cores", "2", "--configfile", "config/weps.yaml", timeout=1800)
+    smk_in(study, *TARGETS, "--cores", "2", "--configfile", "config/weps.yaml", timeout=1800)
     (study / "config/renamed.yaml").write_text((study / "config/weps.yaml").read_text())
-    r = smk(study, *TARGETS, "-n", "--configfile", "config/renamed.yaml")
+    r = smk_in(study, *TARGETS, "-n", "--configfile", "config/renamed.yaml")
     assert "Nothing to be done" in r.stdout + r.stderr, r.stdout[-3000:]
 
 

@@ -9,9 +9,8 @@ import shutil
 
 import pytest
 import yaml
-from test_pipeline_study import smk
 from tiny_study import CONFIGS, tiny_study
-from workflow_helpers import ROOT, make_workdir
+from workflow_helpers import ROOT, make_workdir, smk_in
 
 from gearsim.cli.main import main
 
@@ -45,7 +44,7 @@ def study(tmp_path_factory):
     shutil.copytree(ROOT / "config/gears", wd / "config/gears")
     (wd / "config/wepsmall.yaml").write_text(yaml.safe_dump(STUDY))
     # a study runs from the project directory; its targets are named inside its folder
-    smk(wd, "results/report.md", "results/figures/README.md", "results/explorer/index.html",
+    smk_in(wd, "results/report.md", "results/figures/README.md", "results/explorer/index.html",
         "--cores", "2", "--configfile", "config/wepsmall.yaml", timeout=1800)
     return wd
 

@@ -31,17 +31,19 @@ try:
     )
 except gcfg.ConfigError as exc:
     raise WorkflowError(f"invalid configuration: {exc}") from None
-STUDY = _resolved["study"]
-if STUDY is not None and _resolved["standard_parameters"] is not None:
+STUDY_NAME = _resolved["study"]
+if STUDY_NAME is not None and _resolved["standard_parameters"] is not None:
     # a study runs in studies/<study>/ (below): its file paths stay those of this directory
     _resolved["standard_parameters"] = str(
         gcfg.standard_parameters_path(_resolved, STUDY_ROOT).resolve()
     )
-if STUDY is not None and _resolved.get("gear"):
+if STUDY_NAME is not None and _resolved.get("gear"):
     _resolved["gear"] = str((STUDY_ROOT / _resolved["gear"]).resolve())
 config.clear()
 config.update(_resolved)
 validate(config, str(SCHEMA))
+# the one study object that every job definition asks for parameters and settings
+STUDY = gcfg.Study.of(config, STUDY_ROOT)
 
 # 2. How the jobs see the same config: one JSON file per study, rewritten only when its content
 #    changes, passed with --configfile (merged over config/config.yaml it gives the same
@@ -49,7 +51,7 @@ validate(config, str(SCHEMA))
 #    under another file name re-runs nothing) and its time never matters (the params below
 #    decide what re-runs: editing one plane re-runs only that plane).
 CONFIG_JSON = (
-    STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY or "default") / "config.json"
+    STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY_NAME or "default") / "config.json"
 )
 _text = gprov.canonical_json(config)
 if not CONFIG_JSON.is_file() or CONFIG_JSON.read_text() != _text:
@@ -65,14 +67,14 @@ os.environ[gcfg.STUDY_ROOT_ENV] = str(STUDY_ROOT)
 
 # A study of one's own keeps all its outputs (results/, logs/, Snakemake's records) in
 # studies/<study>/, so the paper's results/ is never touched (docs/pipeline.md, "Your own study").
-if STUDY is not None:
+if STUDY_NAME is not None:
     if workflow.overwrite_workdir is not None:
         raise WorkflowError(
-            f"study '{STUDY}' runs in studies/{STUDY}/ of the project directory: run snakemake "
+            f"study '{STUDY_NAME}' runs in studies/{STUDY_NAME}/ of the project directory: run snakemake "
             "in the project directory without --directory/-d (it would override that folder)"
         )
 
-    workdir: f"studies/{STUDY}"
+    workdir: f"studies/{STUDY_NAME}"
 
 
 # The catalogue's two files. Snakemake deletes a job's declared outputs before the job starts,
@@ -149,27 +151,21 @@ ALL_TARGETS = []
 # ------------------------------------------------------------------------------ helpers
 def plane_params(wildcards):
     """The plane's config subtree (+ parameters, integration, tile_rows) as canonical JSON."""
-    return gprov.canonical_json(gprov.plane_subtree(config, wildcards.plane))
+    return gprov.canonical_json(gprov.plane_subtree(STUDY, wildcards.plane))
 
 
 def audit_params(wildcards):
     return gprov.canonical_json(
-        {**gprov.plane_subtree(config, wildcards.plane), "audit": config["audit"]}
+        {**gprov.plane_subtree(STUDY, wildcards.plane), "audit": config["audit"]}
     )
 
 
 def sweep_params(wildcards):
-    return gprov.canonical_json(gprov.sweep_subtree(config, wildcards.sweep))
+    return gprov.canonical_json(gprov.sweep_subtree(STUDY, wildcards.sweep))
 
 
 def point_params(wildcards):
-    return gprov.canonical_json(
-        {
-            "points": config["points"][wildcards.fig],
-            "parameters": gcfg.resolved_parameters(config),
-            "integration": gcfg.integration_settings(config).to_dict(),
-        }
-    )
+    return gprov.canonical_json(gprov.point_subtree(STUDY, wildcards.fig))
 
 
 def tiles_of_plane(wildcards):

@@ -6,7 +6,7 @@
 # the index results/figures/README.md (the figure table names them: presentation.figures.rules).
 from gearsim.presentation.figures import rules as gfr
 
-FIGURE_PARAMS = gfr.figure_params(config)
+FIGURE_PARAMS = gfr.figure_params(STUDY)
 # the tables a figure can read: kind -> name -> the file its rule makes
 TABLE_FILES = {
     "sweeps": dict(zip(SWEEPS, SWEEP_FILES)),

@@ -13,7 +13,6 @@
 
 
 from gearsim.analysis.bifcurves import pipeline_orbit_tables
-from gearsim.study.config import sweep_set_arguments
 
 ORBIT_TABLES = pipeline_orbit_tables(config)  # config `orbits: {continuation, curves}`
 ORBITS_STANDARD = "standard" in ORBIT_TABLES
@@ -57,7 +56,7 @@ rule standard_continuation:
     conda:
         GEARSIM_ENV
     params:
-        sets=sweep_set_arguments(config, "standard") if ORBITS_STANDARD else "",
+        sets=STUDY.sweep_set_arguments("standard") if ORBITS_STANDARD else "",
         start=config["sweeps"]["standard"]["min"] if ORBITS_STANDARD else 0,
         stop=config["sweeps"]["standard"]["max"] if ORBITS_STANDARD else 0,
         code_version=CODE_VERSION["analysis"],

@@ -2,7 +2,7 @@
 
 The grid spans the start box of :func:`gearsim.analysis.attractors.start_box` (or a given box) at
 ``n x n`` cell centres; bearings start at their static deflection and at rest. Every start is a
-job of the lane-pool finder :func:`gearsim.analysis.finder.find_attractors_many` (recurrence-based
+job of the finder :func:`gearsim.analysis.attractors.find_attractors` (recurrence-based
 early labelling), so a 200 x 200 picture costs ~40 000 starts of a few dozen periods each.
 
 Units: ``x`` is the mesh displacement over the nominal length ``b_c``; ``x' = dx/dtau`` with
@@ -19,8 +19,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from gearsim.analysis.attractors import CellAttractors, GearCells, start_box
-from gearsim.analysis.finder import find_attractors_many
+from gearsim.analysis.attractors import (
+    CellAttractors,
+    FinderOptions,
+    GearCells,
+    find_attractors,
+    start_box,
+)
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 
@@ -76,13 +81,13 @@ def basin_grid(
     n: int = 200,
     settings=None,
     box: tuple[float, float, float, float] | None = None,
-    **options: Any,
+    options: FinderOptions | None = None,
 ) -> BasinGrid:
     """Classify the starts of an ``n x n`` grid over ``box = (xmin, xmax, vmin, vmax)``.
 
-    Default box: the :func:`~gearsim.analysis.attractors.start_box` of ``params``. ``options`` go to
-    the lane-pool finder :func:`~gearsim.analysis.finder.find_attractors_many` (e.g.
-    ``early=False``).
+    Default box: the :func:`~gearsim.analysis.attractors.start_box` of ``params``. ``options``: the
+    finder's :class:`~gearsim.analysis.attractors.FinderOptions` (e.g. ``early=False``; its
+    ``starts`` and ``seed`` are replaced by the grid).
     """
     if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 2000:
         raise ParameterError(f"setting 'n' = {n!r} must be an integer in [2, 2000]")
@@ -101,7 +106,7 @@ def basin_grid(
     states = system.start_states(0, unit)
     states[:, 0] = X.ravel()
     states[:, 1] = V.ravel()
-    (ca,) = find_attractors_many([params], settings=settings, start_states=[states], **options)
+    ca = find_attractors(params, options, settings=settings, start_states=states)
     shape = (n, n)
     return BasinGrid(
         params=params,

@@ -225,12 +225,12 @@ def measure_many(params_list: Sequence[ModelParameters], st: FidelitySettings = 
     # Figs 9-11: coexisting attractors at b = 0.15, w = 0.82
     cx = [k for k in live if np.isfinite(scales[k])]
     if cx:
-        from gearsim.analysis.attractors import find_attractors_many
+        from gearsim.analysis.attractors import FinderOptions, find_attractors
 
         t0 = time.perf_counter()
         qs = [ps[k].with_(b=COEXIST_POINT["b"] / scales[k], w=COEXIST_POINT["w"] * wfs[k])
               for k in cx]
-        cas = find_attractors_many(qs, starts=st.attractor_starts, seed=0)
+        cas = find_attractors(qs, FinderOptions(starts=st.attractor_starts))
         for k, ca in zip(cx, cas, strict=True):
             ms[k].coexist = sorted({str(a.steady.info.get("label_npq") or a.label)
                                     for a in ca.attractors if a.steady.status != "unsettled"})
@@ -354,12 +354,12 @@ def coexist_scan(params_list: Sequence[ModelParameters], w_values: Sequence[floa
     """The Figs 9-11 search around the paper's point: for every set (its scale from its
     standard sweep, :func:`measure_many` stopped at the gate) and every paper-scale ``(w, b)``,
     the motions the attractor search (``starts`` seeded starts) finds, all cells of all sets
-    in one :func:`gearsim.analysis.attractors.find_attractors_many`. One row per set and
+    in one :func:`gearsim.analysis.attractors.find_attractors`. One row per set and
     point: ``set``, ``w``, ``b``, ``motions`` (least-period n-p-q labels of settled
     attractors), ``scale``."""
     from dataclasses import replace
 
-    from gearsim.analysis.attractors import find_attractors_many
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
 
     wfs = [1.0] * len(params_list) if w_factors is None else list(w_factors)
     ms = measure_many(params_list, replace(st, gate=-1.0), continuation=continuation,
@@ -375,7 +375,7 @@ def coexist_scan(params_list: Sequence[ModelParameters], w_values: Sequence[floa
                 cells.append(p.with_(b=float(b) / scale, w=float(w) * wfs[k]))
                 rows.append({"set": k, "w": float(w), "b": float(b), "scale": scale})
     todo = [r for r in rows if "w" in r]
-    cas = find_attractors_many(cells, starts=starts, seed=0) if cells else []
+    cas = find_attractors(cells, FinderOptions(starts=starts)) if cells else []
     for r, ca in zip(todo, cas, strict=True):
         r["motions"] = sorted({str(a.steady.info.get("label_npq") or a.label)
                                for a in ca.attractors if a.steady.status != "unsettled"})

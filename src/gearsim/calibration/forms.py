@@ -44,7 +44,7 @@ from gearsim.calibration.sweeps import PLANE_W_GRID, backlash_threshold, w_sweep
 from gearsim.calibration.tables import evidence_lines
 from gearsim.calibration.targets import LANDMARK_KEYS, TARGETS, Measured, score, target_errors
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.study.config import standard_parameters
+from gearsim.study.config import Study
 
 POPULATION = 16
 
@@ -92,9 +92,9 @@ class Form:
 
     def params(self, x: Sequence[float], st: FidelitySettings) -> ModelParameters:
         """The search-scale parameters at vector ``x``: the base is the study's standard set
-        (:func:`gearsim.study.config.standard_parameters`) with the form's fixed changes,
+        (:meth:`gearsim.study.config.Study.parameters`) with the form's fixed changes,
         ``Fm = st.Fm``, ``b = st.b0``."""
-        return params_from_vector(x, self.free, standard_parameters(), Fm=st.Fm, b=st.b0,
+        return params_from_vector(x, self.free, Study.load().parameters().model, Fm=st.Fm, b=st.b0,
                                   **self.fixed)
 
     def w_factor(self, params: ModelParameters) -> float:

@@ -50,7 +50,7 @@ class SweepSettings:
     xi_w_min: float = 0.6
     xi_dw: float = 0.03
     #: sweeps as continuation chains in the batched kernel's lanes with the study's RK4
-    #: settings (:func:`gearsim.study.config.study_settings`) instead of ``sim``
+    #: settings (:attr:`gearsim.study.config.Study.settings`) instead of ``sim``
     lanes: bool = False
 
     def grid(self, dw: float | None = None, lo: float | None = None, hi: float | None = None
@@ -64,9 +64,9 @@ class SweepSettings:
 
     def integration(self) -> IntegrationSettings:
         if self.lanes:
-            from gearsim.study.config import study_settings
+            from gearsim.study.config import Study
 
-            return study_settings()
+            return Study.load().settings
         return self.sim
 
     def to_dict(self) -> dict[str, Any]:

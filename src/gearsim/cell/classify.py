@@ -37,6 +37,9 @@ settle distance
     Four readings (see :data:`KMAX_READINGS`): peak of the mesh force over the whole window or
     the largest value at the Poincare section, each divided by the mean load ``Fm`` or by the
     total static excitation ``Fm + Fe w^2``.
+diverged
+    A motion without a period whose amplitude grows over the window (:func:`amplitude_grows`),
+    like one that leaves the divergence bound: not an attractor, no pattern.
 Lyapunov exponent
     Largest exponent per unit dimensionless time from the variational equations (exact across
     the switches because the field is continuous), averaged over the analysed window.
@@ -61,6 +64,15 @@ KMAX_READINGS = {
 DEFAULT_KMAX = "kmax_peak_static"
 
 MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
+
+#: a motion without a period whose largest peak-to-peak amplitude x_max - x_min rises from each
+#: quarter of the analysed window to the next by at least GROWTH_STEP, the last quarter's at
+#: least GROWTH_MIN times the first's, grows without bound (the parametric instability of the
+#: nearly linear mesh at w near 2): it is ``diverged``, never chaos or quasi-periodic (a motion
+#: that settles onto a larger bounded one within the window rises in one step, not in three;
+#: docs/decisions.md)
+GROWTH_MIN = 1.1
+GROWTH_STEP = 1.02
 
 #: relative lag-n difference below which a section sequence counts as settled whatever its rate
 #: (the RK4 map repeats a settled orbit to ~1e-14 of its scale)
@@ -330,6 +342,20 @@ def impact_state(face: int, back: int, disengaged_time: float, total_time: float
     return 0
 
 
+def amplitude_grows(xmax: np.ndarray, xmin: np.ndarray) -> bool:
+    """Whether the per-period amplitudes ``xmax - xmin`` of a window grow: the largest of each
+    quarter >= :data:`GROWTH_STEP` x the previous quarter's, the last >= :data:`GROWTH_MIN` x
+    the first's."""
+    a = np.asarray(xmax, dtype=float) - np.asarray(xmin, dtype=float)
+    q = len(a) // 4
+    if q < 1:
+        return False
+    top = np.array([a[k * q : (k + 1) * q].max() for k in range(4)])
+    if not np.all(np.isfinite(top)):
+        return True  # the amplitude left the floating-point range: it grew
+    return bool(np.all(top[1:] >= GROWTH_STEP * top[:-1]) and top[3] >= GROWTH_MIN * top[0])
+
+
 @dataclass
 class Classification:
     """The steady motion of one cell."""
@@ -409,6 +435,10 @@ def classify_motion(
         status = "ok" if settled else "not_converged"
         label = f"{I}/{n}T"
         label_npq = f"{n}-{p}-{q}"
+    elif amplitude_grows(win.xmax, win.xmin):
+        # a growing motion is not an attractor and has no pattern
+        motion = status = label = "diverged"
+        label_npq = ""
     else:
         if lyap > lyap_threshold:
             motion = "chaos"

@@ -57,3 +57,16 @@ def _refresh(cache: Path, stamp_value: str) -> None:
         os.replace(tmp, stamp)
     except OSError:
         pass  # a read-only cache: Numba then compiles in memory
+
+
+def avx2_features() -> str:
+    """This host's LLVM CPU features with every AVX-512 feature off: ``NUMBA_CPU_FEATURES`` for
+    building the AVX2 code of an AVX2-only CPU on an AVX-512 machine.
+
+    ``NUMBA_CPU_NAME`` alone does not change the instruction set: Numba's JIT takes the host's
+    features unless ``NUMBA_CPU_FEATURES`` is set (``NUMBA_CPU_NAME=znver3`` on a Zen 4 still
+    emits zmm code)."""
+    from llvmlite import binding as ll
+
+    feats = ll.get_host_cpu_features().flatten().split(",")
+    return ",".join("-" + f[1:] if f[1:].startswith("avx512") else f for f in feats if f)

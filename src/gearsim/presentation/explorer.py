@@ -18,7 +18,8 @@ over their range (resolution range / 65534; stored as differences of neighbours,
 then low bytes), the number of section points; the section points themselves as 16-bit steps
 over the plane's range, at most :data:`MAX_POINTS` per cell (the last ``n`` only for a periodic
 cell of period ``n``: they are its distinct points; fewer per chaotic cell when a page would hold
-more than :data:`POINTS_BUDGET` bytes of them).
+more than :data:`POINTS_BUDGET` bytes of them); the coexisting attractors of each searched cell
+(one line each) as JSON text inside the same block.
 
 Every quantity is dimensionless as in the catalogue (docs/model.md): x = X_n / b_c,
 x' = dx/dtau with tau = omega_n t; DC is a fraction of the mesh period; Kmax = F_n / F_m; the
@@ -94,10 +95,22 @@ class Block:
         return {"array": self.add(planes, "u1"), "n": int(q.size), "coding": "delta16",
                 "lo": lo, "step": step}
 
+    def add_json(self, obj: Any) -> dict[str, Any]:
+        """``obj`` as UTF-8 JSON text in the buffer (``{"json": [dtype, offset, length]}``):
+        text of many similar lines, which gzip packs to a small fraction of its size."""
+        raw = np.frombuffer(json.dumps(_json_safe(obj), ensure_ascii=False,
+                                       separators=(",", ":")).encode(), dtype=np.uint8)
+        return {"json": self.add(raw, "u1")}
+
     def encoded(self) -> str:
         """gzip + base64 of the whole buffer."""
         return base64.b64encode(gzip.compress(b"".join(self.parts), compresslevel=9,
                                               mtime=0)).decode()
+
+
+def json_of(buffer: bytes, enc: Mapping[str, Any]) -> Any:
+    """The object of a :meth:`Block.add_json` entry in a decoded buffer."""
+    return json.loads(array_of(buffer, enc["json"]).tobytes().decode())
 
 
 def quantised_of(buffer: bytes, enc: Mapping[str, Any]) -> np.ndarray:
@@ -386,8 +399,8 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
         "curves": plane.curves,
         "physical": plane.physical,
     }
-    if plane.attractors is not None:
-        payload["attractors"] = {str(k): v for k, v in plane.attractors.items()}
+    if plane.attractors is not None:  # one line per attractor of each searched cell
+        payload["attractors"] = block.add_json({str(k): v for k, v in plane.attractors.items()})
     if plane.n_attractors:
         na = np.full(nx * ny, 255, dtype=np.int64)
         for k, v in plane.n_attractors.items():

@@ -24,7 +24,6 @@ Paper numbers appear only in the "paper" columns; a quantity we did not compute 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +43,6 @@ from gearsim.analysis.paper import (
     LANDMARK_TOL,
     PAPER_B_THRESHOLD,
     PAPER_JUMP_DC,
-    PAPER_JUMP_KMAX,
     PAPER_PLANES,
     PAPER_SEQUENCE_TEXT,
     PAPER_SEQUENCES,
@@ -56,90 +54,22 @@ from gearsim.analysis.paper import (
 )
 from gearsim.cell.classify import KMAX_READINGS
 from gearsim.cell.motion import double_sided, face_impact, no_impact
-from gearsim.presentation.scorecard import scorecard_lines
+from gearsim.presentation.report_inputs import (
+    fallback_notes,
+    load_audits,
+    load_curve_status,
+    load_plane,
+    load_sweeps,
+)
+from gearsim.presentation.report_markdown import NOT_APPLICABLE, to_markdown
 from gearsim.presentation.study_summary import (
     axis_column,
     multistable_summary,
-    plane_lines,
     plane_summary,
-    point_lines,
     point_summary,
-    sweep_lines,
     sweep_spec_of,
     sweep_summary,
 )
-
-NOT_APPLICABLE = "not applicable"
-
-
-# ----------------------------------------------------------------------------- loading
-def load_sweeps(directory: str | Path, names: Sequence[str] | None = None
-                ) -> dict[str, pd.DataFrame]:
-    """The orbit diagrams ``<name>.parquet`` in ``directory`` of the sweeps ``names`` (default:
-    every one there), keyed by name; a missing file is left out."""
-    d = Path(directory)
-    if not d.is_dir():
-        return {}
-    paths = (sorted(d.glob("*.parquet")) if names is None else
-             [d / f"{n}.parquet" for n in names if (d / f"{n}.parquet").is_file()])
-    return {p.stem: pd.read_parquet(p) for p in paths}
-
-
-def _cells_from_catalogue(path: Path, plane: str) -> pd.DataFrame | None:
-    """Cells of ``plane`` from the pipeline's catalogue (``cells`` joined to ``planes`` by
-    ``plane_id``; the impact state is stored as ``impact``, the axes as ``x`` / ``y``), opened
-    through :func:`gearsim.results.catalogue.open_catalogue` (a file that is not a catalogue of our
-    schema is an error). ``None`` when there is no catalogue or the plane is not in it."""
-    if not path.is_file():
-        return None
-    from gearsim.results.catalogue import open_catalogue
-
-    con = open_catalogue(path)
-    try:
-        df = pd.read_sql_query(
-            "select c.* from cells c join planes p on c.plane_id = p.id where p.name = ?",
-            con, params=(plane,))
-    finally:
-        con.close()
-    if not len(df):
-        return None
-    if "I" not in df.columns and "impact" in df.columns:
-        df = df.rename(columns={"impact": "I"})
-    return df
-
-
-def _fallback_notes(catalogue: str | Path | None, results: str | Path,
-                    planes: Sequence[str]) -> list[str]:
-    """A note for each plane whose cells came from its Parquet file although a catalogue was
-    given (:func:`load_plane`): the report says where its numbers come from."""
-    if catalogue is None or not planes:
-        return []
-    path = Path(catalogue)
-    if not path.is_file():
-        return [f"catalogue {path} not found: the cells of {', '.join(planes)} were read from "
-                f"{Path(results)}/<plane>/cells.parquet"]
-    from gearsim.results.catalogue import open_catalogue
-
-    con = open_catalogue(path, check=False)  # checked when the cells were read
-    try:
-        have = {name for (name,) in con.execute("SELECT name FROM planes")}
-    finally:
-        con.close()
-    return [f"plane {p} is not in the catalogue {path}: its cells were read from "
-            f"{Path(results) / p / 'cells.parquet'}" for p in planes if p not in have]
-
-
-def load_plane(plane: str, *, catalogue: str | Path | None = None,
-               results: str | Path = "results") -> pd.DataFrame | None:
-    """Cells of ``plane`` from the catalogue, else from ``results/<plane>/cells.parquet``."""
-    if catalogue is not None:
-        df = _cells_from_catalogue(Path(catalogue), plane)
-        if df is not None:
-            return df
-    p = Path(results) / plane / "cells.parquet"
-    if p.is_file():
-        return pd.read_parquet(p)
-    return None
 
 
 # ----------------------------------------------------------------------------- verified motions
@@ -164,29 +94,6 @@ def verified_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] |
         n = pd.to_numeric(cells["n_attractors"], errors="coerce")
         out["searched"] = int(n.notna().sum())
         out["multistable"] = int((n > 1).sum())
-    return out
-
-
-def verified_lines(rows: list[dict[str, Any]], h: str = "##") -> list[str]:
-    """The verified-motions table, per plane of this run."""
-    if not rows:
-        return []
-    out = [f"{h} Verified motions", "",
-           "Cells labelled by their Newton-refined orbit (`refined`), at a bifurcation "
-           "(status `bifurcation`: within 1e-3 of |mu| = 1), without a settled reading "
-           "(`not_converged`), with a Floquet margin `mu_max` (of the periodic cells), with "
-           "`mu_max >= 0.99`, quasi-periodic, and multistable (two or more attractors, of the "
-           "cells searched). docs/model.md, \"Settled motions, refined labels and statuses\".", "",
-           "| plane | cells | refined | bifurcation | not converged | with margin (of periodic) "
-           "| mu_max >= 0.99 | quasi-periodic | multistable (of searched) |",
-           "|---|---|---|---|---|---|---|---|---|"]
-    for r in rows:
-        multi = (f"{r['multistable']} (of {r['searched']})" if "multistable" in r
-                 else "not searched")
-        out.append(f"| {r['plane']} | {r['cells']} | {r['refined']} | {r['bifurcation']} | "
-                   f"{r['not_converged']} | {r['with_margin']} (of {r['periodic']}) | "
-                   f"{r['near_one']} | {r['quasi_periodic']} | {multi} |")
-    out.append("")
     return out
 
 
@@ -282,65 +189,6 @@ class Report:
 
 
 
-def load_curve_status(results: str | Path, planes: Sequence[str]) -> list[str]:
-    """A line for each plane whose bifurcation curves (``results/orbits/<plane>_curves.parquet``)
-    were skipped or stopped at the job's budget, from the file's provenance."""
-    from gearsim.results.catalogue import read_metadata
-
-    out = []
-    for plane in planes:
-        f = Path(results) / "orbits" / f"{plane}_curves.parquet"
-        if not f.is_file():
-            continue
-        meta = read_metadata(f) or {}
-        status = meta.get("status", "ok")
-        if status == "skipped":
-            why = "; ".join(meta.get("reasons") or []) or "curves skipped"
-            out.append(f"plane {plane}: {why}")
-        elif status == "budget":
-            out.append(f"plane {plane}: the bifurcation curves stopped at the job's budget "
-                       f"({meta.get('budget_s', '?')} s); they are partial")
-    return out
-
-
-def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
-    """The numerical audit of each plane (``results/<plane>/audit.parquet`` provenance)."""
-    from gearsim.results.catalogue import read_metadata
-
-    out = []
-    for plane in planes:
-        f = Path(results) / plane / "audit.parquet"
-        if f.is_file():
-            meta = read_metadata(f) or {}
-            out.append({"plane": plane, "cells": meta.get("cells"),
-                        "agreement": meta.get("agreement"), "threshold": meta.get("threshold")})
-    return out
-
-
-def _audit_lines(audits: list[dict[str, Any]]) -> list[str]:
-    if not audits:
-        return []
-    out = ["## Numerical audit", "",
-           "A seeded sample of every plane re-simulated with the adaptive DP5 integrator at "
-           "tightened tolerance (the configuration's DP5 tolerances divided by `audit.tighten`) "
-           "from the same start states; agreement = same label and n-p-q.", "",
-           "| plane | audited cells | agreement | threshold |", "|---|---|---|---|"]
-    low = []
-    for a in audits:
-        out.append(f"| {a['plane']} | {a['cells']} | {_f(a['agreement'], '.3f')} | "
-                   f"{_f(a['threshold'], '.2f')} |")
-        if a["agreement"] is not None and a["threshold"] is not None and (
-            a["agreement"] < a["threshold"]
-        ):
-            low.append(a["plane"])
-    out.append("")
-    if low:
-        out = [f"> **WARNING: the numerical audit is below its threshold on {', '.join(low)}: "
-               "the plane's classification depends on the integration settings. Tighten "
-               "`integration` before trusting these maps.**", ""] + out
-    return out
-
-
 def _table_axes(plane: str, df: pd.DataFrame | None) -> tuple[str, str]:
     """(x, y) parameter names of a cells table (names of varying parameter columns)."""
     known = {"wb": ("w", "b"), "wxi": ("w", "xi")}
@@ -378,8 +226,20 @@ def analyse(
                   else set(configured_sweeps))
     rep.paper_material = bool(({"standard", *PAPER_SWEEPS} & configured) or any(
         tuple(ax) in PAPER_PLANES for ax in axes.values()))
-    std = sweeps.get("standard")
-    if "standard" not in configured:
+    _landmarks(rep, sweeps.get("standard"), "standard" in configured)
+    _hysteresis(rep, sweeps.get("hysteresis"))
+    _thresholds(rep, planes, axes)
+    for plane, ax in axes.items():
+        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane),
+                                        paper=PAPER_PLANES.get(tuple(ax), NOT_APPLICABLE)))
+
+    _sequences(rep, sweeps, configured)
+    return rep
+
+
+def _landmarks(rep: Report, std: pd.DataFrame | None, configured: bool) -> None:
+    """The standard sweep's landmarks matched to the paper's, and the values at the jump."""
+    if not configured:
         rep.notes.append("this study has no sweep 'standard': the paper's landmarks are "
                          f"{NOT_APPLICABLE}")
     elif std is not None and len(std):
@@ -417,7 +277,10 @@ def analyse(
     else:
         rep.notes.append("results/sweeps/standard.parquet missing: landmarks not computed")
 
-    hyst = sweeps.get("hysteresis")
+
+
+def _hysteresis(rep: Report, hyst: pd.DataFrame | None) -> None:
+    """The fold's jump up and jump down, from the forward and backward sweeps."""
     if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
         from gearsim.analysis.attractors import hysteresis
 
@@ -425,6 +288,10 @@ def analyse(
         rep.hysteresis = h.lines()
         rep.hysteresis_band = None if h.band is None else (float(h.band[0]), float(h.band[1]))
 
+
+def _thresholds(rep: Report, planes: dict[str, pd.DataFrame | None],
+                axes: dict[str, tuple[str, str]]) -> None:
+    """The backlash and damping thresholds read off the (w, b) and (w, xi) planes."""
     for paper_axes, fn, name, paper in (
         (("w", "b"), double_sided_rows, "b above which no double-sided impact occurs",
          PAPER_B_THRESHOLD),
@@ -459,10 +326,9 @@ def analyse(
             rep.misses.append(f"{name}: ours {th.value:.4f} (rows {th.last_with:.4f} / "
                               f"{th.first_without:.4f}, plane {plane}), paper {paper}")
 
-    for plane, ax in axes.items():
-        rep.planes.append(plane_summary(plane, tuple(ax), planes.get(plane),
-                                        paper=PAPER_PLANES.get(tuple(ax), NOT_APPLICABLE)))
 
+def _sequences(rep: Report, sweeps: dict[str, pd.DataFrame], configured: set[str]) -> None:
+    """The pattern sequences along the sweeps of Figs 8 and 15 beside the paper's."""
     for key, (pname, pval) in PAPER_SWEEPS.items():
         df = sweeps.get(key)
         entry: dict[str, Any] = {"parameter": pname, "value": pval,
@@ -493,205 +359,6 @@ def analyse(
             else:
                 entry.update(in_order=None, exact=None)
         rep.sequences[key] = entry
-    return rep
-
-
-def _f(x: Any, fmt: str = ".4f") -> str:
-    if x is None:
-        return "not computed"
-    if isinstance(x, float) and math.isnan(x):
-        return "—"
-    return format(x, fmt)
-
-
-def _misses_lines(rep: Report) -> list[str]:
-    out = ["## What does not match, and why", ""]
-    if rep.misses:
-        out += [f"- {m}" for m in rep.misses]
-        out += ["", "Why: the paper's equations and Table 1 are reconstructed (docs/model.md); "
-                "the standard parameters are a fit to the paper's landmarks "
-                "(docs/calibration.md); grid readings carry half a grid spacing of error."]
-    elif rep.compared:
-        out += [f"- nothing beyond the tolerances ({LANDMARK_TOL} in w, {THRESHOLD_TOL} "
-                f"thresholds) in {rep.compared} comparisons with the paper"]
-    else:
-        out += [f"- {NOT_APPLICABLE}: nothing of this study was compared with the paper (it "
-                "has none of the paper's sweeps or planes, or they were not computed)"]
-    if rep.notes:
-        out += ["", "Notes:", ""] + [f"- {n}" for n in rep.notes]
-    out.append("")
-    return out
-
-
-def _detail_lines(rep: Report) -> list[str]:
-    """The paper comparison in full (landmarks, DC/Kmax, thresholds, sequences)."""
-    out: list[str] = []
-    out += ["### Landmarks of the standard sweep", ""]
-    if any("no sweep 'standard'" in n for n in rep.notes):
-        out += ["Not applicable: this study has no sweep 'standard'.", ""]
-    elif rep.matched is not None:
-        out += ["| landmark | paper w | ours w | grid interval | difference | pattern (ours) |",
-                "|---|---|---|---|---|---|"]
-        errs = []
-        for r in rep.matched.itertuples():
-            paper = (f"{r.paper_lo:g}-{r.paper_hi:g}" if r.paper_lo != r.paper_hi
-                     else f"{r.paper:g}")
-            if r.found:
-                errs.append(r.error)
-                out.append(f"| {r.text} | {paper} | {r.ours:.4f} | [{r.lo:.4f}, {r.hi:.4f}] | "
-                           f"{r.error:+.4f} | {r.ours_from} -> {r.ours_to} |")
-            else:
-                out.append(f"| {r.text} | {paper} | not found | | | |")
-        if errs:
-            e = np.asarray(errs)
-            out += ["", f"Found {len(e)} of {len(rep.matched)}; RMS difference "
-                    f"{np.sqrt(np.mean(e**2)):.4f}, worst {np.max(np.abs(e)):.4f}; within "
-                    f"{LANDMARK_TOL}: {sum(within(x, LANDMARK_TOL) for x in e)}."]
-        out.append("")
-        if rep.landmarks is not None and len(rep.landmarks):
-            out += ["All landmarks found (sweep order):", "",
-                    "| kind | w | from | to | DC before / after |", "|---|---|---|---|---|"]
-            for r in rep.landmarks.itertuples():
-                out.append(f"| {r.kind} | {r.value:.4f} | {r.from_npq} | {r.to_npq} | "
-                           f"{r.dc_lo:.3f} / {r.dc_hi:.3f} |")
-            out.append("")
-    else:
-        out += ["Not computed (standard sweep missing).", ""]
-    if rep.exact is not None:
-        from gearsim.analysis.exact_landmarks import form_name, model_form, report_lines
-
-        out += ["Exact bifurcation points (Newton-Floquet continuation of the standard set, "
-                "located to 1e-8; docs/orbits.md). Each landmark is paired with the located "
-                "bifurcation of its kind and orbit period nearest the grid reading; \"in "
-                "interval\" says whether it lies between the two swept values where the "
-                "simulated labels change.", "",
-                f"Model form ({form_name(rep.exact_form)}): {model_form(rep.exact_form)}.", "",
-                *report_lines(rep.exact, form_name(rep.exact_form)), ""]
-    out += ["### DC and Kmax at the jump", ""]
-    if any("no sweep 'standard'" in n for n in rep.notes):
-        out += ["Not applicable: this study has no sweep 'standard'.", ""]
-    elif rep.jump:
-        j = rep.jump
-        out += [f"Jump between w = {j['w_lo']:.4f} and {j['w_hi']:.4f}. DC {j['dc_before']:.3f}"
-                f" -> {j['dc_after']:.3f} (paper: DC -> {PAPER_JUMP_DC}).", "",
-                "| Kmax reading | before | after | paper |", "|---|---|---|---|"]
-        for k, text in KMAX_READINGS.items():
-            if k in j["kmax_after"]:
-                out.append(f"| {k}: {text} | {j['kmax_before'][k]:.3f} | "
-                           f"{j['kmax_after'][k]:.3f} | {PAPER_JUMP_KMAX} |")
-        best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
-                   default=None)
-        if best:
-            out += ["", f"Closest reading to the paper's {PAPER_JUMP_KMAX}: {best[0]} = "
-                    f"{best[1]:.3f}. (Paper Fig 17: Kmax 1.8-2.1 at the jump for small xi.)"]
-        out.append("")
-    else:
-        out += ["Not computed (no jump found or standard sweep missing).", ""]
-    if rep.hysteresis:
-        out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
-                *rep.hysteresis, ""]
-    out += ["### Thresholds", "", "| threshold | paper | ours | rows (last with / first "
-            "without) | difference |", "|---|---|---|---|---|"]
-    for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
-                                   "impact above", "b"),
-                                  (rep.xi_threshold, PAPER_XI_THRESHOLD,
-                                   "xi: only 0/1T, 1/1T above", "xi")):
-        if key in rep.thresholds_na:
-            out.append(f"| {label} | {paper} | {NOT_APPLICABLE} ({rep.thresholds_na[key]}) "
-                       "| | |")
-        elif th is None:
-            out.append(f"| {label} | {paper} | not computed | | |")
-        else:
-            note = f"; {th.note}" if th.note else ""
-            out.append(f"| {label} | {paper} | {_f(th.value)} | {_f(th.last_with)} / "
-                       f"{_f(th.first_without)} ({th.rows} rows{note}) | "
-                       f"{_f(th.difference, '+.4f')} |")
-    out.append("")
-    out += ["### Pattern sequences (Fig 8, Fig 15)", ""]
-    for key, e in rep.sequences.items():
-        out.append(f"**{e['parameter']} = {e['value']}** (sweep `{key}`)")
-        out.append("")
-        out.append(f"- paper: {e['paper_text']}")
-        if e.get("applicable") is False:
-            out.append(f"- ours: {NOT_APPLICABLE} (this study has no sweep `{key}`)")
-        elif e.get("ours") is None:
-            out.append("- ours: not computed")
-        else:
-            out.append(f"- ours: {' -> '.join(e['ours'])}")
-            out.append(f"- ours (n-p-q): {' -> '.join(e['ours_npq'])}")
-            if e.get("in_order") is not None:
-                out.append(f"- paper's patterns in order: {'yes' if e['in_order'] else 'no'}; "
-                           f"identical sequence: {'yes' if e['exact'] else 'no'}")
-        out.append("")
-    return out
-
-
-def _appendix_lines(rep: Report) -> list[str]:
-    """The calibration search and its model-form tables: evidence behind the standard set."""
-    out: list[str] = []
-    if rep.calibration:
-        s = rep.calibration.get("search", {})
-        if s:
-            best = ", ".join(f"{k} = {v:.4g}" for k, v in s.get("best", {}).items())
-            out += ["### Calibration", "",
-                    f"Differential evolution (seed {s.get('seed')}, {s.get('nfev')} evaluations,"
-                    f" objective J = {s.get('J', float('nan')):.4f}): {best}. Details: "
-                    "docs/calibration.md.", ""]
-    if rep.calibration and rep.calibration.get("forms"):
-        from gearsim.calibration.tables import form_report_lines
-
-        out += [_demote(line) for line in form_report_lines(rep.calibration["forms"])]
-    if rep.calibration and rep.calibration.get("fit"):
-        from gearsim.calibration.tables import fit_report_lines
-
-        out += ["", *(_demote(line) for line in fit_report_lines(rep.calibration["fit"]))]
-    return (["## Appendix: calibration and model forms", ""] + out) if out else []
-
-
-def _demote(line: str) -> str:
-    """A heading of an embedded section one level down (it sits inside the appendix)."""
-    return "#" + line if line.startswith("#") else line
-
-
-def to_markdown(rep: Report) -> str:
-    """Format the report: the scorecard first for a study with the paper's material, else a
-    report about the study itself."""
-    audit = _audit_lines(rep.audit)
-    warning = [line for line in audit[:2] if line.startswith("> **WARNING")]
-    audit = audit[len(warning) + (1 if warning else 0):] if warning else audit
-    if rep.paper_study:
-        out = ["# Reproduction report", "",
-               "Paper: Liu et al., PLOS ONE 2025 (doi 10.1371/journal.pone.0335920). Every "
-               "'ours' value is computed from this run's outputs.", ""]
-        out += [*warning, ""] if warning else []
-        out += scorecard_lines(rep)
-        out += _misses_lines(rep)
-        out += _study_lines(rep, heading="## This study")
-        out += ["## Details of the paper comparison", ""]
-        out += _detail_lines(rep)
-        out += audit
-        out += _appendix_lines(rep)
-    else:
-        name = rep.study or "this study"
-        out = [f"# Study report: {name}", "",
-               "What this study computed: its planes, sweeps and points. None of the paper's "
-               "sweeps or planes is part of it, so nothing is compared with the paper.", ""]
-        out += [*warning, ""] if warning else []
-        out += _study_lines(rep, heading=None)
-        out += audit
-    if rep.curves:
-        out += ["## Bifurcation curves not followed in full", "",
-                *[f"- {line}" for line in rep.curves], ""]
-    return "\n".join(out).rstrip() + "\n"
-
-
-def _study_lines(rep: Report, heading: str | None) -> list[str]:
-    out: list[str] = [heading, ""] if heading else []
-    out += plane_lines(rep.planes, "###" if heading else "##")
-    out += verified_lines(rep.verified, "###" if heading else "##")
-    out += sweep_lines(rep.sweep_summaries, "###" if heading else "##")
-    out += point_lines(rep.point_summaries, "###" if heading else "##")
-    return out
 
 
 def build_report(
@@ -723,7 +390,7 @@ def build_report(
     rep = analyse(loaded, cells, calibration=cal, plane_axes=axes,
                   configured_sweeps=sweeps)
     rep.audit = load_audits(results, names)
-    rep.notes += _fallback_notes(catalogue, results, [p for p in names if cells[p] is not None])
+    rep.notes += fallback_notes(catalogue, results, [p for p in names if cells[p] is not None])
     rep.study = study
     for name, df in loaded.items():
         png = Path(results) / "figures" / "sweeps" / f"{name}.png"
@@ -750,8 +417,3 @@ def build_report(
     return rep, to_markdown(rep)
 
 
-def study_from_config(config: dict[str, Any]) -> tuple[dict[str, tuple[str, str]], list[str]]:
-    """The planes ``{name: (x, y)}`` and sweep names of a pipeline config."""
-    planes = {name: (str(spec["x"]["name"]), str(spec["y"]["name"]))
-              for name, spec in (config.get("planes") or {}).items()}
-    return planes, list(config.get("sweeps") or {})

@@ -10,37 +10,37 @@ import numpy as np
 import pandas as pd
 
 from gearsim.cell.simulate import simulate_cell
-from gearsim.study.config import integration_settings, plane_base
+from gearsim.study.config import Study
 
 
-def audit_settings(config: dict):
+def audit_settings(study: Study):
     """The audit's reference: the adaptive DP5 integrator, whatever method produced the cells
     (an independent integrator, not just a finer step of the same one), at ``audit.tighten``
     times the configuration's DP5 tolerances and half its step cap; the cell plan (transient,
     chunks, period test, ``transient_recurrence``) is the configuration's. ``tighten: 100`` is
     :meth:`IntegrationSettings.tightened`; the evidence for the default is in
     benchmarks/CHANGELOG.md (l)."""
-    st = integration_settings(config).with_(method="dp5")
-    return st.tightened(float(config["audit"].get("tighten", 10)))
+    st = study.settings.with_(method="dp5")
+    return st.tightened(float(study.config["audit"].get("tighten", 10)))
 
 
-def audit_frame(config: dict, plane: str, cells, progress=None):
+def audit_frame(study: Study, plane: str, cells, progress=None):
     """Re-simulate a deterministic sample of cells with DP5 at tightened tolerance
     (:func:`audit_settings`).
 
     Each audited cell starts exactly where the pipeline started it: from the final state of its
     left neighbour in the row (continuation), or from rest for the first cell of a row.
     """
-    aud = config["audit"]
+    aud = study.config["audit"]
     n = len(cells)
     k = int(round(aud["fraction"] * n))
     if aud["fraction"] > 0:
         k = max(k, 1)
     rng = np.random.default_rng(int(aud["seed"]))
     pick = np.sort(rng.choice(n, size=min(k, n), replace=False))
-    base = plane_base(config, plane)
-    pl = config["planes"][plane]
-    tight = audit_settings(config)
+    base = study.parameters(plane=plane).model
+    pl = study.config["planes"][plane]
+    tight = audit_settings(study)
     index = {
         (int(i), int(j)): r for r, (i, j) in enumerate(zip(cells["i"], cells["j"], strict=True))
     }

@@ -1,8 +1,12 @@
 """The dask client of a pipeline job.
 
 By default each tile job starts its own ``LocalCluster`` with one single-threaded worker process
-per Snakemake thread (``--workers {threads}``); when ``cluster.scheduler_address`` is set, the job
-connects to that running scheduler instead (many machines, see docs/pipeline.md).
+per Snakemake thread (``--workers {threads}``); inside a SLURM job the worker count is the CPUs
+SLURM gave the job (:func:`job_cpus`). When ``cluster.scheduler_address`` is set, the job connects
+to that running scheduler instead (many machines, see docs/pipeline.md).
+
+The SLURM profile (profiles/slurm) sizes its jobs with :func:`fit_threads` and
+:func:`fit_memory`: what a rule asks for, bounded by the nodes of the partition the jobs go to.
 
 Workers run Numba kernels with ``NUMBA_NUM_THREADS=1`` (no nested parallelism) and read the
 on-disk Numba cache that ``gearsim compile`` warmed before the workers started.
@@ -11,8 +15,11 @@ on-disk Numba cache that ``gearsim compile`` warmed before the workers started.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import re
+import shutil
+import subprocess
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
@@ -66,6 +73,80 @@ def _prepare_environment() -> None:
         os.environ["NUMBA_CACHE_DIR"] = str(project_root() / ".numba_cache")
 
 
+def job_cpus() -> int | None:
+    """The CPUs SLURM gave this job step, or ``None`` outside SLURM.
+
+    ``SLURM_CPUS_PER_TASK`` when srun exported it; else, inside a SLURM job (``SLURM_JOB_ID``:
+    the executor's jobstep plugin keeps only the job's identity variables), the CPUs this process
+    may run on (the step's CPU binding).
+    """
+    value = os.environ.get("SLURM_CPUS_PER_TASK", "")
+    if value.isdigit() and int(value) > 0:
+        return int(value)
+    if os.environ.get("SLURM_JOB_ID"):
+        return len(os.sched_getaffinity(0))
+    return None
+
+
+def local_workers(workers: int) -> int:
+    """Worker processes of a job's LocalCluster: the CPUs SLURM gave the job, else ``workers``."""
+    cpus = job_cpus()
+    return check_workers(min(cpus, MAX_WORKERS) if cpus is not None else workers)
+
+
+def _partition(partition: str | None) -> str:
+    """``partition``, else $SBATCH_PARTITION (sbatch's own variable, which the profile passes on as
+    ``slurm_partition``), else '' (the cluster's default partition)."""
+    return partition if partition is not None else os.environ.get("SBATCH_PARTITION", "")
+
+
+@functools.lru_cache(maxsize=8)
+def node_limits(partition: str = "") -> tuple[int, int] | None:
+    """(CPUs, memory in MB) of the largest node of ``partition`` ('' = the default partition), from
+    ``sinfo``; ``None`` where no SLURM controller answers (nothing to fit: a dry run, or sbatch
+    itself will refuse). A partition the controller does not know is a one-line UsageError.
+    """
+    if shutil.which("sinfo") is None:
+        return None
+    cmd = ["sinfo", "--noheader", "--format=%P %c %m"]
+    if partition:
+        cmd += ["--partition", partition]
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=30, check=True).stdout
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired):
+        return None
+    rows = []
+    for line in out.splitlines():
+        name, cpus, mem = (f.rstrip("+") for f in line.split())  # "+": sizes above this one
+        if (name.rstrip("*") == partition if partition else name.endswith("*")) and cpus.isdigit():
+            rows.append((int(cpus), int(mem) if mem.isdigit() else 0))
+    if not rows:
+        where = f"partition {partition!r}" if partition else "a default partition"
+        raise UsageError(f"SLURM has no {where} (sinfo lists: {out.split() or 'nothing'}); "
+                         "set SBATCH_PARTITION to one of its partitions")
+    return max(r[0] for r in rows), max(r[1] for r in rows)
+
+
+def fit_threads(wanted: int, partition: str | None = None) -> int:
+    """``wanted`` threads, at most the CPUs of the partition's largest node (a job asking for
+    more would pend forever); ``wanted`` where there is no SLURM."""
+    limits = node_limits(_partition(partition))
+    return wanted if limits is None else max(1, min(wanted, limits[0]))
+
+
+def fit_memory(mb_per_cpu: int, threads: int, rule: str = "a job",
+               partition: str | None = None) -> int:
+    """``mb_per_cpu`` if ``threads`` CPUs of it fit on one node of the partition, else a one-line
+    UsageError before anything is submitted (less memory than a rule needs is not a fit)."""
+    limits = node_limits(_partition(partition))
+    if limits is not None and limits[1] and mb_per_cpu * threads > limits[1]:
+        raise UsageError(
+            f"{rule} needs {mb_per_cpu} MB per CPU x {threads} CPUs = {mb_per_cpu * threads} MB; "
+            f"the largest node of partition {_partition(partition) or '(default)'} has "
+            f"{limits[1]} MB: choose a partition with larger nodes (SBATCH_PARTITION)")
+    return mb_per_cpu
+
+
 @contextlib.contextmanager
 def open_client(workers: int = 1, scheduler_address: str | None = None) -> Iterator[Any]:
     """A ``distributed.Client``: connected to ``scheduler_address``, or to a new LocalCluster.
@@ -73,7 +154,8 @@ def open_client(workers: int = 1, scheduler_address: str | None = None) -> Itera
     Parameters
     ----------
     workers
-        Worker processes of the LocalCluster (one thread each); ignored with a scheduler address.
+        Worker processes of the LocalCluster (one thread each) outside SLURM; inside a SLURM job
+        the CPUs SLURM gave it (:func:`local_workers`). Ignored with a scheduler address.
     scheduler_address
         ``tcp://host:port`` of a running ``dask scheduler``; ``None`` = LocalCluster.
     """
@@ -96,7 +178,7 @@ def open_client(workers: int = 1, scheduler_address: str | None = None) -> Itera
     check_workers(workers)
     with (
         LocalCluster(
-            n_workers=workers,
+            n_workers=local_workers(workers),
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,

@@ -18,12 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from gearsim.cell.simulate import TANGENT_SEED
-from gearsim.study.config import (
-    base_parameters,
-    integration_settings,
-    plane_base,
-    resolved_parameters,
-)
+from gearsim.study.config import Study
 
 #: Packages whose versions go into the provenance.
 PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "distributed")
@@ -31,7 +26,12 @@ PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "
 
 def canonical_json(obj: Any) -> str:
     """JSON with sorted keys and no spaces (the text that is hashed and given to Snakemake)."""
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=float)
+    return json.dumps(obj, sort_keys=True, separators=(",", ":"), default=_plain)
+
+
+def _plain(obj: Any) -> Any:
+    """A read-only mapping (a study's configuration) as a dict, anything else as a float."""
+    return dict(obj) if isinstance(obj, Mapping) else float(obj)
 
 
 def config_hash(obj: Any) -> str:
@@ -41,7 +41,7 @@ def config_hash(obj: Any) -> str:
 
 #: What each kind of job's results depend on: the sources that go into its
 #: :func:`code_version`. An entry is a layer (a subpackage of ``src/gearsim``) or a module or
-#: package inside one (``analysis/finder``: ``analysis/finder.py`` or ``analysis/finder/``, with
+#: package inside one (``analysis/attractors``: ``analysis/attractors.py`` or the package, with
 #: the layer's ``__init__.py``); the package root's modules (``errors.py``, ``__init__.py``)
 #: count for every scope. Editing a source re-runs exactly the jobs whose scope names it: a
 #: presentation or calibration edit re-runs no tile, an orbit-module edit no attractor tile.
@@ -49,7 +49,7 @@ SIMULATION = ("dynamics", "physical", "numerics", "cell", "study")
 CODE_SCOPES: dict[str, tuple[str, ...]] = {
     "tiles": SIMULATION,
     # the attractor tiles run the finder (its modules and the simulation layers below them)
-    "attractors": SIMULATION + ("analysis/attractors", "analysis/finder"),
+    "attractors": SIMULATION + ("analysis/attractors",),
     "analysis": SIMULATION + ("analysis",),
     "calibration": SIMULATION + ("analysis", "calibration"),
     "catalogue": SIMULATION + ("analysis", "results"),
@@ -114,22 +114,31 @@ def package_versions() -> dict[str, str]:
     return out
 
 
-def plane_subtree(config: Mapping, plane: str, root: str | Path | None = None) -> dict[str, Any]:
+def plane_subtree(study: Study, plane: str) -> dict[str, Any]:
     """What a plane's tiles depend on (the Snakemake params and the hashed provenance)."""
     return {
-        "plane": copy.deepcopy(dict(config["planes"][plane])),
-        "parameters": resolved_parameters(config, root),
-        "integration": integration_settings(config).to_dict(),
-        "tile_rows": int(config["tile_rows"]),
+        "plane": copy.deepcopy(dict(study.config["planes"][plane])),
+        "parameters": study.parameters().model.to_dict(),
+        "integration": study.settings.to_dict(),
+        "tile_rows": int(study.config["tile_rows"]),
     }
 
 
-def sweep_subtree(config: Mapping, sweep: str, root: str | Path | None = None) -> dict[str, Any]:
+def sweep_subtree(study: Study, sweep: str) -> dict[str, Any]:
     """What a sweep depends on (its Snakemake params and hashed provenance)."""
     return {
-        "sweep": copy.deepcopy(dict(config["sweeps"][sweep])),
-        "parameters": resolved_parameters(config, root),
-        "integration": integration_settings(config).to_dict(),
+        "sweep": copy.deepcopy(dict(study.config["sweeps"][sweep])),
+        "parameters": study.parameters().model.to_dict(),
+        "integration": study.settings.to_dict(),
+    }
+
+
+def point_subtree(study: Study, points: str) -> dict[str, Any]:
+    """What a point set depends on (its Snakemake params and hashed provenance)."""
+    return {
+        "points": copy.deepcopy(study.config["points"][points]),
+        "parameters": study.parameters().model.to_dict(),
+        "integration": study.settings.to_dict(),
     }
 
 
@@ -138,13 +147,12 @@ def provenance(
     *,
     kind: str,
     name: str,
-    root: str | Path | None = None,
-    config=None,
+    study: Study | None = None,
     scope: str = "tiles",
     **extra: Any,
 ) -> dict[str, Any]:
     """Provenance record (goes into Parquet key-value metadata and the catalogue's runs)."""
-    _, source = base_parameters(config, root) if config is not None else ({}, "unknown")
+    source = study.parameters().source if study is not None else "unknown"
     rec = {
         "kind": kind,
         "name": name,
@@ -160,26 +168,25 @@ def provenance(
     return rec
 
 
-def plane_record(config: dict, plane: str) -> dict:
+def plane_record(study: Study, plane: str) -> dict:
     """What a plane's cells.parquet records about the plane: axes, fixed values, parameters,
     configuration hash, code version and integration settings."""
-    pl = config["planes"][plane]
+    pl = study.config["planes"][plane]
     return {
         "name": plane,
         "x": dict(pl["x"]),
         "y": dict(pl["y"]),
         "fixed": dict(pl.get("fixed", {})),
-        "parameters": plane_base(config, plane).to_dict(),
-        "config_hash": config_hash(plane_subtree(config, plane)),
+        "parameters": study.parameters(plane=plane).model.to_dict(),
+        "config_hash": config_hash(plane_subtree(study, plane)),
         "code_version": code_version(),
-        "integration": integration_settings(config).to_dict(),
+        "integration": study.settings.to_dict(),
         # the axes in physical units when the study has a gear file (the catalogue's views)
-        "physical": _physical_axes(config, (pl["x"]["name"], pl["y"]["name"])),
+        "physical": _physical_axes(study, (pl["x"]["name"], pl["y"]["name"])),
     }
 
 
-def _physical_axes(config: Mapping, names) -> dict[str, dict[str, Any]]:
+def _physical_axes(study: Study, names) -> dict[str, dict[str, Any]]:
     from gearsim.physical.units import config_gear, physical_factors
-    from gearsim.study.config import study_root
 
-    return physical_factors(config_gear(config, study_root()), names)
+    return physical_factors(config_gear(study.config, study.root), names)

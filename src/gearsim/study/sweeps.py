@@ -13,7 +13,7 @@ import pandas as pd
 from gearsim.cell.simulate import simulate_cell, trajectory
 from gearsim.cell.sweep import continuation_chain, sweep_records
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
-from gearsim.study.config import base_parameters, integration_settings
+from gearsim.study.config import Study
 from gearsim.study.tiles import records_to_frame
 
 
@@ -40,14 +40,14 @@ def point_list(spec) -> list[dict[str, float]]:
     return [dict(zip(keys, map(float, combo), strict=True)) for combo in itertools.product(*lists)]
 
 
-def points_frame(config, fig: str, *, ramp_from: float, ramp_step: float, periods: int,
+def points_frame(study: Study, fig: str, *, ramp_from: float, ramp_step: float, periods: int,
                  samples_per_period: int, progress=None) -> pd.DataFrame:
     """Each point twice: reached by a forward ramp in w from ``ramp_from`` in steps of
     ``ramp_step`` (as in the sweeps) and from rest; ``periods`` periods of trajectory recorded
     at ``samples_per_period`` samples each."""
-    values, _ = base_parameters(config)
-    settings = integration_settings(config)
-    points = point_list(config["points"][fig])
+    values = study.parameters().model.to_dict()
+    settings = study.settings
+    points = point_list(study.config["points"][fig])
     for pt in points:
         if "w" not in pt:
             raise ParameterError(f"config key 'points.{fig}': every point needs a value of w")

@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import pandas as pd
@@ -27,7 +26,7 @@ from gearsim.cell.verify import fill_margins
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.batch import LANES
 from gearsim.study.cluster import map_unordered
-from gearsim.study.config import integration_settings, plane_base
+from gearsim.study.config import Study
 from gearsim.study.grid import axis_values, tile_rows
 
 #: Integer columns that may be missing (None) in CellResult.row().
@@ -120,11 +119,11 @@ def row_groups(specs: list[dict], workers: int) -> list[list[dict]]:
     return [specs[k : k + size] for k in range(0, len(specs), size)]
 
 
-def row_specs(config: Mapping, plane: str, tile: int, root: str | Path | None = None) -> list[dict]:
+def row_specs(study: Study, plane: str, tile: int) -> list[dict]:
     """The dask tasks of a tile: one spec per row."""
-    pl = config["planes"][plane]
-    base = plane_base(config, plane, root).to_dict()
-    settings = integration_settings(config).to_dict()
+    pl = study.config["planes"][plane]
+    base = study.parameters(plane=plane).model.to_dict()
+    settings = study.settings.to_dict()
     xs = axis_values(pl["x"]).tolist()
     ys = axis_values(pl["y"])
     return [
@@ -139,7 +138,7 @@ def row_specs(config: Mapping, plane: str, tile: int, root: str | Path | None = 
             "y_name": pl["y"]["name"],
             "y_value": float(ys[j]),
         }
-        for j in tile_rows(config, plane, tile)
+        for j in tile_rows(study.config, plane, tile)
     ]
 
 
@@ -164,20 +163,19 @@ def records_to_frame(records: list[dict[str, Any]]) -> pd.DataFrame:
 
 
 def run_tile(
-    config: Mapping,
+    study: Study,
     plane: str,
     tile: int,
     *,
     client=None,
-    root: str | Path | None = None,
     progress: Callable[[int, int, float], None] | None = None,
 ) -> pd.DataFrame:
     """Simulate all cells of a tile (rows mapped over ``client``, or in-process when None).
 
     ``progress(done_cells, total_cells, elapsed_s)`` is called after each finished row.
     """
-    specs = row_specs(config, plane, tile, root)
-    nx = int(config["planes"][plane]["x"]["n"])
+    specs = row_specs(study, plane, tile)
+    nx = int(study.config["planes"][plane]["x"]["n"])
     total = nx * len(specs)
     t0 = time.perf_counter()
     records: list[dict] = []

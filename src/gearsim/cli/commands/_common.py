@@ -1,5 +1,5 @@
-"""Argument helpers shared by subcommands: the one resolution of a command's parameters
-(:func:`resolve_parameters`) and output-path checks."""
+"""Argument helpers shared by subcommands: a command's study (:func:`study_from_args`), the
+command line's parameter values (:func:`command_parameters`) and output-path checks."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from gearsim.physical.units import (
     config_gear,
     dimensionless_mapping,
 )
-from gearsim.study.config import base_parameters, integration_settings, study_config, study_root
+from gearsim.study.config import Study
 
 
 def parse_assignment(text: str) -> tuple[str, float | str]:
@@ -68,7 +68,7 @@ def add_parameter_arguments(p: argparse.ArgumentParser, *, integration: bool = T
     """The parameter options of every command that simulates: ``--configfile``,
     ``--config-json``, ``--params``, ``--set``, ``--gear`` with ``--rpm`` / ``--torque`` /
     ``--backlash`` and, with ``integration``, ``--method`` / ``--rtol``. One resolution for all:
-    :func:`resolve_parameters`."""
+    :func:`command_parameters`."""
     add_config_arguments(p)
     p.add_argument(
         "--params",
@@ -117,13 +117,11 @@ def _file_option(flag: str, path: str) -> str:
     return str(f.resolve())
 
 
-def config_from_args(args: argparse.Namespace) -> dict:
-    """The study's configuration: config/config.yaml, the ``--configfile`` files, the
-    ``--config-json`` overrides (Snakemake's order; :func:`gearsim.study.config.study_config`),
-    then ``--gear`` / ``--params`` (which file gives the parameter set)."""
-    cached = getattr(args, "_config", None)
-    if cached is not None:
-        return cached
+def study_from_args(args: argparse.Namespace) -> Study:
+    """The study of a command: config/config.yaml, the ``--configfile`` files, the
+    ``--config-json`` overrides (Snakemake's order; :meth:`gearsim.study.config.Study.load`),
+    then ``--gear`` / ``--params`` (which file gives the parameter set). A command asks once
+    and passes the study on."""
     overrides: dict = {}
     if getattr(args, "config_json", None):
         try:
@@ -140,22 +138,20 @@ def config_from_args(args: argparse.Namespace) -> dict:
     if params:
         overrides["standard_parameters"] = _file_option("--params", params)
         overrides["gear"] = None
-    config = study_config(getattr(args, "configfile", None) or (), overrides or None)
-    args._config = config
-    return config
+    return Study.load(getattr(args, "configfile", None) or (), overrides or None)
 
 
 @dataclass(frozen=True)
-class Resolved:
+class CommandParameters:
     """The parameters a command simulates, where they came from, and the study behind them.
 
-    ``config`` is the study's configuration with the command line's values folded into its
+    ``study`` is the command's study with the command line's values folded into its
     ``parameters`` (what a sweep records in its provenance); ``gear`` the gear file's geometry
     (``None`` without one)."""
 
     params: ModelParameters
     source: str
-    config: dict
+    study: Study
     gear: GearGeometry | None
     gear_path: str | None
 
@@ -181,18 +177,25 @@ def _cli_values(args: argparse.Namespace) -> tuple[dict, dict, list[str]]:
     return numbers, text, words
 
 
-def resolve_parameters(args: argparse.Namespace, **extra: float | None) -> Resolved:
-    """The one resolution of a simulating command's parameters.
-
-    In order: the study's set (config/config.yaml and ``--configfile``: its gear file, else its
-    standard-parameter file, then its ``parameters``; ``--gear`` / ``--params`` choose the file),
-    ``--set`` values and ``--rpm`` / ``--torque`` / ``--backlash`` (physical names converted with
-    the gear file), then ``extra`` (a command's own option such as ``--omega``; ``None`` = not
-    given). A value given twice is an error, never a silent choice.
-    """
-    config = config_from_args(args)
+def command_parameters(args: argparse.Namespace, *, omega_required: bool = False,
+                       **extra: float | None) -> CommandParameters:
+    """A simulating command's parameters: its study's (:func:`study_from_args`), then
+    ``--set`` values and ``--rpm`` / ``--torque`` / ``--backlash`` (physical names converted
+    with the gear file), then ``extra`` (a command's own option such as ``--omega``; ``None`` =
+    not given), resolved by :meth:`gearsim.study.config.Study.parameters`. A value given twice
+    is an error, never a silent choice. ``omega_required``: a one-point command, whose mesh
+    frequency must be given (``--omega``, ``--set w=...``, ``--rpm`` with a gear file, or the
+    study's ``parameters``)."""
+    study = study_from_args(args)
+    sets = _assignments(args)
+    if omega_required and (extra.get("w") is None and "w" not in sets
+                           and "speed_rpm" not in sets and "mesh_frequency_Hz" not in sets
+                           and getattr(args, "rpm", None) is None
+                           and "w" not in (study.config.get("parameters") or {})):
+        raise ParameterError("give --omega W (dimensionless mesh frequency), --set w=W, or "
+                             "--gear FILE with --rpm N")
     numbers, text, words = _cli_values(args)
-    gear = config_gear(config, study_root())
+    gear = config_gear(study.config, study.root)
     if any(name in PHYSICAL_AXES for name in numbers) and gear is None:
         raise ParameterError("--rpm, --torque, --backlash and physical --set names need a gear "
                              f"file: add --gear {DEFAULT_GEAR} (or your own, docs/units.md)")
@@ -209,38 +212,15 @@ def resolve_parameters(args: argparse.Namespace, **extra: float | None) -> Resol
             flag = "--omega" if name == "w" else f"--{name}"
             raise ParameterError(f"{name} is set twice (--set or a physical option, and {flag});"
                                  " give one")
-    values, source = base_parameters(config)
+    resolved = study.parameters(changes={**numbers, **text, **given},
+                                words=" + ".join(words))
+    source = resolved.source
     if getattr(args, "params", None):
         source = source.replace(str(Path(args.params).resolve()), args.params, 1)
     if getattr(args, "gear", None):
         source = source.replace(str(Path(args.gear).resolve()), args.gear, 1)
-    values.update(numbers)
-    values.update(text)
-    values.update(given)
-    if words:
-        source += " + " + " + ".join(words)
-    folded = dict(config)
-    folded["parameters"] = {**(config.get("parameters") or {}), **numbers}
-    return Resolved(ModelParameters.from_mapping(values), source, folded, gear,
-                    config.get("gear"))
-
-
-def point_parameters(args: argparse.Namespace, omega: float | None) -> Resolved:
-    """:func:`resolve_parameters` of a one-point command, whose mesh frequency must be given:
-    ``--omega``, ``--set w=...``, ``--rpm`` with a gear file, or the study's ``parameters``."""
-    sets = _assignments(args)
-    cfg = config_from_args(args)
-    if (omega is None and "w" not in sets and "speed_rpm" not in sets
-            and "mesh_frequency_Hz" not in sets and getattr(args, "rpm", None) is None
-            and "w" not in (cfg.get("parameters") or {})):
-        raise ParameterError("give --omega W (dimensionless mesh frequency), --set w=W, or "
-                             "--gear FILE with --rpm N")
-    return resolve_parameters(args, w=omega)
-
-
-def study_from_args(args: argparse.Namespace) -> dict:
-    """The study configuration of a command (:func:`config_from_args`)."""
-    return config_from_args(args)
+    return CommandParameters(resolved.model, source, study.with_parameters(numbers), gear,
+                             study.config.get("gear"))
 
 
 def _assignments(args: argparse.Namespace) -> dict:
@@ -253,26 +233,14 @@ def _assignments(args: argparse.Namespace) -> dict:
     return out
 
 
-def parameters_and_source(args: argparse.Namespace, **extra: float) -> tuple[ModelParameters, str]:
-    """:func:`resolve_parameters` as (parameters, source)."""
-    r = resolve_parameters(args, **extra)
-    return r.params, r.source
-
-
-def parameters_from_args(args: argparse.Namespace, **extra: float) -> ModelParameters:
-    """:func:`resolve_parameters` without the source."""
-    return resolve_parameters(args, **extra).params
-
-
-def settings_from_args(args: argparse.Namespace) -> IntegrationSettings:
+def settings_from_args(args: argparse.Namespace, study: Study) -> IntegrationSettings:
     """The study's integration settings with ``--method`` / ``--rtol`` applied."""
-    settings = integration_settings(config_from_args(args))
     kw: dict = {}
     if getattr(args, "method", None) is not None:
         kw["method"] = args.method
     if getattr(args, "rtol", None) is not None:
         kw["rtol"] = args.rtol
-    return settings.with_(**kw) if kw else settings
+    return study.settings.with_(**kw) if kw else study.settings
 
 
 def check_new_file(path: str | Path, *, create_parent: bool = True, need: int | None = None

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.errors import UsageError
 
 NAME = "attractor-maps"
@@ -34,7 +34,8 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.presentation.figures.multistability import figure_coexistence, figure_forward_basin
     from gearsim.presentation.figures.style import save_figure
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'")
     pl = config["planes"][args.plane]

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.cli.commands.simulate_tile import Progress
 from gearsim.errors import UsageError
 
@@ -48,13 +48,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="output (default results/<plane>/attractors/<tile>.parquet)")
 
 
-def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
-    """Plain-data tasks of :func:`gearsim.analysis.finder.cell_group_records` for one tile
+def task_specs(study, plane: str, tile: int, tile_df) -> list[dict]:
+    """Plain-data tasks of :func:`gearsim.analysis.attractors.cell_group_records` for one tile
     (each cell with its forward-continuation state and the tile's row of it: a known motion)."""
     from gearsim.study import tiles
 
-    ms = config["planes"][plane]["multistability"]
-    rows = tiles.row_specs(config, plane, tile)
+    ms = study.config["planes"][plane]["multistability"]
+    rows = tiles.row_specs(study, plane, tile)
     fwd: dict = {}
     known: dict = {}
     if tile_df is not None:
@@ -88,14 +88,14 @@ def task_specs(config: dict, plane: str, tile: int, tile_df) -> list[dict]:
 def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from gearsim.analysis.attractors import TILE_COLUMNS
-    from gearsim.analysis.finder import cell_group_records
+    from gearsim.analysis.attractors import TILE_COLUMNS, cell_group_records
     from gearsim.results import catalogue
     from gearsim.study import grid as ggrid
     from gearsim.study import provenance as gprov
     from gearsim.study.cluster import describe, map_unordered, open_client
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     if args.plane not in config["planes"]:
         raise UsageError(
             f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         tile_df = pd.read_parquet(tile_file)  # the forward motion of every cell: known
     else:
         print(f"note: {tile_file} not found: no forward-continuation states", file=sys.stderr)
-    specs = task_specs(config, args.plane, args.tile, tile_df)
+    specs = task_specs(study, args.plane, args.tile, tile_df)
     total = sum(len(s["cells"]) for s in specs)
     out = Path(args.out or f"results/{args.plane}/attractors/{args.tile}.parquet")
     from gearsim.study.preflight import check_output
@@ -145,9 +145,9 @@ def run(args: argparse.Namespace) -> int:
     df = df.sort_values(["j", "i", "attractor"], kind="stable").reset_index(drop=True)
     ms = config["planes"][args.plane]["multistability"]
     prov = gprov.provenance(
-        gprov.plane_subtree(config, args.plane), kind="attractors", name=args.plane,
+        gprov.plane_subtree(study, args.plane), kind="attractors", name=args.plane,
         scope="analysis",
-        config=config, tile=args.tile, rows=[rows.start, rows.stop], workers=workers,
+        study=study, tile=args.tile, rows=[rows.start, rows.stop], workers=workers,
         started=started, finished=catalogue.now_iso(), wall_s=wall, cells=total,
         starts=int(ms["starts"]), seed=int(ms.get("seed", 0)), every=int(ms.get("every", 1)),
         forward_states=tile_df is not None,

@@ -28,23 +28,22 @@ def add_multistability_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The point's parameters (:func:`gearsim.cli.commands._common.point_parameters`)."""
-    from gearsim.cli.commands._common import point_parameters
+    """The point's parameters (:func:`gearsim.cli.commands._common.command_parameters`)."""
+    from gearsim.cli.commands._common import command_parameters
 
-    return point_parameters(args, args.omega)
+    return command_parameters(args, omega_required=True, w=args.omega)
 
 
 def load_point(args: argparse.Namespace):
     """Parameters and settings of a multistability command: the shared parameter resolution
     and the study's integration settings (RK4, the production path) with ``--transient``."""
     from gearsim.dynamics.parameters import ParameterError
-    from gearsim.study.config import integration_settings
 
     if args.transient < 0:
         raise ParameterError(f"--transient = {args.transient} must be an integer >= 0")
     r = resolve(args)
     # the study's settings (config/config.yaml: RK4, 192 steps per period), this transient
-    settings = integration_settings(r.config).with_(method="rk4", transient=int(args.transient))
+    settings = r.study.settings.with_(method="rk4", transient=int(args.transient))
     return r.params, r.source, settings
 
 
@@ -57,16 +56,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gearsim.analysis.attractors import summary_lines
-    from gearsim.analysis.finder import find_attractors
+    from gearsim.analysis.attractors import FinderOptions, find_attractors, summary_lines
     from gearsim.dynamics.parameters import ParameterError
 
     if args.starts < 1 or args.starts > 1_000_000:
         raise ParameterError(f"--starts = {args.starts} must be in [1, 1000000]")
     params, source, settings = load_point(args)
     t0 = time.perf_counter()
-    ca = find_attractors(params, starts=args.starts, seed=args.seed, settings=settings,
-                         early=not args.full)  # fmt: skip
+    options = FinderOptions(starts=args.starts, seed=args.seed, early=not args.full)
+    ca = find_attractors(params, options, settings=settings)
     elapsed = time.perf_counter() - t0
     if args.json:
         out = {

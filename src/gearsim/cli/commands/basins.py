@@ -31,6 +31,7 @@ def run(args: argparse.Namespace) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
+    from gearsim.analysis.attractors import FinderOptions
     from gearsim.analysis.basins import basin_grid, write_basin_grid
     from gearsim.presentation.figures.multistability import figure_basins
     from gearsim.presentation.figures.style import save_figure
@@ -39,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     grid = basin_grid(params, n=args.n, settings=settings,
                       box=None if args.box is None else tuple(args.box),
-                      early=not args.full)  # fmt: skip
+                      options=FinderOptions(early=not args.full))  # fmt: skip
     elapsed = time.perf_counter() - t0
     out = write_basin_grid(grid, args.out)
     att = grid.attractor_table()

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.errors import UsageError
 from gearsim.study.preflight import check_outputs
 
@@ -71,10 +71,10 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
     from gearsim.analysis.orbits import SEEDING, find_periodic_orbit
     from gearsim.results import catalogue
-    from gearsim.study import config as gcfg
     from gearsim.study import provenance as gprov
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'; allowed: {', '.join(config['planes'])}")
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     if x0 == x1:
         raise UsageError(f"--from and --to are equal ({x0}): empty range")
     y0, y1 = float(pl["y"]["min"]), float(pl["y"]["max"])
-    base = gcfg.plane_base(config, args.plane)
+    base = study.parameters(plane=args.plane).model
     at = float(getattr(base, yn)) if args.at is None else args.at
     at = min(max(at, y0), y1)
     step2 = args.step2 if args.step2 is not None else (y1 - y0) / 10
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     skip = _unusable_plane(args.cells) if args.cells else None
     if skip is not None:
-        return _write_skipped(args, config, outputs, skip, started, at, yn)
+        return _write_skipped(args, study, outputs, skip, started, at, yn)
     given = _given_points(args.points, params, xn, x0, x1) if args.points else None
     if given is not None:
         points, branches = given
@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     status = ("budget" if "budget" in (branches.attrs.get("status"), curves.attrs.get("status"))
               else "ok")
     prov = gprov.provenance(
-        gprov.plane_subtree(config, args.plane), kind="curves", name=args.plane, config=config,
+        gprov.plane_subtree(study, args.plane), kind="curves", name=args.plane, study=study,
         scope="analysis",
         started=started, finished=catalogue.now_iso(), wall_s=wall, seed_value=at,
         branch_wall_s=t_branch, curve_wall_s=wall - t_branch, reasons=curves.attrs["reasons"],
@@ -197,7 +197,7 @@ def _unusable_plane(cells: str) -> str | None:
     return None
 
 
-def _write_skipped(args, config, outputs, why: str, started: str, at: float, yn: str) -> int:
+def _write_skipped(args, study, outputs, why: str, started: str, at: float, yn: str) -> int:
     """Empty curve tables (status 'skipped', the reason in their provenance) and a figure
     saying why: the catalogue and the report then state it, the workflow goes on."""
     import pandas as pd
@@ -212,7 +212,7 @@ def _write_skipped(args, config, outputs, why: str, started: str, at: float, yn:
     out, points_path, branches_path, png = outputs
     reason = f"curves skipped: {why}"
     prov = gprov.provenance(
-        gprov.plane_subtree(config, args.plane), kind="curves", name=args.plane, config=config,
+        gprov.plane_subtree(study, args.plane), kind="curves", name=args.plane, study=study,
         scope="analysis", started=started, finished=catalogue.now_iso(), wall_s=0.0,
         seed_value=at, reasons=[reason], workers="in-process", status="skipped",
         budget_s=args.budget_s,
@@ -230,7 +230,7 @@ def _write_skipped(args, config, outputs, why: str, started: str, at: float, yn:
 
     fig = figure_curves(curves, pd.read_parquet(args.cells),
                         title="\n".join(textwrap.wrap(f"plane {args.plane}: {reason}", 80)))
-    pl = config["planes"][args.plane]
+    pl = study.config["planes"][args.plane]
     fig.axes[0].set_xlabel(param_label(pl["x"]["name"]))
     fig.axes[0].set_ylabel(param_label(pl["y"]["name"]))
     save_figure(fig, png)

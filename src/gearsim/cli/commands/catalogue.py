@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.errors import UsageError
 from gearsim.study.audit import audit_frame, audit_settings
 from gearsim.study.provenance import plane_record
@@ -72,10 +72,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _cells(args) -> int:
     from gearsim.results import catalogue
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'")
-    out = catalogue.combine_tiles(args.tiles, args.out, plane_record(config, args.plane))
+    out = catalogue.combine_tiles(args.tiles, args.out, plane_record(study, args.plane))
     print(f"plane {args.plane}: {len(args.tiles)} tiles -> {out}", file=sys.stderr)
     return 0
 
@@ -87,7 +88,8 @@ def _audit(args) -> int:
     from gearsim.results import catalogue
     from gearsim.study import provenance
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'")
     from gearsim.study.preflight import check_output
@@ -99,16 +101,16 @@ def _audit(args) -> int:
     progress = Progress(
         f"audit {args.plane}", max(1, int(config["audit"]["fraction"] * len(cells)))
     )
-    df = audit_frame(config, args.plane, cells, progress)
+    df = audit_frame(study, args.plane, cells, progress)
     progress.close()
     agreement = float(df["agree"].mean()) if len(df) else float("nan")
     threshold = float(config["audit"]["threshold"])
-    subtree = {**provenance.plane_subtree(config, args.plane), "audit": dict(config["audit"])}
+    subtree = {**provenance.plane_subtree(study, args.plane), "audit": dict(config["audit"])}
     prov = provenance.provenance(
         subtree,
         kind="audit",
         name=args.plane,
-        config=config,
+        study=study,
         started=started,
         finished=catalogue.now_iso(),
         wall_s=time.perf_counter() - t0,
@@ -116,7 +118,7 @@ def _audit(args) -> int:
         audit_seed=int(config["audit"]["seed"]),
         agreement=agreement,
         threshold=threshold,
-        settings=audit_settings(config).to_dict(),
+        settings=audit_settings(study).to_dict(),
         workers="in-process",
     )
     catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})

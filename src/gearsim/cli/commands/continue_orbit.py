@@ -11,7 +11,7 @@ from pathlib import Path
 from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
 from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
-from gearsim.cli.commands._common import resolve_parameters
+from gearsim.cli.commands._common import command_parameters
 from gearsim.cli.commands.orbit import add_orbit_parameter_arguments
 from gearsim.errors import UsageError
 from gearsim.study.preflight import check_outputs
@@ -54,7 +54,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def resolve(args: argparse.Namespace):
     """The start point's parameters: the shared resolution with the continued parameter at
     ``--from``."""
-    return resolve_parameters(args, **{args.name: args.start})
+    return command_parameters(args, **{args.name: args.start})
 
 
 def run(args: argparse.Namespace) -> int:

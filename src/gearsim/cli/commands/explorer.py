@@ -15,7 +15,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.errors import UsageError
 
 NAME = "explorer"
@@ -38,9 +38,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gearsim.presentation.explorer import write_explorer
-    from gearsim.presentation.report import study_from_config
+    from gearsim.presentation.report_inputs import study_from_config
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     planes, sweeps = study_from_config(config)
     for flag, chosen, known in (("--plane", args.plane, list(planes)),
                                 ("--sweep", args.sweep, sweeps)):
@@ -65,7 +66,6 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.physical.units import config_gear
     from gearsim.presentation.report import build_report
     from gearsim.presentation.scorecard import scorecard
-    from gearsim.study.config import study_root
 
     rep, _ = build_report(sweeps_dir=results / "sweeps", catalogue=args.catalogue,
                           results=results, calibration=None, planes=planes, sweeps=sweeps,
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
              else "gearsim explorer: reproduction of the paper")
     out = write_explorer(args.out, planes=planes, sweeps=sweeps, results=results,
                          catalogue=args.catalogue, sweep_fixed=fixed,
-                         gear=config_gear(config, study_root()), scorecard=rows, title=title)
+                         gear=config_gear(config, study.root), scorecard=rows, title=title)
     size = out.stat().st_size
     print(f"wrote {out} ({size / 1e6:.1f} MB; {len(planes)} planes, {len(sweeps)} sweeps)",
           file=sys.stderr)

@@ -28,7 +28,7 @@ import json
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.errors import UsageError
 
 NAME = "figures"
@@ -87,16 +87,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p)
 
 
-def _context(args, config):
-    from gearsim.dynamics.parameters import ModelParameters
+def _context(args, study):
     from gearsim.presentation.figures.data import read_table
     from gearsim.presentation.figures.registry import Context
-    from gearsim.study.config import base_parameters, integration_settings
 
-    values, _source = base_parameters(config)
+    config = study.config
     ctx = Context(
-        params=ModelParameters.from_mapping(values),
-        settings=integration_settings(config),
+        params=study.parameters().model,
+        settings=study.settings,
         point_specs=dict(config.get("points") or {}),
         sweep_fixed={k: dict(v.get("fixed") or {}) for k, v in
                      (config.get("sweeps") or {}).items()},
@@ -153,7 +151,8 @@ def _sweep_diagrams(args: argparse.Namespace, outdir: Path) -> None:
     from gearsim.presentation.figures.style import save_figure
     from gearsim.presentation.figures.sweeps import figure_sweep_diagram, sweep_spec_of
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     for name, path in _pairs(args.sweep, "--sweep").items():
         spec = sweep_spec_of(path, config, name)
         df = read_table(path)
@@ -204,8 +203,9 @@ def run(args: argparse.Namespace) -> int:
     if args.sweep_diagrams:
         _sweep_diagrams(args, outdir)
     if numbers or args.maps:
-        config = config_from_args(args)
-        ctx = _context(args, config)
+        study = study_from_args(args)
+        config = study.config
+        ctx = _context(args, study)
         if args.maps:
             physical = _physical(config)
             for plane, df in ctx.planes.items():

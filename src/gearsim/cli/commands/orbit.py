@@ -8,7 +8,7 @@ import time
 
 from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
-from gearsim.cli.commands._common import add_parameter_arguments, point_parameters
+from gearsim.cli.commands._common import add_parameter_arguments, command_parameters
 
 NAME = "orbit"
 HELP = (
@@ -35,8 +35,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The orbit's parameters (:func:`gearsim.cli.commands._common.point_parameters`)."""
-    return point_parameters(args, args.omega)
+    """The orbit's parameters (:func:`gearsim.cli.commands._common.command_parameters`)."""
+    return command_parameters(args, omega_required=True, w=args.omega)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -13,8 +13,8 @@ from gearsim.cell.simulate import simulate_cell, trajectory
 from gearsim.cli.commands._common import (
     add_parameter_arguments,
     check_output_path,
+    command_parameters,
     json_safe,
-    point_parameters,
     settings_from_args,
 )
 from gearsim.errors import UsageError
@@ -53,15 +53,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The point's parameters (:func:`gearsim.cli.commands._common.point_parameters`)."""
-    return point_parameters(args, args.omega)
+    """The point's parameters (:func:`gearsim.cli.commands._common.command_parameters`)."""
+    return command_parameters(args, omega_required=True, w=args.omega)
 
 
 def run(args: argparse.Namespace) -> int:
     out = check_output_path(args.out) if args.out else None
     r = resolve(args)
     params, source, gear = r.params, r.source, r.gear
-    settings = settings_from_args(args)
+    settings = settings_from_args(args, r.study)
     t0 = time.perf_counter()
     spectrum = False if args.spectrum is None else (args.spectrum or True)
     res = simulate_cell(params, settings=settings, spectrum=spectrum)

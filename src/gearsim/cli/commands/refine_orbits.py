@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.errors import UsageError
 
 NAME = "refine-orbits"
@@ -34,10 +34,10 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.analysis.orbits import shooting_settings
     from gearsim.cli.commands.simulate_tile import Progress
     from gearsim.results import catalogue
-    from gearsim.study import config as gcfg
     from gearsim.study import provenance as gprov
 
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     if args.plane not in config["planes"]:
         raise UsageError(f"unknown plane '{args.plane}'; allowed: {', '.join(config['planes'])}")
     if args.limit is not None and args.limit < 1:
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     for col in ("i", "j", "x", "y", "n", "status", "label", "final_state"):
         if col not in cells.columns:
             raise UsageError(f"{args.cells}: column '{col}' missing (not a plane's cells.parquet)")
-    base = gcfg.plane_base(config, args.plane)
+    base = study.parameters(plane=args.plane).model
     pl = config["planes"][args.plane]
     st = shooting_settings(args.rtol)
     from gearsim.study.preflight import check_output
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     progress.close()
     wall = time.perf_counter() - t0
     prov = gprov.provenance(
-        gprov.plane_subtree(config, args.plane), kind="orbits", name=args.plane, config=config,
+        gprov.plane_subtree(study, args.plane), kind="orbits", name=args.plane, study=study,
         scope="analysis",
         started=started, finished=catalogue.now_iso(), wall_s=wall, cells=len(df),
         settings=st.to_dict(), workers="in-process",

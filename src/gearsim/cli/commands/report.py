@@ -12,8 +12,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, config_from_args
-from gearsim.presentation.report import build_report, study_from_config
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
+from gearsim.presentation.report import build_report
+from gearsim.presentation.report_inputs import study_from_config
 
 NAME = "report"
 HELP = ("write the study's report (Markdown): the scorecard against the paper, or the study's "
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     planes: dict[str, tuple[str, str]] | tuple[str, ...] = ("wb", "wxi")
     sweeps = specs = points = study = None
     if args.configfile or args.config_json:
-        config = config_from_args(args)
+        config = study_from_args(args).config
         planes, sweeps = study_from_config(config)
         specs = dict(config.get("sweeps") or {})
         points = list(config.get("points") or {})

@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, check_new_file, config_from_args
+from gearsim.cli.commands._common import add_config_arguments, check_new_file, study_from_args
 from gearsim.errors import UsageError
 from gearsim.results import catalogue
 from gearsim.study import provenance, tiles
@@ -82,7 +82,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    config = config_from_args(args)
+    study = study_from_args(args)
+    config = study.config
     if args.plane not in config["planes"]:
         raise UsageError(
             f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
@@ -111,20 +112,20 @@ def run(args: argparse.Namespace) -> int:
     if in_process:
         workers = "in-process"
         print(f"{banner}, {workers}", file=sys.stderr, flush=True)
-        df = tiles.run_tile(config, args.plane, args.tile, client=None, progress=progress)
+        df = tiles.run_tile(study, args.plane, args.tile, client=None, progress=progress)
     else:
         # connect first: a bad scheduler address is then the only line on stderr
         with open_client(args.workers, address) as client:
             workers = describe(client)
             print(f"{banner} on {workers}", file=sys.stderr, flush=True)
-            df = tiles.run_tile(config, args.plane, args.tile, client=client, progress=progress)
+            df = tiles.run_tile(study, args.plane, args.tile, client=client, progress=progress)
     progress.close()
     wall = time.perf_counter() - t0
     prov = provenance.provenance(
-        provenance.plane_subtree(config, args.plane),
+        provenance.plane_subtree(study, args.plane),
         kind="tile",
         name=args.plane,
-        config=config,
+        study=study,
         tile=args.tile,
         rows=[rows.start, rows.stop],
         workers=workers,

@@ -7,19 +7,17 @@ import math
 import sys
 import time
 
-from gearsim.cli.commands._common import add_parameter_arguments, check_new_file, resolve_parameters
+from gearsim.cli.commands._common import (
+    add_parameter_arguments,
+    check_new_file,
+    command_parameters,
+)
 from gearsim.cli.commands.simulate_tile import Progress
-from gearsim.dynamics.parameters import ModelParameters
 from gearsim.errors import UsageError
 from gearsim.results import catalogue
-from gearsim.study.config import (
-    base_parameters,
-    integration_settings,
-    resolved_parameters,
-    results_dir,
-)
+from gearsim.study.config import results_dir
 from gearsim.study.grid import sweep_values
-from gearsim.study.provenance import provenance, sweep_subtree
+from gearsim.study.provenance import point_subtree, provenance, sweep_subtree
 from gearsim.study.sweeps import point_list, points_frame, sweep_frame
 
 NAME = "sweep"
@@ -69,14 +67,16 @@ def _check_recording(args: argparse.Namespace) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The sweep's base parameters: the shared resolution (the swept value and the sweep's
-    ``fixed`` values are set per point); its ``config`` carries them into the provenance."""
-    return resolve_parameters(args)
+    """The sweep's study with the command line's values folded into its parameters (the swept
+    value and the sweep's ``fixed`` values are set per point); it carries them into the
+    provenance."""
+    return command_parameters(args)
 
 
 def run(args: argparse.Namespace) -> int:
     _check_recording(args)
-    config = resolve(args).config
+    study = resolve(args).study
+    config = study.config
     res = results_dir(config)
     default = (
         res / "sweeps" / f"{args.name}.parquet"
@@ -92,8 +92,7 @@ def run(args: argparse.Namespace) -> int:
                 f"unknown sweep '{args.name}'; configured: {', '.join(config['sweeps']) or 'none'}"
             )
         spec = config["sweeps"][args.name]
-        values, _ = base_parameters(config)
-        base = ModelParameters.from_mapping({**values, **spec.get("fixed", {})})
+        base = study.parameters(sweep=args.name).model
         vals = sweep_values(spec)
         progress = Progress(f"sweep {args.name}", len(vals))
         df = sweep_frame(
@@ -101,11 +100,11 @@ def run(args: argparse.Namespace) -> int:
             spec["name"],
             vals,
             spec.get("direction", "forward"),
-            integration_settings(config),
+            study.settings,
             progress,
             spec.get("start", "continuation"),
         )
-        subtree = sweep_subtree(config, args.name)
+        subtree = sweep_subtree(study, args.name)
         kind, name = "sweep", args.name
     else:
         if args.points not in config["points"]:
@@ -116,13 +115,11 @@ def run(args: argparse.Namespace) -> int:
         progress = Progress(
             f"points {args.points}", len(point_list(config["points"][args.points]))
         )
-        df = points_frame(config, args.points, ramp_from=args.ramp_from,
+        df = points_frame(study, args.points, ramp_from=args.ramp_from,
                           ramp_step=args.ramp_step, periods=args.periods,
                           samples_per_period=args.samples_per_period, progress=progress)
         subtree = {
-            "points": config["points"][args.points],
-            "parameters": resolved_parameters(config),
-            "integration": integration_settings(config).to_dict(),
+            **point_subtree(study, args.points),
             "recording": {
                 "ramp_from": args.ramp_from,
                 "ramp_step": args.ramp_step,
@@ -137,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
         subtree,
         kind=kind,
         name=name,
-        config=config,
+        study=study,
         started=started,
         finished=catalogue.now_iso(),
         wall_s=wall,

@@ -120,13 +120,12 @@ def figure_hysteresis(sweeps: pd.DataFrame, *, title: str | None = None):
 def basin_box(params, settings, starts: int = 32) -> tuple[float, float, float, float]:
     """The finder's start box, widened (15 % margin) to hold the section points of the
     attractors that ``starts`` seeded starts reach (so every attractor is inside the picture)."""
-    from gearsim.analysis.attractors import start_box
-    from gearsim.analysis.finder import find_attractors
+    from gearsim.analysis.attractors import FinderOptions, find_attractors, start_box
 
     x0, hx, v0, hv = start_box(params)
     lo = np.array([x0 - hx, v0 - hv])
     hi = np.array([x0 + hx, v0 + hv])
-    ca = find_attractors(params, starts=starts, seed=0, settings=settings)
+    ca = find_attractors(params, FinderOptions(starts=starts), settings=settings)
     for a in ca.attractors:
         p = a.points[:, :2]
         lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))

@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from gearsim.presentation.figures import registry
+from gearsim.study.config import Study
 
 #: where the figures, plane maps and sweep diagrams go (``gearsim figures --outdir``)
 FIGURE_DIR = "results/figures"
@@ -103,15 +104,15 @@ def sweep_diagram_outputs(sweep: str) -> list[str]:
     return [f"{FIGURE_DIR}/sweeps/{sweep}.{ext}" for ext in ("png", "pdf", "json")]
 
 
-def figure_params(config: Mapping[str, Any]) -> str:
+def figure_params(study: Study) -> str:
     """What the simulated figures (2, 5, 6, 9-11) depend on besides their tables (JSON)."""
-    from gearsim.study import config as gcfg
     from gearsim.study import provenance as gprov
 
+    config = study.config
     return gprov.canonical_json(
         {
-            "parameters": gcfg.resolved_parameters(config),
-            "integration": gcfg.integration_settings(config).to_dict(),
+            "parameters": study.parameters().model.to_dict(),
+            "integration": study.settings.to_dict(),
             "points": config.get("points", {}),
             "sweeps": {k: v.get("fixed", {}) for k, v in config.get("sweeps", {}).items()},
         }

@@ -1,9 +1,10 @@
-"""The asynchronous attractor finder: one pool of SIMD lanes across cells and starts.
+"""The lane-pool mapper (the gear model): one pool of SIMD lanes across cells and starts.
 
-Same answer as :func:`gearsim.analysis.attractors.map_attractors` with the gear model (the same
-starts, the same recurrence rule :meth:`~gearsim.analysis.attractors._Known.recur`, the same
-merging and the same last step :func:`~gearsim.analysis.attractors.assemble`), scheduled so
-that no lane waits for another start:
+Same answer as the recurrence mapper :func:`~gearsim.analysis.attractors.recurrence.map_attractors`
+with the gear model (the same starts, the same recurrence rule
+:meth:`~gearsim.analysis.attractors.matching._Known.recur`, the same merging and the same last
+step :func:`~gearsim.analysis.attractors.matching.assemble`), scheduled so that no lane waits
+for another start:
 
 * Every start is a job of :func:`gearsim.cell.pool.run_pool` whose trajectory *is* its
   full-length run (transient, tangent lead, measurement, period test, classification and
@@ -27,39 +28,18 @@ that no lane waits for another start:
 
 from __future__ import annotations
 
-import math
 from collections import deque
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 
-from gearsim.analysis.attractors import (
-    FOUND_BY,
-    CellAttractors,
-    GearCells,
-    Steady,
-    _Known,
-    _Options,
-    assemble,
-    gear_steady,
-    one_cell,
-    sobol_unit,
-    tile_records,
-)
+from gearsim.analysis.attractors.gear import GearCells, gear_steady, sobol_unit
+from gearsim.analysis.attractors.matching import _Known, assemble, least_periods
+from gearsim.analysis.attractors.options import FinderOptions
+from gearsim.analysis.attractors.results import FOUND_BY, CellAttractors, Steady
 from gearsim.cell.pool import GO, MEASURE, PARK, STOP, PoolJob, PoolStats, run_pool
-from gearsim.cell.simulate import IntegrationSettings, result_columns
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import steps_per_period
-
-#: the recurrence's own period test: a start's last points repeat after n periods within
-#: 1e-4 of the orbit's range (the classifier's test is 1e-5; docs/decisions.md)
-RECUR_PERIOD_RTOL = 1e-4
-
-#: lanes of the probing pool (a kernel call of 8 periods over 256 lanes is ~10 ms: the Python
-#: bookkeeping per chunk stays a small share; docs/decisions.md)
-POOL_LANES = 256
-
 
 _CONT = {-1: "forward", -2: "backward"}
 
@@ -77,7 +57,7 @@ def _verified(s: Steady) -> bool:
 
 
 class _Cell:
-    def __init__(self, c: int, params: ModelParameters, starts: np.ndarray, opts: _Options):
+    def __init__(self, c: int, params: ModelParameters, starts: np.ndarray, opts: FinderOptions):
         self.c = c
         self.params = params
         self.starts = starts
@@ -95,7 +75,7 @@ class _Judge:
     """The finder's side of :func:`gearsim.cell.pool.run_pool` for the cells of one grid."""
 
     def __init__(self, cells: list[_Cell], forward, backward, forward_results, st,
-                 opts: _Options, history: int, early: bool):
+                 opts: FinderOptions, history: int, early: bool):
         self.cells = deque(cells)
         self.forward = forward
         self.backward = backward
@@ -241,32 +221,19 @@ class _Judge:
                 self.ready.appendleft(j)
 
 
-def find_attractors_many(
+def map_gear_cells(
     params_list: Sequence[ModelParameters],
+    options: FinderOptions,
     *,
-    starts: int = 16,
-    seed: int = 0,
     settings=None,
     forward: Sequence[np.ndarray | None] | None = None,
     backward: Sequence[np.ndarray | None] | None = None,
-    early: bool = True,
     forward_results: Sequence[Steady | None] | None = None,
     start_states: Sequence[np.ndarray] | None = None,
-    lanes: int = POOL_LANES,
     stats: PoolStats | None = None,
-    **options: Any,
 ) -> list[CellAttractors]:
-    """Coexisting attractors of many gear cells through one lane pool (module docstring).
-
-    Same arguments and result as the reference
-    :func:`gearsim.analysis.attractors.find_attractors_many` (``map_attractors``), plus:
-    ``forward_results``, per cell the already classified forward-continuation motion (a
-    :class:`~gearsim.analysis.attractors.Steady`, e.g. :func:`steady_from_row` of the plane
-    tile's row) or None, used instead of running ``forward``; ``start_states``, per cell its own
-    ``(K, 10)`` start states instead of the Sobol starts (basin pictures); ``lanes``, the
-    probing pool's size; ``stats``, a :class:`gearsim.cell.pool.PoolStats` collecting the
-    lane use. ``early=False``: every start its full-length run (through the same pool).
-    """
+    """Coexisting attractors of many gear cells through one lane pool (module docstring); the
+    arguments of :func:`gearsim.analysis.attractors.find_attractors`."""
     system = GearCells(params_list, settings)
     st = system.settings
     n = len(params_list)
@@ -274,12 +241,12 @@ def find_attractors_many(
                       ("forward_results", forward_results), ("start_states", start_states)):
         if seq is not None and len(seq) != n:
             raise ParameterError(f"{name}: one entry per cell expected")  # fmt: skip
+    opts = options.resolved(st.period_rtol)
     if start_states is None:
-        unit = sobol_unit(starts, seed)
+        unit = sobol_unit(opts.starts, opts.seed)
         st_states = [system.start_states(c, unit) for c in range(n)]
     else:
         st_states = [np.atleast_2d(np.asarray(s, dtype=float)) for s in start_states]
-    opts = _make_options(st, options)
     history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
     cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
     groups: dict[tuple, list[_Cell]] = {}
@@ -290,8 +257,8 @@ def find_attractors_many(
     stats = stats if stats is not None else PoolStats()
     for (N, nu), group in groups.items():
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
-                       bool(early))  # fmt: skip
-        run_pool(judge, st, N, nu, lanes=lanes, chunk=opts.chunk, orbits=system.orbits,
+                       opts.early)  # fmt: skip
+        run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,
                  stats=stats)  # fmt: skip
     for cell in cells:
         if np.any(cell.labels == -2) or cell.parked:
@@ -301,97 +268,6 @@ def find_attractors_many(
                      [c.early for c in cells], [c.periods for c in cells],
                      [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
     system.fill_margins(found)
-    return found
+    return [least_periods(ca, opts.merge_rtol) for ca in found]
 
 
-def find_attractors(params: ModelParameters, **options: Any) -> CellAttractors:
-    """Coexisting attractors of one gear cell: :func:`find_attractors_many` for ``[params]``
-    (same options: ``starts``, ``seed``, ``settings``, ``early``; ``forward`` / ``backward``
-    one continuation state each, or None). Returns the attractors (classification, basin
-    fraction, section points), most likely first.
-    """
-    return one_cell(find_attractors_many, params, **options)
-
-
-def steady_from_row(row: Mapping[str, Any], w: float) -> Steady | None:
-    """The :class:`~gearsim.analysis.attractors.Steady` of a plane tile's cell row (its
-    classification, Poincare points and final state; ``w`` the cell's frequency ratio), None
-    without them."""
-    if row.get("poincare_x") is None or row.get("n") is None:
-        return None
-    info = {k: _plain(row.get(k)) for k in result_columns() if k in row}
-    n = int(info.pop("n"))
-    label = str(info.pop("label"))
-    scale = float(info["x_max"]) - float(info["x_min"])
-    scale = scale if math.isfinite(scale) else 0.0
-    status, motion = info.get("status"), info.get("motion")
-    return Steady(
-        status="diverged" if status == "diverged" else (
-            "unsettled" if motion == "unsettled" else "ok"),
-        period=n,
-        points=np.column_stack([np.asarray(row["poincare_x"], dtype=float),
-                                np.asarray(row["poincare_v"], dtype=float)]),
-        scale_x=scale,
-        scale_v=scale * float(w),
-        label=label,
-        info=info,
-        final_state=None if row.get("final_state") is None
-        else np.asarray(row["final_state"], dtype=float),
-    )  # fmt: skip
-
-
-def _plain(v):
-    """A Parquet value as a plain Python one (pandas' NA as None)."""
-    if v is None:
-        return None
-    try:
-        import pandas as pd
-
-        if v is pd.NA:
-            return None
-    except ImportError:  # pragma: no cover
-        pass
-    return v.item() if isinstance(v, np.generic) else v
-
-
-def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """Attractor records of a group of plane cells (one task of ``gearsim attractor-tile``).
-
-    ``spec`` (plain data): ``plane``, ``tile``, ``params`` (dict), ``settings`` (dict),
-    ``x_name``, ``y_name``, ``cells`` (list of ``(i, j, x, y, forward_state or None)``),
-    ``starts``, ``seed`` and optionally ``forward_rows`` (per cell the plane tile's row of
-    that cell, or None: its motion is known without a run). One record per attractor of each
-    cell; a cell whose starts all diverged gets one record with ``attractor = -1`` and label
-    ``diverged``.
-    """
-    base = ModelParameters.from_mapping(dict(spec["params"]))
-    settings = IntegrationSettings(**spec["settings"])
-    xn, yn = spec["x_name"], spec["y_name"]
-    cells = spec["cells"]
-    plist = [base.with_(**{xn: float(c[2]), yn: float(c[3])}) for c in cells]
-    fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
-    rows = spec.get("forward_rows")
-    known = None if rows is None else [None if r is None else steady_from_row(r, p.w)
-                                       for r, p in zip(rows, plist, strict=True)]
-    found = find_attractors_many(plist, starts=int(spec["starts"]), seed=int(spec["seed"]),
-                                 settings=settings, forward=fwd, forward_results=known,
-                                 stats=spec.get("stats"))  # fmt: skip
-    return tile_records(spec, cells, found)
-
-
-def _make_options(st, options: dict) -> _Options:
-    allowed = {"chunk", "confirm", "confirm_cloud", "recur_rtol", "merge_rtol", "grid",
-               "cloud_overlap", "rescout", "period_rtol", "early_clouds",
-               "recur_period_rtol"}  # fmt: skip
-    bad = set(options) - allowed
-    if bad:
-        raise ParameterError(f"unknown finder option(s) {sorted(bad)}; allowed: "
-                             f"{', '.join(sorted(allowed))}")  # fmt: skip
-    o = dict(options)
-    o.setdefault("period_rtol", st.period_rtol)
-    o.setdefault("recur_period_rtol", RECUR_PERIOD_RTOL)
-    for name in ("chunk", "confirm", "confirm_cloud", "rescout"):
-        v = o.get(name, getattr(_Options, name))
-        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-            raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= 1")
-    return _Options(**o)

@@ -1,0 +1,53 @@
+"""The finder's one entry point: the coexisting attractors of gear cells."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from gearsim.analysis.attractors.options import FinderOptions
+from gearsim.analysis.attractors.pool import map_gear_cells
+from gearsim.analysis.attractors.results import CellAttractors, Steady
+from gearsim.cell.pool import PoolStats
+from gearsim.dynamics.parameters import ModelParameters
+
+
+def find_attractors(
+    cells: ModelParameters | Sequence[ModelParameters],
+    options: FinderOptions | None = None,
+    *,
+    settings=None,
+    forward=None,
+    backward=None,
+    forward_results: Sequence[Steady | None] | None = None,
+    start_states=None,
+    stats: PoolStats | None = None,
+) -> CellAttractors | list[CellAttractors]:
+    """Coexisting attractors of one gear cell (``cells`` a :class:`ModelParameters`: one
+    :class:`CellAttractors`) or of many (a sequence: one per cell, all starts in one lane pool).
+
+    ``options``: :class:`FinderOptions` (default: 16 seeded Sobol starts over each cell's
+    :func:`~gearsim.analysis.attractors.gear.start_box`, early labels by recurrence).
+    ``settings``: the integration settings (RK4; ``transient`` periods from a start,
+    ``transient_continuation`` from a continuation state). Per cell (one value for one cell):
+    ``forward`` / ``backward`` continuation states (10 entries) or None; ``forward_results``
+    the already classified forward motion (a :class:`Steady`, e.g. of the plane tile's row)
+    used instead of running ``forward``; ``start_states`` its own ``(K, 10)`` start states
+    instead of the Sobol starts (basin pictures). ``stats``: a
+    :class:`gearsim.cell.pool.PoolStats` collecting the lane use. Attractors most likely first.
+    """
+    options = options if options is not None else FinderOptions()
+    one = isinstance(cells, ModelParameters)
+
+    def per_cell(v):
+        return None if v is None else [v] if one else v
+
+    found = map_gear_cells(
+        [cells] if one else list(cells), options, settings=settings, forward=per_cell(forward),
+        backward=per_cell(backward), forward_results=per_cell(forward_results),
+        start_states=None if start_states is None else (
+            [np.asarray(start_states, dtype=float)] if one else start_states),
+        stats=stats,
+    )  # fmt: skip
+    return found[0] if one else found

@@ -1,0 +1,178 @@
+"""The gear model as the finder's system: start box, seeded starts, cells on the batched kernel,
+the steady motion of a cell result."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from gearsim.analysis.attractors.results import CellAttractors, Steady
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
+
+
+def start_box(params: ModelParameters) -> tuple[float, float, float, float]:
+    """Centre and half-widths ``(x0, hx, v0, hv)`` of the start box in ``(x, x')``.
+
+    Around the static state ``x0 = b + Fm`` (displacements in units of the nominal length
+    ``b_c``): ``hx = b + 2 (Fm + Fe w^2)`` (the backlash plus twice the static excitation
+    amplitude, forces in units of ``Km b_c``), velocities ``x' = dx/dtau`` in ``+/- w hx``
+    (``tau = w_n t``).
+    """
+    x0 = params.b + params.Fm
+    hx = params.b + 2.0 * (params.Fm + params.Fe * params.w**2)
+    return x0, hx, 0.0, params.w * hx
+
+
+def sobol_unit(k: int, seed: int) -> np.ndarray:
+    """``k`` scrambled Sobol points of the unit square (seeded; any ``k``, balance warning off)."""
+    from scipy.stats import qmc
+
+    if isinstance(k, bool) or not isinstance(k, int) or k < 1:
+        raise ParameterError(f"setting 'starts' = {k!r} must be an integer >= 1")
+    eng = qmc.Sobol(d=2, scramble=True, seed=int(seed))
+    m = max(0, math.ceil(math.log2(k)))
+    return eng.random_base2(m)[:k]
+
+
+class GearCells:
+    """The gear model as a :class:`System`: one cell per :class:`ModelParameters`.
+
+    Runs through the batched RK4 kernel (:func:`gearsim.numerics.batch.run_periods_batched` to
+    advance,
+    :func:`gearsim.cell.chains.simulate_cells` for full-length runs, i.e.
+    :mod:`gearsim.cell.classify`).
+    Section states have 10 components ``(x, x', u_py, u_py', ...)``; ``transient`` is
+    ``settings.transient`` (a start far from the motion is a start "from rest").
+    """
+
+    def __init__(self, params_list: Sequence[ModelParameters], settings=None):
+        from gearsim.cell.simulate import IntegrationSettings
+
+        self.params = list(params_list)
+        st = settings or IntegrationSettings(method="rk4")
+        self.settings = st.with_(method="rk4")
+        self.transient = int(self.settings.transient)
+        from gearsim.cell.verify import OrbitCache
+
+        self.orbits = OrbitCache()  # the starts of a cell share their refined orbits
+
+    def start_states(self, cell: int, unit: np.ndarray) -> np.ndarray:
+        from gearsim.dynamics.model import static_state
+
+        p = self.params[cell]
+        x0, hx, v0, hv = start_box(p)
+        base = static_state(p.to_array())
+        y = np.repeat(base[None, :], len(unit), axis=0)
+        y[:, 0] = x0 + (2.0 * unit[:, 0] - 1.0) * hx
+        y[:, 1] = v0 + (2.0 * unit[:, 1] - 1.0) * hv
+        return y
+
+    def advance(self, cells, states, n_periods, start_periods):
+        from gearsim.cell.simulate import initial_tangent
+        from gearsim.dynamics.model import N_STATE
+        from gearsim.numerics.batch import run_periods_batched, steps_per_period
+
+        k = len(cells)
+        secs = np.full((k, n_periods, N_STATE), np.nan)
+        finals = np.array(states, dtype=float)[:, :N_STATE].copy()
+        div = np.zeros(k, dtype=bool)
+        groups: dict[tuple, list[int]] = {}
+        for r, c in enumerate(cells):
+            p = self.params[c]
+            key = (steps_per_period(p, self.settings), p.model,
+                   p.var_ratio_order if p.var_ratio != 0.0 else None)  # fmt: skip
+            groups.setdefault(key, []).append(r)
+        for (_, model, _), rows in groups.items():
+            plist = [self.params[cells[r]] for r in rows]
+            t0 = initial_tangent(plist[0])  # on the states this group's model evolves
+            if model != "6dof":
+                for r, p in zip(rows, plist, strict=True):
+                    self._advance_scalar(r, p, states, n_periods, start_periods, secs, finals,
+                                         div)  # fmt: skip
+                continue
+            y = np.hstack([np.asarray(states, dtype=float)[rows, :N_STATE],
+                           np.repeat(t0[None, :], len(rows), axis=0)])  # fmt: skip
+            # probing needs the section points only (the tangent is restarted by every
+            # full-length run): no tangent vector (same states, bit for bit)
+            summ, fin, status, _ = run_periods_batched(
+                plist, y, n_periods, self.settings, start_periods=[int(start_periods[r])
+                                                                   for r in rows],
+                tangent=False,
+            )  # fmt: skip
+            for q, r in enumerate(rows):
+                s = summ[q].section
+                secs[r, : len(s)] = s
+                finals[r] = fin[q, :N_STATE]
+                div[r] = status[q] != 0 or len(s) < n_periods
+        return secs, finals, div
+
+    def _advance_scalar(self, r, p, states, n, start_periods, secs, finals, div) -> None:
+        from gearsim.cell.simulate import run_periods
+
+        run = run_periods(p, np.asarray(states[r], dtype=float)[:10], n, self.settings,
+                          start_period=int(start_periods[r]))  # fmt: skip
+        s = run.summaries.section
+        secs[r, : len(s)] = s
+        finals[r] = run.state[:10]
+        div[r] = run.status != 0 or len(s) < n
+
+    def steady(self, cells, states, transient, start_periods):
+        from gearsim.cell.chains import simulate_cells
+
+        st = self.settings.with_(transient_continuation=int(transient))
+        plist = [self.params[c] for c in cells]
+        res = simulate_cells(plist, settings=st, u0=[np.asarray(s, dtype=float)[:10]
+                                                     for s in states],
+                             start_periods=[int(k) for k in start_periods],
+                             orbits=self.orbits)  # fmt: skip
+        return [gear_steady(r) for r in res]
+
+    def fill_margins(self, found: Sequence[CellAttractors]) -> None:
+        """Every periodic attractor its Floquet margin where its run did not give one (in
+        place; ``found[c]`` belongs to cell ``c``): the margin of a plane cell's motion
+        (:func:`gearsim.cell.verify.orbit_margins`, the cells' attractors in shared kernel
+        calls; only with ``floquet`` ``"margin"``)."""
+        from gearsim.cell.verify import orbit_margins, wants_margin
+
+        st = self.settings
+        if st.floquet != "margin":
+            return
+        todo = []
+        for p, ca in zip(self.params, found, strict=True):
+            for a in ca.attractors:
+                s, i = a.steady, a.steady.info
+                if (s.status == "ok" and s.final_state is not None
+                        and wants_margin(s.period, i.get("status", "ok"), bool(i.get("refined")),
+                                         i.get("mu_max"), p.var_ratio)):
+                    todo.append((p, s))
+        got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
+                            [s.final_state for _, s in todo], st)  # fmt: skip
+        for (_, s), m in zip(todo, got, strict=True):
+            if m is not None:
+                s.info["mu_max"], s.info["critical"] = m
+
+
+def gear_steady(res) -> Steady:
+    """:class:`Steady` of a :class:`gearsim.cell.simulate.CellResult`."""
+    c = res.classification
+    w = res.params.w
+    info = res.row()
+    info.pop("n", None)
+    info.pop("label", None)
+    scale = float(c.x_max - c.x_min) if math.isfinite(c.x_max - c.x_min) else 0.0
+    return Steady(
+        status="diverged" if c.status == "diverged" else (
+            "unsettled" if c.motion == "unsettled" else "ok"
+        ),
+        period=int(c.n),
+        points=np.asarray(res.poincare, dtype=float),
+        scale_x=scale,
+        scale_v=scale * w,
+        label=c.label,
+        info=info,
+        final_state=np.asarray(res.final_state, dtype=float),
+    )
+
+

@@ -1,0 +1,232 @@
+"""The workflow through profiles/slurm on a real one-node SLURM cluster.
+
+`.ci/slurm-cluster up` installs what is missing (slurm-wlm daemons, munge, slurmdbd, MariaDB),
+writes a slurm.conf for this machine and starts the daemons; `down` stops them afterwards. The
+targets of the session's local run (``tiny_run``, conftest.py: config/tiny.yaml on ``--cores 2``)
+run through the profile as a user would (partition and account from SBATCH_PARTITION and
+SBATCH_ACCOUNT), and one tile job is cancelled with ``scancel`` while it runs. Checked:
+
+* every SLURM job of the run is in ``sacct`` under the given account, COMPLETED, but the cancelled
+  one, CANCELLED, whose resubmission COMPLETED;
+* the catalogue equals the local run's value for value (ids and provenance aside);
+* a tile run as a 2-CPU job step has a 2-worker LocalCluster (one worker per CPU SLURM gave);
+* the profile's grouping: the small jobs went in group jobs, each on one node's CPUs.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import sqlite3
+import subprocess
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk, targets
+
+pytestmark = pytest.mark.slow
+
+SCRIPT = ROOT / ".ci/slurm-cluster"
+PROFILE = ROOT / "profiles/slurm"
+ACCOUNT = "gearsim-ci"  # created by .ci/slurm-cluster
+CI = os.environ.get("CI") == "1"
+CATALOGUE = "results/catalogue.d/build.sqlite"
+# a hang guard only: the run takes ~4-6 min on 2 loaded cores
+TIMEOUT = 1800
+
+
+def _privileged() -> bool:
+    if os.geteuid() == 0:
+        return True
+    return shutil.which("sudo") is not None and subprocess.run(
+        ["sudo", "-n", "true"], capture_output=True).returncode == 0
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """The partition of a running one-node cluster: started here (and stopped after the module)
+    unless one answers already."""
+    if not _privileged():
+        if CI:
+            pytest.fail("CI=1: starting the SLURM cluster needs root or passwordless sudo")
+        pytest.skip("starting a SLURM cluster needs root or passwordless sudo")
+    running = subprocess.run([str(SCRIPT), "status"], capture_output=True).returncode == 0
+    r = subprocess.run([str(SCRIPT), "up"], capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stdout + r.stderr
+    try:
+        yield r.stdout.strip().splitlines()[-1]
+    finally:
+        if not running:
+            d = subprocess.run([str(SCRIPT), "down"], capture_output=True, text=True, timeout=120)
+            assert d.returncode == 0, d.stdout + d.stderr
+
+
+def _squeue_running(prefix: str) -> list[tuple[str, str]]:
+    out = subprocess.run(["squeue", "--noheader", "--states=RUNNING", "--format=%i|%j|%k"],
+                         capture_output=True, text=True, check=True).stdout
+    rows = [line.split("|", 2) for line in out.splitlines() if line.strip()]
+    return [(job, comment) for job, name, comment in rows if name.startswith(prefix)]
+
+
+def _sacct(prefix: str, since: str) -> pd.DataFrame:
+    """This run's SLURM jobs (allocations, not steps) as sacct lists them."""
+    out = subprocess.run(
+        ["sacct", "--allocations", "--parsable2", "--noheader", "--starttime", since,
+         "--format=JobIDRaw,JobName%200,State,Account,AllocCPUS,Comment%200"],
+        capture_output=True, text=True, check=True).stdout
+    rows = [line.split("|") for line in out.splitlines() if line.strip()]
+    df = pd.DataFrame(rows, columns=["job", "name", "state", "account", "cpus", "comment"])
+    return df[df["name"].str.startswith(prefix)].astype({"job": int, "cpus": int})
+
+
+def _sacct_settled(prefix: str, since: str, jobs: set[int], timeout: float = 60) -> pd.DataFrame:
+    """sacct once slurmdbd has every job of ``jobs`` in a final state (it learns asynchronously)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        df = _sacct(prefix, since)
+        final = df["state"].str.match(r"COMPLETED|CANCELLED|FAILED|TIMEOUT|OUT_OF_ME|NODE_FAIL")
+        if set(df["job"]) >= jobs and final.all() or time.monotonic() > deadline:
+            return df
+        time.sleep(1)
+
+
+@pytest.fixture(scope="module")
+def slurm_run(cluster, tiny_run, tmp_path_factory):
+    """The local run's targets through profiles/slurm; the first tile job seen running is
+    cancelled."""
+    wd = make_workdir(tmp_path_factory.mktemp("slurm"))
+    tg = targets(wd, "config/tiny.yaml")
+    prefix = f"gearsim_test_{os.getpid()}"
+    env = {**_env(), "SBATCH_PARTITION": cluster, "SBATCH_ACCOUNT": ACCOUNT}
+    # one CPU per tile job, as in the local run: on a 2-CPU node a 2-CPU tile job (the profile's
+    # fit_threads(8) here) waits for the whole node, i.e. for every small job to end first
+    # (measured: 529 s against 181 s locally, load ~10); the dask path under SLURM is checked by
+    # test_tile_cluster_has_the_cpus_srun_gave below
+    cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--workflow-profile",
+           str(PROFILE), *tg, "--configfile", "config/tiny.yaml", "--slurm-jobname-prefix", prefix,
+           "--set-threads", "simulate_tile=1"]
+    since = time.strftime("%Y-%m-%dT%H:%M:%S")
+    log = wd / "snakemake.log"
+    t0 = time.monotonic()
+    with log.open("w") as out:
+        proc = subprocess.Popen(cmd, cwd=wd, env=env, stdout=out, stderr=subprocess.STDOUT)
+        killed = None
+        try:
+            while proc.poll() is None:
+                if time.monotonic() - t0 > TIMEOUT:
+                    raise AssertionError(f"no end after {TIMEOUT} s:\n{log.read_text()[-3000:]}")
+                if killed is None:
+                    tiles = [j for j in _squeue_running(prefix) if "simulate_tile" in j[1]]
+                    if tiles:
+                        killed = tiles[0]
+                        subprocess.run(["scancel", killed[0]], check=True)
+                time.sleep(0.5)
+        finally:
+            if proc.poll() is None:
+                proc.terminate()  # the plugin cancels its jobs
+                proc.wait(timeout=120)
+    wall = time.monotonic() - t0
+    text = log.read_text()
+    assert proc.returncode == 0, text[-5000:]
+    submitted = {int(j) for j in re.findall(r"submitted with SLURM jobid (\d+)", text)}
+    jobs = _sacct_settled(prefix, since, submitted)
+    print(f"SLURM run: {wall:.0f} s wall, {len(submitted)} SLURM jobs")
+    return {"wd": wd, "jobs": jobs, "submitted": submitted, "killed": killed, "log": text,
+            "local": tiny_run[0]}
+
+
+def test_every_job_went_through_slurm_and_completed(slurm_run):
+    jobs, killed = slurm_run["jobs"], slurm_run["killed"]
+    assert killed is not None, "no tile job was seen running"
+    assert set(jobs["job"]) == slurm_run["submitted"], (jobs, slurm_run["submitted"])
+    assert (jobs["account"] == ACCOUNT).all(), jobs
+    cancelled = jobs[jobs["job"] == int(killed[0])]
+    assert cancelled["state"].str.startswith("CANCELLED").all() and len(cancelled) == 1, jobs
+    rest = jobs[jobs["job"] != int(killed[0])]
+    assert (rest["state"] == "COMPLETED").all(), jobs
+    # the cancelled tile was submitted again and completed
+    again = rest[(rest["comment"] == killed[1]) & (rest["job"] > int(killed[0]))]
+    assert len(again) == 1, jobs
+
+
+def _tables(db: Path) -> dict[str, pd.DataFrame]:
+    """Every table of a catalogue without its row ids and run provenance, in a canonical order."""
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    try:
+        names = [n for (n,) in con.execute(
+            "SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name")]
+        out = {}
+        for name in names:
+            df = pd.read_sql(f'SELECT * FROM "{name}"', con)
+            if name == "catalogue_info":
+                df = df[~df["key"].isin(BUILD_INFO)]
+            df = df.drop(columns=[c for c in VOLATILE.get(name, ()) + ("id", "run_id", "elapsed_s")
+                                  if c in df.columns])
+            out[name] = df.sort_values(list(df.columns)).reset_index(drop=True)
+        return out
+    finally:
+        con.close()
+
+
+#: Provenance: where, when and on what a table was made, not what it holds.
+VOLATILE: dict[str, tuple[str, ...]] = {"runs": ("workers", "started", "finished", "wall_s")}
+#: catalogue_info rows of the build itself
+BUILD_INFO = ("built", "git_commit", "git_dirty")
+
+
+def test_catalogue_equals_the_local_run(slurm_run):
+    ours = _tables(slurm_run["wd"] / CATALOGUE)
+    local = _tables(slurm_run["local"] / CATALOGUE)
+    assert ours.keys() == local.keys()
+    assert len(local["cells"]) == 128
+    for name in local:
+        pd.testing.assert_frame_equal(ours[name], local[name], check_exact=True, obj=name)
+
+
+def test_tile_cluster_has_the_cpus_srun_gave(cluster, tmp_path):
+    """A tile run as a SLURM job step of 2 CPUs maps its rows over a 2-worker LocalCluster
+    whatever --workers says, and the profile's tile threads fit the node (2 CPUs, not 8)."""
+    from gearsim.study.cluster import fit_threads, node_limits
+
+    node_limits.cache_clear()
+    assert fit_threads(8) == 2
+    small = tmp_path / "small.yaml"
+    small.write_text(yaml.safe_dump({"planes": {"wb": {"x": {"name": "w", "min": 0.3,
+                                                             "max": 2.1, "n": 6}}}}))
+    gearsim = Path(SNAKEMAKE).parent / "gearsim"
+    cmd = ["srun", "--ntasks=1", "--cpus-per-task=2", f"--partition={cluster}",
+           f"--account={ACCOUNT}", str(gearsim), "simulate-tile", "--plane", "wb", "--tile",
+           "1", "--configfile", str(ROOT / "config/config.yaml"), str(ROOT / "config/tiny.yaml"),
+           str(small), "--workers", "8", "--out", str(tmp_path / "tile.parquet")]
+    r = subprocess.run(cmd, cwd=tmp_path, env=_env(), capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert ": 2 workers, 2 threads" in r.stderr, r.stderr
+
+
+def test_tile_jobs_got_what_they_asked_for(slurm_run):
+    jobs = slurm_run["jobs"]
+    tiles = jobs[jobs["comment"].str.startswith("rule_simulate_tile")]
+    assert len(tiles) == 5 and (tiles["cpus"] == 1).all(), tiles  # 4 tiles, one twice
+
+
+def test_small_jobs_went_in_group_jobs_of_one_cpu(slurm_run):
+    jobs = slurm_run["jobs"]
+    for group in ("rule_curves_points_sweep", "rule_tables_audit_plane_cells"):
+        assert ((jobs["comment"] == group) & (jobs["cpus"] == 1)).sum() == 1, jobs
+    # 25 rule jobs (the local run's), 12 SLURM jobs and the cancelled tile's second submission
+    rule_jobs = int(re.search(r"^total\s+(\d+)", slurm_run["log"], re.M).group(1))
+    assert (rule_jobs, len(jobs)) == (25, 13), jobs
+
+
+def test_profile_names_only_rules_of_the_workflow(tmp_path):
+    profile = yaml.safe_load((PROFILE / "config.yaml").read_text())
+    r = smk(make_workdir(tmp_path), "--list-rules", "--configfile", "config/tiny.yaml")
+    rules = set(r.stdout.split())
+    named = {*profile["groups"], *profile["set-resources"], *profile["set-threads"]}
+    assert named - rules <= {"figure_21", "figure_22", "figure_23"}, named - rules
+    figures = {r for r in rules if r.startswith("figure")} | {"sweep_diagram", "plane_maps"}
+    assert figures <= set(profile["groups"]), figures - set(profile["groups"])
