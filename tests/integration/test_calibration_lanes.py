@@ -60,9 +60,9 @@ def test_coexist_scan_at_the_paper_point_is_the_measurement_s_reading():
 
 def test_sweep_records_many_is_sweep_records_chain_by_chain():
     from gearsim.cell.sweep import sweep_records, sweep_records_many
-    from gearsim.study.config import study_settings
+    from gearsim.study.config import Study
 
-    st = study_settings()
+    st = Study.load().settings
     form = FORMS["single_dof"]
     base = FidelitySettings(lanes=True)
     specs = [(form.params(form.start, base), np.linspace(0.5, 1.1, 13)),
