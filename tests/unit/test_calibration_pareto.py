@@ -76,7 +76,7 @@ def test_collect_fit_spread_and_the_report_rows(tmp_path):
     assert row == ["| single_dof | 600 | 3 | 2.000, 2.050, 2.100 | flat, flat, flat | 5.0% | "
                    "30 | 60 |"]
     app = _appendix_lines(Report(calibration={"fit": fit}))
-    assert app[0].startswith("## Appendix") and "#### CMA-ES fits in lanes" in "\n".join(app)
+    assert app[0].startswith("## Appendix") and "\n### CMA-ES fits in lanes" in "\n".join(app)
 
 
 def test_collect_fit_takes_an_unfinished_seed_from_its_log(tmp_path):
