@@ -13,6 +13,11 @@
         every cell chaotic with 16 distinct random section points (the page's point budget
         then caps the points per cell)
 
+    python benchmarks/bench_explorer.py compare PAGE_A PAGE_B
+        two pages side by side in one run (e.g. the default run's page of a baseline clone and
+        the page built from the same catalogue with this checkout): bytes and load times,
+        alternating loads; writes benchmarks/results/explorer_compare.json
+
 Load time: from navigation start to the page's "ready" mark (the data inflated and every map
 and diagram drawn; ``performance.now()``), median of 5 loads in a fresh headless chromium
 (1500 x 1100), and the wall time of ``driver.get`` + ready as selenium sees it. Writes
@@ -164,9 +169,27 @@ def page(args) -> tuple[Path, dict]:
                  "build_s": time.perf_counter() - t0}
 
 
+def compare(pages: list[str], repeats: int) -> dict:
+    """Bytes and load times of pages, side by side: the loads alternate (page a, page b, ...)
+    so both see the same machine load."""
+    runs: dict[str, list[dict]] = {p: [] for p in pages}
+    for _ in range(repeats):
+        for p in pages:
+            runs[p].append(load_times(Path(p), 1))
+    out = {}
+    for p, rs in runs.items():
+        ready = [r["ready_ms"][0] for r in rs]
+        out[p] = {"bytes": Path(p).stat().st_size, "ready_ms": ready,
+                  "ready_ms_median": statistics.median(ready)}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
+    c = sub.add_parser("compare", help="two pages side by side")
+    c.add_argument("pages", nargs=2)
+    c.add_argument("--repeats", type=int, default=5)
     a = sub.add_parser("page", help="the page of a finished run")
     a.add_argument("--results", default="results")
     a.add_argument("--catalogue", default="results/catalogue.sqlite")
@@ -184,6 +207,16 @@ def main() -> None:
         p.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
     before = loadavg()
+    if args.what == "compare":
+        rec = {"pages": compare(args.pages, args.repeats), "load_before": before,
+               "load_after": loadavg(), "targets": {"MB": 5.0, "load_s": 2.0}}
+        RESULTS.mkdir(exist_ok=True)
+        (RESULTS / "explorer_compare.json").write_text(json.dumps(rec, indent=1))
+        for p, r in rec["pages"].items():
+            print(f"{p}: {r['bytes'] / 1e6:.2f} MB, ready after {r['ready_ms_median']:.0f} ms "
+                  f"(median of {args.repeats})")
+        print(f"load {before} -> {rec['load_after']}")
+        return
     out, info = stand_in(args) if args.what == "stand-in" else page(args)
     size = out.stat().st_size
     times = load_times(out, args.repeats)

@@ -10,7 +10,7 @@ its own empty Numba cache (``inspect_asm`` needs code compiled in the process) m
   FMA latency is covered; flops/s = 2 x FMAs/s (its vector width is reported: it must be the
   kernel's);
 * the kernel: batched RK4 cell-steps/s per core (CPU time) with and without the tangent vector,
-  on the cells of ``bench_kernel_ab`` (w in [0.6, 2.4], b in {0.15, 0.3, 1.0}, after a
+  on the cells of ``bench_kernel`` (w in [0.6, 2.4], b in {0.15, 0.3, 1.0}, after a
   100-period transient; event redos included), and the flops of one cell-step counted in the
   compiled block step (:func:`arith_per_cell_step`: an FMA is 2 flops per lane);
 * the share of peak = cell-steps/s x flops per cell-step / peak flops/s, and the vector width.
@@ -44,9 +44,7 @@ import numpy as np
 from numba import njit
 from gearsim.numerics import batch
 from gearsim.numerics.steps import FASTMATH
-from gearsim.dynamics.model import static_state
-from gearsim.dynamics.parameters import ModelParameters
-from gearsim.cell.simulate import IntegrationSettings, initial_tangent, run_periods
+from bench_kernel import cells, start_states
 from bench_kernel_asm import native_body
 
 L = batch.LANES
@@ -114,14 +112,8 @@ out = {"lanes": L}
 blk = np.ones(12 * L)
 t0 = time.perf_counter(); c0 = time.process_time()
 fma_peak(blk, 0.999999, 1e-6, 1)
-ws = np.linspace(0.6, 2.4, n)
-cs = [ModelParameters(w=float(w), b=(0.15, 0.3, 1.0)[i % 3]) for i, w in enumerate(ws)]
-st = IntegrationSettings(method="rk4")
-y0 = []
-for p in cs:
-    r = run_periods(p, static_state(p.to_array()), 100, st)
-    y0.append(np.concatenate([r.state, initial_tangent(p)]))
-y0 = np.array(y0)
+cs = cells(n)  # the cells of bench_kernel, after its 100-period transient
+y0 = start_states(cs)
 lanes = batch.Lanes(n, periods)
 N = 256
 def setup():

@@ -56,3 +56,25 @@ def test_coexist_scan_at_the_paper_point_is_the_measurement_s_reading():
     assert [(r["w"], r["b"]) for r in rows] == [(0.82, 0.15), (0.9, 0.15)]
     assert rows[0]["motions"] == m.coexist and m.coexist  # the same search at the same cell
     assert np.isclose(rows[0]["scale"] * m.b_star_raw, PAPER_B_THRESHOLD)
+
+
+def test_sweep_records_many_is_sweep_records_chain_by_chain():
+    from gearsim.cell.sweep import sweep_records, sweep_records_many
+    from gearsim.study.config import Study
+
+    st = Study.load().settings
+    form = FORMS["single_dof"]
+    base = FidelitySettings(lanes=True)
+    specs = [(form.params(form.start, base), np.linspace(0.5, 1.1, 13)),
+             (form.params(form.start, base).with_(xi=0.09), np.linspace(1.2, 1.9, 8)),
+             (form.params([c for c in CANDIDATES[1].values()], base), np.linspace(0.6, 0.7, 5))]
+    many = sweep_records_many(specs, "w", settings=st)
+    for (p, ws), got in zip(specs, many, strict=True):
+        ref = sweep_records(p, "w", ws, settings=st)
+        assert len(got) == len(ref)
+        for g, r in zip(got, ref, strict=True):
+            g, r = dict(g), dict(r)
+            g.pop("elapsed_s"), r.pop("elapsed_s")
+            assert g.keys() == r.keys()
+            for k in g:  # the same lanes arithmetic: equal, NaN where NaN
+                assert g[k] == r[k] or (g[k] != g[k] and r[k] != r[k]), (k, g[k], r[k])

@@ -59,7 +59,8 @@ def test_points_and_tally_from_logs(tmp_path):
 def test_collect_fit_spread_and_the_report_rows(tmp_path):
     from gearsim.calibration.forms import collect_fit
     from gearsim.calibration.tables import fit_report_lines
-    from gearsim.presentation.report import Report, _appendix_lines
+    from gearsim.presentation.report import Report
+    from gearsim.presentation.report_markdown import _appendix_lines
 
     for seed, J in ((1, 2.0), (2, 2.05), (3, 2.1)):
         rec = {"seed": seed, "search": "cma-es", "nfev": 100 * seed, "stopped_by": "flat",
@@ -75,7 +76,7 @@ def test_collect_fit_spread_and_the_report_rows(tmp_path):
     assert row == ["| single_dof | 600 | 3 | 2.000, 2.050, 2.100 | flat, flat, flat | 5.0% | "
                    "30 | 60 |"]
     app = _appendix_lines(Report(calibration={"fit": fit}))
-    assert app[0].startswith("## Appendix") and "#### CMA-ES fits in lanes" in "\n".join(app)
+    assert app[0].startswith("## Appendix") and "\n### CMA-ES fits in lanes" in "\n".join(app)
 
 
 def test_collect_fit_takes_an_unfinished_seed_from_its_log(tmp_path):

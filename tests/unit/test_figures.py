@@ -27,8 +27,9 @@ from gearsim.cell.simulate import CellResult, Trajectory  # noqa: E402
 from gearsim.cli.main import main  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
 from gearsim.presentation.figures import bifurcation, phase, planes, schematic, spectra, style  # noqa: E402
+from gearsim.presentation.figures.context import Context, sweep_title  # noqa: E402
 from gearsim.presentation.figures.data import PointMotion, plane_axes, spectrum  # noqa: E402
-from gearsim.presentation.figures.registry import FIGURES, Context, build, sweep_title  # noqa: E402
+from gearsim.presentation.figures.registry import FIGURES, build  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 TINY = reference_settings(rtol=1e-7, atol=1e-10, transient=20, transient_continuation=8,

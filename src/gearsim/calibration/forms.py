@@ -33,7 +33,13 @@ from typing import Any
 import numpy as np
 
 from gearsim.calibration.fidelity import FidelitySettings, kmax_at_jump, measure, measure_many
-from gearsim.calibration.search import FreeParameter, LoggedObjective, params_from_vector, search
+from gearsim.calibration.search import (
+    FreeParameter,
+    LoggedObjective,
+    logged_evaluations,
+    params_from_vector,
+    search,
+)
 from gearsim.calibration.sweeps import PLANE_W_GRID, backlash_threshold, w_sweep
 from gearsim.calibration.tables import evidence_lines
 from gearsim.calibration.targets import LANDMARK_KEYS, TARGETS, Measured, score, target_errors
@@ -529,34 +535,27 @@ def best_per_target(log_dir: str | Path) -> dict[str, dict[str, Any]]:
     measured the target. Evidence for a miss: no tested form got closer within its search."""
     tol = {t.key: t.tol for t in TARGETS}
     best: dict[str, dict[str, Any]] = {}
-    for f in sorted(Path(log_dir).glob("*.jsonl")):
-        form, level = f.name.split(".")[0].rsplit("-", 1)
-        for line in f.read_text().splitlines():
-            rec = json.loads(line)
-            md = rec.get("measured")
-            if not md:
+    for form, level, rec in logged_evaluations(log_dir):
+        errs = target_errors(Measured.from_dict(rec["measured"]))
+        for k, e in errs.items():
+            if not np.isfinite(e):
                 continue
-            m = Measured.from_dict(md)
-            errs = target_errors(m)
-            for k, e in errs.items():
-                if not np.isfinite(e):
-                    continue
-                b = best.setdefault(k, {"n": 0, "n_hit": 0})
-                b["n"] += 1
-                if "error" not in b or abs(e) < abs(b["error"]):
-                    b.update(error=float(e), form=form, level=level, J=float(rec["J"]),
-                             x=rec["x"])
-                if abs(e) <= tol[k] * (1 + 1e-9):
-                    # the trade-off: of the evaluations that hit this target, the lowest J and
-                    # which landmarks miss 0.02 there
-                    b["n_hit"] += 1
-                    if "hit_J" not in b or rec["J"] < b["hit_J"]:
-                        b.update(hit_J=float(rec["J"]), hit_form=form, hit_level=level,
-                                 hit_x=rec["x"],
-                                 hit_misses={q: (None if not np.isfinite(v) else float(v))
-                                             for q, v in errs.items()
-                                             if q != k and q in LANDMARK_KEYS and
-                                             not (np.isfinite(v) and abs(v) <= tol[q])})
+            b = best.setdefault(k, {"n": 0, "n_hit": 0})
+            b["n"] += 1
+            if "error" not in b or abs(e) < abs(b["error"]):
+                b.update(error=float(e), form=form, level=level, J=float(rec["J"]),
+                         x=rec["x"])
+            if abs(e) <= tol[k] * (1 + 1e-9):
+                # the trade-off: of the evaluations that hit this target, the lowest J and
+                # which landmarks miss 0.02 there
+                b["n_hit"] += 1
+                if "hit_J" not in b or rec["J"] < b["hit_J"]:
+                    b.update(hit_J=float(rec["J"]), hit_form=form, hit_level=level,
+                             hit_x=rec["x"],
+                             hit_misses={q: (None if not np.isfinite(v) else float(v))
+                                         for q, v in errs.items()
+                                         if q != k and q in LANDMARK_KEYS and
+                                         not (np.isfinite(v) and abs(v) <= tol[q])})
     return best
 
 

@@ -14,7 +14,6 @@ cap, as in the objective):
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -22,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from gearsim.calibration.search import logged_evaluations
 from gearsim.calibration.targets import CAP, TARGETS, Measured, target_errors
 
 LOWER = ("grazing_1", "jump", "pd_1_2")
@@ -40,18 +40,12 @@ def pareto_points(log_dir: str | Path) -> list[dict[str, Any]]:
     """One point per logged evaluation with a measurement: form, level, J, the two group
     errors and the set's signed landmark errors."""
     out: list[dict[str, Any]] = []
-    for f in sorted(Path(log_dir).glob("*.jsonl")):
-        form, level = f.name.split(".")[0].rsplit("-", 1)
-        for line in f.read_text().splitlines():
-            rec = json.loads(line)
-            md = rec.get("measured")
-            if not md:
-                continue
-            e = target_errors(Measured.from_dict(md))
-            out.append({"form": form, "level": level, "J": float(rec["J"]), "x": rec["x"],
-                        "lower": group_error(e, LOWER), "upper": group_error(e, UPPER),
-                        "errors": {k: (None if not np.isfinite(e[k]) else float(e[k]))
-                                   for k in (*LOWER, *UPPER)}})
+    for form, level, rec in logged_evaluations(log_dir):
+        e = target_errors(Measured.from_dict(rec["measured"]))
+        out.append({"form": form, "level": level, "J": float(rec["J"]), "x": rec["x"],
+                    "lower": group_error(e, LOWER), "upper": group_error(e, UPPER),
+                    "errors": {k: (None if not np.isfinite(e[k]) else float(e[k]))
+                               for k in (*LOWER, *UPPER)}})
     return out
 
 
@@ -94,21 +88,18 @@ def coexist_tally(log_dir: str | Path) -> dict[str, Any]:
     seen: dict[str, int] = {}
     best: list[dict[str, Any]] = []
     most = 0
-    for f in sorted(Path(log_dir).glob("*.jsonl")):
-        form = f.name.split(".")[0].rsplit("-", 1)[0]
-        for line in f.read_text().splitlines():
-            rec = json.loads(line)
-            co = (rec.get("measured") or {}).get("coexist")
-            if co is None:
-                continue
-            n += 1
-            for lab in co:
-                seen[lab] = seen.get(lab, 0) + 1
-            hits = sum(1 for x in PAPER_COEXIST if x in co)
-            if hits > most:
-                most, best = hits, []
-            if hits == most and len(best) < 5:
-                best.append({"form": form, "x": rec["x"], "coexist": co, "J": rec["J"]})
+    for form, _level, rec in logged_evaluations(log_dir):
+        co = rec["measured"].get("coexist")
+        if co is None:
+            continue
+        n += 1
+        for lab in co:
+            seen[lab] = seen.get(lab, 0) + 1
+        hits = sum(1 for x in PAPER_COEXIST if x in co)
+        if hits > most:
+            most, best = hits, []
+        if hits == most and len(best) < 5:
+            best.append({"form": form, "x": rec["x"], "coexist": co, "J": rec["J"]})
     return {"paper": list(PAPER_COEXIST), "n_sets": n, "motions_found": seen,
             "most_of_the_paper_motions": most, "sets_with_most": best}
 

@@ -11,8 +11,9 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -113,6 +114,18 @@ class LoggedObjective:
 
     def __call__(self, x: np.ndarray) -> float:
         return self.evaluate(x)[0]
+
+
+def logged_evaluations(log_dir: str | Path) -> Iterator[tuple[str, str, dict[str, Any]]]:
+    """Every logged evaluation with a measurement in ``<log_dir>/<form>-<level>.<tag>.jsonl``
+    (the logs of :class:`LoggedObjective` and of the lane fits), as ``(form, level, record)``
+    in file and line order."""
+    for f in sorted(Path(log_dir).glob("*.jsonl")):
+        form, level = f.name.split(".")[0].rsplit("-", 1)
+        for line in f.read_text().splitlines():
+            rec = json.loads(line)
+            if rec.get("measured"):
+                yield form, level, rec
 
 
 def sobol_population(bounds: Bounds, size: int, seed: int,

@@ -259,7 +259,7 @@ def fit_report_lines(fit: Mapping[str, Any]) -> list[str]:
     """Markdown: the lane fits (per form evaluations, seeds, each seed's best J and why it
     stopped, the spread, CPU), the Pareto fronts' ends per form, the Figs 9-11 tally and the
     per-target evidence of the lane evaluations."""
-    lines = ["### CMA-ES fits in lanes (docs/calibration.md Sect 8)", "",
+    lines = ["## CMA-ES fits in lanes (docs/calibration.md Sect 8)", "",
              "| form | evaluations | seeds | best J per seed (lanes) | stopped by | spread | "
              "CPU s | wall s |", "|---|---|---|---|---|---|---|---|"]
     for name, f in fit.get("forms", {}).items():

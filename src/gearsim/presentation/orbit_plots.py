@@ -147,7 +147,7 @@ def figure_curves(curves: pd.DataFrame, cells: pd.DataFrame | None = None, *,
 
 def exact_marks(ctx, sweep: pd.DataFrame):
     """The exact-landmark table of the standard sweep when the continuation is available
-    (``ctx``: the figures' :class:`~gearsim.presentation.figures.registry.Context`)."""
+    (``ctx``: the figures' :class:`~gearsim.presentation.figures.context.Context`)."""
     pts = ctx.orbits.get("standard_points")
     if pts is None:
         br = ctx.orbits.get("standard")

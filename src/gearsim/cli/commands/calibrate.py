@@ -108,15 +108,23 @@ def _form_names(args) -> list[str]:
     return [s.strip() for s in args.forms.split(",") if s.strip()]
 
 
-def _forms(args) -> int:
-    """Fit each model form with the same search and budget, or measure it unsearched."""
-    from gearsim.calibration.forms import FORMS, run_forms
+def _known_form_names(args) -> list[str]:
+    """``--forms``, each a form of :data:`gearsim.calibration.forms.FORMS` (else exit 2)."""
+    from gearsim.calibration.forms import FORMS
 
     names = _form_names(args)
     unknown = [n for n in names if n not in FORMS]
     if unknown:
         raise UsageError(f"--forms: unknown form(s) {', '.join(unknown)}; known: "
                          f"{', '.join(FORMS)}")
+    return names
+
+
+def _forms(args) -> int:
+    """Fit each model form with the same search and budget, or measure it unsearched."""
+    from gearsim.calibration.forms import run_forms
+
+    names = _known_form_names(args)
     if args.generations < 0 or args.population < 5 or args.refine_fev < 0:
         raise UsageError("--generations >= 0, --population >= 5, --refine-fev >= 0 required")
     run_forms(names, args.forms_dir, search_forms=not args.no_search, seed=args.seed,
@@ -128,13 +136,9 @@ def _forms(args) -> int:
 
 def _fit(args) -> int:
     """CMA-ES of each form in lanes, once per seed."""
-    from gearsim.calibration.forms import FORMS, run_forms_cmaes
+    from gearsim.calibration.forms import run_forms_cmaes
 
-    names = _form_names(args)
-    unknown = [n for n in names if n not in FORMS]
-    if unknown:
-        raise UsageError(f"--forms: unknown form(s) {', '.join(unknown)}; known: "
-                         f"{', '.join(FORMS)}")
+    names = _known_form_names(args)
     try:
         seeds = [int(v) for v in args.seeds.split(",") if v.strip()]
     except ValueError:
@@ -184,9 +188,7 @@ def _coexist(args) -> int:
     out = Path(args.out)
     record = json.loads(out.read_text()) if out.is_file() else {}
     scan: dict = {"w": ws, "b": bs, "starts": 64, "forms": {}}
-    for name in _form_names(args):
-        if name not in FORMS:
-            raise UsageError(f"--forms: unknown form {name!r}; known: {', '.join(FORMS)}")
+    for name in _known_form_names(args):
         form = FORMS[name]
         sets = {"start": form.start}
         for f in sorted(Path(args.forms_dir).glob(f"{name}.s*.json")):

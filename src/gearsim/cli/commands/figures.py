@@ -88,8 +88,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _context(args, study):
+    from gearsim.presentation.figures.context import Context
     from gearsim.presentation.figures.data import read_table
-    from gearsim.presentation.figures.registry import Context
 
     config = study.config
     ctx = Context(
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from gearsim.presentation.figures import registry
+    from gearsim.presentation.figures import context, maps, registry
     from gearsim.presentation.figures.index import write_index
     from gearsim.presentation.figures.style import physical_axes, save_figure
 
@@ -194,9 +194,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--maps needs at least one --plane NAME=PATH")
     for kind in args.map or ():
         registry.figures()  # extensions register their maps on import
-        if kind not in registry.PLANE_MAPS:
+        if kind not in maps.PLANE_MAPS:
             raise UsageError(f"unknown plane map '{kind}'; allowed: "
-                             f"{', '.join(registry.PLANE_MAPS)}")
+                             f"{', '.join(maps.PLANE_MAPS)}")
     from gearsim.study.preflight import check_folder
 
     check_folder(outdir, what="--outdir")  # writable, with room, before any drawing
@@ -209,8 +209,8 @@ def run(args: argparse.Namespace) -> int:
         if args.maps:
             physical = _physical(config)
             for plane, df in ctx.planes.items():
-                for spec, fig, caption, notes in registry.build_maps(plane, df, args.map):
-                    xname, yname = registry._axes(df)
+                for spec, fig, caption, notes in maps.build_maps(plane, df, args.map):
+                    xname, yname = context._axes(df)
                     units = physical_axes(fig, physical(xname, yname), xname, yname)
                     if units:
                         notes = [*notes, "axes also in " + ", ".join(units) + " (the gear file)"]
@@ -220,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
                     plt.close(fig)
                     _write_record(stem.with_suffix(".json"), {
                         "plane": plane, "map": spec.kind, "title": spec.title,
-                        "axes": list(registry._axes(df)), "files": files, "caption": caption,
+                        "axes": list(context._axes(df)), "files": files, "caption": caption,
                         "notes": notes, "inputs": [f"{plane}/cells"],
                         "parameters": ctx.params.to_dict(),
                         "integration": ctx.settings.to_dict()})

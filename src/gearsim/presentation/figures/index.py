@@ -66,7 +66,7 @@ def write_index(outdir: str | Path, out: str | Path | None = None) -> Path:
 
 def _map_lines(outdir: Path) -> list[str]:
     """The maps of every plane (``planes/<plane>-<kind>.json``), one section per plane."""
-    from gearsim.presentation.figures.registry import PLANE_MAPS
+    from gearsim.presentation.figures.maps import PLANE_MAPS
 
     order = {k: n for n, k in enumerate(PLANE_MAPS)}
     recs = [json.loads(p.read_text()) for p in sorted((outdir / "planes").glob("*.json"))]

@@ -142,7 +142,7 @@ def _basins_at(ctx, params, n: int):
 
 
 def _fig18(ctx):
-    from gearsim.presentation.figures.registry import Built, _need
+    from gearsim.presentation.figures.context import Built, _need
 
     df = _need(ctx.sweeps, "hysteresis", "sweep")
     fig, h = figure_hysteresis(df)
@@ -156,7 +156,7 @@ def _fig18(ctx):
 
 
 def _fig19(ctx):
-    from gearsim.presentation.figures.registry import Built
+    from gearsim.presentation.figures.context import Built
 
     spec = ctx.point_specs.get("fig9_11", COEXIST_POINT)
     fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
@@ -182,7 +182,7 @@ def _fig19(ctx):
 
 def _fig20(ctx):
     from gearsim.analysis.attractors import hysteresis
-    from gearsim.presentation.figures.registry import Built, _need
+    from gearsim.presentation.figures.context import Built, _need
 
     h = hysteresis(_need(ctx.sweeps, "hysteresis", "sweep"))
     if h.band is None:
@@ -398,7 +398,7 @@ def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
 
 
 def _map_floquet(df: pd.DataFrame):
-    """The Floquet-margin map of a plane's cells table (:data:`registry.PLANE_MAPS` entry)."""
+    """The Floquet-margin map of a plane's cells table (:data:`maps.PLANE_MAPS` entry)."""
     from gearsim.presentation.figures.data import plane_axes
 
     xn, yn = plane_axes(df)
@@ -416,7 +416,7 @@ def _map_floquet(df: pd.DataFrame):
 
 
 def register_maps() -> None:
-    from gearsim.presentation.figures.registry import MapSpec, register_map
+    from gearsim.presentation.figures.maps import MapSpec, register_map
 
     register_map(MapSpec("floquet", "Floquet margin of the periodic cells", _map_floquet,
                          ("mu_max", "status", "motion")))

@@ -13,16 +13,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from gearsim.presentation.figures.registry import (
-    Built,
-    Context,
-    FigureSpec,
-    Inputs,
-    _need,
-    _plane,
-    axes_text,
-    register,
-)
+from gearsim.presentation.figures.context import Built, Context, _need, _plane, axes_text
+from gearsim.presentation.figures.registry import FigureSpec, Inputs, register
 
 
 def _curve_notes(curves: pd.DataFrame) -> list[str]:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from gearsim.presentation.figures import registry
+from gearsim.presentation.figures import maps, registry
 from gearsim.study.config import Study
 
 #: where the figures, plane maps and sweep diagrams go (``gearsim figures --outdir``)
@@ -95,7 +95,7 @@ def caption_params(spec: registry.FigureSpec) -> dict[str, Any]:
 def map_outputs(plane: str) -> list[str]:
     """The maps drawn for a plane of any axes (PNG, PDF, JSON of each registered kind)."""
     registry.figures()
-    return [f"{FIGURE_DIR}/planes/{plane}-{kind}.{ext}" for kind in registry.PLANE_MAPS
+    return [f"{FIGURE_DIR}/planes/{plane}-{kind}.{ext}" for kind in maps.PLANE_MAPS
             for ext in ("png", "pdf", "json")]
 
 
