@@ -30,7 +30,7 @@ SHARED_GROUPS = {
 }
 # Units handed out first, longest first, so the last units to start are short ones and both
 # workers finish close together; units not named here follow in collection order. CPU seconds
-# (test + waited subprocesses) from a parallel run on a loaded machine (30 Nov, round 4):
+# (test + waited subprocesses) from a parallel run on a loaded machine:
 # tiny_run >= 240 (its fixture 190), test_attractors_pipeline 139, test_cluster 33; the rest of
 # this list runs whole pipelines or a fresh compile too, ordered by what they run.
 LONGEST_FIRST: tuple[str, ...] = (

@@ -55,7 +55,7 @@ FASTMATH = {"contract"}
 # caller's arrays, so they need no reference counting. With Numba's runtime on, every array
 # argument and view is increfed/decrefed with a locked (atomic) instruction at each call
 # boundary; in the flagged-lane redo that was ~60 % of its time (perf: `lock incq`/`lock decq`
-# in NRT_incref/NRT_decref), and the reason the one-source kernel ran at 0.76 of the old one.
+# in NRT_incref/NRT_decref).
 
 # Dormand-Prince 5(4) tableau
 _A21 = 1.0 / 5.0
