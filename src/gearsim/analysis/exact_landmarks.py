@@ -158,8 +158,8 @@ def model_form(subtree: dict | None) -> str:
 
 
 def form_name(subtree: dict | None) -> str:
-    """Short name of the model form (the names of docs/calibration.md's form table): ``today``
-    when every option is at today's default, else the options that differ."""
+    """Short name of the model form (the names of docs/calibration.md's form table): ``single_dof``
+    when every option is at its default, else the options that differ."""
     if not subtree or "parameters" not in subtree:
         return "?"
     p = {**subtree["parameters"], **((subtree.get("sweep") or {}).get("fixed") or {})}
@@ -176,7 +176,7 @@ def form_name(subtree: dict | None) -> str:
         names.append("bearing_clearance")
     if (subtree.get("sweep") or {}).get("start", "continuation") != "continuation":
         names.append("fixed_start")
-    return "+".join(names) or "today"
+    return "+".join(names) or "single_dof"
 
 
 def report_lines(table: pd.DataFrame, form: str | None = None) -> list[str]:

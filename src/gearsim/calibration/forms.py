@@ -4,7 +4,7 @@ A model form (:class:`Form`) is a set of fixed :class:`~gearsim.dynamics.paramet
 changes (the form's option keys, e.g. the error path or the damping placement; ``model`` for the
 bearing DOFs), optional extra free parameters that only exist in that form, and the sweep method
 (continuation, or the paper's fixed start at every w). Every form is searched over the same shared
-box (:data:`SHARED_FREE`) plus its extras, from the same start (today's calibrated shape), by
+box (:data:`SHARED_FREE`) plus its extras, from the same start (the calibrated single_dof shape), by
 :func:`gearsim.calibration.search.search` (seeded differential evolution of :data:`POPULATION`
 members for the same number of generations) scoring :func:`gearsim.calibration.fidelity.measure`
 at the coarse level; then the same refinement: the best ``refine_top`` distinct candidates are
@@ -111,15 +111,15 @@ def _forms() -> dict[str, Form]:
         Form("single_dof", "round-1 form: error as inertial load Fe w^2, damping always on, "
              "rigid bearings (single-DOF), w over sqrt(Km/Me), mean friction arm, continuation "
              "sweep", {"model": "1dof"}),
-        Form("fixed_start", "today's equations; the paper's sweep method: every w starts from "
+        Form("fixed_start", "single_dof's equations; the paper's sweep method: every w starts from "
              "the same static state (no continuation)", {"model": "1dof"}, continuation=False),
-        Form("bearings_6dof", "today's mesh equations with the 6-DOF bearings as the paper "
+        Form("bearings_6dof", "the single_dof mesh equations with the 6-DOF bearings as the paper "
              "describes them: pinion and gear masses from the geometry (rho_p 0.4, rho_g 0.1), "
              "bearing stiffness K/Km and radial clearance free, bearing damping 0.03",
              {"model": "6dof"}, extra=BEARING_FREE),
         Form("te_rate", "transmission error through the stiffness path, K(t) f(x - e) + "
              "C (x' - s e'): the damper follows the fraction s = te_damping of the TE rate (s = 1 "
-             "is today's inertial load Fe w^2 exactly, s = 0 the damper on x' alone; mixtures "
+             "is single_dof's inertial load Fe w^2 exactly, s = 0 the damper on x' alone; mixtures "
              "between)", {"model": "1dof"},
              extra=(FreeParameter("te_damping", 0.0, 1.0, 1.0,
                                   text="fraction of the TE rate the damper sees"),),

@@ -25,7 +25,7 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``, ``tau = w_n
             - F (1 + gamma lambda(tau))
             + (u_py'' - u_gy'') d_y + (u_pz'' - u_gz'') d_z
 
-Model-form options (docs/model.md, "Model forms"; all off by default, where the field is today's
+Model-form options (docs/model.md, "Model forms"; all off by default, where the field is the base form's
 bit for bit): ``F`` gains ``2 xi (1 - beta) e'(tau)`` (the damper follows only part of the
 transmission-error rate, ``te_damping = beta``) and loses ``2 xi delta (x' + ...)`` inside the
 backlash (``mesh_damping_contact = delta``); the friction factor ``gamma lambda`` becomes
@@ -79,7 +79,7 @@ P_RGSA = 13  # rho_g sin(alpha)
 P_KAP = 14  # 4 entries: kappa py, pz, gy, gz (0 in the single-DOF model)
 P_ZB = 18  # 4 entries: 2 xi_brg
 P_GAP = 22  # 4 entries: bearing half clearances
-# model-form options (docs/model.md, "Model forms"); each is 0.0 in today's form, so a default
+# model-form options (docs/model.md, "Model forms"); each is 0.0 in the base form, so a default
 # term adds an exact zero and the default field is bit-identical to the field before the options
 # TE rate seen by the mesh damper: -(1 - te_damping) Fe w  (x' + P_VTE sin(w tau + phi_e))
 P_VTE = 26
@@ -231,7 +231,7 @@ def mesh_force_full(c, s, x, v, P, r0, s0):
     """The mesh force of every model form: :func:`mesh_force` plus the forms' terms.
 
     ``s = sin(w tau)``; ``P`` the full field tuple (:func:`field_params`). Equal to
-    :func:`mesh_force` bit for bit in today's form (the added terms are exact zeros). The Kmax
+    :func:`mesh_force` bit for bit in the base form (the added terms are exact zeros). The Kmax
     trackers (events.py, integrate.py, batch.py) call it through :func:`tracked_force`.
     """
     F = (1.0 + P[P_EPS] * c) * (s0 * x - r0 * P[P_B]) + P[P_XI2] * v
@@ -244,8 +244,8 @@ def mesh_force_full(c, s, x, v, P, r0, s0):
 
 @njit(cache=True, nogil=True, inline="always")
 def tracked_force(c, s, x, v, P, r0, s0):
-    """The mesh force the Kmax trackers record: :func:`mesh_force` in today's form (a branch, so
-    today's paths keep their arithmetic), :func:`mesh_force_full` when a form changes the force
+    """The mesh force the Kmax trackers record: :func:`mesh_force` in the base form (a branch, so
+    the base paths keep their arithmetic), :func:`mesh_force_full` when a form changes the force
     (``te_damping < 1`` or ``mesh_damping_contact > 0``)."""
     if P[P_VTE] != 0.0 or P[P_XIO] != 0.0:
         return mesh_force_full(c, s, x, v, P, r0, s0)
@@ -289,7 +289,7 @@ def field_state(c, s, lam, q, vr, y, P, M):
     a_gz = -z3 * y[9] - k3 * (sb3 * y[8] - rb3 * g3) + rgsa * F
     acc = drive - F * (1.0 + gam * lam) + (a_py - a_gy) * ca + (a_pz - a_gz) * sa
     if vte != 0.0 or xio != 0.0 or gam1 != 0.0:
-        # model forms (docs/model.md), all off in today's form: the branch leaves today's
+        # model forms (docs/model.md), all off in the base form: the branch leaves the base
         # arithmetic untouched (bit-identical) and adds the forms' change dFx of the mesh force.
         # One product per addition, so the FMA contraction is unique and the scalar and the
         # batched paths round alike.
@@ -324,7 +324,7 @@ def field_tangent(c, lam, q, z, P, M):
      k0, k1, k2, k3, z0, z1, z2, z3, g0, g1, g2, g3, vte, xio, gam1) = P  # fmt: skip
     (r0, s0, rb0, rb1, rb2, rb3, sb0, sb1, sb2, sb3) = M
     dF = (1.0 + eps * c) * s0 * z[0] + xi2 * z[1]
-    if xio != 0.0:  # (branches, not added zeros: today's tangent keeps its FMA contraction)
+    if xio != 0.0:  # (branches, not added zeros: the base tangent keeps its FMA contraction)
         dF = dF - xio * (1.0 - s0) * z[1]
     d_py = -z0 * z[3] - k0 * sb0 * z[2] - rpca * dF
     d_pz = -z1 * z[5] - k1 * sb1 * z[4] - rpsa * dF

@@ -49,7 +49,7 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
     "b_pz": (0.0, 1e3, True, True, "pinion bearing half clearance (Z) / b_c"),
     "b_gy": (0.0, 1e3, True, True, "gear bearing half clearance (Y) / b_c"),
     "b_gz": (0.0, 1e3, True, True, "gear bearing half clearance (Z) / b_c"),
-    # model-form options (docs/model.md, "Model forms"); the defaults are today's form
+    # model-form options (docs/model.md, "Model forms"); the defaults are the base form
     "te_damping": (0.0, 1.0, True, True,
                    "fraction of the transmission-error rate the mesh damper follows "
                    "(1: C (x' - e') of Eq 3, 0: C x')"),
@@ -252,7 +252,7 @@ def at_axis_w(params: ModelParameters, w_axis: float, frequency_scale: str = "me
               ) -> ModelParameters:
     """Parameters at the axis value ``w_axis`` under a frequency-scale reading.
 
-    ``"mesh"`` (today): ``w = w_axis`` (``w_h / sqrt(Km / Me)``); ``"coupled"``: the axis is
+    ``"mesh"`` (the default): ``w = w_axis`` (``w_h / sqrt(Km / Me)``); ``"coupled"``: the axis is
     ``w_h / w_c`` and the model runs at ``w = mesh_mode_ratio(params) * w_axis``.
     """
     if frequency_scale not in FREQUENCY_SCALES:

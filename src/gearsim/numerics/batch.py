@@ -217,7 +217,7 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     r0 = M[0]
     td = blk[r + _TD * L]
     blk[r + _TD * L] = _sel(flag | (r0 != 0.0), td, td + h)
-    if forms:  # a literal: today's lane loop keeps mesh_force
+    if forms:  # a literal: the base lane loop keeps mesh_force
         fl = mesh_force_full(cB, sB, yn[0], yn[1], P, r0, M[1])
     else:
         fl = mesh_force(cB, yn[0], yn[1], P, r0, M[1])
@@ -239,7 +239,7 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
 
     The loop over the lanes is straight-line code and vectorises (check: ``inspect_asm()``).
     ``tangent`` and ``forms`` must be literals at the call site (compiled loops without the
-    tangent code for the transients, without the model forms' terms for today's form).
+    tangent code for the transients, without the model forms' terms for the base form).
     Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes are left
     untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
     """
