@@ -25,7 +25,7 @@ Equations (``d_y = cos alpha``, ``d_z = sin alpha``, ``' = d/dtau``, ``tau = w_n
             - F (1 + gamma lambda(tau))
             + (u_py'' - u_gy'') d_y + (u_pz'' - u_gz'') d_z
 
-Model-form options (docs/model.md, "Model forms"; all off by default, where the field is the base form's
+Model-form options (docs/model.md, "Model forms"; all off by default, the field then is the base one
 bit for bit): ``F`` gains ``2 xi (1 - beta) e'(tau)`` (the damper follows only part of the
 transmission-error rate, ``te_damping = beta``) and loses ``2 xi delta (x' + ...)`` inside the
 backlash (``mesh_damping_contact = delta``); the friction factor ``gamma lambda`` becomes
