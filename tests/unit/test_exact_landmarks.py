@@ -13,8 +13,8 @@ TODAY = {
 }
 
 
-def test_today_form_is_named_with_its_settings():
-    assert form_name(TODAY) == "today"
+def test_base_form_is_named_with_its_settings():
+    assert form_name(TODAY) == "single_dof"
     text = model_form(TODAY)
     for part in ("6DOF", "rho_p 0.4", "kappa 40/40/10/10", "no clearance", "inertial load",
                  "mesh damping always", "friction arm: its mean", "w over sqrt(Km / Me)",

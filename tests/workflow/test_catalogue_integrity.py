@@ -173,7 +173,7 @@ def test_good_tiles_combine_in_order(study):
 
 def test_tiles_in_any_order_give_the_same_plane(study, tmp_path):
     out = gc.combine_tiles(study["tiles"]["wb"][::-1], tmp_path / "c.parquet",
-                           plane_record(study["cfg"], "wb"))
+                           plane_record(gcfg.Study.of(study["cfg"]), "wb"))
     a = pq.read_table(out).to_pandas()
     b = pq.read_table(study["cells"]["wb"]).to_pandas()
     assert a.drop(columns=["poincare_x", "poincare_v", "final_state"]).equals(

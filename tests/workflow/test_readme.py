@@ -50,7 +50,9 @@ def readme_run():
 def test_readme_cell_is_the_cli_point(readme_run, tmp_path):
     ns, printed = readme_run
     c = ns["cell"].classification
-    assert printed.splitlines()[0].split()[:2] == ["0/1T", "1-0-0"]
+    lines = printed.splitlines()
+    assert lines[0].endswith("standard_parameters.yaml")  # where xi came from
+    assert lines[1].split()[:2] == ["0/1T", "1-0-0"]
     cli = json.loads(_gearsim("point", "--omega", "0.48", "--json", cwd=tmp_path).stdout)
     assert (cli["label"], cli["label_npq"], cli["status"]) == (c.label, c.label_npq, c.status)
     assert cli["dc"] == pytest.approx(c.dc, abs=1e-12)
