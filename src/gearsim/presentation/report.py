@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +61,7 @@ from gearsim.presentation.report_inputs import (
     load_sweeps,
 )
 from gearsim.presentation.report_markdown import NOT_APPLICABLE, to_markdown
+from gearsim.presentation.report_record import Report, Threshold
 from gearsim.presentation.study_summary import (
     axis_column,
     multistable_summary,
@@ -98,23 +98,6 @@ def verified_summary(plane: str, cells: pd.DataFrame | None) -> dict[str, Any] |
 
 
 # ----------------------------------------------------------------------------- thresholds
-@dataclass
-class Threshold:
-    """A threshold read off a plane: the last row that still shows the property and the next."""
-
-    name: str
-    value: float  # midpoint between last_with and first_without
-    last_with: float
-    first_without: float
-    rows: int
-    paper: float
-    note: str = ""
-
-    @property
-    def difference(self) -> float:
-        return self.value - self.paper
-
-
 def row_threshold(
     cells: pd.DataFrame, y: str, has_property: pd.Series, *, name: str, paper: float,
 ) -> Threshold | None:
@@ -153,42 +136,6 @@ def not_period_one(cells: pd.DataFrame) -> pd.Series:
 
 
 # ----------------------------------------------------------------------------- report
-@dataclass
-class Report:
-    """Everything the report states, computed from the pipeline outputs."""
-
-    landmarks: pd.DataFrame | None = None
-    matched: pd.DataFrame | None = None
-    jump: dict[str, Any] | None = None
-    b_threshold: Threshold | None = None
-    xi_threshold: Threshold | None = None
-    sequences: dict[str, dict[str, Any]] = field(default_factory=dict)
-    misses: list[str] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
-    calibration: dict[str, Any] | None = None
-    audit: list[dict[str, Any]] = field(default_factory=list)
-    compared: int = 0  # comparisons with the paper actually made
-    thresholds_na: dict[str, str] = field(default_factory=dict)  # label -> why not applicable
-    planes: list[dict[str, Any]] = field(default_factory=list)  # every plane of the study
-    hysteresis: list[str] = field(default_factory=list)  # jump-up / jump-down of the fold
-    hysteresis_band: tuple[float, float] | None = None
-    exact: pd.DataFrame | None = None  # exact landmarks by continuation (docs/orbits.md)
-    exact_form: dict | None = None  # provenance subtree of the standard sweep (its model form)
-    study: str | None = None  # the config's ``study`` name (a study of one's own)
-    sweep_summaries: list[dict[str, Any]] = field(default_factory=list)  # every sweep
-    point_summaries: list[dict[str, Any]] = field(default_factory=list)  # every point set
-    multistable: list[dict[str, Any]] = field(default_factory=list)  # per plane with attractors
-    verified: list[dict[str, Any]] = field(default_factory=list)  # per plane: verified_summary
-    curves: list[str] = field(default_factory=list)  # bifurcation curves skipped or cut short
-    paper_material: bool = False  # the study configures a paper sweep or plane
-
-    @property
-    def paper_study(self) -> bool:
-        """Whether any of the paper's material is in this study (then the scorecard leads)."""
-        return self.paper_material or self.compared > 0 or self.matched is not None
-
-
-
 def _table_axes(plane: str, df: pd.DataFrame | None) -> tuple[str, str]:
     """(x, y) parameter names of a cells table (names of varying parameter columns)."""
     known = {"wb": ("w", "b"), "wxi": ("w", "xi")}

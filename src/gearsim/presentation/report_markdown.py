@@ -1,12 +1,13 @@
 """The report as Markdown: the scorecard first (when the study holds the paper's material), the
 misses, the details of every comparison, the study's own planes, sweeps and points, the audits
-and the verified motions. Text only: the numbers are :class:`gearsim.presentation.report.Report`'s.
+and the verified motions. Text only: the numbers are those of
+:class:`gearsim.presentation.report_record.Report`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -20,11 +21,9 @@ from gearsim.analysis.paper import (
     within,
 )
 from gearsim.cell.classify import KMAX_READINGS
+from gearsim.presentation.report_record import Report
 from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import plane_lines, point_lines, sweep_lines
-
-if TYPE_CHECKING:
-    from gearsim.presentation.report import Report
 
 NOT_APPLICABLE = "not applicable"
 
