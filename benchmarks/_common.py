@@ -89,3 +89,12 @@ def save(name: str, payload: dict) -> Path:
     path = RESULTS / f"{name}.json"
     path.write_text(json.dumps(payload, indent=1, default=float) + "\n")
     return path
+
+
+def run_json_worker(worker: str, args: list, env: dict) -> dict:
+    """Run ``python -c worker args...`` in ``env``; its last printed line is a JSON record."""
+    import sys
+
+    res = subprocess.run([sys.executable, "-c", worker, *map(str, args)], env=env, check=True,
+                         capture_output=True, text=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])

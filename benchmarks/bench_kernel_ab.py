@@ -15,7 +15,6 @@ Usage: python benchmarks/bench_kernel_ab.py [--rev ef892c4] [--rounds 3] [--quic
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
@@ -23,7 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _common import loadavg, save
+from _common import loadavg, run_json_worker, save
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -91,9 +90,7 @@ def export(rev: str, dest: Path, paths: tuple[str, ...] = ("src",)) -> Path:
 def run_version(src: Path, cache: Path, n: int, periods: int, repeats: int) -> dict:
     env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache),
                NUMBA_NUM_THREADS="1")
-    res = subprocess.run([sys.executable, "-c", WORKER, str(n), str(periods), str(repeats)],
-                         env=env, check=True, capture_output=True, text=True)
-    return json.loads(res.stdout.strip().splitlines()[-1])
+    return run_json_worker(WORKER, [n, periods, repeats], env)
 
 
 def main(argv=None) -> int:

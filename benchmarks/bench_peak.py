@@ -23,14 +23,12 @@ Usage: python benchmarks/bench_peak.py [--quick] [--builds host,znver3]
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from _common import loadavg, machine, save
+from _common import loadavg, machine, run_json_worker, save
 
 from gearsim.numerics.cache import avx2_features
 
@@ -172,9 +170,7 @@ def run_build(cpu: str, n: int, periods: int, repeats: int) -> dict:
         if cpu != "host":
             env["NUMBA_CPU_NAME"] = cpu
             env["NUMBA_CPU_FEATURES"] = avx2_features()
-        res = subprocess.run([sys.executable, "-c", WORKER, str(n), str(periods), str(repeats)],
-                             env=env, check=True, capture_output=True, text=True)
-    return json.loads(res.stdout.strip().splitlines()[-1])
+        return run_json_worker(WORKER, [n, periods, repeats], env)
 
 
 def main(argv=None) -> int:
