@@ -251,6 +251,10 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
     ``flat_rtol`` (and at least ``min_evals`` were made), at ``max_evals``, after ``restarts``
     restarts, or past ``time_budget`` seconds (each recorded in ``stopped_by``).
 
+    ``on_generation`` gets, after every generation, the evaluations so far (``nfev``), the
+    best J and vector (``best_J``, ``x``), the run's index, wall and CPU seconds (``t``,
+    ``cpu_s``), the curve and the finished runs so far.
+
     Returns the best vector and J, ``nfev``, the best-J curve (``curve``: ``[nfev, best J]``
     after every generation), the runs (population, evaluations, best J, why each ended).
     """
@@ -303,8 +307,9 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
             curve.append([nfev, best["J"]])
             rcurve.append([nfev, run["best_J"]])
             if on_generation:
-                on_generation({"nfev": nfev, "best_J": best["J"], "run": r,
-                               "t": time.time() - t0})
+                on_generation({"nfev": nfev, "best_J": best["J"], "x": best["x"], "run": r,
+                               "t": time.time() - t0, "cpu_s": time.process_time() - c0,
+                               "curve": curve, "runs": runs})
             if nfev >= max_evals:
                 stopped_by = why = "max_evals"
             elif time_budget is not None and time.time() - t0 > time_budget:
