@@ -149,6 +149,23 @@ def test_cmaes_finds_the_ellipsoid_minimum_and_stops_on_a_flat_curve():
     assert len(seen[-1]["runs"]) == len(res["runs"]) - 1  # the last run ends after it
 
 
+def test_cmaes_evaluates_the_start_in_its_first_population():
+    from gearsim.calibration.search import run_cmaes
+
+    batches: list[list[np.ndarray]] = []
+
+    def batch(xs):
+        batches.append([np.asarray(x) for x in xs])
+        return [float(np.sum((np.asarray(x) - 0.3) ** 2)) for x in xs]
+
+    x0 = [1.5, -0.25, 0.75]
+    res = run_cmaes(batch, [(-2.0, 2.0)] * 3, seed=5, x0=x0, sigma0=0.4, max_evals=30)
+    first = batches[0]
+    assert any(np.allclose(x, x0, rtol=0, atol=1e-12) for x in first)
+    # the curve's first point is at most the start's J
+    assert res["curve"][0][1] <= float(np.sum((np.asarray(x0) - 0.3) ** 2))
+
+
 def test_cmaes_restarts_with_a_doubled_population_and_keeps_the_box():
     from gearsim.calibration.search import run_cmaes
 
