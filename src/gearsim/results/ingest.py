@@ -307,16 +307,21 @@ def _file_run(session: Session, f: Path, what: str, counts: dict):
     return prov, run, pd.read_parquet(f)
 
 
-def _insert_audit(session: Session, f: Path, counts: dict) -> None:
+def _cell_ids(session: Session, planes) -> dict[tuple[str, int, int], int]:
+    """The catalogue's cell ids of ``planes`` by ``(plane, i, j)``."""
     from sqlalchemy import select
 
-    prov, run, df = _file_run(session, f, "audit file", counts)
-    q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == prov.get("name"))
-    planes = set(df["plane"]) if len(df) else set()
     cell_ids = {}
     for name in planes:
         q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
         cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+    return cell_ids
+
+
+def _insert_audit(session: Session, f: Path, counts: dict) -> None:
+
+    prov, run, df = _file_run(session, f, "audit file", counts)
+    cell_ids = _cell_ids(session, set(df["plane"]) if len(df) else set())
     rows = []
     for rec_ in df.to_dict("records"):
         key = (rec_["plane"], int(rec_["i"]), int(rec_["j"]))
@@ -402,14 +407,10 @@ def _insert_attractors(session: Session, f: Path, counts: dict) -> None:
 
 def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
     """Insert a bifurcation points / curves file or a refine-orbits file (by its columns)."""
-    from sqlalchemy import select
 
     prov, run, df = _file_run(session, f, "orbit file", counts)
     if "orbit_flag" in df.columns:
-        cell_ids = {}
-        for name in set(df["plane"]):
-            q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
-            cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+        cell_ids = _cell_ids(session, set(df["plane"]))
         rows = []
         for r in df.to_dict("records"):
             key = (r["plane"], int(r["i"]), int(r["j"]))
