@@ -244,12 +244,17 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
     vectors -> their J, e.g. one batched-kernel measurement), in the unit cube mapped onto
     ``bounds``.
 
-    The first run starts at ``x0`` (else the box centre), each restart at a seeded uniform point
-    with twice the population. A run ends on cma's own criteria or on a flat curve: its best J
-    fell by less than ``flat_rtol`` (relative) over its last ``flat_evals`` evaluations. The
-    search ends flat when a whole restart did not lower the best J of the runs before it by
-    ``flat_rtol`` (and at least ``min_evals`` were made), at ``max_evals``, after ``restarts``
-    restarts, or past ``time_budget`` seconds (each recorded in ``stopped_by``).
+    The first run starts at ``x0`` (else the box centre; ``x0`` itself is a member of its first
+    population), each restart at a seeded uniform point with twice the population. A run ends
+    on cma's own criteria or on a flat curve: its best J fell by less than ``flat_rtol``
+    (relative) over its last ``flat_evals`` evaluations. The search ends flat when a whole
+    restart did not lower the best J of the runs before it by ``flat_rtol`` (and at least
+    ``min_evals`` were made), at ``max_evals``, after ``restarts`` restarts, or past
+    ``time_budget`` seconds (each recorded in ``stopped_by``).
+
+    ``on_generation`` gets, after every generation, the evaluations so far (``nfev``), the
+    best J and vector (``best_J``, ``x``), the run's index, wall and CPU seconds (``t``,
+    ``cpu_s``), the curve and the finished runs so far.
 
     Returns the best vector and J, ``nfev``, the best-J curve (``curve``: ``[nfev, best J]``
     after every generation), the runs (population, evaluations, best J, why each ended).
@@ -286,6 +291,10 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
             np.clip(u0, 0.0, 1.0).tolist(), sigma0,
             {"bounds": [0.0, 1.0], "popsize": lam, "seed": int(rng.integers(1, 2**31 - 1)),
              "verbose": -9, "verb_log": 0, "verb_disp": 0})
+        if r == 0 and x0 is not None:
+            # the start itself is a member of the first population: the curve starts at or
+            # below its J (a wide first population may land nowhere better)
+            es.inject([np.clip(u0, 0.0, 1.0)], force=True)
         run = {"popsize": lam, "start_nfev": nfev, "best_J": math.inf}
         rcurve: list[list[float]] = []
         why = ""
@@ -303,8 +312,9 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
             curve.append([nfev, best["J"]])
             rcurve.append([nfev, run["best_J"]])
             if on_generation:
-                on_generation({"nfev": nfev, "best_J": best["J"], "run": r,
-                               "t": time.time() - t0})
+                on_generation({"nfev": nfev, "best_J": best["J"], "x": best["x"], "run": r,
+                               "t": time.time() - t0, "cpu_s": time.process_time() - c0,
+                               "curve": curve, "runs": runs})
             if nfev >= max_evals:
                 stopped_by = why = "max_evals"
             elif time_budget is not None and time.time() - t0 > time_budget:
