@@ -38,7 +38,7 @@ def test_points_inside_a_certified_ball_reach_its_orbit():
     p = ModelParameters(w=0.82, b=0.15, **REFERENCE)
     st = GearCells([p], GEAR).settings
     orbit = gear_steady(simulate_cell(p, settings=st))
-    cert, spent = certify(p, orbit, st, 8, 0.03, 3)
+    cert, spent = certify(p, orbit, st, 24, 0.03, 2)
     assert cert is not None and spent > 0
     assert 0.0 < cert.r <= 0.03 and cert.ratio < 1.0
     rng = np.random.default_rng(3)
@@ -52,7 +52,7 @@ def test_points_inside_a_certified_ball_reach_its_orbit():
 
 def test_certified_labels_alone_equal_full_length_runs():
     stats = PoolStats()
-    opts = FinderOptions(starts=16, seed=5, lanes=64)
+    opts = FinderOptions(starts=64, seed=5, lanes=64)  # 64: certifying pays off
     # recurrence within 1e-9 of the range: almost every early label is a certified one
     fast = find_attractors(CELLS, opts.with_(recur_rtol=1e-9), settings=GEAR, stats=stats)
     full = find_attractors(CELLS, opts.with_(early=False), settings=GEAR)
@@ -70,7 +70,7 @@ def test_forward_motion_seeds_certified_labels():
     rows = chains.simulate_rows([cells], settings=GearCells(cells, GEAR).settings)[0]
     motions = [gear_steady(r) for r in rows]
     stats = PoolStats()
-    opts = FinderOptions(starts=16, seed=1, lanes=64)
+    opts = FinderOptions(starts=64, seed=1, lanes=64)
     fast = find_attractors(cells, opts, settings=GEAR, forward_results=motions, stats=stats)
     full = find_attractors(cells, opts.with_(early=False), settings=GEAR,
                            forward_results=motions)

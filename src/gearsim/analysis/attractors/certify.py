@@ -1,9 +1,12 @@
 """Certified neighbourhoods of stable periodic orbits: where an early label needs no recurrence.
 
-For a periodic attractor of period ``n`` (``n`` dividing the probing chunk ``m``) whose orbit
-is known on the section (a Newton-refined orbit, or a run settled to the classifier's period
-test) and whose Floquet margin |mu|max is below 1 (:func:`stable_margin`), a radius ``r`` per orbit is *certified* when, for every phase ``j`` of the orbit, the
-``m``-period map ``P^m`` (the map a probing start is seen through) takes
+For a periodic attractor of period ``n`` (``n`` dividing the probing chunk and ``m``) whose
+orbit is known on the section (a Newton-refined orbit, or a run settled to the classifier's
+period test) and whose Floquet margin |mu|max is below 1 (:func:`stable_margin`), a radius
+``r`` per orbit is *certified* when, for every phase ``j`` of the orbit, the ``m``-period map
+``P^m`` (``FinderOptions.certify_periods``, 24: over one chunk of 8 periods the sup-norm ball
+is not contracted at the corners of most 6-DOF orbits, whose bearing components first grow;
+docs/decisions.md) takes
 
 * the orbit's own section state ``c_j`` to within ``CENTRE_FRACTION r`` of itself, and
 * every sampled point of the boundary of the ball ``|y - c_j|_s = r`` (both signs along every
@@ -16,9 +19,9 @@ for displacements and ``w`` times it for velocities. Radii are tried from
 ``FinderOptions.certify_radius`` down by factors of 3 (``certify_tries`` of them); none passing
 leaves the orbit uncertified (its starts keep the recurrence rule).
 
-A probing start is labelled onto a certified orbit when, at the end of a chunk, its section
-state lies inside a phase's ball *and* at the end of the next chunk it lies inside the ball
-again, closer to the orbit than before (the contraction confirmed on the start's own
+A probing start is labelled onto a certified orbit when, at a chunk check, its section state
+lies inside a phase's ball *and* at the next chunk check (8 periods on) it lies inside the
+ball again, closer to the orbit than before (the contraction confirmed on the start's own
 trajectory). Sampled boundary points are evidence, not a proof of contraction over the whole
 ball; the finder's tests check every early label against the start's full-length run.
 """
@@ -89,6 +92,28 @@ def stable_margin(params: ModelParameters, s: Steady, settings) -> bool:
         s.info["mu_max"], s.info["critical"] = got
         mu = got[0]
     return bool(mu < 1.0)
+
+
+def samples_per_phase(params: ModelParameters) -> int:
+    """Lanes of one try per orbit phase: the centre, 2 per evolved coordinate, the corners."""
+    return 1 + 2 * len(_evolved(params)) + CORNERS
+
+
+def worth(params: ModelParameters, s: Steady, settings, open_starts: int, m: int,
+          radius: float, recur_rtol: float) -> bool:
+    """Whether certifying the orbit of ``s`` is expected to cost fewer lane-periods than it
+    saves its cell's ``open_starts`` unlabelled starts: a start converging at the rate
+    |mu|max per period reaches the ball of ``radius`` some ``ln(radius / recur_rtol) /
+    ln(1 / |mu|max)`` periods before the recurrence rule's ``recur_rtol`` (the period test);
+    one try costs :func:`samples_per_phase` x ``n`` x ``m`` lane-periods. Reads (and fills)
+    the orbit's Floquet margin; False where it is not below 1."""
+    if not stable_margin(params, s, settings):
+        return False
+    mu = float(s.info["mu_max"])
+    if mu <= 0.0:
+        return False
+    saved = open_starts * math.log(radius / recur_rtol) / math.log(1.0 / mu)
+    return saved > samples_per_phase(params) * s.period * m
 
 
 def certify(params: ModelParameters, s: Steady, settings, m: int, radius: float,

@@ -15,7 +15,7 @@ RECUR_PERIOD_RTOL = 1e-4
 POOL_LANES = 256
 
 _POSITIVE_INTS = ("starts", "chunk", "confirm", "confirm_cloud", "rescout", "grid", "lanes",
-                  "certify_tries")
+                  "certify_tries", "certify_periods")
 
 
 @dataclass(frozen=True)
@@ -36,8 +36,9 @@ class FinderOptions:
     starts per cell run full first (the recurrence mapper); ``lanes`` of the probing pool.
     ``certified``: label a probing start onto a periodic attractor once it is inside the
     orbit's certified ball and its next chunk confirms the contraction
-    (:mod:`gearsim.analysis.attractors.certify`: radii from ``certify_radius`` of the range
-    down by factors of 3, ``certify_tries`` of them); recurrence stays for the rest.
+    (:mod:`gearsim.analysis.attractors.certify`: the ``certify_periods``-period map; radii from
+    ``certify_radius`` of the range down by factors of 3, ``certify_tries`` of them);
+    recurrence stays for the rest.
     """
 
     starts: int = 16
@@ -59,7 +60,8 @@ class FinderOptions:
     lanes: int = POOL_LANES
     certified: bool = True
     certify_radius: float = 0.03
-    certify_tries: int = 3
+    certify_tries: int = 2
+    certify_periods: int = 24
 
     def __post_init__(self):
         for name in _POSITIVE_INTS + ("scouts",):

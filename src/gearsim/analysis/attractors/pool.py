@@ -37,7 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gearsim.analysis.attractors.certify import certify
+from gearsim.analysis.attractors.certify import certify, eligible, worth
 from gearsim.analysis.attractors.gear import GearCells, gear_steady, sobol_unit
 from gearsim.analysis.attractors.matching import _Known, assemble, least_periods
 from gearsim.analysis.attractors.options import FinderOptions
@@ -202,8 +202,13 @@ class _Judge:
             # every periodic motion of this cell's own runs, the forward continuation's
             # included (no recurrence target unless refined: the certificate is its check)
             if a not in cell.certs and not kn.ambiguous[a] and s.period > 0:
-                cert, spent = certify(cell.params, s, self.st, o.chunk, o.certify_radius,
-                                      o.certify_tries)  # fmt: skip
+                cert, spent = None, 0
+                if (o.chunk % s.period == 0 and eligible(s, o.certify_periods)
+                        and worth(cell.params, s, self.st, int(np.sum(cell.labels == -2)),
+                                  o.certify_periods, o.certify_radius,
+                                  o.recur_period_rtol)):  # fmt: skip
+                    cert, spent = certify(cell.params, s, self.st, o.certify_periods,
+                                          o.certify_radius, o.certify_tries)  # fmt: skip
                 cell.certs[a] = cert
                 self.stats.certify_periods += spent
                 if spent:
@@ -276,6 +281,29 @@ class _Judge:
                 self.ready.appendleft(j)
 
 
+def _forward_margins(params_list, forward_results, st) -> None:
+    """The Floquet margins of the plane rows' periodic motions in shared kernel calls, before
+    the pool (the margins the finder's last step would take one by one at a certification;
+    ``GearCells.fill_margins`` then finds them known)."""
+    from gearsim.cell.verify import orbit_margins, wants_margin
+
+    if st.floquet != "margin":
+        return
+    todo = []
+    for p, s in zip(params_list, forward_results, strict=True):
+        if s is None or s.status != "ok" or s.final_state is None:
+            continue
+        i = s.info or {}
+        if wants_margin(s.period, i.get("status", "ok"), bool(i.get("refined")),
+                        i.get("mu_max"), p.var_ratio):  # fmt: skip
+            todo.append((p, s))
+    got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
+                        [s.final_state for _, s in todo], st)  # fmt: skip
+    for (_, s), m in zip(todo, got, strict=True):
+        if m is not None:
+            s.info["mu_max"], s.info["critical"] = m
+
+
 def map_gear_cells(
     params_list: Sequence[ModelParameters],
     options: FinderOptions,
@@ -303,6 +331,8 @@ def map_gear_cells(
     else:
         st_states = [np.atleast_2d(np.asarray(s, dtype=float)) for s in start_states]
     history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
+    if opts.early and opts.certified and forward_results is not None:
+        _forward_margins(params_list, forward_results, st)
     cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
     groups: dict[tuple, list[_Cell]] = {}
     for cell in cells:
