@@ -1,16 +1,18 @@
-"""The quick configuration's results before and after the one-source refactor.
+"""The quick configuration's results of an older revision against this checkout's.
 
-Not a timing: the identity check of issue 10 ("the quick configuration's catalogue is identical
-in every label, n, p, q, impact and status; values within 1e-9"). The old package is a git
-revision (default ``ef892c4``) exported with ``git archive`` (``src``, ``config``, ``workflow``);
-the new one is this checkout. Each runs in its own interpreter and Numba cache and computes what
-the quick configuration's catalogue holds: both planes (every tile, its rows grouped as a tile
-job with 2 workers groups them, through ``tiles.simulate_rows_batched``), the seven sweeps of
-both versions' quick.yaml (``commands.sweep.sweep_frame``) and the three point sets
-(``commands.sweep.points_frame``). ``integration.tangent_lead`` is set to 0 for the new code: the
-old code had no tangent lead (issue 17 added it), so with it on the Lyapunov exponents differ by
-design. Then every record is compared: the discrete columns exactly, float columns and arrays
-(final state, section samples, trajectories) to the last bit, the largest difference reported.
+Not a timing: an identity check (the quick configuration's catalogue identical in every label,
+n, p, q, impact and status; values within 1e-9). The old package is a git revision (default
+``ef892c4``) exported with ``git archive`` (``src``, ``config``, ``workflow``); the new one is this
+checkout. Each runs in its own interpreter and Numba cache and computes what the quick
+configuration's catalogue holds: both planes (every tile, its rows grouped as a tile job with 2
+workers groups them, through ``tiles.simulate_rows_batched``), the seven sweeps of both versions'
+quick.yaml (``study.sweeps.sweep_frame``) and the three point sets (``study.sweeps.points_frame``).
+This checkout's worker asks a :class:`gearsim.study.config.Study` for every parameter set and the
+settings; the old revision's worker uses that revision's config functions.
+``integration.tangent_lead`` is set to 0 for the new code: the old code had no tangent lead, so
+with it on the Lyapunov exponents differ by design. Then every record is compared: the discrete
+columns exactly, float columns and arrays (final state, section samples, trajectories) to the
+last bit, the largest difference reported.
 
 Usage: python benchmarks/kernel_identity.py [--rev ef892c4] [--planes-only]
 (about 2 x 3 min of CPU on a warm cache; a cold Numba cache adds a compile per version).
@@ -36,42 +38,58 @@ POINTS = ("fig5", "fig6", "fig9_11")
 
 WORKER = r"""
 import argparse, dataclasses, pickle, sys
-try:
-    from gearsim.study.config import base_parameters, integration_settings, load_config
-    from gearsim.study.grid import sweep_values
-except ImportError:  # before the config split
-    from gearsim.study.tiles import base_parameters, integration_settings, load_config, sweep_values
 from gearsim.study import tiles
 from gearsim.cli.commands import sweep as cmd
-from gearsim.dynamics.parameters import ModelParameters
 from gearsim.cell.simulate import IntegrationSettings
 out, planes_only = sys.argv[1], sys.argv[2] == "1"
 fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
-# the old code's settings: 256 steps per period (config.yaml has 192 since round 5)
+# the old code's settings: 256 steps per period (config.yaml has 192)
 ov = ({"integration": {"tangent_lead": 0, "steps_per_period": 256}}
       if "tangent_lead" in fields else None)
-cfg = load_config(["config/config.yaml", "config/quick.yaml"], ov)
+ap = argparse.ArgumentParser()
+cmd.add_arguments(ap)
+try:  # this checkout: every parameter through the Study
+    from gearsim.study.config import Study
+    from gearsim.study.grid import sweep_values
+    from gearsim.study.sweeps import points_frame, sweep_frame
+except ImportError:  # the old revision: its config functions
+    Study = None
+    from gearsim.study.tiles import base_parameters, integration_settings, load_config, sweep_values
+    from gearsim.dynamics.parameters import ModelParameters
+if Study is not None:
+    study = Study.load(["config/quick.yaml"], ov, root=".")
+    cfg, settings = study.config, study.settings
+    specs = lambda plane, t: tiles.row_specs(study, plane, t)
+    sweep_base = lambda name: study.parameters(sweep=name).model
+    def points(fig):
+        a = ap.parse_args(["--points", fig])
+        return points_frame(study, fig, ramp_from=a.ramp_from, ramp_step=a.ramp_step,
+                            periods=a.periods, samples_per_period=a.samples_per_period)
+else:
+    cfg = load_config(["config/config.yaml", "config/quick.yaml"], ov)
+    settings = integration_settings(cfg)
+    specs = lambda plane, t: tiles.row_specs(cfg, plane, t)
+    def sweep_base(name):
+        values, _ = base_parameters(cfg)
+        return ModelParameters.from_mapping({**values, **cfg["sweeps"][name].get("fixed", {})})
+    sweep_frame = cmd.sweep_frame
+    points = lambda fig: cmd.points_frame(cfg, fig, ap.parse_args(["--points", fig]))
 res = {}
 for plane in ("wb", "wxi"):
     rows = int(cfg["tile_rows"])
     for t in range(-(-int(cfg["planes"][plane]["y"]["n"]) // rows)):
-        for g in tiles.row_groups(tiles.row_specs(cfg, plane, t), 2):
+        for g in tiles.row_groups(specs(plane, t), 2):
             for r in tiles.simulate_rows_batched(g):
                 res[(plane, r["j"], r["i"])] = r
 if not planes_only:
-    values, _ = base_parameters(cfg)
     for name in sys.argv[3].split(","):
         spec = cfg["sweeps"][name]
-        base = ModelParameters.from_mapping({**values, **spec.get("fixed", {})})
-        df = cmd.sweep_frame(base, spec["name"], sweep_values(spec),
-                             spec.get("direction", "forward"), integration_settings(cfg))
+        df = sweep_frame(sweep_base(name), spec["name"], sweep_values(spec),
+                         spec.get("direction", "forward"), settings)
         for k, r in enumerate(df.to_dict("records")):
             res[(name, k)] = r
-    ap = argparse.ArgumentParser()
-    cmd.add_arguments(ap)
     for fig in sys.argv[4].split(","):
-        df = cmd.points_frame(cfg, fig, ap.parse_args(["--points", fig]))
-        for k, r in enumerate(df.to_dict("records")):
+        for k, r in enumerate(points(fig).to_dict("records")):
             res[(fig, k)] = r
 for r in res.values():
     r.pop("elapsed_s", None)

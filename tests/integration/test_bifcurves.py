@@ -2,10 +2,9 @@
 continuation it replaces, parallel against serial, and closed doubled branches.
 
 Reference for a curve point: a one-parameter continuation across a window around the predicted
-point, locating the event by Brent's method (:func:`gearsim.analysis.bifcurves._relocate`, the
-method of
-the previous release). The secant solve shares no code with that locator beyond the orbit
-Newton and the test functions' ingredients (multipliers, turning points)."""
+point, locating the event by Brent's method (:func:`gearsim.analysis.relocation.relocate_window`).
+The secant solve shares no code with that locator beyond the orbit Newton and the test
+functions' ingredients (multipliers, turning points)."""
 
 from __future__ import annotations
 
@@ -13,7 +12,8 @@ import numpy as np
 import pytest
 
 from gearsim.analysis.bifcurves import bifurcation_points, follow_curve, follow_curves
-from gearsim.analysis.continuation import Continuation, continue_orbit
+from gearsim.analysis.continuation import continue_orbit
+from gearsim.analysis.continuation_options import Continuation
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.study.config_io import load_standard_parameters
 

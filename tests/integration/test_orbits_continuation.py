@@ -21,7 +21,8 @@ from reference import reference_settings
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from gearsim.analysis.continuation import Continuation, continue_orbit
+from gearsim.analysis.continuation import continue_orbit
+from gearsim.analysis.continuation_options import Continuation
 from gearsim.cell.simulate import simulate_cell
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.study.config_io import load_standard_parameters

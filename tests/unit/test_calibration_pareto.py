@@ -88,3 +88,24 @@ def test_collect_fit_takes_an_unfinished_seed_from_its_log(tmp_path):
     s = collect_fit(["te_rate"], tmp_path)["forms"]["te_rate"]["seeds"]["2"]
     assert (s["nfev"], s["stopped_by"], s["J_lanes"]) == (4, "unfinished", 3.0)
     assert s["curve"] == [[1, 5.0], [3, 4.0], [4, 3.0]]  # where the best J changes, and the end
+
+
+def test_collect_fit_times_an_unfinished_seed_from_its_state(tmp_path):
+    from gearsim.calibration.forms import collect_fit, state_path
+
+    (tmp_path / "logs").mkdir()
+    lines = [json.dumps({"x": [0.0], "J": J, "measured": None}) for J in (5.0, 4.0, 4.5)]
+    (tmp_path / "logs" / "te_rate-lanes.s1.jsonl").write_text("\n".join(lines) + "\n")
+    (tmp_path / "logs" / "te_rate-lanes.s3.jsonl").write_text(lines[0] + "\n")
+    # the state after the second generation; the log holds one evaluation more
+    state = {"nfev": 2, "J_lanes": 4.0, "best": {"xi": 0.07}, "cpu_s_search": 12.5,
+             "wall_s_search": 40.0, "runs": [], "curve": [[1, 5.0], [2, 4.0]],
+             "start": "2026-01-01T00:00:00Z", "load": "1.00 1.00 1.00", "code": "abc"}
+    state_path(tmp_path / "logs", "te_rate", 1).write_text(json.dumps(state))
+    f = collect_fit(["te_rate"], tmp_path)["forms"]["te_rate"]
+    s1, s3 = f["seeds"]["1"], f["seeds"]["3"]
+    assert (s1["nfev"], s1["J_lanes"], s1["stopped_by"]) == (3, 4.0, "unfinished")
+    assert (s1["cpu_s_search"], s1["wall_s_search"], s1["timed"]) == (12.5, 40.0, True)
+    assert s1["best"] == {"xi": 0.07} and s1["load"] == "1.00 1.00 1.00"
+    assert (s3["nfev"], s3["timed"], s3["cpu_s_search"]) == (1, False, 0.0)
+    assert (f["evaluations"], f["cpu_s"], f["wall_s"]) == (4, 12.5, 40.0)

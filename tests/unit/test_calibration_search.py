@@ -135,9 +135,41 @@ def test_cmaes_finds_the_ellipsoid_minimum_and_stops_on_a_flat_curve():
     then = c[c[:, 0] <= c[-1, 0] - 400][-1, 1]
     assert then - c[-1, 1] <= 1e-3 * then
     # the same seed gives the same search; every point stays in the box
+    seen: list[dict] = []
     again = run_cmaes(_rosen_batch([]), bounds, seed=3, x0=[-1.0, 1.5, 0.5, -0.5],
-                      max_evals=20000, flat_evals=400, flat_rtol=1e-3)
+                      max_evals=20000, flat_evals=400, flat_rtol=1e-3,
+                      on_generation=lambda info: seen.append(
+                          {**info, "curve": list(info["curve"]), "runs": list(info["runs"])}))
     assert again["curve"] == res["curve"]
+    # after every generation: the search so far, its last report the result
+    assert [g["nfev"] for g in seen] == [n for n, _ in res["curve"]]
+    assert all(g["curve"][-1] == [g["nfev"], g["best_J"]] for g in seen)
+    assert seen[-1]["x"] == res["x"] and seen[-1]["best_J"] == res["J"]
+    assert all(g["cpu_s"] >= 0 and g["t"] >= 0 for g in seen)
+    assert len(seen[-1]["runs"]) == len(res["runs"]) - 1  # the last run ends after it
+
+
+def test_cmaes_evaluates_the_start_in_its_first_population():
+    from gearsim.calibration.search import run_cmaes
+
+    batches: list[list[np.ndarray]] = []
+
+    def batch(xs):
+        batches.append([np.asarray(x) for x in xs])
+        return [float(np.sum((np.asarray(x) - 0.3) ** 2)) for x in xs]
+
+    x0 = [1.5, -0.25, 0.75]
+    res = run_cmaes(batch, [(-2.0, 2.0)] * 3, seed=5, x0=x0, sigma0=0.4, max_evals=30)
+    first = batches[0]
+    assert any(np.array_equal(x, x0) for x in first)
+    assert sum(len(b) for b in batches) == res["nfev"] == res["curve"][-1][0]
+    assert len(first) == 1 + res["runs"][0]["popsize"]
+    # a start on a bound is evaluated on it (cma's bound transform would move it inside)
+    batches.clear()
+    run_cmaes(batch, [(0.0, 1.0)] * 3, seed=5, x0=[0.0, 0.5, 1.0], max_evals=1)
+    assert any(np.array_equal(x, [0.0, 0.5, 1.0]) for x in batches[0])
+    # the curve's first point is at most the start's J
+    assert res["curve"][0][1] <= float(np.sum((np.asarray(x0) - 0.3) ** 2))
 
 
 def test_cmaes_restarts_with_a_doubled_population_and_keeps_the_box():

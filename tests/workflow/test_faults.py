@@ -455,7 +455,7 @@ def _point(params):
 
 def test_spent_budget_stops_curve_and_continuation_before_any_work(monkeypatch):
     from gearsim.analysis import bifcurves, continuation
-    from gearsim.analysis.continuation import Continuation
+    from gearsim.analysis.continuation_options import Continuation
     from gearsim.dynamics.parameters import ModelParameters
 
     params = ModelParameters()
@@ -464,8 +464,8 @@ def test_spent_budget_stops_curve_and_continuation_before_any_work(monkeypatch):
     def no_work(*a, **k):
         raise AssertionError("worked past the budget")
 
-    monkeypatch.setattr(bifcurves, "_relocate", no_work)
-    monkeypatch.setattr(bifcurves, "_relocate_secant", no_work)
+    monkeypatch.setattr(bifcurves, "relocate_window", no_work)
+    monkeypatch.setattr(bifcurves, "relocate_secant", no_work)
     c = bifcurves.follow_curve(params, _point(params), "b", 0.9, step2=0.1, config=spent)
     assert len(c) == 1 and c.attrs["status"] == "budget"
     assert c.attrs["reason"].startswith("budget: wall-clock budget spent at b = ")

@@ -2,15 +2,18 @@
 
 `.ci/slurm-cluster up` installs what is missing (slurm-wlm daemons, munge, slurmdbd, MariaDB),
 writes a slurm.conf for this machine and starts the daemons; `down` stops them afterwards. The
-targets of the session's local run (``tiny_run``, conftest.py: config/tiny.yaml on ``--cores 2``)
-run through the profile as a user would (partition and account from SBATCH_PARTITION and
-SBATCH_ACCOUNT), and one tile job is cancelled with ``scancel`` while it runs. Checked:
+whole tiny configuration (config/tiny.yaml, the default target: tables, catalogue, figures,
+diagrams, report, explorer) runs through the profile as a user would (partition and account from
+SBATCH_PARTITION and SBATCH_ACCOUNT), and one tile job is cancelled with ``scancel`` while it
+runs. Checked:
 
-* every SLURM job of the run is in ``sacct`` under the given account, COMPLETED, but the cancelled
-  one, CANCELLED, whose resubmission COMPLETED;
-* the catalogue equals the local run's value for value (ids and provenance aside);
+* every job of the run but the target rule ``all`` ran in a SLURM job, its own or its group's;
+  every SLURM job of the run is in ``sacct`` under the given account, COMPLETED, but the
+  cancelled one, CANCELLED, whose resubmission COMPLETED;
+* the catalogue equals the one of the session's local run (``tiny_run``, conftest.py: the same
+  configuration on ``--cores 2``) value for value (ids and provenance aside);
 * a tile run as a 2-CPU job step has a 2-worker LocalCluster (one worker per CPU SLURM gave);
-* the profile's grouping: the small jobs went in group jobs, each on one node's CPUs.
+* the profile's grouping: the small jobs went in three group jobs of one CPU each.
 """
 
 from __future__ import annotations
@@ -26,7 +29,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk, targets
+from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk
 
 pytestmark = pytest.mark.slow
 
@@ -35,8 +38,10 @@ PROFILE = ROOT / "profiles/slurm"
 ACCOUNT = "gearsim-ci"  # created by .ci/slurm-cluster
 CI = os.environ.get("CI") == "1"
 CATALOGUE = "results/catalogue.d/build.sqlite"
-# a hang guard only: the run takes ~4-6 min on 2 loaded cores
+# a hang guard only: the run takes ~4-5 min on 2 idle cores
 TIMEOUT = 1800
+#: the profile's group jobs (profiles/slurm/config.yaml, groups)
+GROUPS = ("curves", "tables", "report")
 
 
 def _privileged() -> bool:
@@ -96,10 +101,9 @@ def _sacct_settled(prefix: str, since: str, jobs: set[int], timeout: float = 60)
 
 @pytest.fixture(scope="module")
 def slurm_run(cluster, tiny_run, tmp_path_factory):
-    """The local run's targets through profiles/slurm; the first tile job seen running is
-    cancelled."""
+    """The tiny configuration's default target through profiles/slurm; the first tile job seen
+    running is cancelled."""
     wd = make_workdir(tmp_path_factory.mktemp("slurm"))
-    tg = targets(wd, "config/tiny.yaml")
     prefix = f"gearsim_test_{os.getpid()}"
     env = {**_env(), "SBATCH_PARTITION": cluster, "SBATCH_ACCOUNT": ACCOUNT}
     # one CPU per tile job, as in the local run: on a 2-CPU node a 2-CPU tile job (the profile's
@@ -107,7 +111,7 @@ def slurm_run(cluster, tiny_run, tmp_path_factory):
     # (measured: 529 s against 181 s locally, load ~10); the dask path under SLURM is checked by
     # test_tile_cluster_has_the_cpus_srun_gave below
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--workflow-profile",
-           str(PROFILE), *tg, "--configfile", "config/tiny.yaml", "--slurm-jobname-prefix", prefix,
+           str(PROFILE), "--configfile", "config/tiny.yaml", "--slurm-jobname-prefix", prefix,
            "--set-threads", "simulate_tile=1"]
     since = time.strftime("%Y-%m-%dT%H:%M:%S")
     log = wd / "snakemake.log"
@@ -213,13 +217,31 @@ def test_tile_jobs_got_what_they_asked_for(slurm_run):
     assert len(tiles) == 5 and (tiles["cpus"] == 1).all(), tiles  # 4 tiles, one twice
 
 
+def test_every_rule_job_ran_in_slurm(slurm_run):
+    """Snakemake's log names every job it ran: a job run by the main process is a `localrule`,
+    a job in a SLURM job (its own or a group's) a `rule`."""
+    log = slurm_run["log"]
+    jobs = re.findall(r"^\s*(localrule|rule) (\w+):$", log, re.M)
+    local = [name for kind, name in jobs if kind == "localrule"]
+    total = int(re.search(r"^total\s+(\d+)", log, re.M).group(1))
+    assert local == ["all"], local
+    # 60 jobs in the tiny configuration, the cancelled tile's twice (once more on resubmission)
+    assert (total, len(jobs)) == (60, 61), (total, len(jobs))
+    ran = {name for _, name in jobs}
+    assert {"catalogue", "report", "explorer", "figures_index", "plane_maps", "attractor_maps",
+            "sweep_diagram", "table1", "figure_01", "figure_20"} <= ran, ran
+    assert re.search(r"^60 of 60 steps \(100%\) done$", log, re.M), log[-3000:]
+
+
 def test_small_jobs_went_in_group_jobs_of_one_cpu(slurm_run):
-    jobs = slurm_run["jobs"]
-    for group in ("rule_curves_points_sweep", "rule_tables_audit_plane_cells"):
-        assert ((jobs["comment"] == group) & (jobs["cpus"] == 1)).sum() == 1, jobs
-    # 25 rule jobs (the local run's), 12 SLURM jobs and the cancelled tile's second submission
-    rule_jobs = int(re.search(r"^total\s+(\d+)", slurm_run["log"], re.M).group(1))
-    assert (rule_jobs, len(jobs)) == (25, 13), jobs
+    jobs, log = slurm_run["jobs"], slurm_run["log"]
+    assert sorted(re.findall(r"\] Group job (\w+) ", log)) == sorted(GROUPS)
+    for group in GROUPS:
+        mine = jobs[jobs["comment"].str.startswith(f"rule_{group}_")]
+        assert len(mine) == 1 and (mine["cpus"] == 1).all(), jobs
+    # compile, 4 tiles (one twice: the cancelled and its second submission), 4 attractor tiles,
+    # the 3 group jobs
+    assert len(jobs) == 13, jobs
 
 
 def test_profile_names_only_rules_of_the_workflow(tmp_path):

@@ -8,27 +8,9 @@ from the
 variational equations, ``dG/dlam`` from a forward difference of the map (step ``1e-7 (1 +
 |lam|)``; its error only slows the corrector, never moves the solution).
 
-Predictor ``u + ds t`` along the unit tangent ``t`` (null vector of ``[M - I, dG/dlam]``, oriented
-with the previous one); corrector: Newton on ``G = 0`` and ``t . (u - u_pred) = 0``. The step
-``ds`` (Euclidean in ``(y, lam)``) grows after easy corrections and halves after hard ones.
-
-Test functions between consecutive points (a sign change marks an event):
-
-=================== ============================================== =================================
-event               test function                                  at the zero
-=================== ============================================== =================================
-``fold``            ``det(M - I)``                                 a real multiplier crosses +1
-``period_doubling`` ``det(M + I)``                                 a real multiplier crosses -1
-``neimark_sacker``  ``prod_{i<j} (mu_i mu_j - 1)`` (bialternate)   a complex pair crosses |mu| = 1
-``grazing``         ``extremum - boundary`` of the turning point    a contact is born or lost
-                    nearest each contact boundary
-=================== ============================================== =================================
-
-Each event is located by Brent's method on the secant between the two points (each trial a
-corrected orbit on the hyperplane normal to the secant) to ``1e-12`` in the secant fraction,
-which puts the parameter within ``1e-8`` (folds: quadratically better). A product zero without a
-complex pair on the unit circle (a neutral saddle) is dropped; a grazing zero must be a true
-zero (``|g| < 1e-7``), not the jump between two turning points.
+The predictor-corrector, the test functions and the location of events between two points are
+:mod:`gearsim.analysis.corrector`; the settings
+:class:`gearsim.analysis.continuation_options.Continuation`.
 
 Branch switching at a period doubling: the period-``2n`` branch leaves the located point along
 the critical eigenvector ``v`` (multiplier -1) with ``lam`` fixed to first order, so its first
@@ -39,30 +21,22 @@ doubled map); it is then continued like any branch.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+import time
 from typing import Any
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import brentq
 
+from gearsim.analysis.continuation_options import BUDGET, Continuation
+from gearsim.analysis.corrector import BranchPoint, BranchProblem, branch_events, critical_kind
 from gearsim.analysis.orbits import (
-    KIND_FOLD,
-    KIND_NS,
     KIND_PD,
-    SHOOTING,
     OrbitError,
     PeriodicOrbit,
-    _check_params,
-    free_states,
-    grazing_margin,
+    find_periodic_orbit,
     section_map,
 )
-from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
-
-KIND_GRAZING = "grazing"
-EVENT_KINDS = (KIND_FOLD, KIND_PD, KIND_NS, KIND_GRAZING)
 
 COLUMNS = (
     "branch", "period", "name", "value", "x", "v", "norm", "amplitude", "mu_max", "mu_re",
@@ -70,172 +44,7 @@ COLUMNS = (
 )
 
 
-@dataclass
-class _Point:
-    y: np.ndarray  # full 10-state
-    lam: float
-    M: np.ndarray
-    dGdl: np.ndarray
-    tangent: np.ndarray  # (d + 1,)
-    mu: np.ndarray
-    tests: dict[str, float]
-    graze: dict[str, float]
-    amplitude: float
-    margin: float
-
-
-@dataclass
-class Continuation:
-    """Settings of :func:`continue_orbit` (``ds`` in the Euclidean norm of ``(y, lam)``)."""
-
-    ds: float = 0.01
-    ds_min: float = 1e-5
-    ds_max: float = 0.05
-    max_points: int = 400
-    corrector_tol: float = 1e-10
-    corrector_iter: int = 8
-    switch_depth: int = 2
-    locate_xtol: float = 1e-12
-    grazing: bool = True
-    substeps: int = 512
-    settings: IntegrationSettings = field(default_factory=lambda: SHOOTING)
-    progress: Any = None  # optional callable(str): a line every 10 branch points
-    #: ``time.monotonic()`` value at which the job's wall-clock budget ends (None: no budget;
-    #: a system-wide clock, so worker processes share it). Checked between points: the
-    #: computation stops with status ``budget``, keeping what it has.
-    deadline: float | None = None
-
-    def out_of_budget(self) -> bool:
-        """The job's wall-clock budget is spent."""
-        import time
-
-        return self.deadline is not None and time.monotonic() >= self.deadline
-
-
-#: Stop reasons of a continuation or a curve that ran out of its budget start with this.
-BUDGET = "budget"
-
-
-class _Problem:
-    def __init__(self, params: ModelParameters, name: str, n: int, cfg: Continuation):
-        if name not in ModelParameters.names():
-            raise ParameterError(
-                f"continuation parameter 'name' = {name!r}; allowed: "
-                f"{', '.join(ModelParameters.names())}"
-            )
-        _check_params(params)
-        self.base = params
-        self.name = name
-        self.n = n
-        self.cfg = cfg
-        self.dims = free_states(params)
-        self.d = len(self.dims)
-
-    def params(self, lam: float) -> ModelParameters:
-        return self.base.with_(**{self.name: lam})
-
-    def full(self, yd: np.ndarray, like: np.ndarray) -> np.ndarray:
-        y = like.copy()
-        y[self.dims] = yd
-        return y
-
-    def evaluate(self, y: np.ndarray, lam: float, n: int | None = None):
-        """``G``, ``M``, ``dG/dlam`` at ``(y, lam)``."""
-        n = self.n if n is None else n
-        st = self.cfg.settings
-        pr = self.params(lam)
-        yn, M = section_map(pr, y, n, st)
-        G = yn[self.dims] - y[self.dims]
-        dl = 1e-7 * (1.0 + abs(lam))
-        yn2, _ = section_map(self.params(lam + dl), y, n, st, jacobian=False)
-        dGdl = ((yn2[self.dims] - y[self.dims]) - G) / dl
-        return G, M, dGdl
-
-    def correct(self, y: np.ndarray, lam: float, normal: np.ndarray, anchor: np.ndarray,
-                n: int | None = None, max_step: float = 0.2):
-        """Newton on ``G = 0``, ``normal . (u - anchor) = 0`` from ``(y, lam)``.
-
-        A Newton update longer than ``max_step`` (or a parameter leaving its range) fails the
-        correction, so the caller shortens the step instead of jumping to another branch.
-        """
-        try:
-            return self._correct(y, lam, normal, anchor, n, max_step)
-        except ParameterError as exc:
-            raise OrbitError(str(exc)) from None
-
-    def _correct(self, y, lam, normal, anchor, n, max_step):
-        d = self.d
-        u = np.concatenate([y[self.dims], [lam]])
-        for _ in range(self.cfg.corrector_iter):
-            if self.cfg.out_of_budget():  # a point does not outlast the job's budget
-                raise OrbitError(f"{BUDGET}: wall-clock budget spent")
-            yy = self.full(u[:d], y)
-            G, M, dGdl = self.evaluate(yy, u[d], n)
-            h = float(normal @ (u - anchor))
-            r = float(np.max(np.abs(G)))
-            A = np.zeros((d + 1, d + 1))
-            A[:d, :d] = M - np.eye(d)
-            A[:d, d] = dGdl
-            A[d] = normal
-            du = np.linalg.solve(A, -np.concatenate([G, [h]]))
-            if r < self.cfg.corrector_tol and abs(h) < 1e-12:
-                return yy, u[d], M, dGdl
-            if float(np.linalg.norm(du)) > max_step:
-                raise OrbitError(f"corrector step {np.linalg.norm(du):.3g} too long")
-            u = u + du
-            if not np.all(np.isfinite(u)):
-                break
-        yy = self.full(u[:d], y)
-        G, M, dGdl = self.evaluate(yy, u[d], n)
-        if float(np.max(np.abs(G))) < self.cfg.corrector_tol:
-            return yy, u[d], M, dGdl
-        raise OrbitError(f"corrector failed near {self.name} = {lam:.8g}")
-
-    def tangent(self, M: np.ndarray, dGdl: np.ndarray, prev: np.ndarray | None) -> np.ndarray:
-        J = np.hstack([M - np.eye(self.d), dGdl[:, None]])
-        t = np.linalg.svd(J)[2][-1]
-        if prev is not None and float(t @ prev) < 0:
-            t = -t
-        return t / np.linalg.norm(t)
-
-    def point(self, y, lam, M, dGdl, prev_t, n=None, with_grazing=True) -> _Point:
-        n = self.n if n is None else n
-        t = self.tangent(M, dGdl, prev_t)
-        mu = np.linalg.eigvals(M).astype(complex)
-        mu = mu[np.argsort(-np.abs(mu), kind="stable")]
-        tests = _tests(M, mu)
-        graze: dict[str, float] = {}
-        amp = math.nan
-        margin = math.nan
-        pt = _Point(y, lam, M, dGdl, t, mu, tests, graze, amp, margin)
-        if self.cfg.grazing and with_grazing:
-            self.add_grazing(pt, n)
-        return pt
-
-    def add_grazing(self, pt: _Point, n: int | None = None) -> None:
-        n = self.n if n is None else n
-        gm = grazing_margin(self.params(pt.lam), pt.y, n, self.cfg.settings,
-                            substeps=self.cfg.substeps)
-        pt.graze = gm.signed
-        pt.margin = gm.smallest
-        pt.amplitude = gm.x_max - gm.x_min
-
-
-def _tests(M: np.ndarray, mu: np.ndarray) -> dict[str, float]:
-    d = len(mu)
-    eye = np.eye(d)
-    bial = 1.0 + 0j
-    for i in range(d):
-        for j in range(i + 1, d):
-            bial *= mu[i] * mu[j] - 1.0
-    return {
-        KIND_FOLD: float(np.linalg.det(M - eye)),
-        KIND_PD: float(np.linalg.det(M + eye)),
-        KIND_NS: float(bial.real),
-    }
-
-
-def _row(prob: _Problem, branch: int, n: int, pt: _Point, event: str = "",
+def _row(prob: BranchProblem, branch: int, n: int, pt: BranchPoint, event: str = "",
          boundary: str = "") -> dict[str, Any]:
     mu = pt.mu
     return {
@@ -251,55 +60,11 @@ def _row(prob: _Problem, branch: int, n: int, pt: _Point, event: str = "",
         "mu_re": [float(m.real) for m in mu],
         "mu_im": [float(m.imag) for m in mu],
         "stable": bool(abs(mu[0]) < 1.0),
-        "critical_kind": _kind(mu[0]),
+        "critical_kind": critical_kind(mu[0]),
         "event": event,
         "grazing_margin": pt.margin,
         "boundary": boundary,
     }
-
-
-def _kind(m: complex) -> str:
-    from gearsim.analysis.orbits import multiplier_kind
-
-    return multiplier_kind(complex(m))
-
-
-def _locate(prob: _Problem, a: _Point, b: _Point, func, n: int,
-            graze: bool = False) -> _Point | None:
-    """Zero of ``func(point)`` between ``a`` and ``b`` (Brent on the secant fraction)."""
-    d = prob.d
-    ua = np.concatenate([a.y[prob.dims], [a.lam]])
-    ub = np.concatenate([b.y[prob.dims], [b.lam]])
-    sec = ub - ua
-    normal = sec / np.linalg.norm(sec)
-    cache: dict[float, _Point] = {}
-
-    def at(s: float) -> _Point:
-        if s in cache:
-            return cache[s]
-        if s <= 0.0:
-            return a
-        if s >= 1.0:
-            return b
-        anchor = ua + s * sec
-        y0 = prob.full(anchor[:d], a.y)
-        yy, lam, M, dGdl = prob.correct(y0, float(anchor[d]), normal, anchor, n)
-        pt = prob.point(yy, lam, M, dGdl, a.tangent, n, with_grazing=graze)
-        cache[s] = pt
-        return pt
-
-    try:
-        s = brentq(lambda s: func(at(s)), 0.0, 1.0, xtol=prob.cfg.locate_xtol, maxiter=80)
-    except (ValueError, RuntimeError, OrbitError):
-        return None
-    pt = at(s)
-    if prob.cfg.grazing and not pt.graze:
-        prob.add_grazing(pt, n)
-    return pt
-
-
-def _signed(pt: _Point, key: str) -> float:
-    return pt.graze.get(key, math.nan)
 
 
 def continue_orbit(
@@ -335,12 +100,31 @@ def continue_orbit(
     ``grazing_margin`` and the ``boundary`` that grazes. ``df.attrs`` holds the parameters,
     the stop reasons and the wall time.
     """
-    import time
-
-    from gearsim.analysis.orbits import find_periodic_orbit
-
     cfg = config or Continuation()
     t0 = time.perf_counter()
+    p0, orbit = _start_orbit(params, name, start, stop, orbit, n, cfg)
+    n = orbit.n
+    rows: list[dict[str, Any]] = []
+    prob = BranchProblem(p0, name, n, cfg)
+    G, M, dGdl = prob.evaluate(orbit.state, start)
+    direction = 1.0 if stop > start else -1.0
+    first = prob.point(orbit.state, start, M, dGdl, None)
+    if first.tangent[-1] * direction < 0:
+        first.tangent = -first.tangent
+    reasons = _run_jobs(p0, name, n, first, min(start, stop), max(start, stop), rows, cfg)
+    df = pd.DataFrame(rows, columns=list(COLUMNS))
+    df.attrs.update(
+        params=p0.to_dict(), name=name, start=start, stop=stop, reasons=reasons,
+        wall_s=time.perf_counter() - t0,
+        status=BUDGET if any(f"{BUDGET}: " in r for r in reasons) else "ok",
+    )
+    return df
+
+
+def _start_orbit(params: ModelParameters, name: str, start: float, stop: float,
+                 orbit: PeriodicOrbit | None, n: int | None,
+                 cfg: Continuation) -> tuple[ModelParameters, PeriodicOrbit]:
+    """The parameters and the orbit a continuation starts from (``name`` set to ``start``)."""
     if name not in ModelParameters.names():
         raise ParameterError(
             f"continuation parameter 'name' = {name!r}; allowed: "
@@ -359,15 +143,14 @@ def continue_orbit(
         orbit = find_periodic_orbit(p0, n, orbit.state, cfg.settings, grazing=False)
     if start == stop:
         raise ParameterError(f"continuation range of '{name}' is empty: from = to = {start}")
-    rows: list[dict[str, Any]] = []
+    return p0, orbit
+
+
+def _run_jobs(p0: ModelParameters, name: str, n: int, first: BranchPoint, lo: float, hi: float,
+              rows: list[dict[str, Any]], cfg: Continuation) -> list[str]:
+    """Continue the start branch and the branches switched onto at its period doublings (to
+    ``cfg.switch_depth``); append their rows; return the stop reasons."""
     reasons: list[str] = []
-    prob = _Problem(p0, name, n, cfg)
-    G, M, dGdl = prob.evaluate(orbit.state, start)
-    direction = 1.0 if stop > start else -1.0
-    first = prob.point(orbit.state, start, M, dGdl, None)
-    if first.tangent[-1] * direction < 0:
-        first.tangent = -first.tangent
-    lo, hi = min(start, stop), max(start, stop)
     # jobs: continue a branch ("run"), or switch onto the doubled branch at a period doubling
     # ("switch"). The doublings of one branch form a group; a doubled branch that ends at
     # another doubling of its group (a period-2n bubble joining two doublings) makes the switch
@@ -389,7 +172,7 @@ def continue_orbit(
                 reasons.append(f"no switch at {name} = {pd_pt.lam:.8f}: the doubled branch of "
                                "another doubling ends there")
                 continue
-            sw = _switch(_Problem(p0, name, nb // 2, cfg), pd_pt, cfg)
+            sw = _switch(BranchProblem(p0, name, nb // 2, cfg), pd_pt, cfg)
             if sw is None:
                 reasons.append(f"branch switch at {name} = {pd_pt.lam:.8f} failed")
                 continue
@@ -397,7 +180,7 @@ def continue_orbit(
             next_branch += 1
             continue
         branch, depth = job["branch"], job["depth"]
-        bprob = _Problem(p0, name, nb, cfg)
+        bprob = BranchProblem(p0, name, nb, cfg)
         reason, new, hit = _run_branch(bprob, branch, job["pt"], lo, hi, rows, cfg,
                                        origins=job["origins"], own=job["own"])
         reasons.append(f"branch {branch} (period {nb}): {reason}")
@@ -410,23 +193,17 @@ def continue_orbit(
             for k, pd_pt in enumerate(new):
                 jobs.append(dict(kind="switch", n=2 * nb, pt=pd_pt, origins=origins, own=k,
                                  group=gid, depth=depth + 1))
-    df = pd.DataFrame(rows, columns=list(COLUMNS))
-    df.attrs.update(
-        params=p0.to_dict(), name=name, start=start, stop=stop, reasons=reasons,
-        wall_s=time.perf_counter() - t0,
-        status=BUDGET if any(f"{BUDGET}: " in r for r in reasons) else "ok",
-    )
-    return df
+    return reasons
 
 
-def _switch(prob: _Problem, pd_pt: _Point, cfg: Continuation) -> _Point | None:
+def _switch(prob: BranchProblem, pd_pt: BranchPoint, cfg: Continuation) -> BranchPoint | None:
     """First point of the period-doubled branch at a located period doubling."""
     mu, vecs = np.linalg.eig(pd_pt.M)
     k = int(np.argmin(np.abs(mu + 1.0)))
     v = np.real(vecs[:, k])
     v /= np.linalg.norm(v)
     n2 = 2 * prob.n
-    dprob = _Problem(prob.base, prob.name, n2, cfg)
+    dprob = BranchProblem(prob.base, prob.name, n2, cfg)
     d = prob.d
     for ds in (1e-3, 3e-3, 1e-2, 3e-4):
         for sgn in (1.0, -1.0):
@@ -454,7 +231,7 @@ def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(p - (a + s * ab)))
 
 
-def _orbit_points(prob: _Problem, pt: _Point) -> np.ndarray:
+def _orbit_points(prob: BranchProblem, pt: BranchPoint) -> np.ndarray:
     """The ``n`` section points of the orbit at ``pt`` as ``(y_free, lam)`` rows."""
     from gearsim.cell.simulate import run_periods
 
@@ -463,10 +240,10 @@ def _orbit_points(prob: _Problem, pt: _Point) -> np.ndarray:
     return np.column_stack([sec[:, prob.dims], np.full(len(sec), pt.lam)])
 
 
-def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float,
+def _run_branch(prob: BranchProblem, branch: int, first: BranchPoint, lo: float, hi: float,
                 rows: list[dict[str, Any]], cfg: Continuation,
                 origins: list[np.ndarray] | None = None,
-                own: int = -1) -> tuple[str, list[_Point], int | None]:
+                own: int = -1) -> tuple[str, list[BranchPoint], int | None]:
     """Continue one branch; append rows; return (stop reason, located period doublings, index
     of the origin it ended at).
 
@@ -488,7 +265,7 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
     far = 0.0
     rows.append(_row(prob, branch, n, pt))
     ds = cfg.ds
-    pds: list[_Point] = []
+    pds: list[BranchPoint] = []
     for step in range(cfg.max_points):
         if cfg.out_of_budget():
             return (f"{BUDGET}: wall-clock budget spent at {prob.name} = {pt.lam:.8g}", pds,
@@ -529,7 +306,7 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
         if home:
             far = max(far, min(float(np.linalg.norm(u_new - o)) for o in home))
         # the first interval of a switched branch starts on a branch point: skip its tests
-        events = [] if (step == 0 and branch > 0) else _events(prob, pt, new, n)
+        events = [] if (step == 0 and branch > 0) else branch_events(prob, pt, new, n)
         for ev_pt, kind, bnd in sorted(events, key=lambda e: abs(e[0].lam - pt.lam)):
             rows.append(_row(prob, branch, n, ev_pt, kind, bnd))
             if kind == KIND_PD:
@@ -553,40 +330,6 @@ def _run_branch(prob: _Problem, branch: int, first: _Point, lo: float, hi: float
             return f"left [{lo}, {hi}] at {prob.name} = {pt.lam:.8g}", pds, None
         ds = min(cfg.ds_max, ds * 1.3)
     return f"{cfg.max_points} points", pds, None
-
-
-def _events(prob: _Problem, a: _Point, b: _Point, n: int) -> list[tuple[_Point, str, str]]:
-    out: list[tuple[_Point, str, str]] = []
-    for kind in (KIND_FOLD, KIND_PD, KIND_NS):
-        fa, fb = a.tests[kind], b.tests[kind]
-        if not (np.isfinite(fa) and np.isfinite(fb)) or fa * fb >= 0:
-            continue
-        loc = _locate(prob, a, b, lambda p, k=kind: p.tests[k], n)
-        if loc is None:
-            continue
-        if kind == KIND_NS and not _ns_confirmed(loc.mu):
-            continue
-        if kind == KIND_FOLD and np.min(np.abs(loc.mu - 1.0)) > 1e-4:
-            continue
-        if kind == KIND_PD and np.min(np.abs(loc.mu + 1.0)) > 1e-4:
-            continue
-        out.append((loc, kind, ""))
-    for key in sorted(set(a.graze) & set(b.graze)):
-        fa, fb = _signed(a, key), _signed(b, key)
-        if not (np.isfinite(fa) and np.isfinite(fb)) or fa * fb >= 0:
-            continue
-        loc = _locate(prob, a, b, lambda p, k=key: _signed(p, k), n, graze=True)
-        if loc is None or not abs(_signed(loc, key)) < 1e-7:
-            continue
-        out.append((loc, KIND_GRAZING, key))
-    return out
-
-
-def _ns_confirmed(mu: np.ndarray) -> bool:
-    for m in mu:
-        if abs(m.imag) > 1e-6 and abs(abs(m) - 1.0) < 1e-5:
-            return True
-    return False
 
 
 def write_branches(df: pd.DataFrame, path) -> None:

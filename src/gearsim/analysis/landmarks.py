@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -133,6 +134,133 @@ def _bridged_indices(states: list[str], motions: list[str], bridge: int) -> list
     return keep
 
 
+@dataclass(frozen=True)
+class _Cells:
+    """The columns of a sweep's cells that the landmarks read, in sweep order."""
+
+    frame: pd.DataFrame
+    states: list[str]
+    motions: list[str]
+    values: np.ndarray
+    dcs: np.ndarray
+    km: np.ndarray
+    ns: np.ndarray
+    Is: np.ndarray
+    labels: list[str]
+
+    @classmethod
+    def of(cls, df: pd.DataFrame, kmax: str) -> _Cells:
+        d = df.reset_index(drop=True)
+        if "motion" not in d.columns:
+            d = d.assign(motion=np.where(d["n"].fillna(0).astype(int) > 0, "periodic", "chaos"))
+        states = [_state(r) for _, r in d.iterrows()]
+        return cls(
+            frame=d,
+            states=states,
+            motions=[str(m) for m in d["motion"]],
+            values=d["value"].to_numpy(dtype=float),
+            dcs=d["dc"].to_numpy(dtype=float) if "dc" in d.columns else np.full(len(d), np.nan),
+            km=_kmax_col(d, kmax),
+            ns=d["n"].fillna(0).astype(int).to_numpy(),
+            Is=(d["I"].fillna(0).astype(int).to_numpy() if "I" in d.columns
+                else np.zeros(len(d), int)),
+            labels=[str(x) for x in d["label"]] if "label" in d.columns else states,
+        )
+
+    def impacts(self, i: int) -> int:
+        """``p + q`` of cell ``i``."""
+        return int(self.frame.at[i, "p"] or 0) + int(self.frame.at[i, "q"] or 0)
+
+    def row(self, kind: str, a: int, b: int, direction: float = 0) -> dict[str, Any]:
+        """The landmark ``kind`` between cells ``a`` and ``b``."""
+        values = self.values
+        return {
+            "kind": kind,
+            "value": 0.5 * (values[a] + values[b]),
+            "lo": float(values[a]),
+            "hi": float(values[b]),
+            "i_lo": int(a),
+            "i_hi": int(b),
+            "from_label": self.labels[a],
+            "to_label": self.labels[b],
+            "from_npq": self.states[a],
+            "to_npq": self.states[b],
+            "n_from": int(self.ns[a]) if self.motions[a] == "periodic" else 0,
+            "n_to": int(self.ns[b]) if self.motions[b] == "periodic" else 0,
+            "direction": int(direction),
+            "dc_lo": float(self.dcs[a]),
+            "dc_hi": float(self.dcs[b]),
+            "kmax_lo": float(self.km[a]),
+            "kmax_hi": float(self.km[b]),
+            "refined": False,
+            "annotation": SHORT[kind],
+        }
+
+
+def _band_ends(c: _Cells, keep: list[int]) -> tuple[int | None, int | None, int | None]:
+    """The last chaos cell, the first periodic cell after it (the final exit from the chaotic
+    band; quasi-periodic / unsettled cells between them belong to the route out of chaos) and
+    the last entry into period 1 that is never left again (among the kept cells)."""
+    motions, ns = c.motions, c.ns
+    chaos_idx = [i for i in keep if motions[i] == "chaos"]
+    last_chaos = chaos_idx[-1] if chaos_idx else None
+    exit_to = None
+    if last_chaos is not None:
+        exit_to = next((i for i in keep if i > last_chaos and motions[i] == "periodic"), None)
+    last_n1_entry = None
+    if keep and motions[keep[-1]] == "periodic" and ns[keep[-1]] == 1:
+        k = len(keep) - 1
+        while k > 0 and motions[keep[k - 1]] == "periodic" and ns[keep[k - 1]] == 1:
+            k -= 1
+        if k > 0:
+            last_n1_entry = keep[k]
+    return last_chaos, exit_to, last_n1_entry
+
+
+def _periodic_pair(c: _Cells, a: int, b: int, ddc: float, is_jump: bool,
+                   last_n1_entry: int | None) -> list[tuple[str, int, int, float]]:
+    """The landmarks between two neighbouring periodic cells of different states."""
+    na, nb = c.ns[a], c.ns[b]
+    out: list[tuple[str, int, int, float]] = []
+    if nb == 2 * na:
+        out.append(("period_doubling", a, b, 0))
+    elif na == 2 * nb:
+        if nb == 1 and b == last_n1_entry:
+            out.append(("period_one", a, b, 0))
+        else:
+            out.append(("inverse_period_doubling", a, b, 0))
+    elif na == nb:
+        pa, pb = c.impacts(a), c.impacts(b)
+        if is_jump and (c.Is[a] == c.Is[b]):
+            out.append(("jump", a, b, np.sign(ddc)))
+        else:
+            out.append(("grazing", a, b, 1 if (c.Is[b] > c.Is[a] or pb > pa) else -1))
+            if is_jump:
+                out.append(("jump", a, b, np.sign(ddc)))
+    else:
+        if nb == 1 and b == last_n1_entry:
+            out.append(("period_one", a, b, 0))
+        else:
+            out.append(("other", a, b, 0))
+        if is_jump:
+            out.append(("jump", a, b, np.sign(ddc)))
+    return out
+
+
+def _chaos_run(c: _Cells, keep: list[int], b: int) -> int:
+    """Chaos cells in a row from kept cell ``b`` on (after quasi-periodic / unsettled ones)."""
+    run = 0
+    entered = False
+    for k in keep[keep.index(b) :]:
+        if c.motions[k] in _NONPERIODIC_BRIDGEABLE and not entered:
+            continue
+        if c.motions[k] != "chaos":
+            break
+        entered = True
+        run += 1
+    return run
+
+
 def find_landmarks(
     df: pd.DataFrame,
     *,
@@ -166,63 +294,17 @@ def find_landmarks(
     """
     if len(df) == 0:
         return pd.DataFrame(columns=list(COLUMNS))
-    d = df.reset_index(drop=True)
-    if "motion" not in d.columns:
-        d = d.assign(motion=np.where(d["n"].fillna(0).astype(int) > 0, "periodic", "chaos"))
-    states = [_state(r) for _, r in d.iterrows()]
-    motions = [str(m) for m in d["motion"]]
-    values = d["value"].to_numpy(dtype=float)
-    dcs = d["dc"].to_numpy(dtype=float) if "dc" in d.columns else np.full(len(d), np.nan)
-    km = _kmax_col(d, kmax)
-    ns = d["n"].fillna(0).astype(int).to_numpy()
-    Is = d["I"].fillna(0).astype(int).to_numpy() if "I" in d.columns else np.zeros(len(d), int)
-    labels = [str(x) for x in d["label"]] if "label" in d.columns else states
+    c = _Cells.of(df, kmax)
+    states, motions, dcs, ns = c.states, c.motions, c.dcs, c.ns
     keep = _bridged_indices(states, motions, bridge)
-
-    chaos_idx = [i for i in keep if motions[i] == "chaos"]
-    last_chaos = chaos_idx[-1] if chaos_idx else None
-    # the final exit from the chaotic band: the first periodic cell after the last chaos cell
-    # (quasi-periodic / unsettled cells between them belong to the route out of chaos)
-    exit_to = None
-    if last_chaos is not None:
-        exit_to = next((i for i in keep if i > last_chaos and motions[i] == "periodic"), None)
-    # last entry into period 1 that is never left again (among kept cells)
-    last_n1_entry = None
-    if keep and motions[keep[-1]] == "periodic" and ns[keep[-1]] == 1:
-        k = len(keep) - 1
-        while k > 0 and motions[keep[k - 1]] == "periodic" and ns[keep[k - 1]] == 1:
-            k -= 1
-        if k > 0:
-            last_n1_entry = keep[k]
+    last_chaos, exit_to, last_n1_entry = _band_ends(c, keep)
 
     rows: list[dict[str, Any]] = []
     onset_done = False
     in_onset = False
 
     def add(kind, a, b, direction=0):
-        rows.append(
-            {
-                "kind": kind,
-                "value": 0.5 * (values[a] + values[b]),
-                "lo": float(values[a]),
-                "hi": float(values[b]),
-                "i_lo": int(a),
-                "i_hi": int(b),
-                "from_label": labels[a],
-                "to_label": labels[b],
-                "from_npq": states[a],
-                "to_npq": states[b],
-                "n_from": int(ns[a]) if motions[a] == "periodic" else 0,
-                "n_to": int(ns[b]) if motions[b] == "periodic" else 0,
-                "direction": int(direction),
-                "dc_lo": float(dcs[a]),
-                "dc_hi": float(dcs[b]),
-                "kmax_lo": float(km[a]),
-                "kmax_hi": float(km[b]),
-                "refined": False,
-                "annotation": SHORT[kind],
-            }
-        )
+        rows.append(c.row(kind, a, b, direction))
 
     for a, b in zip(keep[:-1], keep[1:], strict=True):
         sa, sb = states[a], states[b]
@@ -234,43 +316,12 @@ def find_landmarks(
                 add("jump", a, b, np.sign(ddc))
             continue
         if ma == "periodic" and mb == "periodic":
-            na, nb = ns[a], ns[b]
-            if nb == 2 * na:
-                add("period_doubling", a, b)
-            elif na == 2 * nb:
-                if nb == 1 and b == last_n1_entry:
-                    add("period_one", a, b)
-                else:
-                    add("inverse_period_doubling", a, b)
-            elif na == nb:
-                pa = int(d.at[a, "p"] or 0) + int(d.at[a, "q"] or 0)
-                pb = int(d.at[b, "p"] or 0) + int(d.at[b, "q"] or 0)
-                if is_jump and (Is[a] == Is[b]):
-                    add("jump", a, b, np.sign(ddc))
-                else:
-                    add("grazing", a, b, 1 if (Is[b] > Is[a] or pb > pa) else -1)
-                    if is_jump:
-                        add("jump", a, b, np.sign(ddc))
-            else:
-                if nb == 1 and b == last_n1_entry:
-                    add("period_one", a, b)
-                else:
-                    add("other", a, b)
-                if is_jump:
-                    add("jump", a, b, np.sign(ddc))
+            for landmark in _periodic_pair(c, a, b, ddc, is_jump, last_n1_entry):
+                add(*landmark)
             continue
         if ma == "periodic" and (mb == "chaos" or mb in _NONPERIODIC_BRIDGEABLE):
             # chaos onset: periodic -> chaos, possibly through quasi-periodic / unsettled cells
-            run = 0
-            entered = False
-            for k in keep[keep.index(b) :]:
-                if motions[k] in _NONPERIODIC_BRIDGEABLE and not entered:
-                    continue
-                if motions[k] != "chaos":
-                    break
-                entered = True
-                run += 1
-            if not onset_done and run >= min_chaos_run:
+            if not onset_done and _chaos_run(c, keep, b) >= min_chaos_run:
                 add("chaos_onset", a, b)
                 onset_done = True
                 in_onset = True

@@ -89,7 +89,8 @@ def locate_exact(params: ModelParameters, df: pd.DataFrame, row: Mapping[str, An
     the grid value is returned with ``"exact"``. Falls back to ``(grid value, "grid")`` when the
     kind has no exact point (chaos onset) or continuation fails.
     """
-    from gearsim.analysis.continuation import Continuation, continue_orbit
+    from gearsim.analysis.continuation import continue_orbit
+    from gearsim.analysis.continuation_options import Continuation
     from gearsim.analysis.orbits import find_periodic_orbit
 
     kind = row["kind"]

@@ -367,6 +367,12 @@ def run_forms(names: Sequence[str], forms_dir: str | Path, *, search_forms: bool
 
 # ============================================================================ CMA-ES in lanes
 #: the search-level measurement of the lane fits: every sweep a chain in the batched kernel's
+def state_path(log_dir: str | Path, form: str, seed: int) -> Path:
+    """``<log_dir>/<form>-lanes.s<seed>.state.json``: a lane fit's search so far (evaluations,
+    best J and set, curve, runs, wall and CPU seconds), rewritten after every generation."""
+    return Path(log_dir) / f"{form}-lanes.s{seed}.state.json"
+
+
 #: lanes with the study's RK4 settings, landmarks read off the grid (DP5 stays for the final)
 LANES = FidelitySettings(lanes=True)
 
@@ -425,12 +431,25 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
     run = Run()
     Path(log_dir).mkdir(parents=True, exist_ok=True)
     logp = str(Path(log_dir) / f"{form.name}-lanes.s{seed}.jsonl")
+    statep = state_path(log_dir, form.name, seed)
     Path(logp).unlink(missing_ok=True)
+    statep.unlink(missing_ok=True)
     batch = FormBatch(form, LANES, logp)
     bounds = [(f.lower, f.upper) for f in form.free]
+    names = [f.name for f in form.free]
     every = {"n": 0}
 
     def gen(info: dict[str, Any]) -> None:
+        # the search so far, rewritten after every generation: an interrupted fit keeps it
+        state = {"form": form.name, "seed": seed, "nfev": info["nfev"],
+                 "J_lanes": info["best_J"], "best": dict(zip(names, info["x"], strict=True)),
+                 "run_index": info["run"], "runs": info["runs"], "curve": info["curve"],
+                 "cpu_s_search": info["cpu_s"], "wall_s_search": info["t"],
+                 "start": run.info["start"], "load": run.info["load"], "code": run.info["code"],
+                 "updated": _utc()}
+        tmp = statep.with_suffix(".tmp")
+        tmp.write_text(json.dumps(state, default=float))
+        tmp.replace(statep)
         if info["nfev"] >= every["n"]:
             every["n"] = info["nfev"] + 200
             log(f"[{form.name} s{seed}] {info['nfev']} evaluations, best J {info['best_J']:.4f}, "
@@ -439,7 +458,6 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
     res = run_cmaes(batch, bounds, seed=seed, x0=form.start, max_evals=max_evals,
                     min_evals=min_evals, flat_evals=flat_evals, time_budget=time_budget,
                     on_generation=gen)
-    names = [f.name for f in form.free]
     rec: dict[str, Any] = {
         "form": form.name, "text": form.text, "fixed": form.fixed,
         "continuation": form.continuation, "free": [asdict(f) for f in form.free],
@@ -503,15 +521,22 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
             seed = f.name.split(".")[1][1:]
             if seed in seeds:
                 continue
-            # a search still running or stopped before its record: its logged evaluations
+            # a search still running or stopped before its record: its logged evaluations,
+            # its wall and CPU seconds from its state (none without one: 0, "timed": False)
             Jl = [json.loads(line)["J"] for line in f.read_text().splitlines() if line]
             if Jl:
                 curve = np.minimum.accumulate(Jl)
                 seeds[seed] = {"seed": int(seed), "nfev": len(Jl), "stopped_by": "unfinished",
                                "J_lanes": float(curve[-1]), "cpu_s_search": 0.0,
-                               "wall_s_search": 0.0,
+                               "wall_s_search": 0.0, "timed": False,
                                "curve": [[i + 1, float(v)] for i, v in enumerate(curve)
                                          if i == len(Jl) - 1 or curve[i + 1] < v]}
+                sp = state_path(d / "logs", name, int(seed))
+                if sp.is_file():
+                    state = json.loads(sp.read_text())
+                    seeds[seed].update({k: state[k] for k in (
+                        "best", "runs", "cpu_s_search", "wall_s_search", "start", "load",
+                        "code", "updated") if k in state}, timed=True)
         if not seeds:
             continue
         Js = [v["J_lanes"] for v in seeds.values()]

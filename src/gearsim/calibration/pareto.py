@@ -136,7 +136,8 @@ def pareto_figure(log_dir: str | Path, out: str | Path) -> Path:
     ax.set_ylabel("upper cascade: RMS error in tolerances (3 inverse doublings, period 1)")
     ax.set_title("Calibration trade-off: every evaluated set, front per model form\n"
                  f"(a landmark not found counts {CAP:g} tolerances)", fontsize=10)
-    ax.legend(fontsize=8, loc="upper right")
+    # where it hides the fewest points (sets with landmarks not found sit at the cap, upper right)
+    ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)

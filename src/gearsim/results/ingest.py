@@ -7,18 +7,13 @@
 from __future__ import annotations
 
 import json
-import os
-import sqlite3
 from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
-from sqlalchemy import (
-    insert,
-)
-from sqlalchemy.exc import DBAPIError as SQLAlchemyDBAPIError
+from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
 from gearsim.cell.simulate import result_columns
@@ -26,10 +21,8 @@ from gearsim.results.parquet import (
     PLANE_KEY,
     PROVENANCE_KEY,
     TILES_KEY,
-    _fault,
     _prepare_dir,
     _size,
-    _tmp_name,
     now_iso,
     read_metadata,
 )
@@ -52,8 +45,7 @@ from gearsim.results.schema import (
     Sweep,
     SweepPoint,
     _column_rows,
-    _fsync,
-    make_engine,
+    replacing,
 )
 from gearsim.results.views import create_views
 from gearsim.study.integrity import CatalogueError, _one_line
@@ -307,16 +299,21 @@ def _file_run(session: Session, f: Path, what: str, counts: dict):
     return prov, run, pd.read_parquet(f)
 
 
-def _insert_audit(session: Session, f: Path, counts: dict) -> None:
+def _cell_ids(session: Session, planes) -> dict[tuple[str, int, int], int]:
+    """The catalogue's cell ids of ``planes`` by ``(plane, i, j)``."""
     from sqlalchemy import select
 
-    prov, run, df = _file_run(session, f, "audit file", counts)
-    q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == prov.get("name"))
-    planes = set(df["plane"]) if len(df) else set()
     cell_ids = {}
     for name in planes:
         q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
         cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+    return cell_ids
+
+
+def _insert_audit(session: Session, f: Path, counts: dict) -> None:
+
+    prov, run, df = _file_run(session, f, "audit file", counts)
+    cell_ids = _cell_ids(session, set(df["plane"]) if len(df) else set())
     rows = []
     for rec_ in df.to_dict("records"):
         key = (rec_["plane"], int(rec_["i"]), int(rec_["j"]))
@@ -402,14 +399,10 @@ def _insert_attractors(session: Session, f: Path, counts: dict) -> None:
 
 def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
     """Insert a bifurcation points / curves file or a refine-orbits file (by its columns)."""
-    from sqlalchemy import select
 
     prov, run, df = _file_run(session, f, "orbit file", counts)
     if "orbit_flag" in df.columns:
-        cell_ids = {}
-        for name in set(df["plane"]):
-            q = select(Cell.id, Cell.i, Cell.j).join(Plane).where(Plane.name == name)
-            cell_ids.update({(name, i, j): cid for cid, i, j in session.execute(q)})
+        cell_ids = _cell_ids(session, set(df["plane"]))
         rows = []
         for r in df.to_dict("records"):
             key = (r["plane"], int(r["i"]), int(r["j"]))
@@ -532,12 +525,8 @@ def build_catalogue(
     # cannot hold the catalogue at all before the build
     _prepare_dir(out, need=_size([*plane_files, *sweep_files, *audit_files, *attractor_files,
                                   *orbit_files]))
-    tmp = _tmp_name(out)
-    if tmp.exists():
-        tmp.unlink()
-    engine = make_engine(f"sqlite:///{tmp}", bulk=True)
     counts = {"runs": 0, "planes": 0, "cells": 0, "sweeps": 0, "sweep_points": 0, "audits": 0}
-    try:
+    with replacing(out, "write", bulk=True) as (_tmp, engine):
         Base.metadata.create_all(engine)
         # the cells' lookup indexes are built once after the bulk insert (much faster than
         # maintaining them row by row); the unique (plane_id, i, j) constraint stays on
@@ -566,16 +555,6 @@ def build_catalogue(
                          [read_metadata(f) for f in sweep_files])  # one per plane and sweep
             con.exec_driver_sql(f"PRAGMA application_id = {APPLICATION_ID}")
             con.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
-        engine.dispose()
-        _fsync(tmp)
-        os.replace(tmp, out)
-    except (OSError, sqlite3.Error, SQLAlchemyDBAPIError) as exc:
-        # full disk, read-only or vanished directory: one line; the previous files stay
-        raise CatalogueError(f"catalogue {out}: cannot write it ({_fault(exc)})") from None
-    finally:
-        engine.dispose()
-        if tmp.exists():
-            tmp.unlink()
     if publish_to is not None:
         publish(out, publish_to)
     return counts

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, study_from_args
+from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
 from gearsim.errors import UsageError
 from gearsim.study.preflight import check_outputs
 
@@ -68,42 +68,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gearsim.analysis.bifcurves import bifurcation_points, follow_curves
-    from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
+    from gearsim.analysis.continuation import continue_orbit, write_branches
+    from gearsim.analysis.continuation_options import Continuation
     from gearsim.analysis.orbits import SEEDING, find_periodic_orbit
     from gearsim.results import catalogue
     from gearsim.study import provenance as gprov
 
     study = study_from_args(args)
-    config = study.config
-    if args.plane not in config["planes"]:
-        raise UsageError(f"unknown plane '{args.plane}'; allowed: {', '.join(config['planes'])}")
-    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
-    allowed = ("fold", "period_doubling", "grazing", "neimark_sacker")
-    for k in kinds:
-        if k not in allowed:
-            raise UsageError(f"--kinds: {k!r} is not one of {', '.join(allowed)}")
-    pl = config["planes"][args.plane]
-    xn, yn = pl["x"]["name"], pl["y"]["name"]
-    x0, x1 = float(pl["x"]["min"]), float(pl["x"]["max"])
-    if args.start is not None:
-        x0 = args.start
-    if args.stop is not None:
-        x1 = args.stop
-    if x0 == x1:
-        raise UsageError(f"--from and --to are equal ({x0}): empty range")
-    y0, y1 = float(pl["y"]["min"]), float(pl["y"]["max"])
-    base = study.parameters(plane=args.plane).model
-    at = float(getattr(base, yn)) if args.at is None else args.at
-    at = min(max(at, y0), y1)
-    step2 = args.step2 if args.step2 is not None else (y1 - y0) / 10
-    if args.max_period < 0:
-        raise UsageError(f"--max-period = {args.max_period} must be >= 0 (0: all)")
-    if not 0 < step2 <= (y1 - y0):
-        raise UsageError(f"--step2 = {step2} must be in (0, {y1 - y0}]")
-    if not 1 <= args.workers <= 64:
-        raise UsageError(f"--workers = {args.workers} must be in [1, 64]")
-    if not 0 < args.budget_s <= 7 * 86400:
-        raise UsageError(f"--budget-s = {args.budget_s:g} must be in (0, 604800]")
+    kinds, xn, yn, x0, x1, y0, y1, at, step2, base = _plane_ranges(args, study)
     out = Path(args.out)
     stem = out.with_suffix("")
     outputs = [out, Path(f"{stem}_points.parquet"), Path(f"{stem}_branches.parquet"),
@@ -161,6 +133,50 @@ def run(args: argparse.Namespace) -> int:
     fig = figure_curves(curves, cells, title=f"plane {args.plane}: bifurcation curves "
                         f"(continued from {yn} = {at:g})")
     save_figure(fig, out.with_suffix(".png"))
+    _summary(args, out, points, branches, curves, t_branch, wall, status)
+    return 0
+
+
+def _plane_ranges(args: argparse.Namespace, study):
+    """The checked ranges of the command: ``(kinds, xn, yn, x0, x1, y0, y1, at, step2, base)``
+    (the plane's axes, its continuation range, the seed value of the second parameter, the
+    curve step and the plane's base parameters)."""
+    config = study.config
+    check_plane(study, args.plane)
+    kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
+    allowed = ("fold", "period_doubling", "grazing", "neimark_sacker")
+    for k in kinds:
+        if k not in allowed:
+            raise UsageError(f"--kinds: {k!r} is not one of {', '.join(allowed)}")
+    pl = config["planes"][args.plane]
+    xn, yn = pl["x"]["name"], pl["y"]["name"]
+    x0, x1 = float(pl["x"]["min"]), float(pl["x"]["max"])
+    if args.start is not None:
+        x0 = args.start
+    if args.stop is not None:
+        x1 = args.stop
+    if x0 == x1:
+        raise UsageError(f"--from and --to are equal ({x0}): empty range")
+    y0, y1 = float(pl["y"]["min"]), float(pl["y"]["max"])
+    base = study.parameters(plane=args.plane).model
+    at = float(getattr(base, yn)) if args.at is None else args.at
+    at = min(max(at, y0), y1)
+    step2 = args.step2 if args.step2 is not None else (y1 - y0) / 10
+    if args.max_period < 0:
+        raise UsageError(f"--max-period = {args.max_period} must be >= 0 (0: all)")
+    if not 0 < step2 <= (y1 - y0):
+        raise UsageError(f"--step2 = {step2} must be in (0, {y1 - y0}]")
+    if not 1 <= args.workers <= 64:
+        raise UsageError(f"--workers = {args.workers} must be in [1, 64]")
+    if not 0 < args.budget_s <= 7 * 86400:
+        raise UsageError(f"--budget-s = {args.budget_s:g} must be in (0, 604800]")
+    return kinds, xn, yn, x0, x1, y0, y1, at, step2, base
+
+
+def _summary(args: argparse.Namespace, out: Path, points, branches, curves, t_branch: float,
+             wall: float, status: str) -> None:
+    """The command's closing lines on stderr: counts, times, stop reasons, the files written."""
+    stem = out.with_suffix("")
     print(json.dumps({"plane": args.plane, "points": len(points), "curves":
                       int(curves["curve"].nunique()) if len(curves) else 0,
                       "curve_points": len(curves), "branch_wall_s": t_branch,
@@ -172,7 +188,6 @@ def run(args: argparse.Namespace) -> int:
               "(status budget); the curves are partial", file=sys.stderr)
     print(f"wrote {out}, {stem}_points.parquet, {stem}_branches.parquet and "
           f"{out.with_suffix('.png')}", file=sys.stderr)
-    return 0
 
 
 def _unusable_plane(cells: str) -> str | None:

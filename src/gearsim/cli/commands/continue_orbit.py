@@ -8,7 +8,8 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.analysis.continuation import Continuation, continue_orbit, write_branches
+from gearsim.analysis.continuation import continue_orbit, write_branches
+from gearsim.analysis.continuation_options import Continuation
 from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
 from gearsim.cli.commands._common import command_parameters
