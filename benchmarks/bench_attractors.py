@@ -20,14 +20,17 @@ standard parameters, 16 Sobol starts per cell, seed 0):
   that take part in a call / lane-periods of every block the call steps; kernel speed =
   lane-steps the kernel computed / CPU time inside it.
 * ``agreement`` (``--agree``): every start's label of the pool finder against its full-length
-  run (the pool with ``early=False``) on the side-by-side cells.
+  run (the pool with ``early=False``) on the side-by-side cells (``--near``: every 4th cell
+  and every cell next to a change of its row's motion, i.e. a period doubling, fold or
+  grazing between two cells of the row; ``--extra-rows K``: the cells next to a change of
+  K more rows per plane).
 * ``scaling``: the pool finder on a sample of rows of both planes at 100, 200 and 400 cells
   per axis (the rows are whole continuation chains; their forward motions come from the
   batched chains, not counted), and the projection of both full planes at 16 starts:
   ``2 n^2 16 / (2 x starts per CPU-second)`` on 2 cores (two tile jobs at a time).
 
 Usage: python benchmarks/bench_attractors.py [--quick] [--agree] [--no-scaling] [--reference]
-       [--repeat R]
+       [--near] [--extra-rows K] [--repeat R]
 """
 
 from __future__ import annotations
@@ -148,6 +151,12 @@ def main() -> None:
     ap.add_argument("--agree", action="store_true", help="also every start's full-length run")
     ap.add_argument("--no-scaling", action="store_true", help="side by side only")
     ap.add_argument("--reference", action="store_true", help="also the recurrence mapper")
+    ap.add_argument("--near", action="store_true",
+                    help="also every cell next to a change of its row's motion (a doubling, "
+                         "fold or grazing between the row's cells)")
+    ap.add_argument("--extra-rows", type=int, default=0,
+                    help="rows per plane (evenly spaced) of which only the cells next to a "
+                         "change of the row's motion join")
     ap.add_argument("--repeat", type=int, default=1,
                     help="side-by-side runs in alternation; each finder's fastest is kept")
     args = ap.parse_args()
@@ -159,11 +168,22 @@ def main() -> None:
 
     # ---- side by side: every 4th cell of two rows per plane at 400 x 400
     cells, states, motions = [], [], []
+    near: list[bool] = []  # the cell is next to a change of the row's motion
     for plane, js in (("wb", (150, 300)), ("wxi", (100, 250))):
-        c, s, m = rows_of(plane, 400, js[:1] if args.quick else js, base, st)
-        cells += c[::4]
-        states += s[::4]
-        motions += m[::4]
+        rows = list(js[:1] if args.quick else js)
+        extra = [int(400 * (r + 0.5) / args.extra_rows) for r in range(args.extra_rows)]
+        for j in rows + [j for j in extra if j not in rows]:
+            only_near = j not in rows
+            c, s, m = rows_of(plane, 400, (j,), base, st)
+            key = [(x.status, x.period, x.label) for x in m]
+            nb = [k > 0 and key[k - 1] != key[k] or k + 1 < len(key) and key[k + 1] != key[k]
+                  for k in range(len(key))]  # fmt: skip
+            take = [k for k in range(len(c))
+                    if (k % 4 == 0 and not only_near) or ((args.near or only_near) and nb[k])]
+            cells += [c[k] for k in take]
+            states += [s[k] for k in take]
+            motions += [m[k] for k in take]
+            near += [nb[k] for k in take]
     side = {}
     names = ("pool", "recurrence") + (("reference",) if args.reference else ())
     cpus: dict = {}
@@ -195,11 +215,14 @@ def main() -> None:
                                forward_results=motions)
         wrong = 0
         differ = []
-        early_checked = 0
+        early_checked = near_starts = near_early = 0
         for c, (a, b) in enumerate(zip(side["pool"]["_found"], full, strict=True)):
             la = [a.attractors[k].steady if k >= 0 else None for k in a.start_labels]
             lb = [b.attractors[k].steady if k >= 0 else None for k in b.start_labels]
             early_checked += int(a.early.sum())
+            if near[c]:
+                near_starts += a.n_starts
+                near_early += int(a.early.sum())
             bad = sum(1 for x, y in zip(la, lb, strict=True)
                       if (x is None) != (y is None) or (x is not None and not
                                                         same_attractor(x, y)))
@@ -209,6 +232,8 @@ def main() -> None:
                                "starts_differing": bad})
         out["agreement"] = {"starts": 16 * len(cells), "labels_differing": wrong,
                             "early_labels_checked": early_checked,
+                            "starts_next_to_a_change": near_starts,
+                            "early_labels_next_to_a_change": near_early,
                             "cells_differing": differ}  # fmt: skip
     for v in side.values():
         v.pop("_found")
@@ -255,7 +280,10 @@ def main() -> None:
     if "agreement" in out:
         a = out["agreement"]
         print(f"agreement with full-length runs: {a['starts'] - a['labels_differing']}/"
-              f"{a['starts']} starts; cells differing: {a['cells_differing']}")
+              f"{a['starts']} starts ({a['early_labels_checked']} early labels; "
+              f"{a['starts_next_to_a_change']} starts, {a['early_labels_next_to_a_change']} "
+              f"early, in cells next to a change of the row's motion); cells differing: "
+              f"{a['cells_differing']}")
     for r in scaling:
         print(f"n = {r['n']}: {r['cells']} cells, {r['starts_per_cpu_s']:.0f} starts/CPU-s, lane "
               f"use {r['lane_use']:.3f}, kernel {r['kernel_lane_steps_per_cpu_s'] / 1e6:.1f} M "

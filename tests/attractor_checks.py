@@ -9,7 +9,8 @@ def assert_same_attractors_per_start(fast, full, fewer_periods: bool = True) -> 
     """Assert that two finder results of the same cells and starts (``fast`` with early labels,
     ``full`` with every start's full-length run) give the same attractors with the same basin
     fractions, that every start reaches the same attractor, and (``fewer_periods``) that
-    ``fast`` integrated fewer periods per cell. Returns the number of starts ``fast`` labelled early."""
+    ``fast`` integrated fewer periods per cell. Returns the number of starts ``fast`` labelled
+    early."""
     n_early = 0
     for a, b in zip(fast, full, strict=True):
         fa = sorted((x.basin_fraction, x.label) for x in a.attractors)

@@ -12,8 +12,13 @@ import numpy as np
 from attractor_checks import assert_same_attractors_per_start
 from reference import reference_settings
 
-from gearsim.analysis.attractors import FinderOptions, GearCells, find_attractors, gear_steady
-from gearsim.analysis.attractors import same_attractor
+from gearsim.analysis.attractors import (
+    FinderOptions,
+    GearCells,
+    find_attractors,
+    gear_steady,
+    same_attractor,
+)
 from gearsim.analysis.attractors.certify import certify
 from gearsim.cell import chains
 from gearsim.cell.pool import PoolStats
