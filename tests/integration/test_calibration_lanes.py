@@ -78,3 +78,27 @@ def test_sweep_records_many_is_sweep_records_chain_by_chain():
             assert g.keys() == r.keys()
             for k in g:  # the same lanes arithmetic: equal, NaN where NaN
                 assert g[k] == r[k] or (g[k] != g[k] and r[k] != r[k]), (k, g[k], r[k])
+
+
+def test_a_lane_fit_leaves_its_state_after_every_generation(tmp_path):
+    import json
+
+    from gearsim.calibration.forms import collect_fit, fit_form_cmaes, state_path
+
+    form = FORMS["single_dof"]
+    rec = fit_form_cmaes(form, seed=4, log_dir=tmp_path / "logs", max_evals=1, final=False,
+                         log=lambda s: None)
+    lines = (tmp_path / "logs" / "single_dof-lanes.s4.jsonl").read_text().splitlines()
+    state = json.loads(state_path(tmp_path / "logs", "single_dof", 4).read_text())
+    # one generation: its population logged, the start among them, the state the record's
+    assert rec["nfev"] == len(lines) == state["nfev"] and rec["stopped_by"] == "max_evals"
+    assert any(np.allclose(json.loads(x)["x"], form.start, rtol=1e-12, atol=1e-12)
+               for x in lines)
+    assert state["best"] == rec["best"] and state["J_lanes"] == rec["J_lanes"]
+    assert state["J_lanes"] == min(json.loads(x)["J"] for x in lines)
+    assert state["curve"] == rec["curve"] and state["cpu_s_search"] > 0
+    # without its record (an interrupted run) the table reads the log and the state
+    s = collect_fit(["single_dof"], tmp_path)["forms"]["single_dof"]["seeds"]["4"]
+    assert (s["nfev"], s["J_lanes"], s["stopped_by"], s["timed"]) == (
+        rec["nfev"], rec["J_lanes"], "unfinished", True)
+    assert s["cpu_s_search"] == state["cpu_s_search"]

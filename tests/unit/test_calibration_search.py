@@ -161,7 +161,13 @@ def test_cmaes_evaluates_the_start_in_its_first_population():
     x0 = [1.5, -0.25, 0.75]
     res = run_cmaes(batch, [(-2.0, 2.0)] * 3, seed=5, x0=x0, sigma0=0.4, max_evals=30)
     first = batches[0]
-    assert any(np.allclose(x, x0, rtol=0, atol=1e-12) for x in first)
+    assert any(np.array_equal(x, x0) for x in first)
+    assert sum(len(b) for b in batches) == res["nfev"] == res["curve"][-1][0]
+    assert len(first) == 1 + res["runs"][0]["popsize"]
+    # a start on a bound is evaluated on it (cma's bound transform would move it inside)
+    batches.clear()
+    run_cmaes(batch, [(0.0, 1.0)] * 3, seed=5, x0=[0.0, 0.5, 1.0], max_evals=1)
+    assert any(np.array_equal(x, [0.0, 0.5, 1.0]) for x in batches[0])
     # the curve's first point is at most the start's J
     assert res["curve"][0][1] <= float(np.sum((np.asarray(x0) - 0.3) ** 2))
 

@@ -104,6 +104,12 @@ def _misses_lines(rep: Report) -> list[str]:
 
 def _detail_lines(rep: Report) -> list[str]:
     """The paper comparison in full (landmarks, DC/Kmax, thresholds, sequences)."""
+    return [*_landmark_lines(rep), *_jump_lines(rep), *_threshold_lines(rep),
+            *_sequence_lines(rep)]
+
+
+def _landmark_lines(rep: Report) -> list[str]:
+    """The standard sweep's landmarks against the paper's, and the exact points."""
     out: list[str] = []
     out += ["### Landmarks of the standard sweep", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
@@ -146,6 +152,12 @@ def _detail_lines(rep: Report) -> list[str]:
                 "simulated labels change.", "",
                 f"Model form ({form_name(rep.exact_form)}): {model_form(rep.exact_form)}.", "",
                 *report_lines(rep.exact, form_name(rep.exact_form)), ""]
+    return out
+
+
+def _jump_lines(rep: Report) -> list[str]:
+    """DC and Kmax at the jump, and the fold's hysteresis."""
+    out: list[str] = []
     out += ["### DC and Kmax at the jump", ""]
     if any("no sweep 'standard'" in n for n in rep.notes):
         out += ["Not applicable: this study has no sweep 'standard'.", ""]
@@ -169,6 +181,12 @@ def _detail_lines(rep: Report) -> list[str]:
     if rep.hysteresis:
         out += ["Hysteresis of the fold (sweep 'hysteresis', both directions; Fig 18):", "",
                 *rep.hysteresis, ""]
+    return out
+
+
+def _threshold_lines(rep: Report) -> list[str]:
+    """The b and xi thresholds against the paper's."""
+    out: list[str] = []
     out += ["### Thresholds", "", "| threshold | paper | ours | rows (last with / first "
             "without) | difference |", "|---|---|---|---|---|"]
     for th, paper, label, key in ((rep.b_threshold, PAPER_B_THRESHOLD, "b: no double-sided "
@@ -186,6 +204,12 @@ def _detail_lines(rep: Report) -> list[str]:
                        f"{_f(th.first_without)} ({th.rows} rows{note}) | "
                        f"{_f(th.difference, '+.4f')} |")
     out.append("")
+    return out
+
+
+def _sequence_lines(rep: Report) -> list[str]:
+    """The pattern sequences of Figs 8 and 15 against the paper's."""
+    out: list[str] = []
     out += ["### Pattern sequences (Fig 8, Fig 15)", ""]
     for key, e in rep.sequences.items():
         out.append(f"**{e['parameter']} = {e['value']}** (sweep `{key}`)")

@@ -7,18 +7,13 @@
 from __future__ import annotations
 
 import json
-import os
-import sqlite3
 from collections.abc import Iterable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
-from sqlalchemy import (
-    insert,
-)
-from sqlalchemy.exc import DBAPIError as SQLAlchemyDBAPIError
+from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
 from gearsim.cell.simulate import result_columns
@@ -26,10 +21,8 @@ from gearsim.results.parquet import (
     PLANE_KEY,
     PROVENANCE_KEY,
     TILES_KEY,
-    _fault,
     _prepare_dir,
     _size,
-    _tmp_name,
     now_iso,
     read_metadata,
 )
@@ -52,8 +45,7 @@ from gearsim.results.schema import (
     Sweep,
     SweepPoint,
     _column_rows,
-    _fsync,
-    make_engine,
+    replacing,
 )
 from gearsim.results.views import create_views
 from gearsim.study.integrity import CatalogueError, _one_line
@@ -533,12 +525,8 @@ def build_catalogue(
     # cannot hold the catalogue at all before the build
     _prepare_dir(out, need=_size([*plane_files, *sweep_files, *audit_files, *attractor_files,
                                   *orbit_files]))
-    tmp = _tmp_name(out)
-    if tmp.exists():
-        tmp.unlink()
-    engine = make_engine(f"sqlite:///{tmp}", bulk=True)
     counts = {"runs": 0, "planes": 0, "cells": 0, "sweeps": 0, "sweep_points": 0, "audits": 0}
-    try:
+    with replacing(out, "write", bulk=True) as (_tmp, engine):
         Base.metadata.create_all(engine)
         # the cells' lookup indexes are built once after the bulk insert (much faster than
         # maintaining them row by row); the unique (plane_id, i, j) constraint stays on
@@ -567,16 +555,6 @@ def build_catalogue(
                          [read_metadata(f) for f in sweep_files])  # one per plane and sweep
             con.exec_driver_sql(f"PRAGMA application_id = {APPLICATION_ID}")
             con.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
-        engine.dispose()
-        _fsync(tmp)
-        os.replace(tmp, out)
-    except (OSError, sqlite3.Error, SQLAlchemyDBAPIError) as exc:
-        # full disk, read-only or vanished directory: one line; the previous files stay
-        raise CatalogueError(f"catalogue {out}: cannot write it ({_fault(exc)})") from None
-    finally:
-        engine.dispose()
-        if tmp.exists():
-            tmp.unlink()
     if publish_to is not None:
         publish(out, publish_to)
     return counts

@@ -11,6 +11,8 @@ from __future__ import annotations
 import json
 import os
 import sqlite3
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -360,6 +362,29 @@ def make_engine(url: str, *, bulk: bool = False):
     return engine
 
 
+@contextmanager
+def replacing(path: Path, verb: str, *, bulk: bool = False) -> Iterator[tuple[Path, Any]]:
+    """A temporary SQLite file beside ``path`` and its engine, for a build or a migration: on a
+    clean exit the file is synced and replaces ``path`` atomically; a full disk, a read-only or
+    vanished folder or an SQLite fault is one :class:`CatalogueError` line (``cannot <verb>
+    it``); the temporary file never stays and ``path`` stays as it was on any failure."""
+    tmp = _tmp_name(path)
+    if tmp.exists():
+        tmp.unlink()
+    engine = make_engine(f"sqlite:///{tmp}", bulk=bulk)
+    try:
+        yield tmp, engine
+        engine.dispose()
+        _fsync(tmp)
+        os.replace(tmp, path)
+    except (OSError, sqlite3.Error, SQLAlchemyDBAPIError) as exc:
+        raise CatalogueError(f"catalogue {path}: cannot {verb} it ({_fault(exc)})") from None
+    finally:
+        engine.dispose()
+        if tmp.exists():
+            tmp.unlink()
+
+
 def _fsync(path: Path) -> None:
     fd = os.open(path, os.O_RDONLY)
     try:
@@ -530,9 +555,7 @@ def migrate_catalogue(path: str | Path) -> tuple[int, int]:
             f"{OLDEST_MIGRATABLE}); {REBUILD}"
         )
     _prepare_dir(p, need=2 * p.stat().st_size)
-    tmp = _tmp_name(p)
-    engine = make_engine(f"sqlite:///{tmp}")
-    try:
+    with replacing(p, "migrate") as (tmp, engine):
         shutil.copyfile(p, tmp)
         with engine.begin() as conn:
             op = Operations(MigrationContext.configure(conn))
@@ -553,14 +576,6 @@ def migrate_catalogue(path: str | Path) -> tuple[int, int]:
             conn.exec_driver_sql(f"PRAGMA user_version = {SCHEMA_VERSION}")
         engine.dispose()
         open_catalogue(tmp).close()
-        _fsync(tmp)
-        os.replace(tmp, p)
-    except (OSError, sqlite3.Error, SQLAlchemyDBAPIError) as exc:
-        raise CatalogueError(f"catalogue {p}: cannot migrate it ({_fault(exc)})") from None
-    finally:
-        engine.dispose()
-        if tmp.exists():
-            tmp.unlink()
     return old, SCHEMA_VERSION
 
 

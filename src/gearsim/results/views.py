@@ -95,14 +95,9 @@ def create_views(con, plane_records: Iterable[Any] = (),
             if phys is None and isinstance(gear_axes.get(param), Mapping):
                 g = gear_axes[param]
                 phys = (str(g["name"]), str(g["unit"]), float(g["k"]))
-            if phys and phys[0] not in cols:
-                select.append(f"{col} * {phys[2]!r} AS {_quote(phys[0])}")
-                cols.append(phys[0])
-        rest = [c for c in cell_cols if c not in _CELL_HIDDEN and c not in cols]
-        select += [f"c.{_quote(c)}" for c in rest]
-        cols += rest
-        con.exec_driver_sql(f"CREATE VIEW {_quote(view)} AS SELECT {', '.join(select)} "
-                            f"FROM cells c WHERE c.plane_id = {int(pid)}")
+            _add_physical(select, cols, col, phys)
+        _create_view(con, view, select, cols, (cell_cols, _CELL_HIDDEN), "cells c",
+                     f"c.plane_id = {int(pid)}")
         made.append((view, "plane", pname))
         docs.append((view, "*", "", VIEWS["plane"].format(name=pname, x=x_name, y=y_name)))
         docs += [(view, c, *_physical_doc(c, PHYSICAL, "cells")) for c in cols]
@@ -114,15 +109,9 @@ def create_views(con, plane_records: Iterable[Any] = (),
         view = name_for(sname, "sweep")
         select = ["s.k", f"s.value AS {_quote(param)}"]
         cols = ["k", param]
-        phys = _physical(sweep_axes.get(sname))
-        if phys and phys[0] not in cols:
-            select.append(f"s.value * {phys[2]!r} AS {_quote(phys[0])}")
-            cols.append(phys[0])
-        rest = [c for c in point_cols if c not in _POINT_HIDDEN and c not in cols]
-        select += [f"s.{_quote(c)}" for c in rest]
-        cols += rest
-        con.exec_driver_sql(f"CREATE VIEW {_quote(view)} AS SELECT {', '.join(select)} "
-                            f"FROM sweep_points s WHERE s.sweep_id = {int(sid)}")
+        _add_physical(select, cols, "s.value", _physical(sweep_axes.get(sname)))
+        _create_view(con, view, select, cols, (point_cols, _POINT_HIDDEN), "sweep_points s",
+                     f"s.sweep_id = {int(sid)}")
         made.append((view, "sweep", sname))
         docs.append((view, "*", "", VIEWS["sweep"].format(name=sname, parameter=param)))
         docs += [(view, c, *_physical_doc(c, PHYSICAL, "sweep_points")) for c in cols]
@@ -133,6 +122,26 @@ def create_views(con, plane_records: Iterable[Any] = (),
             "VALUES " + ", ".join("(?, ?, ?, ?)" for _ in docs),
             tuple(v for row in docs for v in row))
     return made
+
+
+def _add_physical(select: list[str], cols: list[str], col: str, phys) -> None:
+    """An axis column ``col`` in physical units (``phys = (name, unit, factor)``) once."""
+    if phys and phys[0] not in cols:
+        select.append(f"{col} * {phys[2]!r} AS {_quote(phys[0])}")
+        cols.append(phys[0])
+
+
+def _create_view(con, view: str, select: list[str], cols: list[str], source, table: str,
+                 where: str) -> None:
+    """The view ``view``: the ``select`` columns, then every column of the table's ``source =
+    (columns, hidden)`` neither hidden nor selected yet (``cols`` grows by them)."""
+    table_cols, hidden = source
+    alias = table.split()[-1]
+    rest = [c for c in table_cols if c not in hidden and c not in cols]
+    select += [f"{alias}.{_quote(c)}" for c in rest]
+    cols += rest
+    con.exec_driver_sql(f"CREATE VIEW {_quote(view)} AS SELECT {', '.join(select)} "
+                        f"FROM {table} WHERE {where}")
 
 
 def _physical_doc(column: str, physical: Mapping[str, tuple[str, str]], table: str

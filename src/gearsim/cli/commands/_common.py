@@ -156,6 +156,13 @@ class CommandParameters:
     gear_path: str | None
 
 
+def check_plane(study: Study, plane: str) -> None:
+    """``plane`` is one of the study's planes; else one line naming them (a usage error)."""
+    planes = study.config.get("planes") or {}
+    if plane not in planes:
+        raise UsageError(f"unknown plane '{plane}'; configured: {', '.join(planes) or 'none'}")
+
+
 def _cli_values(args: argparse.Namespace) -> tuple[dict, dict, list[str]]:
     """(numeric values, text values, source words) of ``--set`` and the physical options."""
     numbers: dict = {}

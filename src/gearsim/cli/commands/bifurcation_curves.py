@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, study_from_args
+from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
 from gearsim.errors import UsageError
 from gearsim.study.preflight import check_outputs
 
@@ -142,8 +142,7 @@ def _plane_ranges(args: argparse.Namespace, study):
     (the plane's axes, its continuation range, the seed value of the second parameter, the
     curve step and the plane's base parameters)."""
     config = study.config
-    if args.plane not in config["planes"]:
-        raise UsageError(f"unknown plane '{args.plane}'; allowed: {', '.join(config['planes'])}")
+    check_plane(study, args.plane)
     kinds = [k.strip() for k in args.kinds.split(",") if k.strip()]
     allowed = ("fold", "period_doubling", "grazing", "neimark_sacker")
     for k in kinds:

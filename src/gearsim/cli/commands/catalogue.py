@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, study_from_args
+from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
 from gearsim.errors import UsageError
 from gearsim.study.audit import audit_frame, audit_settings
 from gearsim.study.provenance import plane_record
@@ -73,9 +73,7 @@ def _cells(args) -> int:
     from gearsim.results import catalogue
 
     study = study_from_args(args)
-    config = study.config
-    if args.plane not in config["planes"]:
-        raise UsageError(f"unknown plane '{args.plane}'")
+    check_plane(study, args.plane)
     out = catalogue.combine_tiles(args.tiles, args.out, plane_record(study, args.plane))
     print(f"plane {args.plane}: {len(args.tiles)} tiles -> {out}", file=sys.stderr)
     return 0
@@ -90,8 +88,7 @@ def _audit(args) -> int:
 
     study = study_from_args(args)
     config = study.config
-    if args.plane not in config["planes"]:
-        raise UsageError(f"unknown plane '{args.plane}'")
+    check_plane(study, args.plane)
     from gearsim.study.preflight import check_output
 
     check_output(args.out)  # writable, with room, before any simulation

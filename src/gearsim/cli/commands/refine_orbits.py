@@ -6,7 +6,7 @@ import argparse
 import sys
 import time
 
-from gearsim.cli.commands._common import add_config_arguments, study_from_args
+from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
 from gearsim.errors import UsageError
 
 NAME = "refine-orbits"
@@ -38,8 +38,7 @@ def run(args: argparse.Namespace) -> int:
 
     study = study_from_args(args)
     config = study.config
-    if args.plane not in config["planes"]:
-        raise UsageError(f"unknown plane '{args.plane}'; allowed: {', '.join(config['planes'])}")
+    check_plane(study, args.plane)
     if args.limit is not None and args.limit < 1:
         raise UsageError(f"--limit = {args.limit} must be >= 1")
     if args.rtol is not None and not 0 < args.rtol < 1e-3:

@@ -7,8 +7,12 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, check_new_file, study_from_args
-from gearsim.errors import UsageError
+from gearsim.cli.commands._common import (
+    add_config_arguments,
+    check_new_file,
+    check_plane,
+    study_from_args,
+)
 from gearsim.results import catalogue
 from gearsim.study import provenance, tiles
 from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
@@ -84,10 +88,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     study = study_from_args(args)
     config = study.config
-    if args.plane not in config["planes"]:
-        raise UsageError(
-            f"unknown plane '{args.plane}'; configured: {', '.join(config['planes']) or 'none'}"
-        )
+    check_plane(study, args.plane)
     rows = tile_rows(config, args.plane, args.tile)
     out = Path(args.out or results_dir(config) / args.plane / "tiles" / f"{args.tile}.parquet")
     check_new_file(out, need=0)  # not a folder, no file in the way (the folder not yet made)

@@ -94,19 +94,28 @@ def draw_bifurcation3d(ax, df: pd.DataFrame, *, max_rows: int = 40, max_points: 
     impact_legend(ax, df["I"].to_numpy(dtype=int), loc="upper left")
 
 
+def _map_panel(fig, draw, df: pd.DataFrame, label: str, title: str | None,
+               margins: tuple[float, float, float]):
+    """Panel (b) of a two-panel plane figure: the map ``draw`` makes, its label, the figure's
+    title and its ``(left, right, wspace)`` margins."""
+    ax2 = fig.add_subplot(1, 2, 2)
+    draw(ax2, df)
+    ax2.set_title(label, fontsize=9, loc="left")
+    if title:
+        fig.suptitle(title, fontsize=10)
+    left, right, wspace = margins
+    fig.subplots_adjust(left=left, right=right, wspace=wspace, bottom=0.1, top=0.9)
+    return fig
+
+
 def figure_pattern(df: pd.DataFrame, *, title: str | None = None):
     """Figs 7 and 14: (a) 3-D bifurcation of mesh displacement, (b) pattern map."""
     fig = plt.figure(figsize=(13.0, 5.4))
     ax1 = fig.add_subplot(1, 2, 1, projection="3d")
     draw_bifurcation3d(ax1, df)
     ax1.set_title("(a) relative micro-displacement bifurcation", fontsize=9, loc="left")
-    ax2 = fig.add_subplot(1, 2, 2)
-    draw_pattern_map(ax2, df)
-    ax2.set_title("(b) pattern types and regions", fontsize=9, loc="left")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.subplots_adjust(left=0.0, right=0.80, wspace=0.28, bottom=0.1, top=0.9)
-    return fig
+    return _map_panel(fig, draw_pattern_map, df, "(b) pattern types and regions", title,
+                      (0.0, 0.80, 0.28))
 
 
 # ------------------------------------------------------------------------------ DC and Kmax
@@ -232,13 +241,8 @@ def figure_dc(df: pd.DataFrame, *, title: str | None = None):
     surf = _surface(ax1, df, "dc", "DC")
     fig.colorbar(surf, ax=ax1, shrink=0.6, pad=0.12, label=style.DC_LABEL)
     ax1.set_title("(a) DC cloud diagram", fontsize=9, loc="left")
-    ax2 = fig.add_subplot(1, 2, 2)
-    draw_dc_map(ax2, df)
-    ax2.set_title("(b) I:DC plane distribution", fontsize=9, loc="left")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.subplots_adjust(left=0.02, right=0.82, wspace=0.15, bottom=0.1, top=0.9)
-    return fig
+    return _map_panel(fig, draw_dc_map, df, "(b) I:DC plane distribution", title,
+                      (0.02, 0.82, 0.15))
 
 
 def figure_kmax(df: pd.DataFrame, *, column: str | None = None, title: str | None = None):
