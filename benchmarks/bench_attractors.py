@@ -6,22 +6,31 @@ standard parameters, 16 Sobol starts per cell, seed 0):
 * ``side by side``: the same cells (each finder in tasks of its pipeline size: 640 cells per
   pool, 64 per reference task) through
   - ``pool``: :func:`gearsim.analysis.attractors.find_attractors` (the pipeline's call: the
-    forward-continuation motion of each cell is known from its plane row, no run);
-  - ``reference``: :func:`gearsim.analysis.attractors.recurrence.map_attractors` on the gear
-    cells (the synchronous mapper: scouts, probes, rescouts; the forward state re-run);
+    forward-continuation motion of each cell is known from its plane row, no run), certified
+    early labels and recurrence; with the share labelled by each rule, the orbits certified
+    and their radii, and the lane-periods the certification integrated;
+  - ``recurrence``: the same with ``certified=False`` (the recurrence rule alone, the rule of
+    the finder before certified labels);
+  - ``reference`` (``--reference``): the recurrence mapper
+    :func:`gearsim.analysis.attractors.recurrence.map_attractors` on the gear cells (the
+    synchronous mapper: scouts, probes, rescouts; the forward state re-run);
   CPU time (process_time), starts per CPU-second, periods per start, share labelled early, and
   the lane use and kernel speed of each, counted identically for both by wrapping the one
   kernel entry (:meth:`gearsim.numerics.batch.Lanes.run`): lane use = lane-periods of lanes
   that take part in a call / lane-periods of every block the call steps; kernel speed =
   lane-steps the kernel computed / CPU time inside it.
 * ``agreement`` (``--agree``): every start's label of the pool finder against its full-length
-  run (the pool with ``early=False``) on the side-by-side cells.
+  run (the pool with ``early=False``) on the side-by-side cells (``--near``: every 4th cell
+  and every cell next to a change of its row's motion, i.e. a period doubling, fold or
+  grazing between two cells of the row; ``--extra-rows K``: the cells next to a change of
+  K more rows per plane).
 * ``scaling``: the pool finder on a sample of rows of both planes at 100, 200 and 400 cells
   per axis (the rows are whole continuation chains; their forward motions come from the
   batched chains, not counted), and the projection of both full planes at 16 starts:
   ``2 n^2 16 / (2 x starts per CPU-second)`` on 2 cores (two tile jobs at a time).
 
-Usage: python benchmarks/bench_attractors.py [--quick] [--agree]
+Usage: python benchmarks/bench_attractors.py [--quick] [--agree] [--no-scaling] [--reference]
+       [--near] [--extra-rows K] [--repeat R]
 """
 
 from __future__ import annotations
@@ -114,20 +123,42 @@ def rows_of(plane: str, n: int, js, base, st):
     return cells, states, motions
 
 
-def summary(found, cpu: float, meter: KernelMeter) -> dict:
+def summary(found, cpu: float, meter: KernelMeter, stats=None) -> dict:
     n = sum(ca.n_starts for ca in found)
     periods = sum(int(ca.start_periods_run.sum()) for ca in found)
-    return {
+    out = {
         "cells": len(found), "starts": n, "cpu_s": cpu, "starts_per_cpu_s": n / cpu,
         "cpu_per_start_ms": 1e3 * cpu / n, "periods_per_start": periods / n,
         "labelled_early": sum(int(ca.early.sum()) for ca in found) / n, **meter.read(),
     }  # fmt: skip
+    if stats is not None:
+        radii = [r for r in stats.radii]
+        got = np.array([r for r in radii if r is not None], dtype=float)
+        out.update({
+            "early_certified": stats.early_certified / n,
+            "early_recurrence": stats.early_recurrence / n,
+            "certify_lane_periods_per_start": stats.certify_periods / n,
+            "orbits_tried": len(radii), "orbits_certified": int(len(got)),
+            "radius_counts": {f"{r:.4g}": int(np.sum(np.isclose(got, r)))
+                              for r in sorted(set(got.tolist()), reverse=True)},
+        })  # fmt: skip
+    return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="fewer rows")
     ap.add_argument("--agree", action="store_true", help="also every start's full-length run")
+    ap.add_argument("--no-scaling", action="store_true", help="side by side only")
+    ap.add_argument("--reference", action="store_true", help="also the recurrence mapper")
+    ap.add_argument("--near", action="store_true",
+                    help="also every cell next to a change of its row's motion (a doubling, "
+                         "fold or grazing between the row's cells)")
+    ap.add_argument("--extra-rows", type=int, default=0,
+                    help="rows per plane (evenly spaced) of which only the cells next to a "
+                         "change of the row's motion join")
+    ap.add_argument("--repeat", type=int, default=1,
+                    help="side-by-side runs in alternation; each finder's fastest is kept")
     args = ap.parse_args()
     base, st = Study.load().parameters().model, Study.load().settings
     meter = KernelMeter()
@@ -137,37 +168,61 @@ def main() -> None:
 
     # ---- side by side: every 4th cell of two rows per plane at 400 x 400
     cells, states, motions = [], [], []
+    near: list[bool] = []  # the cell is next to a change of the row's motion
     for plane, js in (("wb", (150, 300)), ("wxi", (100, 250))):
-        c, s, m = rows_of(plane, 400, js[:1] if args.quick else js, base, st)
-        cells += c[::4]
-        states += s[::4]
-        motions += m[::4]
+        rows = list(js[:1] if args.quick else js)
+        extra = [int(400 * (r + 0.5) / args.extra_rows) for r in range(args.extra_rows)]
+        for j in rows + [j for j in extra if j not in rows]:
+            only_near = j not in rows
+            c, s, m = rows_of(plane, 400, (j,), base, st)
+            key = [(x.status, x.period, x.label) for x in m]
+            nb = [k > 0 and key[k - 1] != key[k] or k + 1 < len(key) and key[k + 1] != key[k]
+                  for k in range(len(key))]  # fmt: skip
+            take = [k for k in range(len(c))
+                    if (k % 4 == 0 and not only_near) or ((args.near or only_near) and nb[k])]
+            cells += [c[k] for k in take]
+            states += [s[k] for k in take]
+            motions += [m[k] for k in take]
+            near += [nb[k] for k in take]
     side = {}
-    for name in ("pool", "reference"):
+    names = ("pool", "recurrence") + (("reference",) if args.reference else ())
+    cpus: dict = {}
+    for name in [n for _ in range(max(1, args.repeat)) for n in names]:
         meter.reset()
         c0 = time.process_time()
         # each in tasks of its pipeline size (gearsim attractor-tile: 640 cells per pool
         # task; the reference ran 64 cells per task)
         found = []
-        size = 640 if name == "pool" else 64
+        size = 64 if name == "reference" else 640
+        stats = None if name == "reference" else pool.PoolStats()
+        opts = OPTS.with_(certified=False) if name == "recurrence" else OPTS
         for k in range(0, len(cells), size):
             sl = slice(k, k + size)
-            if name == "pool":
-                found += find_attractors(cells[sl], OPTS, settings=st,
-                                         forward_results=motions[sl])
-            else:
+            if name == "reference":
                 found += reference(cells[sl], st, states[sl])
-        side[name] = summary(found, time.process_time() - c0, meter)
-        side[name]["_found"] = found
+            else:
+                found += find_attractors(cells[sl], opts, settings=st,
+                                         forward_results=motions[sl], stats=stats)
+        row = summary(found, time.process_time() - c0, meter, stats)
+        cpus.setdefault(name, []).append(row["cpu_s"])
+        if name not in side or row["cpu_s"] < side[name]["cpu_s"]:
+            side[name] = row
+            side[name]["_found"] = found
+        side[name]["cpu_s_runs"] = cpus[name]
     if args.agree:
         meter.reset()
         full = find_attractors(cells, OPTS.with_(early=False), settings=st,
                                forward_results=motions)
         wrong = 0
         differ = []
+        early_checked = near_starts = near_early = 0
         for c, (a, b) in enumerate(zip(side["pool"]["_found"], full, strict=True)):
             la = [a.attractors[k].steady if k >= 0 else None for k in a.start_labels]
             lb = [b.attractors[k].steady if k >= 0 else None for k in b.start_labels]
+            early_checked += int(a.early.sum())
+            if near[c]:
+                near_starts += a.n_starts
+                near_early += int(a.early.sum())
             bad = sum(1 for x, y in zip(la, lb, strict=True)
                       if (x is None) != (y is None) or (x is not None and not
                                                         same_attractor(x, y)))
@@ -176,6 +231,9 @@ def main() -> None:
                 differ.append({"w": cells[c].w, "b": cells[c].b, "xi": cells[c].xi,
                                "starts_differing": bad})
         out["agreement"] = {"starts": 16 * len(cells), "labels_differing": wrong,
+                            "early_labels_checked": early_checked,
+                            "starts_next_to_a_change": near_starts,
+                            "early_labels_next_to_a_change": near_early,
                             "cells_differing": differ}  # fmt: skip
     for v in side.values():
         v.pop("_found")
@@ -184,7 +242,7 @@ def main() -> None:
     # ---- scaling: rows of both planes at n = 100, 200, 400 (800 cells per size)
     scaling = []
     for n, k in ((100, 4), (200, 2), (400, 1)):
-        if args.quick and n > 100:
+        if args.no_scaling or (args.quick and n > 100):
             break
         js = [int(n * (2 * r + 1) / (2 * k)) for r in range(k)]
         cells, _, motions = [], [], []
@@ -207,14 +265,25 @@ def main() -> None:
     path = save("attractors", out)
     print(f"load {out['load_before']} -> {out['load_after']}")
     for name, v in side.items():
+        print(f"{name:9s} CPU-s of the runs: {v['cpu_s_runs']}")
         print(f"{name:9s} {v['cells']} cells x 16: {v['starts_per_cpu_s']:.0f} starts/CPU-s "
               f"({v['cpu_per_start_ms']:.2f} ms/start, {v['periods_per_start']:.0f} periods, "
               f"{100 * v['labelled_early']:.0f} % early), lane use {v['lane_use']:.3f}, kernel "
               f"{v['kernel_lane_steps_per_cpu_s'] / 1e6:.1f} M lane-steps/CPU-s")
+    for name, v in side.items():
+        if "radius_counts" in v:
+            print(f"{name:9s} early: {100 * v['early_certified']:.0f} % certified, "
+                  f"{100 * v['early_recurrence']:.0f} % by recurrence (counted at the chunk "
+                  f"checks); {v['orbits_certified']}/{v['orbits_tried']} orbits certified, "
+                  f"radii {v['radius_counts']}, certification "
+                  f"{v['certify_lane_periods_per_start']:.1f} lane-periods per start")
     if "agreement" in out:
         a = out["agreement"]
         print(f"agreement with full-length runs: {a['starts'] - a['labels_differing']}/"
-              f"{a['starts']} starts; cells differing: {a['cells_differing']}")
+              f"{a['starts']} starts ({a['early_labels_checked']} early labels; "
+              f"{a['starts_next_to_a_change']} starts, {a['early_labels_next_to_a_change']} "
+              f"early, in cells next to a change of the row's motion); cells differing: "
+              f"{a['cells_differing']}")
     for r in scaling:
         print(f"n = {r['n']}: {r['cells']} cells, {r['starts_per_cpu_s']:.0f} starts/CPU-s, lane "
               f"use {r['lane_use']:.3f}, kernel {r['kernel_lane_steps_per_cpu_s'] / 1e6:.1f} M "

@@ -38,9 +38,14 @@ POINTS = ("fig5", "fig6", "fig9_11")
 
 WORKER = r"""
 import argparse, dataclasses, pickle, sys
-from gearsim.study import tiles
-from gearsim.cli.commands import sweep as cmd
-from gearsim.cell.simulate import IntegrationSettings
+try:  # the layered package
+    from gearsim.study import tiles
+    from gearsim.cli.commands import sweep as cmd
+    from gearsim.cell.simulate import IntegrationSettings
+except ImportError:  # the old revision's flat package
+    from gearsim import tiles
+    from gearsim.commands import sweep as cmd
+    from gearsim.simulate import IntegrationSettings
 out, planes_only = sys.argv[1], sys.argv[2] == "1"
 fields = {f.name for f in dataclasses.fields(IntegrationSettings)}
 # the old code's settings: 256 steps per period (config.yaml has 192)
@@ -54,8 +59,8 @@ try:  # this checkout: every parameter through the Study
     from gearsim.study.sweeps import points_frame, sweep_frame
 except ImportError:  # the old revision: its config functions
     Study = None
-    from gearsim.study.tiles import base_parameters, integration_settings, load_config, sweep_values
-    from gearsim.dynamics.parameters import ModelParameters
+    from gearsim.tiles import base_parameters, integration_settings, load_config, sweep_values
+    from gearsim.parameters import ModelParameters
 if Study is not None:
     study = Study.load(["config/quick.yaml"], ov, root=".")
     cfg, settings = study.config, study.settings

@@ -13,7 +13,8 @@ runs. Checked:
 * the catalogue equals the one of the session's local run (``tiny_run``, conftest.py: the same
   configuration on ``--cores 2``) value for value (ids and provenance aside);
 * a tile run as a 2-CPU job step has a 2-worker LocalCluster (one worker per CPU SLURM gave);
-* the profile's grouping: the small jobs went in three group jobs of one CPU each.
+* the profile's grouping: the small jobs went in three group jobs of one CPU each;
+* an account sacctmgr does not list for the user stops the run before anything is submitted.
 """
 
 from __future__ import annotations
@@ -252,3 +253,25 @@ def test_profile_names_only_rules_of_the_workflow(tmp_path):
     assert named - rules <= {"figure_21", "figure_22", "figure_23"}, named - rules
     figures = {r for r in rules if r.startswith("figure")} | {"sweep_diagram", "plane_maps"}
     assert figures <= set(profile["groups"]), figures - set(profile["groups"])
+
+
+def test_an_account_not_yours_stops_the_run_before_submitting(cluster, tmp_path):
+    """The executor plugin (2.8.0) raises on an account sacctmgr does not list in its submission
+    thread and the run waits forever; the profile's slurm_account stops it first, in one line."""
+    from gearsim.errors import UsageError
+    from gearsim.study.cluster import slurm_account, user_accounts
+
+    user_accounts.cache_clear()
+    assert slurm_account(ACCOUNT) == ACCOUNT and slurm_account("") == ""
+    with pytest.raises(UsageError, match=f"'nope' is not one of yours .*{ACCOUNT}"):
+        slurm_account("nope")
+    wd = make_workdir(tmp_path)
+    prefix = f"gearsim_acct_{os.getpid()}"
+    env = {**_env(), "SBATCH_PARTITION": cluster, "SBATCH_ACCOUNT": "nope"}
+    r = subprocess.run([str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "--workflow-profile",
+                        str(PROFILE), "--configfile", "config/tiny.yaml", "--slurm-jobname-prefix",
+                        prefix, "results/table1.md"], cwd=wd, env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode != 0, r.stdout + r.stderr
+    assert "SLURM account 'nope' is not one of yours" in r.stdout + r.stderr, r.stdout + r.stderr
+    assert "submitted with SLURM jobid" not in r.stdout + r.stderr

@@ -69,6 +69,7 @@ class PoolJob:
     mark: int = 0  # the judge's: probed periods when it last (re)started the job
     filled: int = 0
     hist: np.ndarray | None = None
+    state: np.ndarray | None = None  # the section state (10) when last shown to the judge
     result: CellResult | None = None
     ch: _Chain | None = field(default=None, repr=False)
     saved: np.ndarray | None = field(default=None, repr=False)
@@ -107,6 +108,10 @@ class PoolStats:
     steps: int = 0  # lane-steps the kernel computed (blocks x LANES x steps of each call)
     kernel_cpu_s: float = 0.0  # CPU time inside the kernel calls
     parked: int = 0  # times a job was parked
+    certify_periods: int = 0  # lane-periods integrated to certify orbits' neighbourhoods
+    radii: list = field(default_factory=list)  # certified radii (None: no radius passed)
+    early_certified: int = 0  # starts labelled inside a certified ball
+    early_recurrence: int = 0  # starts labelled by recurrence
 
     @property
     def lane_use(self) -> float:
@@ -360,6 +365,8 @@ def run_pool(
                 if c.left == 0 or (j.probe and j.probed % chunk == 0):
                     ready.append(j)
             checks = [j for j in ready if j.probe]
+            for j in checks:
+                j.state = probe.lanes.state(j.ch.lane, N_STATE)
             verdict = dict(zip(checks, judge.probed(checks), strict=True)) if checks else {}
             for j in ready:
                 v = verdict.get(j, GO)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import getpass
 import os
 import re
 import shutil
@@ -145,6 +146,39 @@ def fit_memory(mb_per_cpu: int, threads: int, rule: str = "a job",
             f"the largest node of partition {_partition(partition) or '(default)'} has "
             f"{limits[1]} MB: choose a partition with larger nodes (SBATCH_PARTITION)")
     return mb_per_cpu
+
+
+@functools.lru_cache(maxsize=8)
+def user_accounts(user: str) -> frozenset[str] | None:
+    """The SLURM accounts ``user`` may submit under (``sacctmgr`` associations, lower case);
+    ``None`` where nothing answers (no SLURM, or a cluster without accounting)."""
+    if shutil.which("sacctmgr") is None:
+        return None
+    cmd = ["sacctmgr", "--noheader", "--parsable2", "list", "associations", f"user={user}",
+           "format=account"]
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=30, check=True).stdout
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired):
+        return None
+    return frozenset(a.strip().lower() for a in out.split() if a.strip())
+
+
+def slurm_account(account: str | None = None) -> str:
+    """``account`` (else $SBATCH_ACCOUNT, else ''), checked against the user's accounts before
+    anything is submitted: an account sacctmgr does not list for the user is a one-line
+    UsageError (the executor plugin 2.8.0 raises in its submission thread and the run waits
+    forever). '' lets SLURM use the user's default account; where accounting does not answer,
+    or lists no account for the user, the account goes to sbatch unchecked."""
+    account = os.environ.get("SBATCH_ACCOUNT", "") if account is None else account
+    if not account:
+        return ""
+    known = user_accounts(getpass.getuser())
+    if known and account.lower() not in known:
+        raise UsageError(
+            f"SLURM account {account!r} is not one of yours (sacctmgr lists: "
+            f"{', '.join(sorted(known))}); set SBATCH_ACCOUNT to one of them, or unset it for "
+            "your default account")
+    return account
 
 
 @contextlib.contextmanager

@@ -14,7 +14,8 @@ RECUR_PERIOD_RTOL = 1e-4
 #: bookkeeping per chunk stays a small share; docs/decisions.md)
 POOL_LANES = 256
 
-_POSITIVE_INTS = ("starts", "chunk", "confirm", "confirm_cloud", "rescout", "grid", "lanes")
+_POSITIVE_INTS = ("starts", "chunk", "confirm", "confirm_cloud", "rescout", "grid", "lanes",
+                  "certify_tries", "certify_periods")
 
 
 @dataclass(frozen=True)
@@ -33,6 +34,11 @@ class FinderOptions:
     classifier's period test (None: the integration settings'). Scheduling: a start goes on
     alone past ``rescout`` probed periods without a label (its cell's *runner*); ``scouts``
     starts per cell run full first (the recurrence mapper); ``lanes`` of the probing pool.
+    ``certified``: label a probing start onto a periodic attractor once it is inside the
+    orbit's certified ball and its next chunk confirms the contraction
+    (:mod:`gearsim.analysis.attractors.certify`: the ``certify_periods``-period map; radii from
+    ``certify_radius`` of the range down by factors of 3, ``certify_tries`` of them);
+    recurrence stays for the rest.
     """
 
     starts: int = 16
@@ -52,6 +58,10 @@ class FinderOptions:
     scouts: int = 1
     rescout: int = 24
     lanes: int = POOL_LANES
+    certified: bool = True
+    certify_radius: float = 0.03
+    certify_tries: int = 2
+    certify_periods: int = 24
 
     def __post_init__(self):
         for name in _POSITIVE_INTS + ("scouts",):
@@ -60,7 +70,7 @@ class FinderOptions:
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ParameterError(f"setting '{name}' = {v!r} must be an integer >= {low}")
         for name in ("recur_rtol", "recur_period_rtol", "merge_rtol", "doubling_rtol",
-                     "cloud_overlap", "period_rtol"):  # fmt: skip
+                     "cloud_overlap", "period_rtol", "certify_radius"):  # fmt: skip
             v = getattr(self, name)
             if v is None and name == "period_rtol":
                 continue

@@ -17,8 +17,12 @@ for another start:
   label; the others that reach it are *parked* (lane state and history kept, lane freed). When
   the runner finishes (its motion joins the cell's list) or is labelled, the parked starts are
   tested again at once and resume (each with a fresh ``patience``); one of them becomes the
-  next runner. A start is never labelled other than by the rule of ``map_attractors``, so the
-  parking changes when a start is labelled, never what it is labelled onto.
+  next runner. Parking changes when a start is labelled, never what it is labelled onto.
+* Certified early labels (``certified``, :mod:`gearsim.analysis.attractors.certify`): a
+  start inside a periodic motion's certified ball at two chunk checks in a row, closer at the
+  second, is labelled onto it, before the recurrence rule of ``map_attractors`` (which labels
+  the rest). Every periodic motion of the cell's own runs is certified once, the forward
+  motion of the plane row included: it seeds the cell's starts from their first chunk.
 * The forward-continuation motion of the cell, when the plane tile already simulated it
   (``forward_results``), is a known attractor at no cost (``found_by = forward``); otherwise
   the forward state is a job of its own (the cell's first runner).
@@ -33,6 +37,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gearsim.analysis.attractors.certify import certify, eligible, worth
 from gearsim.analysis.attractors.gear import GearCells, gear_steady, sobol_unit
 from gearsim.analysis.attractors.matching import _Known, assemble, least_periods
 from gearsim.analysis.attractors.options import FinderOptions
@@ -69,13 +74,16 @@ class _Cell:
         self.cont: list[tuple[str, Steady]] = []
         self.runner: PoolJob | None = None
         self.parked: list[PoolJob] = []
+        self.certs: dict = {}  # attractor index -> Certificate or None
+        self.cand: dict[int, tuple[int, float, int]] = {}  # start -> (attractor, d, probed)
 
 
 class _Judge:
     """The finder's side of :func:`gearsim.cell.pool.run_pool` for the cells of one grid."""
 
     def __init__(self, cells: list[_Cell], forward, backward, forward_results, st,
-                 opts: FinderOptions, history: int, early: bool):
+                 opts: FinderOptions, history: int, early: bool, stats: PoolStats):
+        self.stats = stats
         self.cells = deque(cells)
         self.forward = forward
         self.backward = backward
@@ -133,7 +141,12 @@ class _Judge:
         out = [GO] * len(jobs)
         for rows in by_cell.values():
             cell = jobs[rows[0]].key[0]
-            hit = self._recur(cell, [jobs[r] for r in rows])
+            sub = [jobs[r] for r in rows]
+            hit = self._certified(cell, sub)
+            rec = self._recur(cell, sub)
+            self.stats.early_certified += int(np.sum(hit >= 0))
+            self.stats.early_recurrence += int(np.sum((hit < 0) & (rec >= 0)))
+            hit = np.where(hit >= 0, hit, rec)
             for r, a in zip(rows, hit, strict=True):
                 j = jobs[r]
                 if a >= 0:
@@ -176,6 +189,52 @@ class _Judge:
             self._release(cell)
 
     # ---- helpers
+    def _certified(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
+        """Attractor each start is labelled onto by its certified ball (-1: none): inside a
+        certified ball now and one chunk ago, and closer now (module certify). The forward
+        motion of the plane row seeds the cell: a certified orbit from the first chunk on."""
+        out = np.full(len(jobs), -1, dtype=np.int64)
+        o = self.opts
+        if not o.certified:
+            return out
+        kn = cell.known
+        for a, s in enumerate(kn.steadies):
+            # every periodic motion of this cell's own runs, the forward continuation's
+            # included (no recurrence target unless refined: the certificate is its check)
+            if a not in cell.certs and not kn.ambiguous[a] and s.period > 0:
+                cert, spent = None, 0
+                if (o.chunk % s.period == 0 and eligible(s, o.certify_periods)
+                        and worth(cell.params, s, self.st, int(np.sum(cell.labels == -2)),
+                                  o.certify_periods, o.certify_radius,
+                                  o.recur_period_rtol)):  # fmt: skip
+                    cert, spent = certify(cell.params, s, self.st, o.certify_periods,
+                                          o.certify_radius, o.certify_tries)  # fmt: skip
+                cell.certs[a] = cert
+                self.stats.certify_periods += spent
+                if spent:
+                    self.stats.radii.append(None if cert is None else cert.r)
+        live = [(a, c) for a, c in cell.certs.items() if c is not None and not kn.ambiguous[a]]
+        if not live:
+            return out
+        y = np.array([j.state for j in jobs])
+        best = np.full(len(jobs), -1, dtype=np.int64)
+        dist = np.full(len(jobs), np.inf)
+        for a, c in live:
+            d = c.distance(y) / c.r
+            take = (d < 1.0) & (d < dist)
+            best[take], dist[take] = a, d[take]
+        for r, j in enumerate(jobs):
+            i = j.key[1]
+            prev = cell.cand.pop(i, None)
+            if best[r] < 0:
+                continue
+            if (prev is not None and prev[0] == best[r] and dist[r] < prev[1]
+                    and j.probed - prev[2] == o.chunk):  # fmt: skip
+                out[r] = best[r]
+            else:
+                cell.cand[i] = (int(best[r]), float(dist[r]), int(j.probed))
+        return out
+
     def _recur(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
         out = np.full(len(jobs), -1, dtype=np.int64)
         if not cell.known.steadies:
@@ -201,6 +260,7 @@ class _Judge:
         if cell.runner is not None or not cell.parked:
             return
         parked, cell.parked = cell.parked, []
+        self._certified(cell, parked)  # inside a certified ball: confirmed at the next chunk
         hit = self._recur(cell, parked)
         rest = []
         for j, a in zip(parked, hit, strict=True):
@@ -219,6 +279,29 @@ class _Judge:
                     cell.parked.append(j)
             else:
                 self.ready.appendleft(j)
+
+
+def _forward_margins(params_list, forward_results, st) -> None:
+    """The Floquet margins of the plane rows' periodic motions in shared kernel calls, before
+    the pool (the margins the finder's last step would take one by one at a certification;
+    ``GearCells.fill_margins`` then finds them known)."""
+    from gearsim.cell.verify import orbit_margins, wants_margin
+
+    if st.floquet != "margin":
+        return
+    todo = []
+    for p, s in zip(params_list, forward_results, strict=True):
+        if s is None or s.status != "ok" or s.final_state is None:
+            continue
+        i = s.info or {}
+        if wants_margin(s.period, i.get("status", "ok"), bool(i.get("refined")),
+                        i.get("mu_max"), p.var_ratio):  # fmt: skip
+            todo.append((p, s))
+    got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
+                        [s.final_state for _, s in todo], st)  # fmt: skip
+    for (_, s), m in zip(todo, got, strict=True):
+        if m is not None:
+            s.info["mu_max"], s.info["critical"] = m
 
 
 def map_gear_cells(
@@ -248,6 +331,8 @@ def map_gear_cells(
     else:
         st_states = [np.atleast_2d(np.asarray(s, dtype=float)) for s in start_states]
     history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
+    if opts.early and opts.certified and forward_results is not None:
+        _forward_margins(params_list, forward_results, st)
     cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
     groups: dict[tuple, list[_Cell]] = {}
     for cell in cells:
@@ -257,7 +342,7 @@ def map_gear_cells(
     stats = stats if stats is not None else PoolStats()
     for (N, nu), group in groups.items():
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
-                       opts.early)  # fmt: skip
+                       opts.early, stats)  # fmt: skip
         run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,
                  stats=stats)  # fmt: skip
     for cell in cells:

@@ -1,0 +1,83 @@
+"""Certified early labels (gearsim.analysis.attractors.certify).
+
+- Points inside a certified ball of a stable orbit reach that orbit in their own full-length
+  runs (``simulate_cell`` from each, classified as a plane cell is).
+- Early labels given by the certified rule (recurrence within 1e-9 of the range) are the
+  attractors of every start's full-length run, on gear cells with 1-3 attractors.
+- With the forward motion known (a plane tile's row), most starts are labelled inside a
+  certified ball.
+"""
+
+import numpy as np
+from attractor_checks import assert_same_attractors_per_start
+from reference import reference_settings
+
+from gearsim.analysis.attractors import (
+    FinderOptions,
+    GearCells,
+    find_attractors,
+    gear_steady,
+    same_attractor,
+)
+from gearsim.analysis.attractors.certify import certify
+from gearsim.cell import chains
+from gearsim.cell.pool import PoolStats
+from gearsim.cell.simulate import simulate_cell
+from gearsim.dynamics.parameters import ModelParameters
+
+GEAR = reference_settings(method="rk4", transient=150, transient_continuation=40)
+REFERENCE = dict(
+    Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,
+)  # the fixed reference set of tests/integration/test_convergence.py
+
+CELLS = [
+    ModelParameters(w=1.1, b=0.15, **REFERENCE),
+    ModelParameters(w=0.82, b=0.15, **REFERENCE),
+    ModelParameters(w=0.66, b=1.0, **REFERENCE),  # the softening fold: two attractors
+    ModelParameters(w=1.45, b=1.0, **REFERENCE),  # chaos and a 2-1-1
+    ModelParameters(w=1.95, b=0.3, **REFERENCE),
+]
+
+
+def test_points_inside_a_certified_ball_reach_its_orbit():
+    p = ModelParameters(w=0.82, b=0.15, **REFERENCE)
+    st = GearCells([p], GEAR).settings
+    orbit = gear_steady(simulate_cell(p, settings=st))
+    cert, spent = certify(p, orbit, st, 24, 0.03, 2)
+    assert cert is not None and spent > 0
+    assert 0.0 < cert.r <= 0.03 and cert.ratio < 1.0
+    rng = np.random.default_rng(3)
+    fin = np.where(np.isfinite(cert.scales), cert.scales, 0.0)
+    for _ in range(4):
+        y = cert.centres[0] + 0.99 * cert.r * rng.uniform(-1.0, 1.0, 10) * fin
+        assert cert.distance(y[None, :])[0] < cert.r
+        own = gear_steady(simulate_cell(p, y, settings=st))
+        assert same_attractor(own, orbit)
+
+
+def test_certified_labels_alone_equal_full_length_runs():
+    stats = PoolStats()
+    opts = FinderOptions(starts=64, seed=5, lanes=64)  # 64: certifying pays off
+    # recurrence within 1e-9 of the range: almost every early label is a certified one
+    fast = find_attractors(CELLS, opts.with_(recur_rtol=1e-9), settings=GEAR, stats=stats)
+    full = find_attractors(CELLS, opts.with_(early=False), settings=GEAR)
+    # (a cell without a certified orbit, e.g. chaos, runs every start full: no fewer periods)
+    n_early = assert_same_attractors_per_start(fast, full, fewer_periods=False)
+    assert sum(int(a.start_periods_run.sum()) for a in fast) < sum(
+        int(b.start_periods_run.sum()) for b in full)
+    assert stats.early_recurrence <= stats.early_certified // 4
+    assert n_early >= stats.early_certified >= 16
+    assert any(r is not None for r in stats.radii)
+
+
+def test_forward_motion_seeds_certified_labels():
+    cells = CELLS[1:3]
+    rows = chains.simulate_rows([cells], settings=GearCells(cells, GEAR).settings)[0]
+    motions = [gear_steady(r) for r in rows]
+    stats = PoolStats()
+    opts = FinderOptions(starts=64, seed=1, lanes=64)
+    fast = find_attractors(cells, opts, settings=GEAR, forward_results=motions, stats=stats)
+    full = find_attractors(cells, opts.with_(early=False), settings=GEAR,
+                           forward_results=motions)
+    assert_same_attractors_per_start(fast, full)
+    assert stats.early_certified >= 16
