@@ -48,7 +48,7 @@ from gearsim.study.config import Study
 
 POPULATION = 16
 
-#: the shared box (every form): a window around the round-1 fit and MODEL.md's feasibility
+#: the shared box (every form): a window around the landmark fit and MODEL.md's feasibility
 #: sets (a wider box, Fe/Fm 1.2-2.4, eps 0-0.6, phi -120..60 deg, gave 15 of 17 first Sobol
 #: candidates with no usable landmark sequence: at this budget DE could not even leave the start)
 SHARED_FREE: tuple[FreeParameter, ...] = (
@@ -108,7 +108,7 @@ class Form:
 
 def _forms() -> dict[str, Form]:
     f = [
-        Form("single_dof", "round-1 form: error as inertial load Fe w^2, damping always on, "
+        Form("single_dof", "base form: error as inertial load Fe w^2, damping always on, "
              "rigid bearings (single-DOF), w over sqrt(Km/Me), mean friction arm, continuation "
              "sweep", {"model": "1dof"}),
         Form("fixed_start", "single_dof's equations; the paper's sweep method: every w starts from "

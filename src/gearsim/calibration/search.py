@@ -1,7 +1,7 @@
 """The search: free parameters, the vector-to-parameters map, one bisection, one seeded
 differential-evolution driver with its refinement, and the logged objective wrapper.
 
-Every calibration search (the round-1 landmark fit, :mod:`gearsim.calibration.calibrate`, and
+Every calibration search (the landmark fit, :mod:`gearsim.calibration.calibrate`, and
 the per-form fits, :mod:`gearsim.calibration.forms`) uses these; only the objective differs.
 """
 

@@ -126,7 +126,7 @@ FIXED_PROVENANCE: dict[str, dict[str, str]] = {
 def standard_from_record(record: Mapping[str, Any], *, bearing_ratio: float,
                          bearing_xi: float) -> dict[str, Any]:
     """The standard-parameter document from a calibration record (docs/calibration.json: the
-    round-1 search's vector, the scale ``Fm`` from the backlash threshold), or MODEL.md's set
+    landmark search's vector, the scale ``Fm`` from the backlash threshold), or MODEL.md's set
     when the record has no search; bearings ``K_ij = bearing_ratio Km`` with damping ratio
     ``bearing_xi``."""
     geo = GearGeometry()

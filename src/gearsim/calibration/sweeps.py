@@ -38,7 +38,7 @@ THRESHOLD_W_GRID = np.linspace(0.1, 2.5, 241)
 @dataclass(frozen=True)
 class SweepSettings:
     """The w grid and the integration of the calibration sweeps: the one definition that the
-    round-1 objective (:class:`gearsim.calibration.calibrate.ObjectiveSettings`) and the forms'
+    landmark objective (:class:`gearsim.calibration.calibrate.ObjectiveSettings`) and the forms'
     measurement (:class:`gearsim.calibration.fidelity.FidelitySettings`) share."""
 
     w_min: float = 0.3
