@@ -2,7 +2,16 @@
 
 from __future__ import annotations
 
+from reference import reference_settings
+
 from gearsim.analysis.attractors import same_attractor
+
+#: the gear settings and the fixed reference set (tests/integration/test_convergence.py) of the
+#: finder's tests
+GEAR = reference_settings(method="rk4", transient=150, transient_continuation=40)
+REFERENCE = dict(
+    Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,
+)  # the fixed reference set of tests/integration/test_convergence.py
 
 
 def assert_same_attractors_per_start(fast, full, fewer_periods: bool = True) -> int:

@@ -9,8 +9,7 @@
 """
 
 import numpy as np
-from attractor_checks import assert_same_attractors_per_start, reference_attractors
-from reference import reference_settings
+from attractor_checks import GEAR, REFERENCE, assert_same_attractors_per_start, reference_attractors
 
 from gearsim.analysis import attractors as ref
 from gearsim.analysis.attractors import (
@@ -24,11 +23,6 @@ from gearsim.cell import chains
 from gearsim.cell.pool import MEASURE, PARK, PoolJob, PoolStats, run_pool
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.batch import steps_per_period
-
-GEAR = reference_settings(method="rk4", transient=150, transient_continuation=40)
-REFERENCE = dict(
-    Fm=0.1, Fe=0.1724, eps=0.371, xi=0.05, phi_e=-0.7853981633974483, friction=0.0,
-)  # the fixed reference set of tests/integration/test_convergence.py
 
 CELLS = [
     ModelParameters(w=1.1, b=0.15, **REFERENCE),  # 2-2-1 and 3-3-2

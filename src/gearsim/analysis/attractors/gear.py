@@ -134,24 +134,8 @@ class GearCells:
         place; ``found[c]`` belongs to cell ``c``): the margin of a plane cell's motion
         (:func:`gearsim.cell.verify.orbit_margins`, the cells' attractors in shared kernel
         calls; only with ``floquet`` ``"margin"``)."""
-        from gearsim.cell.verify import orbit_margins, wants_margin
-
-        st = self.settings
-        if st.floquet != "margin":
-            return
-        todo = []
-        for p, ca in zip(self.params, found, strict=True):
-            for a in ca.attractors:
-                s, i = a.steady, a.steady.info
-                if (s.status == "ok" and s.final_state is not None
-                        and wants_margin(s.period, i.get("status", "ok"), bool(i.get("refined")),
-                                         i.get("mu_max"), p.var_ratio)):
-                    todo.append((p, s))
-        got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
-                            [s.final_state for _, s in todo], st)  # fmt: skip
-        for (_, s), m in zip(todo, got, strict=True):
-            if m is not None:
-                s.info["mu_max"], s.info["critical"] = m
+        fill_orbit_margins([(p, a.steady) for p, ca in zip(self.params, found, strict=True)
+                            for a in ca.attractors], self.settings)
 
 
 def gear_steady(res) -> Steady:
@@ -176,3 +160,25 @@ def gear_steady(res) -> Steady:
     )
 
 
+def fill_orbit_margins(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) -> None:
+    """Each settled periodic motion of ``pairs`` (its cell's parameters, the motion) that lacks
+    a Floquet margin gets one, in place (``info["mu_max"]``, ``info["critical"]``), all in
+    shared kernel calls (:func:`gearsim.cell.verify.orbit_margins`); only with ``floquet``
+    ``"margin"``."""
+    from gearsim.cell.verify import orbit_margins, wants_margin
+
+    if st.floquet != "margin":
+        return
+    todo = []
+    for p, s in pairs:
+        if s is None or s.status != "ok" or s.final_state is None:
+            continue
+        i = s.info or {}
+        if wants_margin(s.period, i.get("status", "ok"), bool(i.get("refined")),
+                        i.get("mu_max"), p.var_ratio):  # fmt: skip
+            todo.append((p, s))
+    got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
+                        [s.final_state for _, s in todo], st)  # fmt: skip
+    for (_, s), m in zip(todo, got, strict=True):
+        if m is not None:
+            s.info["mu_max"], s.info["critical"] = m

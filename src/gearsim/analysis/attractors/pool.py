@@ -38,7 +38,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from gearsim.analysis.attractors.certify import certify, eligible, worth
-from gearsim.analysis.attractors.gear import GearCells, gear_steady, sobol_unit
+from gearsim.analysis.attractors.gear import (
+    GearCells,
+    fill_orbit_margins,
+    gear_steady,
+    sobol_unit,
+)
 from gearsim.analysis.attractors.matching import _Known, assemble, least_periods
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.results import FOUND_BY, CellAttractors, Steady
@@ -285,23 +290,7 @@ def _forward_margins(params_list, forward_results, st) -> None:
     """The Floquet margins of the plane rows' periodic motions in shared kernel calls, before
     the pool (the margins the finder's last step would take one by one at a certification;
     ``GearCells.fill_margins`` then finds them known)."""
-    from gearsim.cell.verify import orbit_margins, wants_margin
-
-    if st.floquet != "margin":
-        return
-    todo = []
-    for p, s in zip(params_list, forward_results, strict=True):
-        if s is None or s.status != "ok" or s.final_state is None:
-            continue
-        i = s.info or {}
-        if wants_margin(s.period, i.get("status", "ok"), bool(i.get("refined")),
-                        i.get("mu_max"), p.var_ratio):  # fmt: skip
-            todo.append((p, s))
-    got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
-                        [s.final_state for _, s in todo], st)  # fmt: skip
-    for (_, s), m in zip(todo, got, strict=True):
-        if m is not None:
-            s.info["mu_max"], s.info["critical"] = m
+    fill_orbit_margins(list(zip(params_list, forward_results, strict=True)), st)
 
 
 def map_gear_cells(
