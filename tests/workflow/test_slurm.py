@@ -14,7 +14,7 @@ is cancelled with ``scancel`` while it runs. Checked:
   configuration on ``--cores 2``) value for value (ids and provenance aside);
 * a tile run as a 2-CPU job step has a 2-worker LocalCluster (one worker per CPU SLURM gave);
 * the profile's grouping: one SLURM job of one CPU per tile (the tile and its attractor tile),
-  every other job in one group job of two CPUs;
+  the small jobs in three group jobs of one CPU each;
 * an account sacctmgr does not list for the user stops the run before anything is submitted.
 """
 
@@ -43,7 +43,7 @@ CATALOGUE = "results/catalogue.d/build.sqlite"
 # a hang guard only: the run takes ~3-4 min on 2 idle cores
 TIMEOUT = 1800
 #: the profile's group jobs of small jobs (profiles/slurm/config.yaml, groups) and their CPUs
-GROUPS = {"small": 2}
+GROUPS = {"curves": 1, "tables": 1, "report": 1}
 #: tiles of the tiny configuration: one SLURM job each (the tiles group)
 TILES = 4
 
@@ -248,7 +248,7 @@ def test_every_rule_job_ran_in_slurm(slurm_run):
     assert re.search(r"^60 of 60 steps \(100%\) done$", log, re.M), log[-3000:]
 
 
-def test_small_jobs_went_in_one_group_job(slurm_run):
+def test_small_jobs_went_in_three_group_jobs_of_one_cpu(slurm_run):
     jobs, log = slurm_run["jobs"], slurm_run["log"]
     groups = [g for g in re.findall(r"\] Group job (\w+) ", log) if g != "tiles"]
     assert sorted(groups) == sorted(GROUPS), groups
