@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from gearsim.dynamics import model as _m
-from gearsim.errors import ParameterError  # noqa: E402  (re-exported: raised by every check here)
+from gearsim.errors import ParameterError, reject_unknown  # noqa: E402  (ParameterError re-exported)
 
 # name -> (lower, upper, lower inclusive, upper inclusive, meaning)
 _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
@@ -158,12 +158,7 @@ class ModelParameters:
     @classmethod
     def from_mapping(cls, values: dict[str, Any]) -> ModelParameters:
         """Build from a mapping, rejecting unknown keys with a clear error."""
-        known = {f.name for f in fields(cls)}
-        for key in values:
-            if key not in known:
-                raise ParameterError(
-                    f"unknown parameter '{key}'; allowed: {', '.join(sorted(known))}"
-                )
+        reject_unknown(values, sorted(f.name for f in fields(cls)), "parameter")
         return cls(**values)
 
     def with_(self, **changes: Any) -> ModelParameters:

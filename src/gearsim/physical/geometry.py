@@ -42,6 +42,7 @@ from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.errors import reject_unknown
 
 #: ISO 6336-1 / DIN 3990 coefficients of q' (mm um / N)
 ISO_C = (0.04723, 0.15551, 0.25791, -0.00635, -0.11654, -0.00193, -0.24188, 0.00529, 0.00182)
@@ -426,11 +427,7 @@ class GearGeometry:
     @classmethod
     def from_mapping(cls, values: dict[str, Any]) -> GearGeometry:
         """Build from a mapping of field names; unspecified fields keep the standard gear's."""
-        known = {f.name for f in fields(cls)}
-        for key in values:
-            if key not in known:
-                raise ParameterError(f"unknown gear parameter '{key}'; allowed: "
-                                     f"{', '.join(f.name for f in fields(cls))}")
+        reject_unknown(values, cls.names(), "gear parameter")
         return cls(**values)
 
     @classmethod
