@@ -64,9 +64,20 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
 MODELS = ("6dof", "1dof")
 
 
-def _range_text(name: str) -> str:
-    lo, hi, lo_in, hi_in, _ = _RANGES[name]
+def interval_text(spec: tuple) -> str:
+    """``spec = (lower, upper, lower inclusive, upper inclusive, ...)`` as ``[lo, hi)`` etc."""
+    lo, hi, lo_in, hi_in = spec[:4]
     return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+
+
+def in_interval(v: float, spec: tuple) -> bool:
+    """``v`` finite and inside ``spec = (lower, upper, lower inclusive, upper inclusive, ...)``."""
+    lo, hi, lo_in, hi_in = spec[:4]
+    return math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
+
+
+def _range_text(name: str) -> str:
+    return interval_text(_RANGES[name])
 
 
 def check_value(name: str, value: Any) -> float:
@@ -85,14 +96,13 @@ def check_value(name: str, value: Any) -> float:
             f"parameter '{name}' must be a number in {_range_text(name)}, got {value!r}"
         )
     v = float(value)
-    lo, hi, lo_in, hi_in, meaning = _RANGES[name]
+    meaning = _RANGES[name][4]
     if v != 0.0 and abs(v) < sys.float_info.min:
         raise ParameterError(
             f"parameter '{name}' ({meaning}) = {value!r} is subnormal; allowed range "
             f"{_range_text(name)} with |value| >= {sys.float_info.min:g} or 0"
         )
-    ok = math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
-    if not ok:
+    if not in_interval(v, _RANGES[name]):
         raise ParameterError(
             f"parameter '{name}' ({meaning}) = {value!r} is outside the allowed range "
             f"{_range_text(name)}"
