@@ -46,7 +46,7 @@ def test_sequence_distance_known_values():
     ours = ["0/1T", "1/1T", "1/2T", "1/4T", "1/8T", "1/16T", "chaos", "1/8T", "1/4T", "1/2T",
             "1/1T"]
     assert sequence_distance(PAPER_SEQUENCES["xi005"], ours) == 0
-    # Fig 15c against round 1's sweep at xi = 0.15 (a period-2 window remains)
+    # Fig 15c against a sweep at xi = 0.15 with a period-2 window left
     assert sequence_distance(PAPER_SEQUENCES["xi015"], ["0/1T", "1/1T", "1/2T", "1/1T"]) == 2
 
 
