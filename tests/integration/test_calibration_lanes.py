@@ -83,7 +83,7 @@ def test_sweep_records_many_is_sweep_records_chain_by_chain():
 def test_a_lane_fit_leaves_its_state_after_every_generation(tmp_path):
     import json
 
-    from gearsim.calibration.forms import collect_fit, fit_form_cmaes, state_path
+    from gearsim.calibration.lane_fit import collect_fit, fit_form_cmaes, state_path
 
     form = FORMS["single_dof"]
     rec = fit_form_cmaes(form, seed=4, log_dir=tmp_path / "logs", max_evals=1, final=False,

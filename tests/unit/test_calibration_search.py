@@ -78,7 +78,8 @@ def test_w_sweep_maps_the_axis_onto_the_simulated_frequency():
 
 
 def test_a_form_record_carries_its_own_run_and_the_table_prefers_it(tmp_path):
-    from gearsim.calibration.forms import Run, collect_forms
+    from gearsim.calibration.fit_record import Run
+    from gearsim.calibration.form_search import collect_forms
 
     run = Run().record()
     head = subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "--short",

@@ -2,7 +2,7 @@
 differential-evolution driver with its refinement, and the logged objective wrapper.
 
 Every calibration search (the landmark fit, :mod:`gearsim.calibration.calibrate`, and
-the per-form fits, :mod:`gearsim.calibration.forms`) uses these; only the objective differs.
+the per-form fits, :mod:`gearsim.calibration.form_search`) uses these; only the objective differs.
 """
 
 from __future__ import annotations
