@@ -69,6 +69,12 @@ class FormBatch:
         return Js
 
 
+def checkpoint_path(log_dir: str | Path, form: str, seed: int) -> Path:
+    """``<log_dir>/<form>-lanes.s<seed>.cma.pkl``: the whole search (cma's state included),
+    from which an interrupted or budget-stopped fit resumes."""
+    return Path(log_dir) / f"{form}-lanes.s{seed}.cma.pkl"
+
+
 def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int = 3000,
                    min_evals: int = 0, flat_evals: int = 600, time_budget: float | None = None,
                    final: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
@@ -76,8 +82,10 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
     start, every population measured in lanes (:data:`LANES`); then, with ``final``, the best
     set and the start measured exactly (DP5, :func:`final_measure`) beside the best set's lane
     measurement. A JSON-able record with its run (wall, CPU, load), the best-J curve and why
-    the search stopped."""
-    from gearsim.calibration.search import run_cmaes
+    the search stopped. A fit with a checkpoint (:func:`checkpoint_path`) resumes from it:
+    its evaluation log is kept (cut to the checkpoint's evaluations) and the search continues
+    exactly where it stopped."""
+    from gearsim.calibration.search import checkpoint_evaluations, run_cmaes
 
     if not form.available():
         return {"form": form.name, "skipped": f"needs parameters {form.requires}"}
@@ -85,8 +93,17 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
     Path(log_dir).mkdir(parents=True, exist_ok=True)
     logp = str(Path(log_dir) / f"{form.name}-lanes.s{seed}.jsonl")
     statep = state_path(log_dir, form.name, seed)
-    Path(logp).unlink(missing_ok=True)
-    statep.unlink(missing_ok=True)
+    ckp = checkpoint_path(log_dir, form.name, seed)
+    done = checkpoint_evaluations(ckp)
+    if done is None:
+        Path(logp).unlink(missing_ok=True)
+        statep.unlink(missing_ok=True)
+    else:
+        # the log as far as the checkpoint: a generation cut off after its log line was
+        # written and before the checkpoint is evaluated again
+        lines = Path(logp).read_text().splitlines() if Path(logp).is_file() else []
+        Path(logp).write_text("".join(line + "\n" for line in lines[:done]))
+        log(f"[{form.name} s{seed}] resuming from {ckp} after {done} evaluations")
     batch = FormBatch(form, LANES, logp)
     bounds = [(f.lower, f.upper) for f in form.free]
     names = [f.name for f in form.free]
@@ -110,7 +127,7 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
 
     res = run_cmaes(batch, bounds, seed=seed, x0=form.start, max_evals=max_evals,
                     min_evals=min_evals, flat_evals=flat_evals, time_budget=time_budget,
-                    on_generation=gen)
+                    on_generation=gen, checkpoint=ckp)
     rec: dict[str, Any] = {
         "form": form.name, "text": form.text, "fixed": form.fixed,
         "continuation": form.continuation, "free": [asdict(f) for f in form.free],
@@ -122,6 +139,7 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
         "curve": res["curve"], "J_lanes": res["J"],
         "best": dict(zip(names, res["x"], strict=True)),
         "cpu_s_search": res["cpu_s"], "wall_s_search": res["wall_s"],
+        "resumed": res["resumed"],
     }
     log(f"[{form.name} s{seed}] search: J (lanes) {res['J']:.4f} after {res['nfev']} "
         f"evaluations ({res['stopped_by']}), {res['wall_s']:.0f} s")
