@@ -3,7 +3,7 @@
 * scalar ``integrate_periods`` (gearsim.numerics.integrate): fixed-step RK4 (256 steps per period)
 and
   adaptive DP5 (rtol 1e-9, atol 1e-12), with and without the tangent vector;
-* batched RK4 (gearsim.numerics.batch.advance) with 8 ... 64 lanes.
+* batched RK4 (gearsim.numerics.kernel.advance) with 8 ... 64 lanes.
 
 Cells: ModelParameters defaults at w in [0.6, 2.4], b in {0.15, 0.3, 1.0} (impacting, some
 double-sided, some chaotic), started after a 100-period transient. A cell-step is one accepted

@@ -1,7 +1,7 @@
 """Batched kernel before and after the one-source refactor, side by side in one run.
 
-The old kernel is the package as of a git revision (default ``ef892c4``, the last commit before
-issue 10), exported with ``git archive`` into a temporary directory; the new one is this
+The old kernel is the package as of a git revision (``--rev``, e.g. the commit before a kernel
+change), exported with ``git archive`` into a temporary directory; the new one is this
 checkout's ``src``. Each version runs in its own interpreter (own Numba cache, warmed first) on the
 same cells, alternating old / new (the order swapped every round) for several rounds so that both
 see the same machine load. Reported: batched RK4 cell-steps per second per core (CPU time), with
@@ -9,7 +9,7 @@ and without the tangent vector, and the new/old ratio (target: >= 0.95) of the m
 rounds and of the best rounds (the best round is the least disturbed by other jobs on a loaded
 machine).
 
-Usage: python benchmarks/bench_kernel_ab.py [--rev ef892c4] [--rounds 3] [--quick]
+Usage: python benchmarks/bench_kernel_ab.py --rev REV [--rounds 3] [--quick]
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ def run_version(src: Path, cache: Path, n: int, periods: int, repeats: int) -> d
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rev", default="ef892c4", help="git revision of the old kernel")
+    ap.add_argument("--rev", required=True, help="git revision of the old kernel")
     ap.add_argument("--rounds", type=int, default=3, help="alternating old/new rounds")
     ap.add_argument("--quick", action="store_true", help="fewer periods")
     args = ap.parse_args(argv)

@@ -2,7 +2,7 @@
 
 Compiles the kernel in a fresh Numba cache (``inspect_asm`` is disabled for cached code), runs
 it once with and without the tangent vector, and counts, in the lane loop of each compiled
-``batch._block_step*`` (one loop iteration = one SIMD vector of lanes):
+``kernel._block_step*`` (one loop iteration = one SIMD vector of lanes):
 
 * instructions, and among them vector arithmetic (FMA, mul, add/sub, div, compares), loads and
   stores of vectors (from the block or the stack), stack spills/reloads, masks and selects;
@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 from gearsim.cell import chains  # noqa: E402
 from gearsim.cell.simulate import IntegrationSettings  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
-from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics import kernel  # noqa: E402
 
 ARITH = ("vfmadd", "vfmsub", "vfnmadd", "vfnmsub", "vmulpd", "vaddpd", "vsubpd", "vdivpd",
          "vmaxpd", "vminpd", "vsqrtpd")
@@ -107,9 +107,9 @@ def main(argv=None) -> int:
                              max_periods=8, n_max=2)
     chains.simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
     out = {}
-    fns = [f for f in ("_block_step", "_block_step_state") if hasattr(batch, f)]
+    fns = [f for f in ("_block_step", "_block_step_state") if hasattr(kernel, f)]
     for name in fns:
-        fn = getattr(batch, name)
+        fn = getattr(kernel, name)
         for sig, asm in fn.inspect_asm().items():
             key = f"{name}{tuple(str(t) for t in sig[-2:])}"
             loops = loop_stats(native_body(asm))

@@ -40,7 +40,7 @@ import json, sys, time
 t_import = time.perf_counter()
 import numpy as np
 from numba import njit
-from gearsim.numerics import batch
+from gearsim.numerics import batch, kernel
 from gearsim.numerics.steps import FASTMATH
 from bench_kernel import cells, start_states
 from bench_kernel_asm import native_body
@@ -149,7 +149,7 @@ for tangent in (False, True):
         cpu.append(time.process_time() - c0)
     rate = n * periods * N / sorted(cpu)[len(cpu) // 2]
     out["tangent" if tangent else "state"] = {"cell_steps_per_s": rate}
-for sig, asm in batch._block_step.inspect_asm().items():
+for sig, asm in kernel._block_step.inspect_asm().items():
     t, _, forms = (str(x) for x in sig[-3:])
     if "False" in forms:
         out["tangent" if "True" in t else "state"].update(arith_per_cell_step(asm))

@@ -16,8 +16,8 @@ One run measures, side by side on the same machine state:
   the recurrence test, full-length runs (``GearCells.steady``) and merging.
 
 Effective rate = cell-steps of the cells (their ``steps`` column: grid steps plus the event
-layer's trial steps) / CPU seconds of the whole stage. The ratio effective / kernel is issue 16's
-"pipeline at the kernel's rate" target (>= 0.8).
+layer's trial steps) / CPU seconds of the whole stage. The ratio effective / kernel says how near
+the pipeline runs to the kernel's rate (the target is >= 0.8).
 
 Usage: python benchmarks/bench_profile.py [--plane wb] [--j0 240] [--rows 24] [--name profile]
 """

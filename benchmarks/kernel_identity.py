@@ -1,8 +1,8 @@
 """The quick configuration's results of an older revision against this checkout's.
 
 Not a timing: an identity check (the quick configuration's catalogue identical in every label,
-n, p, q, impact and status; values within 1e-9). The old package is a git revision (default
-``ef892c4``) exported with ``git archive`` (``src``, ``config``, ``workflow``); the new one is this
+n, p, q, impact and status; values within 1e-9). The old package is a git revision
+(``--rev``) exported with ``git archive`` (``src``, ``config``, ``workflow``); the new one is this
 checkout. Each runs in its own interpreter and Numba cache and computes what the quick
 configuration's catalogue holds: both planes (every tile, its rows grouped as a tile job with 2
 workers groups them, through ``tiles.simulate_rows_batched``), the seven sweeps of both versions'
@@ -14,7 +14,7 @@ with it on the Lyapunov exponents differ by design. Then every record is compare
 columns exactly, float columns and arrays (final state, section samples, trajectories) to the
 last bit, the largest difference reported.
 
-Usage: python benchmarks/kernel_identity.py [--rev ef892c4] [--planes-only]
+Usage: python benchmarks/kernel_identity.py --rev REV [--planes-only]
 (about 2 x 3 min of CPU on a warm cache; a cold Numba cache adds a compile per version).
 """
 
@@ -158,7 +158,7 @@ def compare(old: dict, new: dict) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rev", default="ef892c4", help="git revision of the old package")
+    ap.add_argument("--rev", required=True, help="git revision of the old package")
     ap.add_argument("--planes-only", action="store_true", help="the two planes only")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:

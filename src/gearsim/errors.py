@@ -21,3 +21,11 @@ class ConfigError(ParameterError):
 
 
 USER_ERRORS = (ParameterError, UsageError)
+
+
+def reject_unknown(keys, allowed, what: str) -> None:
+    """Raise :class:`ParameterError` for the first of ``keys`` not in ``allowed``, naming it
+    (as ``what``) and every allowed name in ``allowed``'s order."""
+    for key in keys:
+        if key not in allowed:
+            raise ParameterError(f"unknown {what} '{key}'; allowed: {', '.join(allowed)}")

@@ -83,7 +83,7 @@ def test_sweep_records_many_is_sweep_records_chain_by_chain():
 def test_a_lane_fit_leaves_its_state_after_every_generation(tmp_path):
     import json
 
-    from gearsim.calibration.forms import collect_fit, fit_form_cmaes, state_path
+    from gearsim.calibration.lane_fit import collect_fit, fit_form_cmaes, state_path
 
     form = FORMS["single_dof"]
     rec = fit_form_cmaes(form, seed=4, log_dir=tmp_path / "logs", max_evals=1, final=False,
@@ -102,3 +102,11 @@ def test_a_lane_fit_leaves_its_state_after_every_generation(tmp_path):
     assert (s["nfev"], s["J_lanes"], s["stopped_by"], s["timed"]) == (
         rec["nfev"], rec["J_lanes"], "unfinished", True)
     assert s["cpu_s_search"] == state["cpu_s_search"]
+    # resumed with a larger budget: the same search continues, its log kept and extended
+    more = fit_form_cmaes(form, seed=4, log_dir=tmp_path / "logs", max_evals=rec["nfev"] + 1,
+                          final=False, log=lambda s: None)
+    lines2 = (tmp_path / "logs" / "single_dof-lanes.s4.jsonl").read_text().splitlines()
+    assert more["resumed"] == 1 and lines2[:len(lines)] == lines
+    assert more["nfev"] == len(lines2) > rec["nfev"]
+    assert more["curve"][:len(rec["curve"])] == rec["curve"]
+    assert more["J_lanes"] == min(json.loads(x)["J"] for x in lines2)

@@ -46,7 +46,7 @@ def test_sequence_distance_known_values():
     ours = ["0/1T", "1/1T", "1/2T", "1/4T", "1/8T", "1/16T", "chaos", "1/8T", "1/4T", "1/2T",
             "1/1T"]
     assert sequence_distance(PAPER_SEQUENCES["xi005"], ours) == 0
-    # Fig 15c against round 1's sweep at xi = 0.15 (a period-2 window remains)
+    # Fig 15c against a sweep at xi = 0.15 with a period-2 window left
     assert sequence_distance(PAPER_SEQUENCES["xi015"], ["0/1T", "1/1T", "1/2T", "1/1T"]) == 2
 
 
@@ -178,12 +178,13 @@ def test_unsearched_stage_measures_what_a_hand_built_sweep_gives(tmp_path, monke
     import json
     from dataclasses import replace
 
+    import gearsim.calibration.form_search as fs
     import gearsim.calibration.forms as ff
     from gearsim.cli.main import main
 
     st = replace(ff.FINAL, w_min=0.55, w_max=0.80, dw=0.01)
     grid = st.grid()
-    monkeypatch.setattr(ff, "FINAL", st)
+    monkeypatch.setattr(fs, "FINAL", st)
     monkeypatch.setattr(ff, "B_GRID", grid)  # the scale's bisection on the same short window
     assert main(["calibrate", "--stage", "forms", "--no-search", "--forms", "single_dof",
                  "--forms-dir", str(tmp_path)]) == 0
@@ -246,7 +247,9 @@ def test_unfinished_form_stream_log_and_tradeoff_evidence(tmp_path):
     the evidence names, for a target hit within tolerance, the landmarks missing there."""
     import json
 
-    from gearsim.calibration.forms import FORMS, best_per_target, partial_record, stream_runs
+    from gearsim.calibration.evidence import best_per_target
+    from gearsim.calibration.form_search import partial_record, stream_runs
+    from gearsim.calibration.forms import FORMS
     from gearsim.calibration.tables import form_summary_lines, landmarks_within
 
     logs = tmp_path / "logs"

@@ -399,7 +399,8 @@ def test_single_dof_lanes_equal_scalar_and_keep_bearings_frozen():
 # ------------------------------------------------------------------------------ quick config
 #: The quick configuration's wxi plane, row j = 9, cell i = 15 (w = 1.03, xi = 0.0685; a
 #: quasi-periodic cell with friction). Its start is the final state of cell 14 of that row's
-#: continuation chain (absolute period 1070), recorded from ef892c4 (the pre-refactor code).
+#: continuation chain (absolute period 1070), recorded from the kernel before its one-source
+#: refactor.
 QUICK_CELL = dict(
     w=1.03, Fm=0.1184623614, Fe=0.2115055312, eps=0.3175445853, xi=0.0685, phi_e=-0.7258227962,
     friction=7.987869645e-05, alpha=0.3490658504, var_ratio_order=0.1111111111, rho_p=0.4,

@@ -57,7 +57,7 @@ def test_points_and_tally_from_logs(tmp_path):
 
 
 def test_collect_fit_spread_and_the_report_rows(tmp_path):
-    from gearsim.calibration.forms import collect_fit
+    from gearsim.calibration.lane_fit import collect_fit
     from gearsim.calibration.tables import fit_report_lines
     from gearsim.presentation.report import Report
     from gearsim.presentation.report_markdown import _appendix_lines
@@ -80,7 +80,7 @@ def test_collect_fit_spread_and_the_report_rows(tmp_path):
 
 
 def test_collect_fit_takes_an_unfinished_seed_from_its_log(tmp_path):
-    from gearsim.calibration.forms import collect_fit
+    from gearsim.calibration.lane_fit import collect_fit
 
     (tmp_path / "logs").mkdir()
     lines = [json.dumps({"x": [0.0], "J": J, "measured": None}) for J in (5.0, 4.0, 4.5, 3.0)]
@@ -91,7 +91,7 @@ def test_collect_fit_takes_an_unfinished_seed_from_its_log(tmp_path):
 
 
 def test_collect_fit_times_an_unfinished_seed_from_its_state(tmp_path):
-    from gearsim.calibration.forms import collect_fit, state_path
+    from gearsim.calibration.lane_fit import collect_fit, state_path
 
     (tmp_path / "logs").mkdir()
     lines = [json.dumps({"x": [0.0], "J": J, "measured": None}) for J in (5.0, 4.0, 4.5)]

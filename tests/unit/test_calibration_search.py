@@ -78,7 +78,8 @@ def test_w_sweep_maps_the_axis_onto_the_simulated_frequency():
 
 
 def test_a_form_record_carries_its_own_run_and_the_table_prefers_it(tmp_path):
-    from gearsim.calibration.forms import Run, collect_forms
+    from gearsim.calibration.fit_record import Run
+    from gearsim.calibration.form_search import collect_forms
 
     run = Run().record()
     head = subprocess.run(["git", "-C", str(Path(__file__).parent), "rev-parse", "--short",
@@ -189,3 +190,55 @@ def test_cmaes_restarts_with_a_doubled_population_and_keeps_the_box():
     assert x.min() >= -5.12 and x.max() <= 5.12
     assert sum(r["nfev"] for r in res["runs"]) == res["nfev"]
     assert res["J"] <= min(r["best_J"] for r in res["runs"])
+
+
+class _Interrupt(Exception):
+    pass
+
+
+def test_cmaes_resumed_from_its_checkpoint_is_the_uninterrupted_search(tmp_path):
+    """A search cut off mid-run (in its second restart) and resumed from its checkpoint makes
+    exactly the evaluations, curve, runs and result of the same seed's uninterrupted search; a
+    finished search resumed with a larger budget continues it; another search's checkpoint is
+    refused."""
+    from gearsim.calibration.search import run_cmaes
+    from gearsim.errors import UsageError
+
+    def rastrigin(xs):
+        return [float(10 * len(x) + np.sum(x**2 - 10 * np.cos(2 * np.pi * x))) for x in xs]
+
+    kw = dict(seed=4, x0=[3.0, 3.0, 3.0], sigma0=0.05, max_evals=3000, flat_evals=200,
+              restarts=5)
+    bounds = [(-5.12, 5.12)] * 3
+    ref_x: list[np.ndarray] = []
+    ref = run_cmaes(lambda xs: (ref_x.extend(xs), rastrigin(xs))[1], bounds, **kw)
+    assert len(ref["runs"]) >= 2  # the cut below falls inside a restart
+    cut = ref["runs"][0]["nfev"] + ref["runs"][1]["nfev"] // 2
+    ck = tmp_path / "search.pkl"
+    seen: list[np.ndarray] = []
+
+    def cut_off(xs):
+        if len(seen) >= cut:
+            raise _Interrupt
+        seen.extend(xs)
+        return rastrigin(xs)
+
+    with pytest.raises(_Interrupt):
+        run_cmaes(cut_off, bounds, checkpoint=ck, **kw)
+    assert ck.is_file()
+    rest: list[np.ndarray] = []
+    res = run_cmaes(lambda xs: (rest.extend(xs), rastrigin(xs))[1], bounds, checkpoint=ck, **kw)
+    assert res["resumed"] == 1
+    np.testing.assert_array_equal(np.asarray(seen + rest), np.asarray(ref_x))
+    assert res["curve"] == ref["curve"] and res["x"] == ref["x"] and res["J"] == ref["J"]
+    assert res["runs"] == ref["runs"] and res["stopped_by"] == ref["stopped_by"]
+    # a search stopped at its budget continues with a larger one, as one longer search would
+    short = dict(kw, max_evals=400)
+    ck2 = tmp_path / "short.pkl"
+    a = run_cmaes(rastrigin, bounds, checkpoint=ck2, **short)
+    assert a["stopped_by"] == "max_evals"
+    b = run_cmaes(rastrigin, bounds, checkpoint=ck2, **kw)
+    assert b["curve"] == ref["curve"] and b["nfev"] == ref["nfev"]
+    # another search's checkpoint: one clear error naming the file
+    with pytest.raises(UsageError, match="short.pkl"):
+        run_cmaes(rastrigin, bounds, checkpoint=ck2, **dict(kw, seed=5))

@@ -28,8 +28,9 @@ number: the objective only reads the classified sweep.
 The search is :func:`gearsim.calibration.search.search` (seeded differential evolution, no
 refinement) on the single-DOF model (rigid bearings; the stiff-bearing 6-DOF model reproduces
 it) with a coarse w grid; the winner is then verified with the 6-DOF DP5 model on a fine grid
-(:func:`verify`). The forms' fits (:mod:`gearsim.calibration.forms`) replace this objective by
-the one over every target (:func:`gearsim.calibration.targets.score`).
+(:func:`verify`). The forms' fits (:mod:`gearsim.calibration.form_search`,
+:mod:`gearsim.calibration.lane_fit`) replace this objective by the one over every target
+(:func:`gearsim.calibration.targets.score`).
 """
 
 from __future__ import annotations

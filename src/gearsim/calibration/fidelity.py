@@ -3,7 +3,8 @@ parameter set.
 
 Every model form (an option of the one vector field, :mod:`gearsim.dynamics.model`, or of the
 sweep method) is measured by :func:`measure`, scored by :func:`gearsim.calibration.targets.score`
-and fitted by :mod:`gearsim.calibration.forms`; docs/calibration.md compares the forms.
+and fitted by :mod:`gearsim.calibration.form_search` and :mod:`gearsim.calibration.lane_fit`;
+docs/calibration.md compares the forms.
 
 How each target is measured: the landmarks are read off the standard sweep
 (:func:`gearsim.analysis.landmarks.find_landmarks`, matched to the paper in sweep order); the

@@ -2,7 +2,7 @@
 differential-evolution driver with its refinement, and the logged objective wrapper.
 
 Every calibration search (the landmark fit, :mod:`gearsim.calibration.calibrate`, and
-the per-form fits, :mod:`gearsim.calibration.forms`) uses these; only the objective differs.
+the per-form fits, :mod:`gearsim.calibration.form_search`) uses these; only the objective differs.
 """
 
 from __future__ import annotations
@@ -239,106 +239,192 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
               popsize: int | None = None, max_evals: int = 3000, min_evals: int = 0,
               flat_evals: int = 600, flat_rtol: float = 0.01, restarts: int = 9,
               time_budget: float | None = None,
-              on_generation: Callable[[dict[str, Any]], None] | None = None) -> dict[str, Any]:
-    """CMA-ES (the ``cma`` package) with IPOP restarts on ``batch`` (a whole population's
-    vectors -> their J, e.g. one batched-kernel measurement), in the unit cube mapped onto
-    ``bounds``.
+              on_generation: Callable[[dict[str, Any]], None] | None = None,
+              checkpoint: str | Path | None = None) -> dict[str, Any]:
+    """CMA-ES (the ``cma`` package) with IPOP restarts on ``batch`` (a population's vectors ->
+    their J, e.g. one batched-kernel measurement), in the unit cube mapped onto ``bounds``.
 
     The first run starts at ``x0`` (else the box centre; ``x0`` itself is evaluated in the first
-    generation's batch, one evaluation more), each restart at a seeded uniform point with twice
-    the population. A run ends on cma's own criteria or on a flat curve: its best J fell by less
-    than ``flat_rtol`` (relative) over its last ``flat_evals`` evaluations. The search ends
-    flat when a whole restart did not lower the best J of the runs before it by ``flat_rtol``
-    (and at least ``min_evals`` were made), at ``max_evals``, after ``restarts`` restarts, or
-    past ``time_budget`` seconds (each recorded in ``stopped_by``).
+    batch), each restart at a seeded uniform point with twice the population. A run ends on
+    cma's criteria or when its best J fell by less than ``flat_rtol`` (relative) over its last
+    ``flat_evals`` evaluations. The search ends flat when a whole restart did not lower the best
+    J of the runs before it by ``flat_rtol`` (after ``min_evals`` at least), at ``max_evals``,
+    after ``restarts`` restarts, or past ``time_budget`` seconds of this call (``stopped_by``).
 
-    ``on_generation`` gets, after every generation, the evaluations so far (``nfev``), the
-    best J and vector (``best_J``, ``x``), the run's index, wall and CPU seconds (``t``,
-    ``cpu_s``), the curve and the finished runs so far.
+    With ``checkpoint`` (a file) the whole search (cma's state, the seeded generator, curve,
+    runs) is written there after every generation and resumed from it: an interrupted search
+    continues exactly as if it had not stopped, a budget-stopped one continues with a larger
+    budget; another search's checkpoint (bounds, start, seed, sigma0 or population differ) is
+    refused with :class:`gearsim.errors.UsageError` naming the file.
 
-    Returns the best vector and J, ``nfev``, the best-J curve (``curve``: ``[nfev, best J]``
-    after every generation), the runs (population, evaluations, best J, why each ended).
+    ``on_generation`` gets after every generation ``nfev``, ``best_J``, ``x``, the run's index,
+    wall and CPU seconds over all calls (``t``, ``cpu_s``), the curve and the finished runs.
+    Returns the best vector and J, ``nfev``, the best-J curve (``[nfev, best J]`` per
+    generation), the runs (population, evaluations, best J, why each ended), ``resumed``, wall
+    and CPU seconds over all calls.
     """
     import cma
 
     lo = np.array([b[0] for b in bounds], dtype=float)
     hi = np.array([b[1] for b in bounds], dtype=float)
     d = len(lo)
-    rng = np.random.default_rng(seed)
     t0 = time.time()
     c0 = time.process_time()
-    u0 = np.full(d, 0.5) if x0 is None else (np.asarray(x0, dtype=float) - lo) / (hi - lo)
-    start = [] if x0 is None else [np.clip(np.asarray(x0, dtype=float), lo, hi)]
-    lam = popsize or (4 + int(3 * math.log(d)))
-    best = {"J": math.inf, "x": None}
-    curve: list[list[float]] = []
-    runs: list[dict[str, Any]] = []
-    nfev = 0
+    key = {"bounds": [[float(a), float(b)] for a, b in zip(lo, hi, strict=True)],
+           "x0": None if x0 is None else [float(v) for v in x0], "seed": int(seed),
+           "sigma0": float(sigma0), "popsize": popsize}
+    S = _load_checkpoint(checkpoint, key)
+    if S is None:
+        S = _fresh_search(key, lo, hi, popsize)
+    else:
+        S["resumed"] += 1
+        S["why"] = "" if S["why"] in ("max_evals", "time_budget") else S["why"]
+    best, curve, runs = S["best"], S["curve"], S["runs"]
     stopped_by = ""
 
-    def flat(c: list[list[float]], since: int) -> bool:
-        """Best J fell by less than flat_rtol over the last flat_evals evaluations."""
-        c = [p for p in c if p[0] >= since]
-        if not c or c[-1][0] - c[0][0] < flat_evals:
-            return False
-        past = [J for n, J in c if n <= c[-1][0] - flat_evals]
-        if not past:
-            return False
-        then = past[-1]
-        return not (then - c[-1][1] > flat_rtol * abs(then))
+    def clock() -> tuple[float, float]:
+        return S["wall_s"] + time.time() - t0, S["cpu_s"] + time.process_time() - c0
 
-    for r in range(restarts + 1):
-        es = cma.CMAEvolutionStrategy(
-            np.clip(u0, 0.0, 1.0).tolist(), sigma0,
-            {"bounds": [0.0, 1.0], "popsize": lam, "seed": int(rng.integers(1, 2**31 - 1)),
-             "verbose": -9, "verb_log": 0, "verb_disp": 0})
-        run = {"popsize": lam, "start_nfev": nfev, "best_J": math.inf}
-        rcurve: list[list[float]] = []
-        why = ""
-        while True:
-            us = es.ask()
-            xs = [lo + np.asarray(u) * (hi - lo) for u in us]
-            # the start, exactly, in the first batch (one lane more; not told to cma): cma's
-            # bound transform moves a value on a bound inside (0 -> 0.0125 of the box), so the
-            # population never holds a start with a coordinate on its bound (b_brg = 0)
-            extra, start = start, []
-            Jall = [float(v) for v in batch(extra + xs)]
-            Js = Jall[len(extra):]
-            es.tell(us, Js)
-            nfev += len(extra) + len(xs)
-            k = int(np.argmin(Jall))
-            if Jall[k] < run["best_J"]:
-                run["best_J"] = Jall[k]
-            if Jall[k] < best["J"]:
-                best.update(J=Jall[k], x=[float(v) for v in (extra + xs)[k]])
-            curve.append([nfev, best["J"]])
-            rcurve.append([nfev, run["best_J"]])
-            if on_generation:
-                on_generation({"nfev": nfev, "best_J": best["J"], "x": best["x"], "run": r,
-                               "t": time.time() - t0, "cpu_s": time.process_time() - c0,
-                               "curve": curve, "runs": runs})
-            if nfev >= max_evals:
-                stopped_by = why = "max_evals"
+    while S["r"] <= restarts:
+        if S["es"] is None:
+            S["es"] = cma.CMAEvolutionStrategy(
+                np.clip(S["u0"], 0.0, 1.0).tolist(), sigma0,
+                {"bounds": [0.0, 1.0], "popsize": S["lam"],
+                 "seed": int(S["rng"].integers(1, 2**31 - 1)),
+                 "verbose": -9, "verb_log": 0, "verb_disp": 0})
+            S["run"] = {"popsize": S["lam"], "start_nfev": S["nfev"], "best_J": math.inf}
+            S["rcurve"] = []
+        es, run = S["es"], S["run"]
+        while not S["why"]:
+            _generation(S, batch, lo, hi)
+            if S["nfev"] >= max_evals:
+                S["why"] = "max_evals"
             elif time_budget is not None and time.time() - t0 > time_budget:
-                stopped_by = why = "time_budget"
+                S["why"] = "time_budget"
             elif es.stop():
-                why = "cma: " + ",".join(sorted(es.stop()))
-            elif flat(rcurve, run["start_nfev"]):
-                why = "run flat"
-            if why:
-                break
-        run.update(nfev=nfev - run["start_nfev"], stopped_by=why)
+                S["why"] = "cma: " + ",".join(sorted(es.stop()))
+            elif _flat(S["rcurve"], run["start_nfev"], flat_evals, flat_rtol):
+                S["why"] = "run flat"
+            wall, cpu = clock()
+            _save_checkpoint(checkpoint, S, wall, cpu)
+            if on_generation:
+                on_generation({"nfev": S["nfev"], "best_J": best["J"], "x": best["x"],
+                               "run": S["r"], "t": wall, "cpu_s": cpu, "curve": curve,
+                               "runs": runs})
+        why = S["why"]
+        if why in ("max_evals", "time_budget"):
+            stopped_by = why
+        run.update(nfev=S["nfev"] - run["start_nfev"], stopped_by=why)
         before = min((q["best_J"] for q in runs), default=math.inf)
         runs.append(run)
-        if not stopped_by and nfev >= min_evals and math.isfinite(before) and not (
+        if not stopped_by and S["nfev"] >= min_evals and math.isfinite(before) and not (
                 before - run["best_J"] > flat_rtol * abs(before)):
             stopped_by = "flat"
         if stopped_by:
+            # the run is kept open in the checkpoint: a larger budget continues it
+            runs.pop()
             break
-        lam *= 2
-        u0 = rng.random(d)
+        S["lam"] *= 2
+        S["u0"] = S["rng"].random(d)
+        S["es"], S["why"] = None, ""
+        S["r"] += 1
+        wall, cpu = clock()
+        _save_checkpoint(checkpoint, S, wall, cpu)
     else:
         stopped_by = "restarts"
-    return {"x": best["x"], "J": best["J"], "nfev": nfev, "curve": curve, "runs": runs,
-            "stopped_by": stopped_by, "seed": seed, "wall_s": time.time() - t0,
-            "cpu_s": time.process_time() - c0}
+    wall, cpu = clock()
+    out_runs = runs + ([run] if stopped_by in ("max_evals", "time_budget", "flat") else [])
+    return {"x": best["x"], "J": best["J"], "nfev": S["nfev"], "curve": curve,
+            "runs": out_runs, "stopped_by": stopped_by, "seed": seed, "wall_s": wall,
+            "cpu_s": cpu, "resumed": S["resumed"]}
+
+
+def _fresh_search(key: dict[str, Any], lo: np.ndarray, hi: np.ndarray, popsize: int | None
+                  ) -> dict[str, Any]:
+    """The state of a search not begun: its first run at the start (else the box centre)."""
+    x0, d = key["x0"], len(lo)
+    u0 = np.full(d, 0.5) if x0 is None else (np.asarray(x0, dtype=float) - lo) / (hi - lo)
+    return {"key": key, "rng": np.random.default_rng(key["seed"]), "r": 0,
+            "lam": popsize or (4 + int(3 * math.log(d))), "u0": u0,
+            "start": [] if x0 is None else [np.clip(np.asarray(x0, dtype=float), lo, hi)],
+            "best": {"J": math.inf, "x": None}, "curve": [], "runs": [], "nfev": 0,
+            "es": None, "run": None, "rcurve": [], "why": "", "wall_s": 0.0, "cpu_s": 0.0,
+            "resumed": 0}
+
+
+def _generation(S: dict[str, Any], batch: Callable[[list[np.ndarray]], list[float]],
+                lo: np.ndarray, hi: np.ndarray) -> None:
+    """One generation of the search ``S``: ask cma, measure the batch, tell cma, update the
+    evaluations, the best set and both curves."""
+    es, run, best = S["es"], S["run"], S["best"]
+    us = es.ask()
+    xs = [lo + np.asarray(u) * (hi - lo) for u in us]
+    # the start, exactly, in the first batch (one lane more; not told to cma): cma's bound
+    # transform moves a value on a bound inside (0 -> 0.0125 of the box), so the population
+    # never holds a start with a coordinate on its bound (b_brg = 0)
+    extra, S["start"] = S["start"], []
+    Jall = [float(v) for v in batch(extra + xs)]
+    es.tell(us, Jall[len(extra):])
+    S["nfev"] += len(extra) + len(xs)
+    k = int(np.argmin(Jall))
+    run["best_J"] = min(run["best_J"], Jall[k])
+    if Jall[k] < best["J"]:
+        best.update(J=Jall[k], x=[float(v) for v in (extra + xs)[k]])
+    S["curve"].append([S["nfev"], best["J"]])
+    S["rcurve"].append([S["nfev"], run["best_J"]])
+
+
+def _flat(c: list[list[float]], since: int, flat_evals: int, flat_rtol: float) -> bool:
+    """Best J of curve ``c`` (from evaluation ``since``) fell by less than ``flat_rtol``
+    (relative) over its last ``flat_evals`` evaluations."""
+    c = [p for p in c if p[0] >= since]
+    if not c or c[-1][0] - c[0][0] < flat_evals:
+        return False
+    past = [J for n, J in c if n <= c[-1][0] - flat_evals]
+    if not past:
+        return False
+    then = past[-1]
+    return not (then - c[-1][1] > flat_rtol * abs(then))
+
+
+def _load_checkpoint(path: str | Path | None, key: dict[str, Any] | None
+                     ) -> dict[str, Any] | None:
+    """A search written by :func:`_save_checkpoint` at ``path`` with this ``key`` (None: any);
+    None when there is none; :class:`UsageError` for another search's."""
+    import pickle
+
+    from gearsim.errors import UsageError
+
+    if path is None or not Path(path).is_file():
+        return None
+    try:
+        S = pickle.loads(Path(path).read_bytes())
+    except Exception as e:  # noqa: BLE001 - a truncated or foreign file
+        raise UsageError(f"{path}: not a search checkpoint ({type(e).__name__}); delete it to "
+                         "start the search afresh") from None
+    if not isinstance(S, dict) or "key" not in S or (key is not None and S["key"] != key):
+        raise UsageError(f"{path}: the checkpoint of another search (bounds, start, seed, sigma0 "
+                         "or population differ); delete it to start afresh")
+    return S
+
+
+def checkpoint_evaluations(path: str | Path) -> int | None:
+    """How many evaluations the search checkpointed at ``path`` has made (None: no
+    checkpoint there; :class:`UsageError` for a file that is not one)."""
+    if not Path(path).is_file():
+        return None
+    S = _load_checkpoint(path, None)
+    return int(S["nfev"])
+
+
+def _save_checkpoint(path: str | Path | None, S: dict[str, Any], wall: float, cpu: float
+                     ) -> None:
+    """The whole search ``S`` at ``path`` (atomically), its wall and CPU seconds so far."""
+    import pickle
+
+    if path is None:
+        return
+    p = Path(path)
+    tmp = p.with_name(p.name + ".tmp")
+    tmp.write_bytes(pickle.dumps({**S, "wall_s": wall, "cpu_s": cpu}))
+    tmp.replace(p)

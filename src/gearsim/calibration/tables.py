@@ -227,7 +227,7 @@ def form_report_lines(forms: Mapping[str, Any]) -> list[str]:
                     *kb[2:], ""]
     if forms.get("evidence_lines"):
         out += ["Closest error any logged evaluation of any form reached per target "
-                "(`gearsim.calibration.forms.best_per_target`):", "", *forms["evidence_lines"],
+                "(`gearsim.calibration.evidence.best_per_target`):", "", *forms["evidence_lines"],
                 ""]
     return out
 

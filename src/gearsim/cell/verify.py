@@ -52,12 +52,12 @@ from gearsim.cell.classify import (
 from gearsim.dynamics.model import N_STATE, P_ACT, project_tangent
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.integrate import (
-    FLOQUET_MODES,
     STATUS_OK,
     IntegrationSettings,
     PeriodSummaries,
     run_periods,
 )
+from gearsim.numerics.settings import FLOQUET_MODES
 from gearsim.numerics.shooting import (
     SHOOTING,
     OrbitError,

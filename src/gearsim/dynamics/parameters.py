@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from gearsim.dynamics import model as _m
-from gearsim.errors import ParameterError  # noqa: E402  (re-exported: raised by every check here)
+from gearsim.errors import ParameterError, reject_unknown  # noqa: E402  (ParameterError re-exported)
 
 # name -> (lower, upper, lower inclusive, upper inclusive, meaning)
 _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
@@ -64,9 +64,20 @@ _RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
 MODELS = ("6dof", "1dof")
 
 
-def _range_text(name: str) -> str:
-    lo, hi, lo_in, hi_in, _ = _RANGES[name]
+def interval_text(spec: tuple) -> str:
+    """``spec = (lower, upper, lower inclusive, upper inclusive, ...)`` as ``[lo, hi)`` etc."""
+    lo, hi, lo_in, hi_in = spec[:4]
     return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+
+
+def in_interval(v: float, spec: tuple) -> bool:
+    """``v`` finite and inside ``spec = (lower, upper, lower inclusive, upper inclusive, ...)``."""
+    lo, hi, lo_in, hi_in = spec[:4]
+    return math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
+
+
+def _range_text(name: str) -> str:
+    return interval_text(_RANGES[name])
 
 
 def check_value(name: str, value: Any) -> float:
@@ -85,14 +96,13 @@ def check_value(name: str, value: Any) -> float:
             f"parameter '{name}' must be a number in {_range_text(name)}, got {value!r}"
         )
     v = float(value)
-    lo, hi, lo_in, hi_in, meaning = _RANGES[name]
+    meaning = _RANGES[name][4]
     if v != 0.0 and abs(v) < sys.float_info.min:
         raise ParameterError(
             f"parameter '{name}' ({meaning}) = {value!r} is subnormal; allowed range "
             f"{_range_text(name)} with |value| >= {sys.float_info.min:g} or 0"
         )
-    ok = math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
-    if not ok:
+    if not in_interval(v, _RANGES[name]):
         raise ParameterError(
             f"parameter '{name}' ({meaning}) = {value!r} is outside the allowed range "
             f"{_range_text(name)}"
@@ -158,12 +168,7 @@ class ModelParameters:
     @classmethod
     def from_mapping(cls, values: dict[str, Any]) -> ModelParameters:
         """Build from a mapping, rejecting unknown keys with a clear error."""
-        known = {f.name for f in fields(cls)}
-        for key in values:
-            if key not in known:
-                raise ParameterError(
-                    f"unknown parameter '{key}'; allowed: {', '.join(sorted(known))}"
-                )
+        reject_unknown(values, sorted(f.name for f in fields(cls)), "parameter")
         return cls(**values)
 
     def with_(self, **changes: Any) -> ModelParameters:

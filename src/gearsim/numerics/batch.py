@@ -1,37 +1,10 @@
-"""Batched fixed-step RK4: many cells advanced at once, the cell index innermost (SIMD lanes).
+"""Batched runs: the lane storage of the SIMD kernel and the runs built on it.
 
-Why
----
-One cell integrated by :func:`gearsim.numerics.integrate.integrate_periods` is a single dependency
-chain
-(each RK4 stage needs the previous one), so a scalar kernel cannot use the vector units. Here a
-*lane* is one cell; lanes are packed in blocks of :data:`LANES` with every per-lane quantity
-(state, tangent vector, the packed parameters of :func:`gearsim.dynamics.model.pack_parameters`,
-frozen
-contact regions, per-period accumulators) stored as a row of ``LANES`` consecutive doubles. The
-inner loop runs over the lanes of a block with compile-time strides, so LLVM vectorises the whole
-RK4 step (AVX2: 4 doubles per instruction, FMA).
-
-Nothing of the numerics is written here: the lane step inlines the one field
-(:func:`gearsim.dynamics.model.field_state` / :func:`~gearsim.dynamics.model.field_tangent`), the
-one RK4 step
-(:func:`gearsim.numerics.steps.rk4_state` / :func:`~gearsim.numerics.steps.rk4_tangent`) and the
-one test for a step
-that needs event handling (:func:`gearsim.numerics.steps.grid_step_flag`); a flagged lane is redone
-by the
-one event layer (:func:`gearsim.numerics.events.advance_interval`, the same call the scalar
-integrator
-makes). The scalar RK4 path (:func:`gearsim.numerics.integrate.integrate_periods`) runs the same
-algorithm for one cell, so the two give bit-identical section points (tests/unit/test_batch.py).
-
-Every lane uses the same number ``N`` of RK4 steps per mesh period, so all lanes share one grid in
-*phase* ``theta = w tau`` (:func:`gearsim.numerics.steps.phase_tables`). Lanes may have different
-``w``
-(the step ``h = T / N`` is a per-lane value): each lane is an independent continuation chain
-(e.g. one plane row marching along ``w``) and moves on to its next cell on its own schedule.
-
-The chain driver that moves lanes from cell to cell (transient, chunks, the period test,
-classification) is :mod:`gearsim.cell.chains`.
+:class:`Lanes` holds ``n`` lanes (cells) in the block layout of :mod:`gearsim.numerics.kernel`
+and runs its :func:`~gearsim.numerics.kernel.advance`; :func:`run_periods_batched` is the batched
+counterpart of :func:`gearsim.numerics.integrate.run_periods` and :func:`tangent_lanes_many` the
+RK4 tangent map of :mod:`gearsim.numerics.variational` with one lane per tangent column. The chain
+driver that moves lanes from cell to cell is :mod:`gearsim.cell.chains`.
 """
 
 from __future__ import annotations
@@ -40,405 +13,37 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numba import njit
-from numba.cpython.unsafe.tuple import tuple_setitem
 
-from gearsim.dynamics.model import (
-    MODE_FRICTION,
-    N_MODE,
-    N_PARAMS,
-    N_STATE,
-    N_SWITCH,
-    P_ACT,
-    P_DOF6,
-    P_GAM1,
-    P_VRA,
-    P_VRC,
-    P_VRS,
-    P_VTE,
-    P_W,
-    P_XIO,
-    field_params,
-    mesh_force,
-    mesh_force_full,
-    pack_parameters,
-    period_forcing,
-    tracked_force,
-)
+from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
-from gearsim.numerics.events import (
-    ACC_FMAX,
-    ACC_FMIN,
-    ACC_TD,
-    ACC_XMAX,
-    ACC_XMIN,
-    CNT_NB,
-    CNT_NF,
-    CNT_STEPS,
-    N_ACC,
-    N_CNT,
-    advance_interval,
-    channels,
+from gearsim.numerics.events import channels
+from gearsim.numerics.integrate import IntegrationSettings, PeriodSummaries
+from gearsim.numerics.kernel import (
+    _DONE,
+    _H,
+    _K,
+    _PAR,
+    _POS,
+    _R0,
+    _RB,
+    _S0,
+    _SB,
+    _ST,
+    _STEPS,
+    _Y,
+    BLOCK,
+    LANES,
+    NI,
+    NROW,
+    O_FMAX,
+    O_FMIN,
+    O_LYAP,
+    O_TDIS,
+    O_XMAX,
+    O_XMIN,
+    advance,
 )
-from gearsim.numerics.integrate import (
-    IntegrationSettings,
-    PeriodSummaries,
-    end_period_tangent,
-)
-from gearsim.numerics.steps import (
-    FASTMATH,
-    METHOD_RK4,
-    grid_step_flag,
-    phase_tables,
-    rk4_state,
-    rk4_steps_per_period,
-    rk4_tangent,
-)
-
-#: Lanes per block (compile-time stride of the vector loop; 8 = two AVX2 vectors).
-LANES = 8
-
-# ---- float rows of a block (each row holds LANES doubles) ------------------------------------
-_Y = 0  # 20 rows: state (10) then tangent vector (10)
-_H = 20  # step h = T / N (0 freezes the lane)
-_PAR = 21  # N_PARAMS rows: the packed parameters (gearsim.dynamics.model layout)
-_R0 = _PAR + N_PARAMS  # mesh region (-1, 0, 1) as a double
-_S0 = _R0 + 1  # |mesh region|
-_RB = _R0 + 2  # 4 rows: bearing regions
-_SB = _R0 + 6  # 4 rows: |bearing region|
-_TD = _R0 + 10  # per-period accumulators: disengaged time, force and x extremes
-_FMX = _TD + 1
-_FMN = _TD + 2
-_XMX = _TD + 3
-_XMN = _TD + 4
-_FLAG = _TD + 5  # 1.0 when the lane needs the event layer for the current step
-NROW = _FLAG + 1
-BLOCK = NROW * LANES
-
-# ---- integer rows (2-D array [NI, n_lanes]; touched by scalar code only) ---------------------
-_ST = 0  # status: 0 running, 1 diverged, -1 not taking part in this call
-_DONE = 1  # periods completed in this call
-_POS = 2  # record position of the first period of this call (-1: do not record)
-_K = 3  # absolute period index at the start of the call
-_STEPS = 4  # RK4 steps taken in this call (including the event layer's trial steps)
-_NF = 5  # face entries in the current period
-_NB = 6  # back entries in the current period
-NI = 7
-
-# ---- columns of the float per-period output ----
-O_TDIS, O_FMAX, O_FMIN, O_XMAX, O_XMIN, O_LYAP = range(6)
-
-
-# ============================================================================ block accessors
-@njit(cache=True, nogil=True, inline="always")
-def _load10(blk, o, row, q):
-    r = o + row * LANES + q
-    return (
-        blk[r], blk[r + LANES], blk[r + 2 * LANES], blk[r + 3 * LANES], blk[r + 4 * LANES],
-        blk[r + 5 * LANES], blk[r + 6 * LANES], blk[r + 7 * LANES], blk[r + 8 * LANES],
-        blk[r + 9 * LANES],
-    )  # fmt: skip
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _lane_modes(blk, o, q):
-    r = o + q
-    L = LANES
-    return (
-        blk[r + _R0 * L], blk[r + _S0 * L],
-        blk[r + _RB * L], blk[r + (_RB + 1) * L], blk[r + (_RB + 2) * L], blk[r + (_RB + 3) * L],
-        blk[r + _SB * L], blk[r + (_SB + 1) * L], blk[r + (_SB + 2) * L], blk[r + (_SB + 3) * L],
-    )  # fmt: skip
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _fmax(a, b):
-    return a if a >= b else b
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _fmin(a, b):
-    return a if a <= b else b
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _sel(flag, a, b):
-    return a if flag else b
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _store10(blk, r, flag, old, new):
-    """Store ``old`` (flagged lane) or ``new`` into 10 consecutive rows starting at ``r``."""
-    blk[r] = _sel(flag, old[0], new[0])
-    blk[r + LANES] = _sel(flag, old[1], new[1])
-    blk[r + 2 * LANES] = _sel(flag, old[2], new[2])
-    blk[r + 3 * LANES] = _sel(flag, old[3], new[3])
-    blk[r + 4 * LANES] = _sel(flag, old[4], new[4])
-    blk[r + 5 * LANES] = _sel(flag, old[5], new[5])
-    blk[r + 6 * LANES] = _sel(flag, old[6], new[6])
-    blk[r + 7 * LANES] = _sel(flag, old[7], new[7])
-    blk[r + 8 * LANES] = _sel(flag, old[8], new[8])
-    blk[r + 9 * LANES] = _sel(flag, old[9], new[9])
-
-
-# ============================================================================ the vector step
-@njit(cache=True, nogil=True, inline="always")
-def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
-               bound, tangent, bearings, forms):
-    """RK4 grid step of lane ``q`` of a block (straight-line code: selects, no branches).
-
-    The arithmetic of ``integrate._rk4_grid_interval`` (the same inlined functions). With
-    ``forms`` a literal False (no lane uses a model-form option), the form parameters are the
-    constant 0.0 they hold, so LLVM drops the field's form branch (bit-identical; without this
-    the branch is if-converted and computed for every lane: +21 % instructions).
-    """
-    L = LANES
-    r = o + q
-    y = _load10(blk, o, _Y, q)
-    P = field_params(blk, r + _PAR * L, L)
-    if not forms:
-        P = tuple_setitem(tuple_setitem(tuple_setitem(P, P_VTE, 0.0), P_XIO, 0.0), P_GAM1, 0.0)
-    M = _lane_modes(blk, o, q)
-    h = blk[r + _H * L]
-    vrs = blk[r + (_PAR + P_VRS) * L]
-    vrc = blk[r + (_PAR + P_VRC) * L]
-    vA = vrs * cvA + vrc * svA
-    vM = vrs * cvM + vrc * svM
-    vB = vrs * cvB + vrc * svB
-    yn = rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M)
-    A = (blk[r + (_PAR + P_ACT) * L], blk[r + (_PAR + P_ACT + 1) * L],
-         blk[r + (_PAR + P_ACT + 2) * L], blk[r + (_PAR + P_ACT + 3) * L])
-    flag = grid_step_flag(y, yn, P, M, A, bound, bearings)
-    _store10(blk, r + _Y * L, flag, y, yn)
-    if tangent:
-        z = _load10(blk, o, _Y + 10, q)
-        zn = rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M)
-        _store10(blk, r + (_Y + 10) * L, flag, z, zn)
-    r0 = M[0]
-    td = blk[r + _TD * L]
-    blk[r + _TD * L] = _sel(flag | (r0 != 0.0), td, td + h)
-    if forms:  # a literal: the base lane loop keeps mesh_force
-        fl = mesh_force_full(cB, sB, yn[0], yn[1], P, r0, M[1])
-    else:
-        fl = mesh_force(cB, yn[0], yn[1], P, r0, M[1])
-    fmx = blk[r + _FMX * L]
-    fmn = blk[r + _FMN * L]
-    xmx = blk[r + _XMX * L]
-    xmn = blk[r + _XMN * L]
-    blk[r + _FMX * L] = _sel(flag, fmx, _fmax(fmx, fl))
-    blk[r + _FMN * L] = _sel(flag, fmn, _fmin(fmn, fl))
-    blk[r + _XMX * L] = _sel(flag, xmx, _fmax(xmx, yn[0]))
-    blk[r + _XMN * L] = _sel(flag, xmn, _fmin(xmn, yn[0]))
-    blk[r + _FLAG * L] = _sel(flag, 1.0, 0.0)
-
-
-@njit(cache=True, nogil=True, fastmath=FASTMATH)
-def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
-                bound, tangent, bearings, forms):
-    """One RK4 step (the state, and the tangent vector if ``tangent``) of block ``bi``'s lanes.
-
-    The loop over the lanes is straight-line code and vectorises (check: ``inspect_asm()``).
-    ``tangent`` and ``forms`` must be literals at the call site (compiled loops without the
-    tangent code for the transients, without the model forms' terms for the base form).
-    Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes are left
-    untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
-    """
-    o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
-    for q in range(LANES):
-        _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM,
-                   qB, bound, tangent, bearings, forms)
-    anyf = False
-    for q in range(LANES):
-        anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
-    return anyf
-
-
-# ============================================================================ flagged lanes
-@njit(cache=True, nogil=True, _nrt=False)
-def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
-    """Redo grid step ``j`` of lane ``q`` with the event layer (the scalar integrator's call).
-
-    The lane's rows are copied into the scalar work arrays of ``wk``, advanced by
-    :func:`gearsim.numerics.events.advance_interval` over ``[j h, (j + 1) h]`` and copied back.
-    """
-    wy, pw, mode, gaps, active, acc, cnt, ks, ytmp, ynew, ytry, ev_t, ev_c = wk
-    L = LANES
-    r = o + q
-    for i in range(20):
-        wy[i] = blk[r + (_Y + i) * L]
-    for i in range(N_PARAMS):
-        pw[i] = blk[r + (_PAR + i) * L]
-    mode[0] = int(blk[r + _R0 * L])
-    for c in range(1, N_SWITCH):
-        mode[c] = int(blk[r + (_RB + c - 1) * L])
-    mode[MODE_FRICTION] = int(lam)
-    channels(pw, mode, wy, gaps, active, False)
-    acc[ACC_TD] = blk[r + _TD * L]
-    acc[ACC_FMAX] = blk[r + _FMX * L]
-    acc[ACC_FMIN] = blk[r + _FMN * L]
-    acc[ACC_XMAX] = blk[r + _XMX * L]
-    acc[ACC_XMIN] = blk[r + _XMN * L]
-    cnt[CNT_NF] = ist[_NF, l]
-    cnt[CNT_NB] = ist[_NB, l]
-    cnt[CNT_STEPS] = 0
-    h = blk[r + _H * L]
-    T = 2.0 * np.pi / pw[P_W]
-    t_end = T if j == N - 1 else (j + 1) * h
-    nerr = N_STATE if pw[P_DOF6] != 0.0 else 2
-    status = advance_interval(METHOD_RK4, j * h, t_end, wy, pw, mode, gaps, active,
-                              20 if tangent else 10, nerr, tangent, ks, ytmp, ynew, ytry, 0.0,
-                              0.0, 0.0, T, bound, acc, cnt, ev_t, ev_c, 0.0)
-    # ---- store back
-    for i in range(20):
-        blk[r + (_Y + i) * L] = wy[i]
-    blk[r + _R0 * L] = float(mode[0])
-    blk[r + _S0 * L] = float(abs(mode[0]))
-    for c in range(1, N_SWITCH):
-        blk[r + (_RB + c - 1) * L] = float(mode[c])
-        blk[r + (_SB + c - 1) * L] = float(abs(mode[c]))
-    blk[r + _TD * L] = acc[ACC_TD]
-    blk[r + _FMX * L] = acc[ACC_FMAX]
-    blk[r + _FMN * L] = acc[ACC_FMIN]
-    blk[r + _XMX * L] = acc[ACC_XMAX]
-    blk[r + _XMN * L] = acc[ACC_XMIN]
-    ist[_NF, l] = cnt[CNT_NF]
-    ist[_NB, l] = cnt[CNT_NB]
-    ist[_STEPS, l] += cnt[CNT_STEPS] - 1  # the grid step itself is counted per period
-    if status != 0:
-        ist[_ST, l] = 1
-        ist[_STEPS, l] += j + 1
-        blk[r + _H * L] = 0.0  # freeze the lane
-
-
-# ============================================================================ the kernel
-@njit(cache=True, nogil=True, fastmath=FASTMATH)
-def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout,
-            tangent=True):
-    """Advance every lane with ``ist[_ST] == 0`` by ``m`` mesh periods of ``N`` RK4 steps.
-
-    Parameters
-    ----------
-    blk
-        Flat float64 array of ``n_blocks * BLOCK`` lane rows (layout: the ``_*`` row constants).
-    ist
-        int64 ``[NI, n_lanes]``: status (lanes with status != 0 are skipped; a lane that diverges
-        gets status 1 and is frozen), periods done, record position, absolute period index,
-        step count, face/back entries of the current period.
-    C, S, LAM, CV, SV, Q
-        The phase tables of :func:`gearsim.numerics.steps.phase_tables` for ``N`` and ``nu``.
-    sec, nface, nback, fout
-        Per-lane records ``[n_lanes, capacity, ...]``; period ``k`` of lane ``l`` is written at
-        ``ist[_POS, l] + k`` when that position is >= 0 (``fout`` columns: ``O_*``).
-    """
-    n_lanes = ist.shape[1]
-    nblk = n_lanes // LANES
-    L = LANES
-    wk = (
-        np.zeros(20), np.zeros(N_PARAMS), np.zeros(N_MODE, dtype=np.int64), np.zeros(N_SWITCH),
-        np.zeros(N_SWITCH, dtype=np.bool_), np.zeros(N_ACC), np.zeros(N_CNT, dtype=np.int64),
-        np.zeros((7, 20)), np.zeros(20), np.zeros(20), np.zeros(20), np.zeros(0),
-        np.zeros(0, dtype=np.int64),
-    )  # fmt: skip
-    wz = np.zeros(N_STATE)
-    # the two lane-set properties, read back from an array: a variable assigned the constant
-    # False would be typed Literal[bool](False) first, and every block step compiled twice
-    anyof = np.zeros(2, dtype=np.bool_)
-    for l in range(n_lanes):
-        r = (l // L) * BLOCK + (l % L)
-        for c in range(4):
-            if blk[r + (_PAR + P_ACT + c) * L] != 0.0:
-                anyof[0] = True  # a lane with a bearing clearance (its channels watched)
-        if (blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0
-                or blk[r + (_PAR + P_GAM1) * L] != 0.0):
-            anyof[1] = True  # a lane with a model-form option (docs/model.md)
-    bearings = anyof[0]
-    forms = anyof[1]
-    for k in range(m):
-        # ---- period start: section, accumulators, variable-ratio phase of the lane
-        for l in range(n_lanes):
-            if ist[_ST, l] != 0:
-                continue
-            r = (l // L) * BLOCK + (l % L)
-            pos = ist[_POS, l]
-            if pos >= 0:
-                for i in range(N_STATE):
-                    sec[l, pos + k, i] = blk[r + (_Y + i) * L]
-            x = blk[r + _Y * L]
-            r0 = blk[r + _R0 * L]
-            f0 = tracked_force(1.0, 0.0, x, blk[r + (_Y + 1) * L],
-                               field_params(blk, r + _PAR * L, L), r0, abs(r0))
-            blk[r + _FMX * L] = f0
-            blk[r + _FMN * L] = f0
-            blk[r + _XMX * L] = x
-            blk[r + _XMN * L] = x
-            blk[r + _TD * L] = 0.0
-            ist[_NF, l] = 0
-            ist[_NB, l] = 0
-            vrs, vrc = period_forcing(blk[r + (_PAR + P_VRA) * L], nu, ist[_K, l] + k)
-            blk[r + (_PAR + P_VRS) * L] = vrs
-            blk[r + (_PAR + P_VRC) * L] = vrc
-        # ---- the N grid steps of the period
-        for j in range(N):
-            i2 = 2 * j
-            cA = C[i2]
-            sA = S[i2]
-            cM = C[i2 + 1]
-            sM = S[i2 + 1]
-            cB = C[i2 + 2]
-            sB = S[i2 + 2]
-            cvA = CV[i2]
-            svA = SV[i2]
-            cvM = CV[i2 + 1]
-            svM = SV[i2 + 1]
-            cvB = CV[i2 + 2]
-            svB = SV[i2 + 2]
-            lam = LAM[j]
-            qA = Q[i2]
-            qM = Q[i2 + 1]
-            qB = Q[i2 + 2]
-            for bi in range(nblk):
-                o = bi * BLOCK
-                if tangent and forms:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, True, bearings, True)
-                elif tangent:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, True, bearings, False)
-                elif forms:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, False, bearings, True)
-                else:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, False, bearings, False)
-                if anyf:
-                    for q in range(L):
-                        if blk[o + _FLAG * L + q] != 0.0:
-                            ll = bi * L + q
-                            if ist[_ST, ll] == 0:
-                                _redo_lane(blk, o, q, ll, ist, j, N, lam, bound, tangent, wk)
-        # ---- period end: tangent growth, records
-        for l in range(n_lanes):
-            if ist[_ST, l] != 0:
-                continue
-            r = (l // L) * BLOCK + (l % L)
-            for i in range(N_STATE):
-                wz[i] = blk[r + (_Y + 10 + i) * L]
-            ly = end_period_tangent(wz)
-            for i in range(N_STATE):
-                blk[r + (_Y + 10 + i) * L] = wz[i]
-            pos = ist[_POS, l]
-            if pos >= 0:
-                kk = pos + k
-                nface[l, kk] = ist[_NF, l]
-                nback[l, kk] = ist[_NB, l]
-                fout[l, kk, O_TDIS] = blk[r + _TD * L]
-                fout[l, kk, O_FMAX] = blk[r + _FMX * L]
-                fout[l, kk, O_FMIN] = blk[r + _FMN * L]
-                fout[l, kk, O_XMAX] = blk[r + _XMX * L]
-                fout[l, kk, O_XMIN] = blk[r + _XMN * L]
-                fout[l, kk, O_LYAP] = ly
-            ist[_DONE, l] += 1
-            ist[_STEPS, l] += N
+from gearsim.numerics.steps import phase_tables, rk4_steps_per_period
 
 
 # ============================================================================ lanes

@@ -1,6 +1,6 @@
 """Keep Numba's on-disk cache consistent with the one source of the numerics.
 
-Numba checks only the source file of a cached function: ``batch.advance`` inlines the field of
+Numba checks only the source file of a cached function: ``kernel.advance`` inlines the field of
 ``model.py``, the steps of ``steps.py`` and the event layer of ``events.py``, so after an edit of
 one of those files its cached machine code would still hold the old equations. Before any kernel
 is compiled or loaded, the cache entries of this package are dropped whenever the hash of the

@@ -41,7 +41,13 @@ import math
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
-from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.dynamics.parameters import (
+    ModelParameters,
+    ParameterError,
+    in_interval,
+    interval_text,
+)
+from gearsim.errors import reject_unknown
 
 #: ISO 6336-1 / DIN 3990 coefficients of q' (mm um / N)
 ISO_C = (0.04723, 0.15551, 0.25791, -0.00635, -0.11654, -0.00193, -0.24188, 0.00529, 0.00182)
@@ -109,8 +115,7 @@ INTEGERS = ("zp", "zg", "n1", "n2")
 
 def range_text(name: str) -> str:
     """The allowed range of a gear field, e.g. ``(0, 1e+06]``."""
-    lo, hi, lo_in, hi_in, _ = _RANGES[name]
-    return f"{'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+    return interval_text(_RANGES[name])
 
 
 def meaning(name: str) -> str:
@@ -119,14 +124,13 @@ def meaning(name: str) -> str:
 
 
 def _check(name: str, value: Any) -> float:
-    lo, hi, lo_in, hi_in, what = _RANGES[name]
+    what = _RANGES[name][4]
     rng = range_text(name)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ParameterError(f"gear parameter '{name}' ({what}) must be a number in {rng},"
                              f" got {value!r}")
     v = float(value)
-    ok = math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
-    if not ok:
+    if not in_interval(v, _RANGES[name]):
         raise ParameterError(f"gear parameter '{name}' ({what}) = {value!r} is outside the"
                              f" allowed range {rng}")
     return v
@@ -426,11 +430,7 @@ class GearGeometry:
     @classmethod
     def from_mapping(cls, values: dict[str, Any]) -> GearGeometry:
         """Build from a mapping of field names; unspecified fields keep the standard gear's."""
-        known = {f.name for f in fields(cls)}
-        for key in values:
-            if key not in known:
-                raise ParameterError(f"unknown gear parameter '{key}'; allowed: "
-                                     f"{', '.join(f.name for f in fields(cls))}")
+        reject_unknown(values, cls.names(), "gear parameter")
         return cls(**values)
 
     @classmethod

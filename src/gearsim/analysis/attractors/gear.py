@@ -182,3 +182,72 @@ def fill_orbit_margins(pairs: Sequence[tuple[ModelParameters, Steady | None]], s
     for (_, s), m in zip(todo, got, strict=True):
         if m is not None:
             s.info["mu_max"], s.info["critical"] = m
+
+
+#: a forward motion is a Newton-converged orbit of its cell when ``max |P^n(y) - y|`` is below
+#: this at its section state ``y``, or at ``y`` plus one Newton step of at most
+#: :data:`NEWTON_STEP_RTOL` of the motion's range (so its window's points are the orbit's)
+NEWTON_TOL = 1e-9
+NEWTON_STEP_RTOL = 1e-5
+#: ... and its section points have no shorter period: two phases ``m`` apart (``m`` a proper
+#: divisor of ``n``) closer than this fraction of the range everywhere make it a reading of a
+#: period-``m`` orbit (Newton on ``P^n`` also converges to the fixed points of ``P^m``)
+LEAST_PERIOD_RTOL = 1e-4
+
+
+def _shorter_period(s: Steady) -> bool:
+    n = s.period
+    pts = np.asarray(s.points, dtype=float)[-n:, :2]
+    sc = np.array([max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)])
+    for m in range(1, n):
+        if n % m == 0 and np.all(np.abs(pts - np.roll(pts, -m, axis=0)) / sc
+                                 <= LEAST_PERIOD_RTOL):  # fmt: skip
+            return True
+    return False
+
+
+def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) -> list[bool]:
+    """Per ``(cell parameters, motion)``: whether the motion is a stable periodic orbit of *that*
+    cell, Newton-converged there (:data:`NEWTON_TOL`, at most one Newton step of
+    :data:`NEWTON_STEP_RTOL` from its section state), at its least period
+    (:data:`LEAST_PERIOD_RTOL`) and with ``|mu|max < 1`` (the monodromy at the converged
+    state). The orbits of one period share kernel calls
+    (:func:`gearsim.numerics.variational.monodromies`, the cell's own RK4 map)."""
+    from gearsim.dynamics.model import N_STATE
+    from gearsim.numerics.integrate import STATUS_OK
+    from gearsim.numerics.shooting import newton_step, sorted_eigs
+    from gearsim.numerics.variational import monodromies
+
+    out = [False] * len(pairs)
+    by_n: dict[int, list[int]] = {}
+    for i, (p, s) in enumerate(pairs):
+        if (s is not None and s.status == "ok" and s.period > 0 and s.final_state is not None
+                and (s.info or {}).get("status", "ok") == "ok" and p.var_ratio == 0.0
+                and not _shorter_period(s)):  # fmt: skip
+            by_n.setdefault(s.period, []).append(i)
+    for n, group in by_n.items():
+        ys = [np.asarray(pairs[i][1].final_state, dtype=float)[:N_STATE].copy() for i in group]
+        for step in (0, 1):
+            if not group:
+                break
+            maps = monodromies([pairs[i][0] for i in group], ys, n, st)
+            again, y_again = [], []
+            for i, y, (yn, M, status) in zip(group, ys, maps, strict=True):
+                if status != STATUS_OK or not np.all(np.isfinite(M)):
+                    continue
+                d = len(M)
+                G = yn[:d] - y[:d]
+                if float(np.max(np.abs(G))) < NEWTON_TOL:
+                    out[i] = bool(abs(sorted_eigs(M)[0]) < 1.0)
+                elif step == 0:
+                    s = pairs[i][1]
+                    dy = newton_step(M, G)
+                    sc = np.where(np.arange(d) % 2 == 0, max(s.scale_x, 1e-9),
+                                  max(s.scale_v, 1e-9))  # fmt: skip
+                    if float(np.max(np.abs(dy) / sc)) <= NEWTON_STEP_RTOL:
+                        y1 = y.copy()
+                        y1[:d] += dy
+                        again.append(i)
+                        y_again.append(y1)
+            group, ys = again, y_again
+    return out

@@ -38,7 +38,11 @@ class FinderOptions:
     orbit's certified ball and its next chunk confirms the contraction
     (:mod:`gearsim.analysis.attractors.certify`: the ``certify_periods``-period map; radii from
     ``certify_radius`` of the range down by factors of 3, ``certify_tries`` of them);
-    recurrence stays for the rest.
+    recurrence stays for the rest. ``newton_seeds``: the cell's forward-continuation motion
+    (``forward_results``) is a recurrence target from the first chunk when it is a stable orbit
+    Newton-converged in this cell at its least period
+    (:func:`gearsim.analysis.attractors.gear.newton_verified`); otherwise it becomes one only
+    when a start's full-length run reaches it.
     """
 
     starts: int = 16
@@ -62,6 +66,7 @@ class FinderOptions:
     certify_radius: float = 0.03
     certify_tries: int = 2
     certify_periods: int = 24
+    newton_seeds: bool = True
 
     def __post_init__(self):
         for name in _POSITIVE_INTS + ("scouts",):

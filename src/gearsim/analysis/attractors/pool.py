@@ -25,7 +25,10 @@ for another start:
   motion of the plane row included: it seeds the cell's starts from their first chunk.
 * The forward-continuation motion of the cell, when the plane tile already simulated it
   (``forward_results``), is a known attractor at no cost (``found_by = forward``); otherwise
-  the forward state is a job of its own (the cell's first runner).
+  the forward state is a job of its own (the cell's first runner). Either is a recurrence
+  target as soon as it is known when it is a stable orbit Newton-converged in this cell at its
+  least period (``newton_seeds``, :func:`~gearsim.analysis.attractors.gear.newton_verified`):
+  the starts that reach it need no full-length run to confirm it.
 * Cells of one step grid share the kernel calls (one pool per grid); probes run without the
   tangent vector (the measuring lanes are a second pool with it).
 """
@@ -42,6 +45,7 @@ from gearsim.analysis.attractors.gear import (
     GearCells,
     fill_orbit_margins,
     gear_steady,
+    newton_verified,
     sobol_unit,
 )
 from gearsim.analysis.attractors.matching import _Known, assemble, least_periods
@@ -87,8 +91,10 @@ class _Judge:
     """The finder's side of :func:`gearsim.cell.pool.run_pool` for the cells of one grid."""
 
     def __init__(self, cells: list[_Cell], forward, backward, forward_results, st,
-                 opts: FinderOptions, history: int, early: bool, stats: PoolStats):
+                 opts: FinderOptions, history: int, early: bool, stats: PoolStats,
+                 seeds: Sequence[bool] | None = None):
         self.stats = stats
+        self.seeds = seeds
         self.cells = deque(cells)
         self.forward = forward
         self.backward = backward
@@ -106,7 +112,8 @@ class _Judge:
         fr = None if self.forward_results is None else self.forward_results[c]
         if fr is not None:
             cell.cont.append(("forward", fr))
-            cell.known.add(fr, target=_verified(fr))
+            seed = self.seeds is not None and self.seeds[c]
+            cell.known.add(fr, target=seed or _verified(fr))
         elif self.forward is not None and self.forward[c] is not None:
             self._continuation(cell, -1, self.forward[c])
         if self.backward is not None and self.backward[c] is not None:
@@ -184,7 +191,9 @@ class _Judge:
         s = gear_steady(job.result)
         if i < 0:
             cell.cont.append((_CONT[i], s))
-            cell.known.add(s, target=_verified(s))
+            seed = (self.early and self.opts.newton_seeds
+                    and newton_verified([(cell.params, s)], self.st)[0])  # fmt: skip
+            cell.known.add(s, target=seed or _verified(s))
         else:
             cell.labels[i] = cell.known.add(s)
             cell.known.own[i] = s
@@ -322,6 +331,9 @@ def map_gear_cells(
     history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
     if opts.early and opts.certified and forward_results is not None:
         _forward_margins(params_list, forward_results, st)
+    seeds = None
+    if opts.early and opts.newton_seeds and forward_results is not None:
+        seeds = newton_verified(list(zip(params_list, forward_results, strict=True)), st)
     cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
     groups: dict[tuple, list[_Cell]] = {}
     for cell in cells:
@@ -331,7 +343,7 @@ def map_gear_cells(
     stats = stats if stats is not None else PoolStats()
     for (N, nu), group in groups.items():
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
-                       opts.early, stats)  # fmt: skip
+                       opts.early, stats, seeds)  # fmt: skip
         run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,
                  stats=stats)  # fmt: skip
     for cell in cells:

@@ -11,7 +11,8 @@ Stages, each recorded in the output JSON (``--out``) or ``--forms-dir``:
                  and the damping threshold.
 ``standard``     ``--standard-out`` from ``--out``'s record (:mod:`gearsim.calibration.standard`).
 ``forms``        each model form fitted with the same search (or, ``--no-search``, measured at
-                 given points): ``<forms-dir>/<form>.json`` (:mod:`gearsim.calibration.forms`).
+                 given points): ``<forms-dir>/<form>.json``
+                 (:mod:`gearsim.calibration.form_search`).
 ``fit``          each model form fitted by CMA-ES with restarts, every population's sweeps in
                  the batched kernel's lanes, once per ``--seeds``; the best set measured
                  exactly (DP5): ``<forms-dir>/<form>.s<seed>.json``.
@@ -122,7 +123,7 @@ def _known_form_names(args) -> list[str]:
 
 def _forms(args) -> int:
     """Fit each model form with the same search and budget, or measure it unsearched."""
-    from gearsim.calibration.forms import run_forms
+    from gearsim.calibration.form_search import run_forms
 
     names = _known_form_names(args)
     if args.generations < 0 or args.population < 5 or args.refine_fev < 0:
@@ -136,7 +137,7 @@ def _forms(args) -> int:
 
 def _fit(args) -> int:
     """CMA-ES of each form in lanes, once per seed."""
-    from gearsim.calibration.forms import run_forms_cmaes
+    from gearsim.calibration.lane_fit import run_forms_cmaes
 
     names = _known_form_names(args)
     try:
@@ -157,7 +158,7 @@ def _fit(args) -> int:
 
 def _fit_table(args) -> int:
     """The lane fits' records and the Pareto fronts into --out (key ``fit``), the figure."""
-    from gearsim.calibration.forms import collect_fit
+    from gearsim.calibration.lane_fit import collect_fit
     from gearsim.calibration.pareto import pareto_figure
 
     fit = collect_fit(_form_names(args), args.forms_dir)
@@ -213,7 +214,7 @@ def _coexist(args) -> int:
 
 def _forms_table(args) -> int:
     """Collect the per-form records into --out (key ``forms``) and print the table."""
-    from gearsim.calibration.forms import collect_forms
+    from gearsim.calibration.form_search import collect_forms
     from gearsim.calibration.tables import form_report_lines
 
     names = _form_names(args)
