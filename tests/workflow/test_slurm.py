@@ -113,12 +113,10 @@ def slurm_run(cluster, tiny_run, tmp_path_factory):
     # one CPU per tile job, as in the local run: on a 2-CPU node a 2-CPU tile job (the profile's
     # fit_threads(8) here) waits for the whole node, i.e. for every small job to end first
     # (measured: 529 s against 181 s locally, load ~10); the dask path under SLURM is checked by
-    # test_tile_cluster_has_the_cpus_srun_gave below. The first status query 1 s after a job was
-    # seen to end, not the profile's 5 (a one-node cluster answers squeue in milliseconds).
+    # test_tile_cluster_has_the_cpus_srun_gave below
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--workflow-profile",
            str(PROFILE), "--configfile", "config/tiny.yaml", "--slurm-jobname-prefix", prefix,
-           "--set-threads", "simulate_tile=1", "attractor_tile=1",
-           "--slurm-init-seconds-before-status-checks", "1"]
+           "--set-threads", "simulate_tile=1", "attractor_tile=1"]
     since = time.strftime("%Y-%m-%dT%H:%M:%S")
     log = wd / "snakemake.log"
     t0 = time.monotonic()
