@@ -233,11 +233,12 @@ def main() -> None:
                                forward_results=motions)
         wrong = 0
         differ = []
-        early_checked = near_starts = near_early = long_runs = 0
+        early_checked = near_starts = near_early = long_runs = unsettled = 0
         for c, (a, b) in enumerate(zip(side["pool"]["_found"], full, strict=True)):
             la = [a.attractors[k].steady if k >= 0 else None for k in a.start_labels]
             lb = [b.attractors[k].steady if k >= 0 else None for k in b.start_labels]
             early_checked += int(a.early.sum())
+            unsettled += sum(1 for y in lb if y is not None and y.status == "unsettled")
             if near[c]:
                 near_starts += a.n_starts
                 near_early += int(a.early.sum())
@@ -259,6 +260,7 @@ def main() -> None:
                             "early_labels_checked": early_checked,
                             "starts_next_to_a_change": near_starts,
                             "early_labels_next_to_a_change": near_early,
+                            "unsettled_full_length_runs": unsettled,
                             "unsettled_decided_by_4000_periods": long_runs,
                             "cells_differing": differ}  # fmt: skip
     for v in side.values():
@@ -309,7 +311,8 @@ def main() -> None:
               f"{a['starts']} starts ({a['early_labels_checked']} early labels; "
               f"{a['starts_next_to_a_change']} starts, {a['early_labels_next_to_a_change']} "
               f"early, in cells next to a change of the row's motion; "
-              f"{a['unsettled_decided_by_4000_periods']} unsettled full-length runs decided by "
+              f"{a['unsettled_full_length_runs']} full-length runs unsettled, "
+              f"{a['unsettled_decided_by_4000_periods']} of them with another label decided by "
               f"4 000 periods); cells differing: "
               f"{a['cells_differing']}")
     for r in scaling:

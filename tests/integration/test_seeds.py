@@ -5,8 +5,8 @@ period (gearsim.analysis.attractors.gear.newton_verified).
 - Every motion it accepts is a fixed point of the cell's own n-period map, checked by the one
   orbit solver from the motion's state, with |mu|max < 1 from that solver's monodromy; a
   period-2n reading of a period-n orbit and a state off the orbit are refused.
-- With the seeds, every start's label equals its full-length run, and fewer periods run than
-  without them.
+- With the seeds, every start's label equals its full-length run on the cells of a row next
+  to a change of its motion, and fewer periods run than without them.
 """
 
 import copy
@@ -50,13 +50,23 @@ def test_accepted_motions_are_newton_orbits_of_their_cell():
     assert newton_verified([(p, doubled), (p, off), (p, s)], st) == [False, False, True]
 
 
-def test_seeded_labels_equal_full_length_runs():
-    st, motions = _row()
+def test_seeded_labels_equal_full_length_runs_next_to_changes():
+    """On the cells of a row next to a change of its motion (a doubling, fold or grazing
+    between two neighbouring cells), and on the row above: every start's label equals its
+    full-length run; the seeds save periods."""
+    row = [ModelParameters(w=float(w), b=0.15, **REFERENCE) for w in np.linspace(0.4, 2.0, 33)]
+    st = GearCells(row, GEAR).settings
+    motions = [gear_steady(r) for r in chains.simulate_rows([row], settings=st)[0]]
+    key = [(m.status, m.period, m.label) for m in motions]
+    near = [k for k in range(len(row)) if (k > 0 and key[k - 1] != key[k])
+            or (k + 1 < len(row) and key[k + 1] != key[k])]  # fmt: skip
+    assert len(near) >= 6
+    cells, known = [row[k] for k in near], [motions[k] for k in near]
     opts = FinderOptions(starts=16, seed=2, lanes=64)
-    fast = find_attractors(ROW, opts, settings=GEAR, forward_results=motions)
-    unseeded = find_attractors(ROW, opts.with_(newton_seeds=False), settings=GEAR,
-                               forward_results=motions)
-    full = find_attractors(ROW, opts.with_(early=False), settings=GEAR, forward_results=motions)
-    assert_same_attractors_per_start(fast, full, fewer_periods=False)
+    fast = find_attractors(cells, opts, settings=GEAR, forward_results=known)
+    unseeded = find_attractors(cells, opts.with_(newton_seeds=False), settings=GEAR,
+                               forward_results=known)  # fmt: skip
+    full = find_attractors(cells, opts.with_(early=False), settings=GEAR, forward_results=known)
+    assert assert_same_attractors_per_start(fast, full, fewer_periods=False) >= 16 * len(near) // 2
     assert sum(int(a.start_periods_run.sum()) for a in fast) < sum(
         int(a.start_periods_run.sum()) for a in unseeded)

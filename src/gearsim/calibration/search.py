@@ -241,32 +241,27 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
               time_budget: float | None = None,
               on_generation: Callable[[dict[str, Any]], None] | None = None,
               checkpoint: str | Path | None = None) -> dict[str, Any]:
-    """CMA-ES (the ``cma`` package) with IPOP restarts on ``batch`` (a whole population's
-    vectors -> their J, e.g. one batched-kernel measurement), in the unit cube mapped onto
-    ``bounds``.
+    """CMA-ES (the ``cma`` package) with IPOP restarts on ``batch`` (a population's vectors ->
+    their J, e.g. one batched-kernel measurement), in the unit cube mapped onto ``bounds``.
 
     The first run starts at ``x0`` (else the box centre; ``x0`` itself is evaluated in the first
-    generation's batch, one evaluation more), each restart at a seeded uniform point with twice
-    the population. A run ends on cma's own criteria or on a flat curve: its best J fell by less
-    than ``flat_rtol`` (relative) over its last ``flat_evals`` evaluations. The search ends
-    flat when a whole restart did not lower the best J of the runs before it by ``flat_rtol``
-    (and at least ``min_evals`` were made), at ``max_evals``, after ``restarts`` restarts, or
-    past ``time_budget`` seconds of this call (each recorded in ``stopped_by``).
+    batch), each restart at a seeded uniform point with twice the population. A run ends on
+    cma's criteria or when its best J fell by less than ``flat_rtol`` (relative) over its last
+    ``flat_evals`` evaluations. The search ends flat when a whole restart did not lower the best
+    J of the runs before it by ``flat_rtol`` (after ``min_evals`` at least), at ``max_evals``,
+    after ``restarts`` restarts, or past ``time_budget`` seconds of this call (``stopped_by``).
 
-    With ``checkpoint`` (a file), the whole search (cma's state, the seeded generator, the
-    curve, the runs, the evaluations) is written there after every generation, and a search
-    found there is resumed: the same seed's interrupted search continues exactly as if it had
-    not stopped (a larger ``max_evals`` or a new ``time_budget`` continues a finished one).
-    A checkpoint of another search (other bounds, start, seed, sigma0 or population) is
+    With ``checkpoint`` (a file) the whole search (cma's state, the seeded generator, curve,
+    runs) is written there after every generation and resumed from it: an interrupted search
+    continues exactly as if it had not stopped, a budget-stopped one continues with a larger
+    budget; another search's checkpoint (bounds, start, seed, sigma0 or population differ) is
     refused with :class:`gearsim.errors.UsageError` naming the file.
 
-    ``on_generation`` gets, after every generation, the evaluations so far (``nfev``), the
-    best J and vector (``best_J``, ``x``), the run's index, wall and CPU seconds over all calls
-    (``t``, ``cpu_s``), the curve and the finished runs so far.
-
-    Returns the best vector and J, ``nfev``, the best-J curve (``curve``: ``[nfev, best J]``
-    after every generation), the runs (population, evaluations, best J, why each ended), how
-    often the search was resumed (``resumed``), wall and CPU seconds over all calls.
+    ``on_generation`` gets after every generation ``nfev``, ``best_J``, ``x``, the run's index,
+    wall and CPU seconds over all calls (``t``, ``cpu_s``), the curve and the finished runs.
+    Returns the best vector and J, ``nfev``, the best-J curve (``[nfev, best J]`` per
+    generation), the runs (population, evaluations, best J, why each ended), ``resumed``, wall
+    and CPU seconds over all calls.
     """
     import cma
 
@@ -280,13 +275,7 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
            "sigma0": float(sigma0), "popsize": popsize}
     S = _load_checkpoint(checkpoint, key)
     if S is None:
-        u0 = np.full(d, 0.5) if x0 is None else (np.asarray(x0, dtype=float) - lo) / (hi - lo)
-        S = {"key": key, "rng": np.random.default_rng(seed), "r": 0,
-             "lam": popsize or (4 + int(3 * math.log(d))), "u0": u0,
-             "start": [] if x0 is None else [np.clip(np.asarray(x0, dtype=float), lo, hi)],
-             "best": {"J": math.inf, "x": None}, "curve": [], "runs": [], "nfev": 0,
-             "es": None, "run": None, "rcurve": [], "why": "", "wall_s": 0.0, "cpu_s": 0.0,
-             "resumed": 0}
+        S = _fresh_search(key, lo, hi, popsize)
     else:
         S["resumed"] += 1
         S["why"] = "" if S["why"] in ("max_evals", "time_budget") else S["why"]
@@ -295,17 +284,6 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
 
     def clock() -> tuple[float, float]:
         return S["wall_s"] + time.time() - t0, S["cpu_s"] + time.process_time() - c0
-
-    def flat(c: list[list[float]], since: int) -> bool:
-        """Best J fell by less than flat_rtol over the last flat_evals evaluations."""
-        c = [p for p in c if p[0] >= since]
-        if not c or c[-1][0] - c[0][0] < flat_evals:
-            return False
-        past = [J for n, J in c if n <= c[-1][0] - flat_evals]
-        if not past:
-            return False
-        then = past[-1]
-        return not (then - c[-1][1] > flat_rtol * abs(then))
 
     while S["r"] <= restarts:
         if S["es"] is None:
@@ -316,32 +294,16 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
                  "verbose": -9, "verb_log": 0, "verb_disp": 0})
             S["run"] = {"popsize": S["lam"], "start_nfev": S["nfev"], "best_J": math.inf}
             S["rcurve"] = []
-        es, run, rcurve = S["es"], S["run"], S["rcurve"]
+        es, run = S["es"], S["run"]
         while not S["why"]:
-            us = es.ask()
-            xs = [lo + np.asarray(u) * (hi - lo) for u in us]
-            # the start, exactly, in the first batch (one lane more; not told to cma): cma's
-            # bound transform moves a value on a bound inside (0 -> 0.0125 of the box), so the
-            # population never holds a start with a coordinate on its bound (b_brg = 0)
-            extra, S["start"] = S["start"], []
-            Jall = [float(v) for v in batch(extra + xs)]
-            Js = Jall[len(extra):]
-            es.tell(us, Js)
-            S["nfev"] += len(extra) + len(xs)
-            k = int(np.argmin(Jall))
-            if Jall[k] < run["best_J"]:
-                run["best_J"] = Jall[k]
-            if Jall[k] < best["J"]:
-                best.update(J=Jall[k], x=[float(v) for v in (extra + xs)[k]])
-            curve.append([S["nfev"], best["J"]])
-            rcurve.append([S["nfev"], run["best_J"]])
+            _generation(S, batch, lo, hi)
             if S["nfev"] >= max_evals:
                 S["why"] = "max_evals"
             elif time_budget is not None and time.time() - t0 > time_budget:
                 S["why"] = "time_budget"
             elif es.stop():
                 S["why"] = "cma: " + ",".join(sorted(es.stop()))
-            elif flat(rcurve, run["start_nfev"]):
+            elif _flat(S["rcurve"], run["start_nfev"], flat_evals, flat_rtol):
                 S["why"] = "run flat"
             wall, cpu = clock()
             _save_checkpoint(checkpoint, S, wall, cpu)
@@ -375,6 +337,54 @@ def run_cmaes(batch: Callable[[list[np.ndarray]], list[float]], bounds: Bounds, 
     return {"x": best["x"], "J": best["J"], "nfev": S["nfev"], "curve": curve,
             "runs": out_runs, "stopped_by": stopped_by, "seed": seed, "wall_s": wall,
             "cpu_s": cpu, "resumed": S["resumed"]}
+
+
+def _fresh_search(key: dict[str, Any], lo: np.ndarray, hi: np.ndarray, popsize: int | None
+                  ) -> dict[str, Any]:
+    """The state of a search not begun: its first run at the start (else the box centre)."""
+    x0, d = key["x0"], len(lo)
+    u0 = np.full(d, 0.5) if x0 is None else (np.asarray(x0, dtype=float) - lo) / (hi - lo)
+    return {"key": key, "rng": np.random.default_rng(key["seed"]), "r": 0,
+            "lam": popsize or (4 + int(3 * math.log(d))), "u0": u0,
+            "start": [] if x0 is None else [np.clip(np.asarray(x0, dtype=float), lo, hi)],
+            "best": {"J": math.inf, "x": None}, "curve": [], "runs": [], "nfev": 0,
+            "es": None, "run": None, "rcurve": [], "why": "", "wall_s": 0.0, "cpu_s": 0.0,
+            "resumed": 0}
+
+
+def _generation(S: dict[str, Any], batch: Callable[[list[np.ndarray]], list[float]],
+                lo: np.ndarray, hi: np.ndarray) -> None:
+    """One generation of the search ``S``: ask cma, measure the batch, tell cma, update the
+    evaluations, the best set and both curves."""
+    es, run, best = S["es"], S["run"], S["best"]
+    us = es.ask()
+    xs = [lo + np.asarray(u) * (hi - lo) for u in us]
+    # the start, exactly, in the first batch (one lane more; not told to cma): cma's bound
+    # transform moves a value on a bound inside (0 -> 0.0125 of the box), so the population
+    # never holds a start with a coordinate on its bound (b_brg = 0)
+    extra, S["start"] = S["start"], []
+    Jall = [float(v) for v in batch(extra + xs)]
+    es.tell(us, Jall[len(extra):])
+    S["nfev"] += len(extra) + len(xs)
+    k = int(np.argmin(Jall))
+    run["best_J"] = min(run["best_J"], Jall[k])
+    if Jall[k] < best["J"]:
+        best.update(J=Jall[k], x=[float(v) for v in (extra + xs)[k]])
+    S["curve"].append([S["nfev"], best["J"]])
+    S["rcurve"].append([S["nfev"], run["best_J"]])
+
+
+def _flat(c: list[list[float]], since: int, flat_evals: int, flat_rtol: float) -> bool:
+    """Best J of curve ``c`` (from evaluation ``since``) fell by less than ``flat_rtol``
+    (relative) over its last ``flat_evals`` evaluations."""
+    c = [p for p in c if p[0] >= since]
+    if not c or c[-1][0] - c[0][0] < flat_evals:
+        return False
+    past = [J for n, J in c if n <= c[-1][0] - flat_evals]
+    if not past:
+        return False
+    then = past[-1]
+    return not (then - c[-1][1] > flat_rtol * abs(then))
 
 
 def _load_checkpoint(path: str | Path | None, key: dict[str, Any] | None

@@ -25,7 +25,10 @@ for another start:
   motion of the plane row included: it seeds the cell's starts from their first chunk.
 * The forward-continuation motion of the cell, when the plane tile already simulated it
   (``forward_results``), is a known attractor at no cost (``found_by = forward``); otherwise
-  the forward state is a job of its own (the cell's first runner).
+  the forward state is a job of its own (the cell's first runner). Either is a recurrence
+  target as soon as it is known when it is a stable orbit Newton-converged in this cell at its
+  least period (``newton_seeds``, :func:`~gearsim.analysis.attractors.gear.newton_verified`):
+  the starts that reach it need no full-length run to confirm it.
 * Cells of one step grid share the kernel calls (one pool per grid); probes run without the
   tangent vector (the measuring lanes are a second pool with it).
 """
@@ -188,7 +191,9 @@ class _Judge:
         s = gear_steady(job.result)
         if i < 0:
             cell.cont.append((_CONT[i], s))
-            cell.known.add(s, target=_verified(s))
+            seed = (self.early and self.opts.newton_seeds
+                    and newton_verified([(cell.params, s)], self.st)[0])  # fmt: skip
+            cell.known.add(s, target=seed or _verified(s))
         else:
             cell.labels[i] = cell.known.add(s)
             cell.known.own[i] = s
