@@ -150,8 +150,8 @@ for tangent in (False, True):
     rate = n * periods * N / sorted(cpu)[len(cpu) // 2]
     out["tangent" if tangent else "state"] = {"cell_steps_per_s": rate}
 for sig, asm in kernel._block_step.inspect_asm().items():
-    t, _, forms = (str(x) for x in sig[-3:])
-    if "False" in forms:
+    t, general = (str(x) for x in sig[-2:])
+    if "False" in general:  # the base loop
         out["tangent" if "True" in t else "state"].update(arith_per_cell_step(asm))
 for kind in ("state", "tangent"):
     o = out[kind]

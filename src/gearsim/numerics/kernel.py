@@ -224,19 +224,23 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
 def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
-                bound, tangent, bearings, forms):
+                bound, tangent, general):
     """One RK4 step (the state, and the tangent vector if ``tangent``) of block ``bi``'s lanes.
 
     The loop over the lanes is straight-line code and vectorises (check: ``inspect_asm()``).
-    ``tangent`` and ``forms`` must be literals at the call site (compiled loops without the
-    tangent code for the transients, without the model forms' terms for the base form).
+    ``tangent`` and ``general`` must be literals at the call site: compiled loops without the
+    tangent code for the transients, and the base loop (``general`` False: no lane has a
+    bearing clearance or a model-form option, so neither the bearing channels' watch nor the
+    forms' terms are computed) beside the general one (``general`` True: both, for every lane;
+    a lane without them gets the base loop's numbers, bit for bit: an inactive channel is never
+    flagged and the forms' terms of a base lane are exact zeros).
     Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes are left
     untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
     """
     o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
     for q in range(LANES):
         _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM,
-                   qB, bound, tangent, bearings, forms)
+                   qB, bound, tangent, general, general)
     anyf = False
     for q in range(LANES):
         anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
@@ -330,9 +334,9 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
         np.zeros(0, dtype=np.int64),
     )  # fmt: skip
     wz = np.zeros(N_STATE)
-    # the two lane-set properties, read back from an array: a variable assigned the constant
-    # False would be typed Literal[bool](False) first, and every block step compiled twice
-    anyof = np.zeros(2, dtype=np.bool_)
+    # the lane-set property, read back from an array: a variable assigned the constant False
+    # would be typed Literal[bool](False) first, and every block step compiled twice
+    anyof = np.zeros(1, dtype=np.bool_)
     for l in range(n_lanes):
         r = (l // L) * BLOCK + (l % L)
         for c in range(4):
@@ -340,9 +344,8 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
                 anyof[0] = True  # a lane with a bearing clearance (its channels watched)
         if (blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0
                 or blk[r + (_PAR + P_GAM1) * L] != 0.0):
-            anyof[1] = True  # a lane with a model-form option (docs/model.md)
-    bearings = anyof[0]
-    forms = anyof[1]
+            anyof[0] = True  # a lane with a model-form option (docs/model.md)
+    general = anyof[0]
     for k in range(m):
         # ---- period start: section, accumulators, variable-ratio phase of the lane
         for l in range(n_lanes):
@@ -388,18 +391,18 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
             qB = Q[i2 + 2]
             for bi in range(nblk):
                 o = bi * BLOCK
-                if tangent and forms:
+                if tangent and general:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, True, bearings, True)
+                                       cvB, svB, lam, qA, qM, qB, bound, True, True)
                 elif tangent:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, True, bearings, False)
-                elif forms:
+                                       cvB, svB, lam, qA, qM, qB, bound, True, False)
+                elif general:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, False, bearings, True)
+                                       cvB, svB, lam, qA, qM, qB, bound, False, True)
                 else:
                     anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, False, bearings, False)
+                                       cvB, svB, lam, qA, qM, qB, bound, False, False)
                 if anyf:
                     for q in range(L):
                         if blk[o + _FLAG * L + q] != 0.0:
