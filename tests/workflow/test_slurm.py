@@ -40,7 +40,7 @@ PROFILE = ROOT / "profiles/slurm"
 ACCOUNT = "gearsim-ci"  # created by .ci/slurm-cluster
 CI = os.environ.get("CI") == "1"
 CATALOGUE = "results/catalogue.d/build.sqlite"
-# a hang guard only: the run takes ~3-4 min on 2 idle cores
+# a hang guard only: the run took 407-519 s on 2 cores at load average 1-15
 TIMEOUT = 1800
 #: the profile's group jobs of small jobs (profiles/slurm/config.yaml, groups) and their CPUs
 GROUPS = {"curves": 1, "tables": 1, "report": 1}
