@@ -4,16 +4,17 @@
 writes a slurm.conf for this machine and starts the daemons; `down` stops them afterwards. The
 whole tiny configuration (config/tiny.yaml, the default target: tables, catalogue, figures,
 diagrams, report, explorer) runs through the profile as a user would (partition and account from
-SBATCH_PARTITION and SBATCH_ACCOUNT), and one tile job is cancelled with ``scancel`` while it
-runs. Checked:
+SBATCH_PARTITION and SBATCH_ACCOUNT), and one tile's SLURM job (the tile and its attractor tile)
+is cancelled with ``scancel`` while it runs. Checked:
 
 * every job of the run but the target rule ``all`` ran in a SLURM job, its own or its group's;
   every SLURM job of the run is in ``sacct`` under the given account, COMPLETED, but the
-  cancelled one, CANCELLED, whose resubmission COMPLETED;
+  cancelled one, CANCELLED, which Snakemake submitted again and which then COMPLETED;
 * the catalogue equals the one of the session's local run (``tiny_run``, conftest.py: the same
   configuration on ``--cores 2``) value for value (ids and provenance aside);
 * a tile run as a 2-CPU job step has a 2-worker LocalCluster (one worker per CPU SLURM gave);
-* the profile's grouping: the small jobs went in three group jobs of one CPU each;
+* the profile's grouping: one SLURM job of one CPU per tile (the tile and its attractor tile),
+  the small jobs in three group jobs of one CPU each;
 * an account sacctmgr does not list for the user stops the run before anything is submitted.
 """
 
@@ -39,10 +40,12 @@ PROFILE = ROOT / "profiles/slurm"
 ACCOUNT = "gearsim-ci"  # created by .ci/slurm-cluster
 CI = os.environ.get("CI") == "1"
 CATALOGUE = "results/catalogue.d/build.sqlite"
-# a hang guard only: the run takes ~4-5 min on 2 idle cores
+# a hang guard only: the run takes ~3-4 min on 2 idle cores
 TIMEOUT = 1800
-#: the profile's group jobs (profiles/slurm/config.yaml, groups)
-GROUPS = ("curves", "tables", "report")
+#: the profile's group jobs of small jobs (profiles/slurm/config.yaml, groups) and their CPUs
+GROUPS = {"curves": 1, "tables": 1, "report": 1}
+#: tiles of the tiny configuration: one SLURM job each (the tiles group)
+TILES = 4
 
 
 def _privileged() -> bool:
@@ -113,7 +116,7 @@ def slurm_run(cluster, tiny_run, tmp_path_factory):
     # test_tile_cluster_has_the_cpus_srun_gave below
     cmd = [str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--workflow-profile",
            str(PROFILE), "--configfile", "config/tiny.yaml", "--slurm-jobname-prefix", prefix,
-           "--set-threads", "simulate_tile=1"]
+           "--set-threads", "simulate_tile=1", "attractor_tile=1"]
     since = time.strftime("%Y-%m-%dT%H:%M:%S")
     log = wd / "snakemake.log"
     t0 = time.monotonic()
@@ -153,9 +156,15 @@ def test_every_job_went_through_slurm_and_completed(slurm_run):
     assert cancelled["state"].str.startswith("CANCELLED").all() and len(cancelled) == 1, jobs
     rest = jobs[jobs["job"] != int(killed[0])]
     assert (rest["state"] == "COMPLETED").all(), jobs
-    # the cancelled tile was submitted again and completed
-    again = rest[(rest["comment"] == killed[1]) & (rest["job"] > int(killed[0]))]
-    assert len(again) == 1, jobs
+    # the cancelled job was submitted again (Snakemake's job id, SLURM's new one) and completed
+    log = slurm_run["log"]
+    submitted = dict(re.findall(r"Job (\S+) has been submitted with SLURM jobid (\d+)", log))
+    by_slurm = {int(s): j for j, s in re.findall(
+        r"Job (\S+) has been submitted with SLURM jobid (\d+)", log)}
+    job = by_slurm[int(killed[0])]
+    assert f"Trying to restart job {job}." in log, log[-3000:]
+    again = int(submitted[job])  # the last submission of that job
+    assert again > int(killed[0]) and again in set(rest["job"]), (again, jobs)
 
 
 def _tables(db: Path) -> dict[str, pd.DataFrame]:
@@ -213,9 +222,11 @@ def test_tile_cluster_has_the_cpus_srun_gave(cluster, tmp_path):
 
 
 def test_tile_jobs_got_what_they_asked_for(slurm_run):
-    jobs = slurm_run["jobs"]
-    tiles = jobs[jobs["comment"].str.startswith("rule_simulate_tile")]
-    assert len(tiles) == 5 and (tiles["cpus"] == 1).all(), tiles  # 4 tiles, one twice
+    """One SLURM job of one CPU per tile, its attractor tile in it; the cancelled one twice."""
+    jobs, log = slurm_run["jobs"], slurm_run["log"]
+    tiles = jobs[jobs["comment"].str.startswith("rule_tiles_")]
+    assert len(tiles) == TILES + 1 and (tiles["cpus"] == 1).all(), tiles
+    assert len(re.findall(r"\] Group job tiles ", log)) == TILES + 1, log[-3000:]
 
 
 def test_every_rule_job_ran_in_slurm(slurm_run):
@@ -226,23 +237,24 @@ def test_every_rule_job_ran_in_slurm(slurm_run):
     local = [name for kind, name in jobs if kind == "localrule"]
     total = int(re.search(r"^total\s+(\d+)", log, re.M).group(1))
     assert local == ["all"], local
-    # 60 jobs in the tiny configuration, the cancelled tile's twice (once more on resubmission)
-    assert (total, len(jobs)) == (60, 61), (total, len(jobs))
+    # 60 jobs in the tiny configuration; the cancelled SLURM job's two (a tile and its attractor
+    # tile) twice more: in the group's error report and on its resubmission
+    assert (total, len(jobs)) == (60, 64), (total, len(jobs))
     ran = {name for _, name in jobs}
     assert {"catalogue", "report", "explorer", "figures_index", "plane_maps", "attractor_maps",
             "sweep_diagram", "table1", "figure_01", "figure_20"} <= ran, ran
     assert re.search(r"^60 of 60 steps \(100%\) done$", log, re.M), log[-3000:]
 
 
-def test_small_jobs_went_in_group_jobs_of_one_cpu(slurm_run):
+def test_small_jobs_went_in_three_group_jobs_of_one_cpu(slurm_run):
     jobs, log = slurm_run["jobs"], slurm_run["log"]
-    assert sorted(re.findall(r"\] Group job (\w+) ", log)) == sorted(GROUPS)
-    for group in GROUPS:
+    groups = [g for g in re.findall(r"\] Group job (\w+) ", log) if g != "tiles"]
+    assert sorted(groups) == sorted(GROUPS), groups
+    for group, cpus in GROUPS.items():
         mine = jobs[jobs["comment"].str.startswith(f"rule_{group}_")]
-        assert len(mine) == 1 and (mine["cpus"] == 1).all(), jobs
-    # compile, 4 tiles (one twice: the cancelled and its second submission), 4 attractor tiles,
-    # the 3 group jobs
-    assert len(jobs) == 13, jobs
+        assert len(mine) == 1 and (mine["cpus"] == cpus).all(), jobs
+    # compile, 4 tile jobs (one twice: the cancelled and its second submission), the 3 groups
+    assert len(jobs) == 1 + TILES + 1 + len(GROUPS), jobs
 
 
 def test_profile_names_only_rules_of_the_workflow(tmp_path):
