@@ -109,3 +109,26 @@ def test_collect_fit_times_an_unfinished_seed_from_its_state(tmp_path):
     assert s1["best"] == {"xi": 0.07} and s1["load"] == "1.00 1.00 1.00"
     assert (s3["nfev"], s3["timed"], s3["cpu_s_search"]) == (1, False, 0.0)
     assert (f["evaluations"], f["cpu_s"], f["wall_s"]) == (4, 12.5, 40.0)
+
+
+def test_collect_fit_reads_a_seed_resumed_past_its_record_from_its_log(tmp_path):
+    from gearsim.calibration.lane_fit import collect_fit, state_path
+
+    (tmp_path / "logs").mkdir()
+    rec = {"seed": 1, "search": "cma-es", "nfev": 2, "stopped_by": "time_budget", "runs": [],
+           "J_lanes": 4.0, "best": {"xi": 0.06}, "cpu_s_search": 5.0, "wall_s_search": 9.0,
+           "curve": [[1, 5.0], [2, 4.0]]}
+    (tmp_path / "te_rate.s1.json").write_text(json.dumps(rec))
+    lines = [json.dumps({"x": [0.0], "J": J, "measured": None}) for J in (5.0, 4.0, 3.5, 3.0)]
+    (tmp_path / "logs" / "te_rate-lanes.s1.jsonl").write_text("\n".join(lines) + "\n")
+    state = {"nfev": 4, "J_lanes": 3.0, "best": {"xi": 0.07}, "cpu_s_search": 11.0,
+             "wall_s_search": 30.0, "runs": [], "curve": [[2, 4.0], [4, 3.0]]}
+    state_path(tmp_path / "logs", "te_rate", 1).write_text(json.dumps(state))
+    s = collect_fit(["te_rate"], tmp_path)["forms"]["te_rate"]["seeds"]["1"]
+    # the resumed search, not its older record
+    assert (s["nfev"], s["J_lanes"], s["stopped_by"], s["cpu_s_search"]) == (
+        4, 3.0, "unfinished", 11.0)
+    # once it finishes again its record is the newer one
+    (tmp_path / "te_rate.s1.json").write_text(json.dumps({**rec, "nfev": 4, "J_lanes": 3.0}))
+    s = collect_fit(["te_rate"], tmp_path)["forms"]["te_rate"]["seeds"]["1"]
+    assert (s["nfev"], s["stopped_by"]) == (4, "time_budget")

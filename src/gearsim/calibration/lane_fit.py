@@ -184,6 +184,9 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
         seeds = {}
         for f in sorted(d.glob(f"{name}.s*.json")):
             rec = json.loads(f.read_text())
+            sp = state_path(d / "logs", name, int(rec["seed"]))
+            if sp.is_file() and json.loads(sp.read_text())["nfev"] > rec["nfev"]:
+                continue  # resumed past its record and not finished again: its log and state
             seeds[str(rec["seed"])] = {k: rec[k] for k in (
                 "seed", "search", "nfev", "stopped_by", "runs", "J_lanes", "J", "terms", "best",
                 "measured", "cpu_s_search", "wall_s_search", "run", "budget", "curve")
