@@ -225,10 +225,9 @@ def simulate_cell(
     start_period
         Absolute period index of ``u0`` (matters only for the slow variable-ratio forcing).
     spectrum
-        Also compute all Lyapunov exponents
-        (:func:`gearsim.numerics.variational.lyapunov_spectrum`) on
-        the steady motion: ``True`` over ``max(200, analysed window)`` periods, an integer over
-        that many periods. Stored in ``CellResult.spectrum`` (sum checked against the trace).
+        Also all Lyapunov exponents (:func:`gearsim.numerics.variational.lyapunov_spectrum`)
+        of the steady motion, over ``max(200, analysed window)`` periods (``True``) or that
+        many periods (an integer), in ``CellResult.spectrum`` (sum checked against the trace).
     floquet
         ``"slow"`` (Newton-refine the cells that settle too slowly), ``"margin"`` (also the
         Floquet margin ``mu_max`` of every other periodic cell:
