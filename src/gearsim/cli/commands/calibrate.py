@@ -55,7 +55,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--maxiter", type=int, default=40,
                    help="differential evolution generations")
     p.add_argument("--workers", type=int, default=1, help="processes for the DE map (<= 2 here)")
-    p.add_argument("--time-budget", type=float, default=3000.0, help="seconds for the search")
+    p.add_argument("--time-budget", type=float, default=3000.0,
+                   help="seconds for the search (stage fit: per form and seed and per call; a "
+                   "seed stopped by it resumes from its checkpoint when run again)")
     p.add_argument("--dw", type=float, default=0.01, help="w step of the search grid")
     p.add_argument("--verify-dw", type=float, default=0.004, help="w step of the verification")
     p.add_argument("--verify-model", choices=("6dof", "1dof"), default="6dof",
