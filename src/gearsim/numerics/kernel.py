@@ -389,21 +389,26 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
             qA = Q[i2]
             qM = Q[i2 + 1]
             qB = Q[i2 + 2]
+            # the vector steps of every block first (a straight loop of block steps), then the
+            # flagged lanes of the step, redone by the event layer one after the other
+            anyf = False
             for bi in range(nblk):
-                o = bi * BLOCK
                 if tangent and general:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, True, True)
+                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
+                                    lam, qA, qM, qB, bound, True, True)
                 elif tangent:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, True, False)
+                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
+                                    lam, qA, qM, qB, bound, True, False)
                 elif general:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, False, True)
+                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
+                                    lam, qA, qM, qB, bound, False, True)
                 else:
-                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
-                                       cvB, svB, lam, qA, qM, qB, bound, False, False)
-                if anyf:
+                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
+                                    lam, qA, qM, qB, bound, False, False)
+                anyf = anyf | f
+            if anyf:
+                for bi in range(nblk):
+                    o = bi * BLOCK
                     for q in range(L):
                         if blk[o + _FLAG * L + q] != 0.0:
                             ll = bi * L + q
