@@ -1,12 +1,11 @@
 """Certified neighbourhoods of stable periodic orbits: where an early label needs no recurrence.
 
-For a periodic attractor of period ``n`` whose orbit is known on the section (a Newton-refined
-orbit, or a run settled to the classifier's period test) and whose Floquet margin |mu|max is
-below 1, a neighbourhood of its section state ``c`` (phase 0) is *certified* in a norm adapted
-to the orbit:
+For a periodic attractor of period ``n`` whose orbit is a stable orbit of its cell (its section
+state Newton-converged on the cell's own RK4 map, at its least period, |mu|max < 1:
+:func:`gearsim.analysis.attractors.gear.newton_orbits`), a neighbourhood of that fixed point
+``c`` of the ``n``-period map (phase 0) is *certified* in a norm adapted to the orbit:
 
-* the monodromy ``M`` of the orbit's own ``n`` periods at ``c`` (the cell's RK4 map,
-  :func:`gearsim.numerics.variational.monodromies`), in the scaled coordinates
+* the monodromy ``M`` of the orbit's own ``n`` periods at ``c`` (the one Newton used), in the scaled coordinates
   ``z = (y - c) / s`` (``s`` the orbit's displacement range for displacements, ``w`` times it
   for velocities; the single-DOF model's frozen bearing states left out), gives the matrix
   ``P`` of the discrete Lyapunov (Stein) equation ``M^T P M - rho^2 P = -rho^2 I`` with
@@ -185,34 +184,37 @@ def _images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settin
 
 
 def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radius: float,
-                 tries: int) -> tuple[list[Certificate | None], int]:
+                 tries: int, orbits: Sequence | None = None
+                 ) -> tuple[list[Certificate | None], int]:
     """The largest certified radius of each orbit (module docstring), or None, all orbits of
     one period in shared kernel calls (cells of one step grid); and the lane-periods
-    integrated to find them."""
+    integrated to find them. Only an orbit Newton-converged in its cell at its least period
+    with |mu|max < 1 is certified (:func:`gearsim.analysis.attractors.gear.newton_orbits`;
+    ``orbits``: its result for ``pairs`` if the caller has it): the ellipsoid is centred on
+    that fixed point of the orbit map, so a contraction of the ellipsoid into itself leads to
+    this orbit and no other (the fixed point in it is unique)."""
     from gearsim.dynamics.model import pack_parameters
-    from gearsim.numerics.integrate import STATUS_OK
-    from gearsim.numerics.variational import monodromies
 
     out: list[Certificate | None] = [None] * len(pairs)
     spent = 0
     packed: dict[int, np.ndarray] = {}  # id(params) -> packed parameters
+    from gearsim.analysis.attractors.gear import newton_orbits
+
+    if orbits is None:
+        orbits = newton_orbits([(p, s if eligible(s, s.period) else None) for p, s in pairs],
+                               settings)  # fmt: skip
     by_n: dict[int, list[int]] = {}
     for i, (p, s) in enumerate(pairs):
-        if p.var_ratio == 0.0 and eligible(s, s.period) and stable_margin(p, s, settings):
+        if orbits[i] is not None and eligible(s, s.period):
             by_n.setdefault(s.period, []).append(i)
-    for n, group in by_n.items():
-        ys = [np.asarray(pairs[i][1].final_state, dtype=float)[:10] for i in group]
-        for i in group:
-            p = pairs[i][0]
+            spent += len(orbits[i][1]) * s.period
             if id(p) not in packed:
                 packed[id(p)] = pack_parameters(p)
-        maps = monodromies([pairs[i][0] for i in group], ys, n, settings)
+    for n, group in by_n.items():
         todo = []  # (pair index, centre, ev, scales, P, rho, unit directions)
-        for i, y, (_yn, M, status) in zip(group, ys, maps, strict=True):
+        for i in group:
             p, s = pairs[i]
-            spent += len(M) * n
-            if status != STATUS_OK or not np.all(np.isfinite(M)):
-                continue
+            y, M = orbits[i]
             ev = _evolved(p)
             scales = np.array([max(s.scale_x, 1e-9) if k % 2 == 0 else max(s.scale_v, 1e-9)
                                for k in ev])  # fmt: skip

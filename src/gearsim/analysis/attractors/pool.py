@@ -45,6 +45,7 @@ from gearsim.analysis.attractors.gear import (
     GearCells,
     fill_orbit_margins,
     gear_steady,
+    newton_orbits,
     newton_verified,
     sobol_unit,
 )
@@ -302,7 +303,7 @@ def _forward_margins(params_list, forward_results, st) -> None:
 
 
 def _precertify(cells: list[_Cell], forward_results, st, opts: FinderOptions, history: int,
-                stats: PoolStats) -> None:
+                stats: PoolStats, orbits) -> None:
     """The certificates of the cells' forward motions (one step grid) in shared kernel calls,
     before the pool: each seeds its cell from the first chunk (``_Cell.pre``)."""
     todo = [cell for cell in cells
@@ -312,7 +313,8 @@ def _precertify(cells: list[_Cell], forward_results, st, opts: FinderOptions, hi
     if not todo:
         return
     got, spent = certify_many([(cell.params, forward_results[cell.c]) for cell in todo], st,
-                              opts.certify_radius, opts.certify_tries)  # fmt: skip
+                              opts.certify_radius, opts.certify_tries,
+                              [orbits[cell.c] for cell in todo])  # fmt: skip
     stats.certify_periods += spent
     for cell, cert in zip(todo, got, strict=True):
         cell.pre = cert
@@ -348,9 +350,11 @@ def map_gear_cells(
     history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
     if opts.early and opts.certified and forward_results is not None:
         _forward_margins(params_list, forward_results, st)
-    seeds = None
-    if opts.early and opts.newton_seeds and forward_results is not None:
-        seeds = newton_verified(list(zip(params_list, forward_results, strict=True)), st)
+    seeds = orbits = None
+    if opts.early and (opts.newton_seeds or opts.certified) and forward_results is not None:
+        orbits = newton_orbits(list(zip(params_list, forward_results, strict=True)), st)
+        if opts.newton_seeds:
+            seeds = [o is not None for o in orbits]
     cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
     groups: dict[tuple, list[_Cell]] = {}
     for cell in cells:
@@ -360,7 +364,7 @@ def map_gear_cells(
     stats = stats if stats is not None else PoolStats()
     for (N, nu), group in groups.items():
         if opts.early and opts.certified and forward_results is not None:
-            _precertify(group, forward_results, st, opts, history, stats)
+            _precertify(group, forward_results, st, opts, history, stats, orbits)
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
                        opts.early, stats, seeds)  # fmt: skip
         run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,
