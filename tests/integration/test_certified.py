@@ -20,7 +20,7 @@ from gearsim.analysis.attractors import (
     gear_steady,
     same_attractor,
 )
-from gearsim.analysis.attractors.certify import certify
+from gearsim.analysis.attractors.certify import Certificate, certify
 from gearsim.cell import chains
 from gearsim.cell.pool import PoolStats
 from gearsim.cell.simulate import simulate_cell
@@ -86,3 +86,16 @@ def test_forward_motion_seeds_certified_labels():
                            forward_results=motions)
     assert_same_attractors_per_start(fast, full)
     assert stats.early_certified >= 16
+
+
+def test_confirmed_needs_two_points_one_orbit_period_apart_inside_and_closer():
+    c = Certificate(np.zeros(10), np.arange(2), np.ones(2), np.eye(2), 0.1, 0.5, 0.5, 2)
+    L = 6
+    h = np.full((4, L, 10), np.nan)
+    x = np.array([0.5, 0.3, 0.09, 0.2, 0.05, 0.3])  # distances along x, oldest first
+    h[:, :, :] = 0.0
+    h[:, :, 0] = x
+    h[1, :, 0] = [0.5, 0.3, 0.09, 0.2, 0.095, 0.3]  # inside, then 2 periods on farther
+    h[2, :, 0] = [0.5, 0.3, 0.09, 0.05, 0.2, 0.3]  # closer only 1 period on (n = 2)
+    filled = np.array([L, L, L, 3])  # the last start: y_2 (0.09) not recorded
+    assert c.confirmed(h, filled).tolist() == [True, False, False, False]

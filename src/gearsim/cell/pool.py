@@ -110,7 +110,7 @@ class PoolStats:
     parked: int = 0  # times a job was parked
     certify_periods: int = 0  # lane-periods integrated to certify orbits' neighbourhoods
     radii: list = field(default_factory=list)  # certified radii (None: no radius passed)
-    early_certified: int = 0  # starts labelled inside a certified ball
+    early_certified: int = 0  # starts labelled inside a certified ellipsoid
     early_recurrence: int = 0  # starts labelled by recurrence
 
     @property

@@ -5,9 +5,10 @@ state Newton-converged on the cell's own RK4 map, at its least period, |mu|max <
 :func:`gearsim.analysis.attractors.gear.newton_orbits`), a neighbourhood of that fixed point
 ``c`` of the ``n``-period map (phase 0) is *certified* in a norm adapted to the orbit:
 
-* the monodromy ``M`` of the orbit's own ``n`` periods at ``c`` (the one Newton used), in the scaled coordinates
-  ``z = (y - c) / s`` (``s`` the orbit's displacement range for displacements, ``w`` times it
-  for velocities; the single-DOF model's frozen bearing states left out), gives the matrix
+* the monodromy ``M`` of the orbit's own ``n`` periods at ``c`` (the one Newton used), in the
+  scaled coordinates ``z = (y - c) / s`` (``s`` the orbit's displacement range for
+  displacements, ``w`` times it for velocities; the single-DOF model's frozen bearing states
+  left out), gives the matrix
   ``P`` of the discrete Lyapunov (Stein) equation ``M^T P M - rho^2 P = -rho^2 I`` with
   ``rho = (1 + |mu|max) / 2`` (:func:`scipy.linalg.solve_discrete_lyapunov` on ``M / rho``):
   the linearised ``n``-period map contracts the norm ``|z|_P = sqrt(z^T P z)`` by ``rho``.
@@ -246,7 +247,7 @@ def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radi
             spent += len(rows) * n
             owner = np.array(owner)
             left = []
-            for k, (i, y, ev, scales, P, rho, dirs) in enumerate(todo):
+            for k, (i, y, ev, scales, P, rho, _dirs) in enumerate(todo):
                 q = np.nonzero(owner == k)[0]
                 ok = bool(np.all(status[q] == 0))
                 if ok:  # every sample with the centre's (the orbit's) contact sequence

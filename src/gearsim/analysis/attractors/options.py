@@ -38,9 +38,9 @@ class FinderOptions:
     points is inside the orbit's certified ellipsoid and the point one orbit period later is
     inside and closer (:mod:`gearsim.analysis.attractors.certify`: the Lyapunov norm of the
     orbit's monodromy; radii from ``certify_radius`` of the range down by factors of 3,
-    ``certify_tries`` of them); recurrence stays for the rest. ``newton_seeds``: the cell's forward-continuation motion
-    (``forward_results``) is a recurrence target from the first chunk when it is a stable orbit
-    Newton-converged in this cell at its least period
+    ``certify_tries`` of them); recurrence stays for the rest. ``newton_seeds``: the cell's
+    forward-continuation motion (``forward_results``) is a recurrence target from the first
+    chunk when it is a stable orbit Newton-converged in this cell at its least period
     (:func:`gearsim.analysis.attractors.gear.newton_verified`); otherwise it becomes one only
     when a start's full-length run reaches it.
     """

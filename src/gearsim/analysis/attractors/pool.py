@@ -19,10 +19,12 @@ for another start:
   tested again at once and resume (each with a fresh ``patience``); one of them becomes the
   next runner. Parking changes when a start is labelled, never what it is labelled onto.
 * Certified early labels (``certified``, :mod:`gearsim.analysis.attractors.certify`): a
-  start inside a periodic motion's certified ball at two chunk checks in a row, closer at the
-  second, is labelled onto it, before the recurrence rule of ``map_attractors`` (which labels
-  the rest). Every periodic motion of the cell's own runs is certified once, the forward
-  motion of the plane row included: it seeds the cell's starts from their first chunk.
+  start one of whose recorded section states lies inside a periodic motion's certified
+  ellipsoid, with the state one orbit period later inside and closer, is labelled onto it
+  (every period of its window is tested at each chunk check), before the recurrence rule of
+  ``map_attractors`` (which labels the rest). Every periodic motion of the cell's own runs is
+  tried once; the forward motions of the plane rows are certified before the pool in shared
+  kernel calls and seed their cells' starts from the first chunk.
 * The forward-continuation motion of the cell, when the plane tile already simulated it
   (``forward_results``), is a known attractor at no cost (``found_by = forward``); otherwise
   the forward state is a job of its own (the cell's first runner). Either is a recurrence
