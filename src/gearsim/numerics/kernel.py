@@ -389,26 +389,21 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
             qA = Q[i2]
             qM = Q[i2 + 1]
             qB = Q[i2 + 2]
-            # the vector steps of every block first (a straight loop of block steps), then the
-            # flagged lanes of the step, redone by the event layer one after the other
-            anyf = False
             for bi in range(nblk):
+                o = bi * BLOCK
                 if tangent and general:
-                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
-                                    lam, qA, qM, qB, bound, True, True)
+                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
+                                       cvB, svB, lam, qA, qM, qB, bound, True, True)
                 elif tangent:
-                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
-                                    lam, qA, qM, qB, bound, True, False)
+                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
+                                       cvB, svB, lam, qA, qM, qB, bound, True, False)
                 elif general:
-                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
-                                    lam, qA, qM, qB, bound, False, True)
+                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
+                                       cvB, svB, lam, qA, qM, qB, bound, False, True)
                 else:
-                    f = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB,
-                                    lam, qA, qM, qB, bound, False, False)
-                anyf = anyf | f
-            if anyf:
-                for bi in range(nblk):
-                    o = bi * BLOCK
+                    anyf = _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB,
+                                       cvB, svB, lam, qA, qM, qB, bound, False, False)
+                if anyf:
                     for q in range(L):
                         if blk[o + _FLAG * L + q] != 0.0:
                             ll = bi * L + q
