@@ -22,7 +22,7 @@ from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.study.config import Study
 
 FIXED = IntegrationSettings(method="rk4")
-ADAPTIVE = FIXED.with_(settle_check=4)
+ADAPTIVE = FIXED.with_(settle_check=8)
 STANDARD = Study.load().parameters().model
 
 

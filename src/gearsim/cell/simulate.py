@@ -6,14 +6,15 @@ then measures in chunks of mesh periods and stops as soon as a period ``n <= n_m
 established and confirmed, or when the budget ``max_periods`` is spent (then chaos,
 quasi-periodic or unsettled is decided by the Lyapunov exponent).
 
-With ``settle_check = s > 0`` the transient adapts to the contraction: the tangent vector runs
-and the section points are recorded from the start; from ``W + s`` periods on (``W`` =
-``chunk``), every ``s`` periods, the last ``W`` periods are a window for the period test, and the
-cell ends at once when that window has a period and is settled (:func:`settled_period`: the
-settle distance at most :data:`gearsim.cell.verify.REFINE_RTOL`, the window is labelled as it
-stands). A cell that does not settle so reaches the end of its transient plus ``W`` periods:
-that last window is the first measuring chunk of the fixed plan, and measuring goes on as
-without the option (period test, budget, refinement and statuses unchanged).
+With ``settle_check = s > 0`` the transient adapts to the contraction: the tangent lead (the
+transient's last ``tangent_lead`` periods) is recorded, and from :data:`EARLY_LEAD` +
+:data:`EARLY_WINDOW` periods into it, every ``s`` periods, its last :data:`EARLY_WINDOW` periods
+are a window for the period test: the cell ends at once when that window has a period, is
+settled and repeats to :data:`EARLY_RTOL` throughout (:func:`settled_period`; it is labelled as
+it stands). A cell that does not settle so reaches the end of its transient plus ``chunk``
+periods: that last window is the fixed plan's first measuring chunk, and measuring goes on as
+without the option (period test, budget, refinement and statuses unchanged). The chain's next
+cell starts from the state where the cell ended.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from gearsim.cell.classify import (
     Classification,
@@ -183,24 +185,45 @@ EARLY_RTOL = 1e-7
 #: the adaptive transient's window (at most ``chunk``): the period test's shortest window for
 #: periods up to 4 (``max(2 n, 16) + n`` points); a longer period is confirmed by the fixed plan
 EARLY_WINDOW = 20
-#: periods of tangent lead before the adaptive transient's first window
+#: periods of tangent lead before the adaptive transient's first window (the window's exponent
+#: is that of a vector aligned over at least these periods)
 EARLY_LEAD = 4
 
 
 def settled_period(s: PeriodSummaries, params: ModelParameters,
                    st: IntegrationSettings) -> int:
     """The period ``n`` of window ``s`` if it would be labelled as it stands, settled
-    throughout: a period (:func:`period_of`), a settle distance at most
-    :data:`~gearsim.cell.verify.REFINE_RTOL`, and every point within :data:`EARLY_RTOL` of the
-    one ``n`` periods later; else 0. The adaptive transient's test."""
-    n = period_of(s, params, st)
-    if n == 0 or not window_settle(params, s, n) <= REFINE_RTOL:
-        return 0
-    sec = s.section
+    throughout: every point within :data:`EARLY_RTOL` of the one ``n`` periods later
+    (:func:`repeats_throughout`, the cheap test first: most windows fail it), the period test's
+    period (:func:`period_of`) and a settle distance at most
+    :data:`~gearsim.cell.verify.REFINE_RTOL`; else 0. The adaptive transient's test."""
     scale = max(float(s.xmax.max() - s.xmin.min()), 1e-9)
-    dx = np.abs(sec[n:, 0] - sec[:-n, 0]).max() / scale
-    dv = np.abs(sec[n:, 1] - sec[:-n, 1]).max() / (scale * max(params.w, 1e-3))
-    return n if max(dx, dv) <= EARLY_RTOL else 0
+    n = repeats_throughout(s.section, scale, float(params.w), 4, EARLY_RTOL)
+    if n == 0 or period_of(s, params, st) != n or not window_settle(params, s, n) <= REFINE_RTOL:
+        return 0
+    return n
+
+
+@njit(cache=True, nogil=True)
+def repeats_throughout(section, scale, w, n_max, rtol):
+    """Smallest ``n <= n_max`` such that every row of ``section`` (``x``, ``x'`` in its first two
+    columns) repeats after ``n`` rows to ``rtol`` (``x`` relative to ``scale``, ``x'`` to
+    ``scale w``), or 0 (NaN fails)."""
+    m = section.shape[0]
+    tol_x = rtol * scale
+    tol_v = rtol * scale * max(w, 1e-3)
+    for n in range(1, n_max + 1):
+        if m <= n:
+            return 0
+        ok = True
+        for i in range(n, m):
+            if not (abs(section[i, 0] - section[i - n, 0]) <= tol_x
+                    and abs(section[i, 1] - section[i - n, 1]) <= tol_v):
+                ok = False
+                break
+        if ok:
+            return n
+    return 0
 
 
 def next_settle_check(done: int, st: IntegrationSettings, transient: int, window: int) -> int:

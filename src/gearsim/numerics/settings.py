@@ -91,13 +91,12 @@ class IntegrationSettings:
         means no probe.
     settle_check
         0 (off, the default): every transient runs to its end. ``s > 0``: the transient adapts
-        to the measured contraction (:mod:`gearsim.cell.simulate`): the tangent vector runs and
-        the section points are recorded from the start, and from ``chunk + s`` periods on,
-        every ``s`` periods, the last ``chunk`` periods are the window of the period test; the
-        cell ends as soon as that window has a period and is settled (settle distance at most
-        :data:`gearsim.cell.verify.REFINE_RTOL`). A cell that does not settle so runs the whole
-        transient and then measures as with the option off. Not together with
-        ``transient_recurrence``.
+        to the measured contraction (:mod:`gearsim.cell.simulate`): the tangent lead is
+        recorded and checked every ``s`` periods; the cell ends as soon as the last window has
+        a period, is settled (settle distance at most
+        :data:`gearsim.cell.verify.REFINE_RTOL`) and repeats throughout. A cell that does not
+        settle so runs the whole transient and then measures as with the option off. Not
+        together with ``transient_recurrence``.
     floquet
         Which periodic cells get their Floquet margin ``mu_max``
         (:mod:`gearsim.cell.verify`): ``"slow"`` only the cells Newton-refined because they
