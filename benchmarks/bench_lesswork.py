@@ -252,7 +252,7 @@ def cmd_settle(args) -> dict:
                 cpu[tag].append(c)
         a, b = recs["fixed"], recs["adaptive"]
         key = lambda r: (r["label"], r["label_npq"], r["status"])  # noqa: E731
-        changed, ddc, dk = [], [], []
+        changed, ddc, dk, early_dc, early_dk = [], [], [], [], []
         by_cell = {(r["i"], r["j"]): r for r in a}
         by_cell_b = {(r["i"], r["j"]): r for r in b}
         for ra, rb in zip(a, b, strict=True):
@@ -262,6 +262,9 @@ def cmd_settle(args) -> dict:
                 ddc.append(abs(ra["dc"] - rb["dc"]))
                 if ra["kmax"] == ra["kmax"]:
                     dk.append(abs(ra["kmax"] - rb["kmax"]) / max(abs(ra["kmax"]), 1e-12))
+                if rb["periods"] < ra["periods"]:  # the cells that stopped early
+                    early_dc.append(ddc[-1])
+                    early_dk.append(dk[-1] if ra["kmax"] == ra["kmax"] else 0.0)
         table = []
         for ra, rb in changed:
             left_a = by_cell.get((ra["i"] - 1, ra["j"]))
@@ -291,6 +294,8 @@ def cmd_settle(args) -> dict:
                "dc_abs_p99": float(np.quantile(ddc, 0.99)) if ddc else 0.0,
                "kmax_rel_max": max(dk, default=0.0),
                "kmax_rel_p99": float(np.quantile(dk, 0.99)) if dk else 0.0,
+               "early_dc_abs_max": max(early_dc, default=0.0),
+               "early_kmax_rel_max": max(early_dk, default=0.0),
                "table": table}
         out["planes"][plane] = res
         print(plane, json.dumps({k: v for k, v in res.items() if k != "table"}), flush=True)
