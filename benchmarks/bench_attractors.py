@@ -92,6 +92,30 @@ def long_run(p, y0, st, periods: int = 4000):
 PLANES = {"wb": ("b", 0.0, 1.0), "wxi": ("xi", 0.04, 0.16)}
 
 
+def copies(found) -> int:
+    """Pairs of periodic attractors of one cell that look like one orbit counted once and k
+    times (periods n and k n, k >= 1; same impact state, DC within ORBIT_DC, points within
+    ORBIT_RTOL of the range both ways): what the least-period merge must leave none of."""
+    from gearsim.analysis.attractors.matching import ORBIT_DC, ORBIT_RTOL, _near_all, _tolerances
+
+    out = 0
+    for ca in found:
+        per = [a.steady for a in ca.attractors if a.steady.status == "ok" and a.steady.period > 0]
+        for i, a in enumerate(per):
+            for b in per[i + 1:]:
+                n, m = sorted((a.period, b.period))
+                ia, ib = a.info or {}, b.info or {}
+                if m % n or ia.get("I") != ib.get("I"):
+                    continue
+                da, db = ia.get("dc"), ib.get("dc")
+                if da is None or db is None or abs(float(da) - float(db)) > ORBIT_DC:
+                    continue
+                tx, tv = _tolerances(a, b, ORBIT_RTOL)
+                pa, pb = a.points[-a.period:, :2], b.points[-b.period:, :2]
+                out += int(_near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv))
+    return out
+
+
 class KernelMeter:
     """Counts every call of the batched kernel: lane use and lane-steps per CPU-second."""
 
@@ -144,7 +168,15 @@ def summary(found, cpu: float, meter: KernelMeter, stats=None) -> dict:
         "cells": len(found), "starts": n, "cpu_s": cpu, "starts_per_cpu_s": n / cpu,
         "cpu_per_start_ms": 1e3 * cpu / n, "periods_per_start": periods / n,
         "labelled_early": sum(int(ca.early.sum()) for ca in found) / n, **meter.read(),
+        "orbit_copies": copies(found),
     }  # fmt: skip
+    P = np.concatenate([ca.start_periods_run for ca in found])
+    E = np.concatenate([ca.early for ca in found]).astype(bool)
+    out.update({  # where the periods go: early-labelled starts and full-length runs
+        "periods_per_early_start": float(P[E].mean()) if E.any() else float("nan"),
+        "periods_per_full_start": float(P[~E].mean()) if (~E).any() else float("nan"),
+        "full_length_periods_per_start": float(P[~E].sum() / n),
+    })
     if stats is not None:
         radii = [r for r in stats.radii]
         got = np.array([r for r in radii if r is not None], dtype=float)
@@ -297,7 +329,11 @@ def main() -> None:
         print(f"{name:9s} {v['cells']} cells x 16: {v['starts_per_cpu_s']:.0f} starts/CPU-s "
               f"({v['cpu_per_start_ms']:.2f} ms/start, {v['periods_per_start']:.0f} periods, "
               f"{100 * v['labelled_early']:.0f} % early), lane use {v['lane_use']:.3f}, kernel "
-              f"{v['kernel_lane_steps_per_cpu_s'] / 1e6:.1f} M lane-steps/CPU-s")
+              f"{v['kernel_lane_steps_per_cpu_s'] / 1e6:.1f} M lane-steps/CPU-s, "
+              f"{v['orbit_copies']} pairs of one orbit in a cell; early starts "
+              f"{v['periods_per_early_start']:.1f} periods, full-length "
+              f"{v['periods_per_full_start']:.0f} ({v['full_length_periods_per_start']:.1f} per "
+              f"start)")
     for name, v in side.items():
         if "radius_counts" in v:
             print(f"{name:9s} early: {100 * v['early_certified']:.0f} % certified, "

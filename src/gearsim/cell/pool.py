@@ -51,7 +51,7 @@ class PoolJob:
 
     ``where``: ``"new"`` (not yet loaded), ``"probe"`` (in its transient), ``"wait"``
     (transient over, not yet measuring), ``"measure"`` (lead and measurement), ``"done"``.
-    ``hist[-filled:]`` are the last section points ``(x, x')`` of the transient (oldest
+    ``hist[-filled:]`` are the last section states (10 entries each) of the transient (oldest
     first), ``probed`` the transient periods run; ``result`` the full-length result (a
     diverged record for a start that diverged while probing).
     """
@@ -110,7 +110,7 @@ class PoolStats:
     parked: int = 0  # times a job was parked
     certify_periods: int = 0  # lane-periods integrated to certify orbits' neighbourhoods
     radii: list = field(default_factory=list)  # certified radii (None: no radius passed)
-    early_certified: int = 0  # starts labelled inside a certified ball
+    early_certified: int = 0  # starts labelled inside a certified ellipsoid
     early_recurrence: int = 0  # starts labelled by recurrence
 
     @property
@@ -120,14 +120,14 @@ class PoolStats:
 
 class _Pool:
     """Lanes of one step grid with a job per occupied lane, and the last ``history`` section
-    points ``(x, x')`` of every lane (probing pool)."""
+    states of every lane (probing pool)."""
 
     def __init__(self, capacity: int, records: int, history: int = 0):
         self.records = records
         self.history = history
         self.lanes = Lanes(max(1, capacity), records)
         self.jobs: list[PoolJob | None] = [None] * self.lanes.size
-        self.hist = np.full((self.lanes.size, history, 2), np.nan)
+        self.hist = np.full((self.lanes.size, history, N_STATE), np.nan)
 
     def free(self) -> int:
         return sum(j is None for j in self.jobs)
@@ -171,7 +171,7 @@ class _Pool:
     def _resize(self, n: int) -> None:
         occ = [j for j in self.jobs if j is not None]
         new = Lanes(max(n, len(occ), 1), self.records)
-        hist = np.full((new.size, self.history, 2), np.nan)
+        hist = np.full((new.size, self.history, N_STATE), np.nan)
         if occ:
             old = np.array([j.ch.lane for j in occ], dtype=np.int64)
             idx = np.arange(len(occ))
@@ -217,10 +217,10 @@ class _Pool:
             c.left -= d
             c.steps += n
         if self.history:
-            # the last section points of every lane, oldest first
+            # the last section states of every lane, oldest first
             h, k = self.hist, min(m, self.history)
             h[:, : self.history - k] = h[:, k:]
-            h[:, -k:] = self.lanes.sec[:, m - k : m, :2]
+            h[:, -k:] = self.lanes.sec[:, m - k : m]
 
 
 def run_pool(

@@ -1,34 +1,43 @@
 """Certified neighbourhoods of stable periodic orbits: where an early label needs no recurrence.
 
-For a periodic attractor of period ``n`` (``n`` dividing the probing chunk and ``m``) whose
-orbit is known on the section (a Newton-refined orbit, or a run settled to the classifier's
-period test) and whose Floquet margin |mu|max is below 1 (:func:`stable_margin`), a radius
-``r`` per orbit is *certified* when, for every phase ``j`` of the orbit, the ``m``-period map
-``P^m`` (``FinderOptions.certify_periods``, 24: over one chunk of 8 periods the sup-norm ball
-is not contracted at the corners of most 6-DOF orbits, whose bearing components first grow;
-docs/decisions.md) takes
+For a periodic attractor of period ``n`` whose orbit is a stable orbit of its cell (its section
+state Newton-converged on the cell's own RK4 map, at its least period, |mu|max < 1:
+:func:`gearsim.analysis.attractors.gear.newton_orbits`), a neighbourhood of that fixed point
+``c`` of the ``n``-period map (phase 0) is *certified* in a norm adapted to the orbit:
 
-* the orbit's own section state ``c_j`` to within ``CENTRE_FRACTION r`` of itself, and
-* every sampled point of the boundary of the ball ``|y - c_j|_s = r`` (both signs along every
-  coordinate the model evolves, plus ``CORNERS`` seeded corners of the box) to inside the
-  ball, with the orbit's own contact sequence (the entries into face and back contact of every
-  period equal to the orbit's: no contact is gained or lost, no grazing on the sampled paths),
+* the monodromy ``M`` of the orbit's own ``n`` periods at ``c`` (the one Newton used), in the
+  scaled coordinates ``z = (y - c) / s`` (``s`` the orbit's displacement range for
+  displacements, ``w`` times it for velocities; the single-DOF model's frozen bearing states
+  left out), gives the matrix
+  ``P`` of the discrete Lyapunov (Stein) equation ``M^T P M - rho^2 P = -rho^2 I`` with
+  ``rho = (1 + |mu|max) / 2`` (:func:`scipy.linalg.solve_discrete_lyapunov` on ``M / rho``):
+  the linearised ``n``-period map contracts the norm ``|z|_P = sqrt(z^T P z)`` by ``rho``.
+  ``P`` is scaled so that its smallest eigenvalue is 1, so the ellipsoid ``|z|_P <= r`` lies
+  inside the scaled sup-norm ball of radius ``r`` (``r`` is a fraction of the range in every
+  component). In the sup norm itself the same non-normal monodromy first *grows* the ball's
+  corners (transient growth: 1-3.4 radii over 8 periods at |mu|max 0.74-0.83), which is why a
+  sup-norm ball needed the 24-period map (docs/decisions.md).
+* A radius ``r`` is certified when the true nonlinear ``n``-period map takes the centre to
+  within ``CENTRE_FRACTION r`` of itself and every sampled boundary point of the ellipsoid
+  (its principal axes, both signs, plus ``RANDOM`` points of a seeded generator,
+  :data:`SAMPLE_SEED`) to inside ``rho' r``, ``rho' = (1 + rho) / 2``, each sample keeping the
+  orbit's contact sequence (the entries into face and back contact of every period equal to
+  the orbit's: no contact gained or lost, no grazing on the sampled paths). Radii from
+  ``FinderOptions.certify_radius`` down by factors of 3 (``certify_tries`` of them); none
+  passing leaves the orbit uncertified (its starts keep the recurrence rule).
 
-with the scaled sup norm ``|d|_s = max_i |d_i| / s_i``, ``s`` the orbit's displacement range
-for displacements and ``w`` times it for velocities. Radii are tried from
-``FinderOptions.certify_radius`` down by factors of 3 (``certify_tries`` of them); none passing
-leaves the orbit uncertified (its starts keep the recurrence rule).
-
-A probing start is labelled onto a certified orbit when, at a chunk check, its section state
-lies inside a phase's ball *and* at the next chunk check (8 periods on) it lies inside the
-ball again, closer to the orbit than before (the contraction confirmed on the start's own
-trajectory). Sampled boundary points are evidence, not a proof of contraction over the whole
-ball; the finder's tests check every early label against the start's full-length run.
+A probing start is labelled onto a certified orbit when one of its section points ``y_k`` lies
+inside the ellipsoid and the point ``n`` periods later, ``y_{k+n}``, lies inside it too and
+closer to the centre in the ``P`` norm (the contraction confirmed on the start's own
+trajectory); every period of the start's recorded window is tested, not only the chunk ends.
+Sampled boundary points are evidence, not a proof of contraction over the whole ellipsoid;
+the finder's tests check every early label against the start's full-length run.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,29 +45,46 @@ import numpy as np
 from gearsim.analysis.attractors.results import Steady
 from gearsim.dynamics.parameters import ModelParameters
 
-#: the orbit's own state must return to within this fraction of the radius after m periods
+#: the orbit's own state must return to within this fraction of the radius after n periods
 CENTRE_FRACTION = 0.05
-#: seeded corners of the ball's box sampled besides the 2 d axis points
-CORNERS = 4
+#: random boundary points sampled besides the 2 d principal-axis points
+RANDOM = 12
+#: seed of the random boundary points (recorded: the samples of an orbit are reproducible)
+SAMPLE_SEED = 0
 
 
 @dataclass(frozen=True)
 class Certificate:
-    """A certified ball around every phase of a period-``n`` orbit: centres ``(n, 10)``,
-    per-component scales ``(10,)`` (inf on frozen components), radius ``r`` (scaled sup
-    norm), the worst sampled contraction ``ratio`` (image distance / r) and the map's
-    period count ``m``."""
+    """A certified ellipsoid ``|(y - centre)[ev] / scales|_P <= r`` around phase 0 of a
+    period-``n`` orbit: ``P`` ``(d, d)`` (smallest eigenvalue 1), the linear contraction
+    ``rho`` per ``n`` periods in that norm, the worst sampled image ``ratio`` (image norm / r)."""
 
-    centres: np.ndarray
+    centre: np.ndarray
+    ev: np.ndarray
     scales: np.ndarray
+    P: np.ndarray
     r: float
+    rho: float
     ratio: float
-    m: int
+    n: int
 
     def distance(self, y: np.ndarray) -> np.ndarray:
-        """Scaled sup distance of states ``y`` ``(k, 10)`` to the nearest phase centre."""
-        d = np.abs(y[:, None, :] - self.centres[None, :, :]) / self.scales[None, None, :]
-        return d.max(axis=2).min(axis=1)
+        """``P``-norm distance of states ``y`` ``(..., 10)`` to the centre, over ``r``."""
+        z = (y[..., self.ev] - self.centre[self.ev]) / self.scales
+        q = np.einsum("...i,ij,...j->...", z, self.P, z)
+        return np.sqrt(np.maximum(q, 0.0)) / self.r
+
+    def confirmed(self, hist: np.ndarray, filled: np.ndarray) -> np.ndarray:
+        """Per history ``hist[i]`` ``(L, 10)`` (last ``filled[i]`` valid, oldest first): some
+        point ``y_k`` of it inside the ellipsoid with ``y_{k+n}`` inside and closer."""
+        L, n = hist.shape[1], self.n
+        d = self.distance(hist)  # (k, L); NaN where not filled
+        later = d[:, n:]
+        earlier = d[:, :-n]
+        ok = (earlier < 1.0) & (later < earlier)
+        idx = np.arange(n, L)[None, :]
+        ok &= idx >= L - np.asarray(filled)[:, None] + n  # both points filled
+        return ok.any(axis=1)
 
 
 def _evolved(params: ModelParameters) -> np.ndarray:
@@ -66,13 +92,13 @@ def _evolved(params: ModelParameters) -> np.ndarray:
     return np.arange(10) if params.model == "6dof" else np.arange(2)
 
 
-def eligible(s: Steady, m: int) -> bool:
-    """A periodic attractor whose neighbourhood may be certified for the ``m``-period map (its
-    Floquet margin, where known, below 1)."""
+def eligible(s: Steady, max_period: int) -> bool:
+    """A periodic attractor whose neighbourhood may be certified (period at most
+    ``max_period``, the probing window's reach; its Floquet margin, where known, below 1)."""
     i = s.info or {}
     mu = i.get("mu_max")
     known = mu is not None and math.isfinite(mu)
-    return (s.status == "ok" and s.period > 0 and m % s.period == 0
+    return (s.status == "ok" and 0 < s.period <= max_period
             and s.final_state is not None and (not known or mu < 1.0)
             and i.get("status", "ok") == "ok")  # fmt: skip
 
@@ -94,98 +120,155 @@ def stable_margin(params: ModelParameters, s: Steady, settings) -> bool:
     return bool(mu < 1.0)
 
 
-def samples_per_phase(params: ModelParameters) -> int:
-    """Lanes of one try per orbit phase: the centre, 2 per evolved coordinate, the corners."""
-    return 1 + 2 * len(_evolved(params)) + CORNERS
+def samples(params: ModelParameters) -> int:
+    """Lanes of one try: the centre, 2 per evolved coordinate, the random points."""
+    return 1 + 2 * len(_evolved(params)) + RANDOM
 
 
-def worth(params: ModelParameters, s: Steady, settings, open_starts: int, m: int,
-          radius: float, recur_rtol: float) -> bool:
+def worth(params: ModelParameters, s: Steady, settings, open_starts: int, radius: float,
+          recur_rtol: float) -> bool:
     """Whether certifying the orbit of ``s`` is expected to cost fewer lane-periods than it
     saves its cell's ``open_starts`` unlabelled starts: a start converging at the rate
-    |mu|max per period reaches the ball of ``radius`` some ``ln(radius / recur_rtol) /
+    |mu|max per period reaches the ellipsoid of ``radius`` some ``ln(radius / recur_rtol) /
     ln(1 / |mu|max)`` periods before the recurrence rule's ``recur_rtol`` (the period test);
-    one try costs :func:`samples_per_phase` x ``n`` x ``m`` lane-periods. Reads (and fills)
-    the orbit's Floquet margin; False where it is not below 1."""
-    if not stable_margin(params, s, settings):
+    certifying costs the monodromy (``d`` lanes) and a try (:func:`samples` lanes), each
+    ``n`` periods. Reads (and fills) the orbit's Floquet margin; False where it is not below
+    1."""
+    if open_starts <= 0 or not stable_margin(params, s, settings):
         return False
     mu = float(s.info["mu_max"])
     if mu <= 0.0:
-        return False
-    saved = open_starts * math.log(radius / recur_rtol) / math.log(1.0 / mu)
-    return saved > samples_per_phase(params) * s.period * m
+        return True
+    saved = open_starts * math.log(radius / recur_rtol) / math.log(1.0 / mu) / s.period
+    return saved > samples(params) + len(_evolved(params))
 
 
-def certify(params: ModelParameters, s: Steady, settings, m: int, radius: float,
-            tries: int, start_period: int = 0) -> tuple[Certificate | None, int]:
-    """The largest certified radius of the orbit of ``s`` (module docstring), or None; and the
-    lane-periods integrated to find it."""
-    from gearsim.cell.simulate import initial_tangent
-    from gearsim.numerics.batch import run_periods_batched
+def _ellipsoid(M: np.ndarray, scales: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """``(P, rho)`` of the scaled monodromy (module docstring), None where |mu|max >= 1."""
+    from scipy.linalg import solve_discrete_lyapunov
 
-    if params.var_ratio != 0.0 or not eligible(s, m):
-        return None, 0
-    if not stable_margin(params, s, settings):
-        return None, 0
-    n = s.period
-    t0 = initial_tangent(params)
-    y0 = np.asarray(s.final_state, dtype=float)[:10]
-    summ, _, status, _ = run_periods_batched([params], np.hstack([y0, t0])[None, :], n,
-                                             settings, tangent=False)  # fmt: skip
-    if status[0] != 0 or len(summ[0]) < n:
-        return None, n
-    centres = np.array(summ[0].section[:n], dtype=float)
-    face = np.asarray(summ[0].nface[:n])
-    back = np.asarray(summ[0].nback[:n])
-    ev = _evolved(params)
-    sx = max(s.scale_x, 1e-9)
-    sv = max(s.scale_v, 1e-9)
-    scales = np.full(10, np.inf)
-    for i in ev:
-        scales[i] = sx if i % 2 == 0 else sv
-    rng = np.random.default_rng(0)
-    dirs = []
-    for i in ev:
-        for sign in (1.0, -1.0):
-            e = np.zeros(10)
-            e[i] = sign
-            dirs.append(e)
-    for _ in range(CORNERS):
-        e = np.zeros(10)
-        e[ev] = rng.choice([-1.0, 1.0], size=len(ev))
-        dirs.append(e)
-    dirs = np.array(dirs)
-    fin_scales = np.where(np.isfinite(scales), scales, 0.0)
-    spent = n
-    r = float(radius)
-    for _ in range(int(tries)):
-        rows, phase = [], []
-        for j in range(n):
-            rows.append(centres[j])
-            phase.append(j)
-            for e in dirs:
-                rows.append(centres[j] + r * e * fin_scales)
-                phase.append(j)
-        y = np.hstack([np.array(rows), np.repeat(t0[None, :], len(rows), axis=0)])
-        summ, fin, status, _ = run_periods_batched([params] * len(rows), y, m, settings,
-                                                   start_periods=[start_period + j
-                                                                  for j in phase],
-                                                   tangent=False)  # fmt: skip
-        spent += len(rows) * m
-        phase = np.array(phase)
-        d = np.max(np.abs(fin[:, :10] - centres[phase]) / scales[None, :], axis=1)
-        ok = status == 0
-        for q, sm in enumerate(summ):
-            if not ok[q] or len(sm) < m:
-                ok[q] = False
+    Ms = M / scales[:, None] * scales[None, :]
+    mu = float(np.max(np.abs(np.linalg.eigvals(Ms))))
+    if not mu < 1.0:
+        return None
+    rho = 0.5 * (1.0 + mu)
+    A = Ms / rho
+    P = solve_discrete_lyapunov(A.T, np.eye(len(M)))
+    P = 0.5 * (P + P.T)
+    lam = np.linalg.eigvalsh(P)
+    if not (np.all(np.isfinite(P)) and lam[0] > 0.0):
+        return None
+    return P / lam[0], rho
+
+
+def _images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settings,
+            packed: dict[int, np.ndarray]):
+    """The ``n``-period images of the states ``rows`` (one SIMD lane each, without the tangent
+    vector: the cells' one RK4 kernel, as a probing lane runs them), their status and the
+    entries into face and back contact of every period."""
+    from gearsim.numerics.batch import _K, _POS, _ST, _Y, LANES, Lanes, steps_per_period
+
+    k = len(rows)
+    N = steps_per_period(plist[0], settings)
+    lanes = Lanes(k, n)
+    for l, (p, y) in enumerate(zip(plist, rows, strict=True)):
+        lanes.load_params(l, p, N, packed[id(p)])
+        lanes.load_state(l, y)
+    ist = lanes.ist
+    ist[_ST, :k] = 0
+    ist[_POS, :k] = 0
+    ist[_K, :k] = 0
+    lanes.run(N, n, 0.0, float(getattr(settings, "divergence_bound", 1.0e6)), False)
+    idx = np.arange(k)
+    fin = lanes.view[idx // LANES, _Y : _Y + 10, idx % LANES]
+    return fin, ist[_ST, :k].copy(), lanes.nface[:k, :n].copy(), lanes.nback[:k, :n].copy()
+
+
+def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radius: float,
+                 tries: int, orbits: Sequence | None = None
+                 ) -> tuple[list[Certificate | None], int]:
+    """The largest certified radius of each orbit (module docstring), or None, all orbits of
+    one period in shared kernel calls (cells of one step grid); and the lane-periods
+    integrated to find them. Only an orbit Newton-converged in its cell at its least period
+    with |mu|max < 1 is certified (:func:`gearsim.analysis.attractors.gear.newton_orbits`;
+    ``orbits``: its result for ``pairs`` if the caller has it): the ellipsoid is centred on
+    that fixed point of the orbit map, so a contraction of the ellipsoid into itself leads to
+    this orbit and no other (the fixed point in it is unique)."""
+    from gearsim.dynamics.model import pack_parameters
+
+    out: list[Certificate | None] = [None] * len(pairs)
+    spent = 0
+    packed: dict[int, np.ndarray] = {}  # id(params) -> packed parameters
+    from gearsim.analysis.attractors.gear import newton_orbits
+
+    if orbits is None:
+        orbits = newton_orbits([(p, s if eligible(s, s.period) else None) for p, s in pairs],
+                               settings)  # fmt: skip
+    by_n: dict[int, list[int]] = {}
+    for i, (p, s) in enumerate(pairs):
+        if orbits[i] is not None and eligible(s, s.period):
+            by_n.setdefault(s.period, []).append(i)
+            spent += len(orbits[i][1]) * s.period
+            if id(p) not in packed:
+                packed[id(p)] = pack_parameters(p)
+    for n, group in by_n.items():
+        todo = []  # (pair index, centre, ev, scales, P, rho, unit directions)
+        for i in group:
+            p, s = pairs[i]
+            y, M = orbits[i]
+            ev = _evolved(p)
+            scales = np.array([max(s.scale_x, 1e-9) if k % 2 == 0 else max(s.scale_v, 1e-9)
+                               for k in ev])  # fmt: skip
+            got = _ellipsoid(M[: len(ev), : len(ev)], scales)
+            if got is None:
                 continue
-            want = (phase[q] + np.arange(m)) % n
-            ok[q] = bool(np.array_equal(sm.nface[:m], face[want])
-                         and np.array_equal(sm.nback[:m], back[want]))  # fmt: skip
-        centre = np.zeros(len(rows), dtype=bool)
-        centre[:: len(dirs) + 1] = True
-        if (ok.all() and np.all(d[centre] <= CENTRE_FRACTION * r)
-                and np.all(d[~centre] < r)):  # fmt: skip
-            return Certificate(centres, scales, r, float(d[~centre].max() / r), m), spent
-        r /= 3.0
-    return None, spent
+            P, rho = got
+            lam, V = np.linalg.eigh(P)
+            axes = (V / np.sqrt(lam)[None, :]).T  # P-norm 1 along each principal axis
+            rng = np.random.default_rng(SAMPLE_SEED)
+            g = rng.standard_normal((RANDOM, len(ev)))
+            g /= np.sqrt(np.einsum("ki,ij,kj->k", g, P, g))[:, None]
+            dirs = np.vstack([axes, -axes, g])
+            todo.append((i, y, ev, scales, P, rho, dirs))
+        r = float(radius)
+        for _ in range(int(tries)):
+            if not todo:
+                break
+            rows, plist, owner = [], [], []
+            for k, (i, y, ev, scales, _P, _rho, dirs) in enumerate(todo):
+                rows.append(y)
+                for e in dirs:
+                    yy = y.copy()
+                    yy[ev] += r * e * scales
+                    rows.append(yy)
+                plist += [pairs[i][0]] * (len(dirs) + 1)
+                owner += [k] * (len(dirs) + 1)
+            fin, status, face_all, back_all = _images(plist, rows, n, settings, packed)
+            spent += len(rows) * n
+            owner = np.array(owner)
+            left = []
+            for k, (i, y, ev, scales, P, rho, _dirs) in enumerate(todo):
+                q = np.nonzero(owner == k)[0]
+                ok = bool(np.all(status[q] == 0))
+                if ok:  # every sample with the centre's (the orbit's) contact sequence
+                    ok = bool(np.all(face_all[q] == face_all[q[0]])
+                              and np.all(back_all[q] == back_all[q[0]]))  # fmt: skip
+                if ok:
+                    z = (fin[q][:, ev] - y[ev]) / scales
+                    d = np.sqrt(np.maximum(np.einsum("ki,ij,kj->k", z, P, z), 0.0)) / r
+                    rho2 = 0.5 * (1.0 + rho)
+                    ok = bool(d[0] <= CENTRE_FRACTION and np.all(d[1:] < rho2))
+                if ok:
+                    out[i] = Certificate(y.copy(), ev, scales, P, r, rho, float(d[1:].max()), n)
+                else:
+                    left.append(todo[k])
+            todo = left
+            r /= 3.0
+    return out, spent
+
+
+def certify(params: ModelParameters, s: Steady, settings, radius: float, tries: int
+            ) -> tuple[Certificate | None, int]:
+    """:func:`certify_many` of one orbit."""
+    got, spent = certify_many([(params, s)], settings, radius, tries)
+    return got[0], spent

@@ -206,19 +206,20 @@ def _shorter_period(s: Steady) -> bool:
     return False
 
 
-def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) -> list[bool]:
-    """Per ``(cell parameters, motion)``: whether the motion is a stable periodic orbit of *that*
-    cell, Newton-converged there (:data:`NEWTON_TOL`, at most one Newton step of
-    :data:`NEWTON_STEP_RTOL` from its section state), at its least period
-    (:data:`LEAST_PERIOD_RTOL`) and with ``|mu|max < 1`` (the monodromy at the converged
-    state). The orbits of one period share kernel calls
+def newton_orbits(pairs: Sequence[tuple[ModelParameters, Steady | None]], st
+                  ) -> list[tuple[np.ndarray, np.ndarray] | None]:
+    """Per ``(cell parameters, motion)``: ``(y, M)``, the section state of the motion's orbit
+    Newton-converged in *that* cell (:data:`NEWTON_TOL`, at most one Newton step of
+    :data:`NEWTON_STEP_RTOL` from its section state) and the monodromy of its ``n`` periods
+    there, where the orbit has its least period (:data:`LEAST_PERIOD_RTOL`) and ``|mu|max <
+    1``; else None. The orbits of one period share kernel calls
     (:func:`gearsim.numerics.variational.monodromies`, the cell's own RK4 map)."""
     from gearsim.dynamics.model import N_STATE
     from gearsim.numerics.integrate import STATUS_OK
     from gearsim.numerics.shooting import newton_step, sorted_eigs
     from gearsim.numerics.variational import monodromies
 
-    out = [False] * len(pairs)
+    out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(pairs)
     by_n: dict[int, list[int]] = {}
     for i, (p, s) in enumerate(pairs):
         if (s is not None and s.status == "ok" and s.period > 0 and s.final_state is not None
@@ -238,7 +239,8 @@ def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) 
                 d = len(M)
                 G = yn[:d] - y[:d]
                 if float(np.max(np.abs(G))) < NEWTON_TOL:
-                    out[i] = bool(abs(sorted_eigs(M)[0]) < 1.0)
+                    if abs(sorted_eigs(M)[0]) < 1.0:
+                        out[i] = (y, M)
                 elif step == 0:
                     s = pairs[i][1]
                     dy = newton_step(M, G)
@@ -251,3 +253,9 @@ def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) 
                         y_again.append(y1)
             group, ys = again, y_again
     return out
+
+
+def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) -> list[bool]:
+    """Per ``(cell parameters, motion)``: whether the motion is a stable periodic orbit of *that*
+    cell, Newton-converged there at its least period (:func:`newton_orbits`)."""
+    return [o is not None for o in newton_orbits(pairs, st)]

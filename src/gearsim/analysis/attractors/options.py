@@ -15,7 +15,7 @@ RECUR_PERIOD_RTOL = 1e-4
 POOL_LANES = 256
 
 _POSITIVE_INTS = ("starts", "chunk", "confirm", "confirm_cloud", "rescout", "grid", "lanes",
-                  "certify_tries", "certify_periods")
+                  "certify_tries")
 
 
 @dataclass(frozen=True)
@@ -34,13 +34,13 @@ class FinderOptions:
     classifier's period test (None: the integration settings'). Scheduling: a start goes on
     alone past ``rescout`` probed periods without a label (its cell's *runner*); ``scouts``
     starts per cell run full first (the recurrence mapper); ``lanes`` of the probing pool.
-    ``certified``: label a probing start onto a periodic attractor once it is inside the
-    orbit's certified ball and its next chunk confirms the contraction
-    (:mod:`gearsim.analysis.attractors.certify`: the ``certify_periods``-period map; radii from
-    ``certify_radius`` of the range down by factors of 3, ``certify_tries`` of them);
-    recurrence stays for the rest. ``newton_seeds``: the cell's forward-continuation motion
-    (``forward_results``) is a recurrence target from the first chunk when it is a stable orbit
-    Newton-converged in this cell at its least period
+    ``certified``: label a probing start onto a periodic attractor once one of its section
+    points is inside the orbit's certified ellipsoid and the point one orbit period later is
+    inside and closer (:mod:`gearsim.analysis.attractors.certify`: the Lyapunov norm of the
+    orbit's monodromy; radii from ``certify_radius`` of the range down by factors of 3,
+    ``certify_tries`` of them); recurrence stays for the rest. ``newton_seeds``: the cell's
+    forward-continuation motion (``forward_results``) is a recurrence target from the first
+    chunk when it is a stable orbit Newton-converged in this cell at its least period
     (:func:`gearsim.analysis.attractors.gear.newton_verified`); otherwise it becomes one only
     when a start's full-length run reaches it.
     """
@@ -63,9 +63,8 @@ class FinderOptions:
     rescout: int = 24
     lanes: int = POOL_LANES
     certified: bool = True
-    certify_radius: float = 0.03
-    certify_tries: int = 2
-    certify_periods: int = 24
+    certify_radius: float = 0.3
+    certify_tries: int = 3
     newton_seeds: bool = True
 
     def __post_init__(self):

@@ -19,10 +19,12 @@ for another start:
   tested again at once and resume (each with a fresh ``patience``); one of them becomes the
   next runner. Parking changes when a start is labelled, never what it is labelled onto.
 * Certified early labels (``certified``, :mod:`gearsim.analysis.attractors.certify`): a
-  start inside a periodic motion's certified ball at two chunk checks in a row, closer at the
-  second, is labelled onto it, before the recurrence rule of ``map_attractors`` (which labels
-  the rest). Every periodic motion of the cell's own runs is certified once, the forward
-  motion of the plane row included: it seeds the cell's starts from their first chunk.
+  start one of whose recorded section states lies inside a periodic motion's certified
+  ellipsoid, with the state one orbit period later inside and closer, is labelled onto it
+  (every period of its window is tested at each chunk check), before the recurrence rule of
+  ``map_attractors`` (which labels the rest). Every periodic motion of the cell's own runs is
+  tried once; the forward motions of the plane rows are certified before the pool in shared
+  kernel calls and seed their cells' starts from the first chunk.
 * The forward-continuation motion of the cell, when the plane tile already simulated it
   (``forward_results``), is a known attractor at no cost (``found_by = forward``); otherwise
   the forward state is a job of its own (the cell's first runner). Either is a recurrence
@@ -40,11 +42,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gearsim.analysis.attractors.certify import certify, eligible, worth
+from gearsim.analysis.attractors.certify import certify, certify_many, eligible, worth
 from gearsim.analysis.attractors.gear import (
     GearCells,
     fill_orbit_margins,
     gear_steady,
+    newton_orbits,
     newton_verified,
     sobol_unit,
 )
@@ -84,7 +87,7 @@ class _Cell:
         self.runner: PoolJob | None = None
         self.parked: list[PoolJob] = []
         self.certs: dict = {}  # attractor index -> Certificate or None
-        self.cand: dict[int, tuple[int, float, int]] = {}  # start -> (attractor, d, probed)
+        self.pre = False  # the forward motion's certificate taken before the pool (None: none)
 
 
 class _Judge:
@@ -113,7 +116,9 @@ class _Judge:
         if fr is not None:
             cell.cont.append(("forward", fr))
             seed = self.seeds is not None and self.seeds[c]
-            cell.known.add(fr, target=seed or _verified(fr))
+            a = cell.known.add(fr, target=seed or _verified(fr))
+            if cell.pre is not False and a >= 0 and a not in cell.certs:
+                cell.certs[a] = cell.pre
         elif self.forward is not None and self.forward[c] is not None:
             self._continuation(cell, -1, self.forward[c])
         if self.backward is not None and self.backward[c] is not None:
@@ -154,11 +159,7 @@ class _Judge:
         for rows in by_cell.values():
             cell = jobs[rows[0]].key[0]
             sub = [jobs[r] for r in rows]
-            hit = self._certified(cell, sub)
-            rec = self._recur(cell, sub)
-            self.stats.early_certified += int(np.sum(hit >= 0))
-            self.stats.early_recurrence += int(np.sum((hit < 0) & (rec >= 0)))
-            hit = np.where(hit >= 0, hit, rec)
+            hit = self._hits(cell, sub)
             for r, a in zip(rows, hit, strict=True):
                 j = jobs[r]
                 if a >= 0:
@@ -203,51 +204,53 @@ class _Judge:
             self._release(cell)
 
     # ---- helpers
-    def _certified(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
-        """Attractor each start is labelled onto by its certified ball (-1: none): inside a
-        certified ball now and one chunk ago, and closer now (module certify). The forward
-        motion of the plane row seeds the cell: a certified orbit from the first chunk on."""
-        out = np.full(len(jobs), -1, dtype=np.int64)
+    def _certify(self, cell: _Cell) -> None:
+        """A certificate (or None) for every periodic motion of the cell not tried yet: the
+        motions of its own runs and the forward continuation's (certified before the pool in
+        shared kernel calls, :func:`_precertify`)."""
         o = self.opts
-        if not o.certified:
-            return out
         kn = cell.known
         for a, s in enumerate(kn.steadies):
-            # every periodic motion of this cell's own runs, the forward continuation's
-            # included (no recurrence target unless refined: the certificate is its check)
-            if a not in cell.certs and not kn.ambiguous[a] and s.period > 0:
-                cert, spent = None, 0
-                if (o.chunk % s.period == 0 and eligible(s, o.certify_periods)
-                        and worth(cell.params, s, self.st, int(np.sum(cell.labels == -2)),
-                                  o.certify_periods, o.certify_radius,
-                                  o.recur_period_rtol)):  # fmt: skip
-                    cert, spent = certify(cell.params, s, self.st, o.certify_periods,
-                                          o.certify_radius, o.certify_tries)  # fmt: skip
-                cell.certs[a] = cert
-                self.stats.certify_periods += spent
-                if spent:
-                    self.stats.radii.append(None if cert is None else cert.r)
+            if a in cell.certs or kn.ambiguous[a] or s.period <= 0:
+                continue
+            cert, spent = None, 0
+            if (eligible(s, self.history - 1)
+                    and worth(cell.params, s, self.st, int(np.sum(cell.labels == -2)),
+                              o.certify_radius, o.recur_period_rtol)):  # fmt: skip
+                cert, spent = certify(cell.params, s, self.st, o.certify_radius,
+                                      o.certify_tries)  # fmt: skip
+            cell.certs[a] = cert
+            self.stats.certify_periods += spent
+            if spent:
+                self.stats.radii.append(None if cert is None else cert.r)
+
+    def _certified(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
+        """Attractor each start is labelled onto by a certified ellipsoid (-1: none): one of
+        its recorded section points inside it and the point one orbit period later inside
+        and closer (module certify)."""
+        out = np.full(len(jobs), -1, dtype=np.int64)
+        if not self.opts.certified:
+            return out
+        self._certify(cell)
+        kn = cell.known
         live = [(a, c) for a, c in cell.certs.items() if c is not None and not kn.ambiguous[a]]
         if not live:
             return out
-        y = np.array([j.state for j in jobs])
-        best = np.full(len(jobs), -1, dtype=np.int64)
-        dist = np.full(len(jobs), np.inf)
+        hist = np.stack([j.hist for j in jobs])
+        filled = np.array([j.filled for j in jobs], dtype=np.int64)
         for a, c in live:
-            d = c.distance(y) / c.r
-            take = (d < 1.0) & (d < dist)
-            best[take], dist[take] = a, d[take]
-        for r, j in enumerate(jobs):
-            i = j.key[1]
-            prev = cell.cand.pop(i, None)
-            if best[r] < 0:
-                continue
-            if (prev is not None and prev[0] == best[r] and dist[r] < prev[1]
-                    and j.probed - prev[2] == o.chunk):  # fmt: skip
-                out[r] = best[r]
-            else:
-                cell.cand[i] = (int(best[r]), float(dist[r]), int(j.probed))
+            ok = (out < 0) & c.confirmed(hist, filled)
+            out[ok] = a
         return out
+
+    def _hits(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
+        """Attractor each start is labelled onto (-1: none yet): certified first, then the
+        recurrence rule."""
+        hit = self._certified(cell, jobs)
+        rec = self._recur(cell, jobs)
+        self.stats.early_certified += int(np.sum(hit >= 0))
+        self.stats.early_recurrence += int(np.sum((hit < 0) & (rec >= 0)))
+        return np.where(hit >= 0, hit, rec)
 
     def _recur(self, cell: _Cell, jobs: list[PoolJob]) -> np.ndarray:
         out = np.full(len(jobs), -1, dtype=np.int64)
@@ -274,8 +277,7 @@ class _Judge:
         if cell.runner is not None or not cell.parked:
             return
         parked, cell.parked = cell.parked, []
-        self._certified(cell, parked)  # inside a certified ball: confirmed at the next chunk
-        hit = self._recur(cell, parked)
+        hit = self._hits(cell, parked)
         rest = []
         for j, a in zip(parked, hit, strict=True):
             if a >= 0:
@@ -300,6 +302,25 @@ def _forward_margins(params_list, forward_results, st) -> None:
     the pool (the margins the finder's last step would take one by one at a certification;
     ``GearCells.fill_margins`` then finds them known)."""
     fill_orbit_margins(list(zip(params_list, forward_results, strict=True)), st)
+
+
+def _precertify(cells: list[_Cell], forward_results, st, opts: FinderOptions, history: int,
+                stats: PoolStats, orbits) -> None:
+    """The certificates of the cells' forward motions (one step grid) in shared kernel calls,
+    before the pool: each seeds its cell from the first chunk (``_Cell.pre``)."""
+    todo = [cell for cell in cells
+            if (fr := forward_results[cell.c]) is not None and eligible(fr, history - 1)
+            and worth(cell.params, fr, st, len(cell.starts), opts.certify_radius,
+                      opts.recur_period_rtol)]  # fmt: skip
+    if not todo:
+        return
+    got, spent = certify_many([(cell.params, forward_results[cell.c]) for cell in todo], st,
+                              opts.certify_radius, opts.certify_tries,
+                              [orbits[cell.c] for cell in todo])  # fmt: skip
+    stats.certify_periods += spent
+    for cell, cert in zip(todo, got, strict=True):
+        cell.pre = cert
+        stats.radii.append(None if cert is None else cert.r)
 
 
 def map_gear_cells(
@@ -331,9 +352,11 @@ def map_gear_cells(
     history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
     if opts.early and opts.certified and forward_results is not None:
         _forward_margins(params_list, forward_results, st)
-    seeds = None
-    if opts.early and opts.newton_seeds and forward_results is not None:
-        seeds = newton_verified(list(zip(params_list, forward_results, strict=True)), st)
+    seeds = orbits = None
+    if opts.early and (opts.newton_seeds or opts.certified) and forward_results is not None:
+        orbits = newton_orbits(list(zip(params_list, forward_results, strict=True)), st)
+        if opts.newton_seeds:
+            seeds = [o is not None for o in orbits]
     cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
     groups: dict[tuple, list[_Cell]] = {}
     for cell in cells:
@@ -342,6 +365,8 @@ def map_gear_cells(
         groups.setdefault(key, []).append(cell)
     stats = stats if stats is not None else PoolStats()
     for (N, nu), group in groups.items():
+        if opts.early and opts.certified and forward_results is not None:
+            _precertify(group, forward_results, st, opts, history, stats, orbits)
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
                        opts.early, stats, seeds)  # fmt: skip
         run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,

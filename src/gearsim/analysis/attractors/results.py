@@ -41,7 +41,7 @@ class Attractor:
     n_starts: int  # random starts that reach it
     basin_fraction: float  # n_starts / K
     found_by: tuple[str, ...]  # subset of FOUND_BY, in that order
-    n_early: int = 0  # of n_starts, labelled early (certified ball or recurrence)
+    n_early: int = 0  # of n_starts, labelled early (certified ellipsoid or recurrence)
 
     @property
     def label(self) -> str:

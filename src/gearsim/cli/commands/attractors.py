@@ -25,7 +25,7 @@ def add_multistability_arguments(p: argparse.ArgumentParser) -> None:
                    help="mesh periods of transient of a start before measuring (default 150)")
     p.add_argument("--full", action="store_true",
                    help="full-length run of every start (no early labels: neither certified "
-                        "balls nor recurrence)")
+                        "ellipsoids nor recurrence)")
 
 
 def resolve(args: argparse.Namespace):
@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"w={params.w:.4f} b={params.b:.4f} xi={params.xi:.4f}; {source}")
     print(f"{args.starts} starts (seed {args.seed}): {len(ca.attractors)} attractor(s), "
-          f"{int(ca.early.sum())} starts labelled early (certified ball or recurrence), "
+          f"{int(ca.early.sum())} starts labelled early (certified ellipsoid or recurrence), "
           f"{int(ca.start_periods_run.sum())} periods integrated ({elapsed:.1f} s)")
     for line in summary_lines(ca):
         print("  " + line)
