@@ -252,6 +252,12 @@ def cmd_settle(args) -> dict:
                 cpu[tag].append(c)
         a, b = recs["fixed"], recs["adaptive"]
         key = lambda r: (r["label"], r["label_npq"], r["status"])  # noqa: E731
+        st = study.settings
+        w = min(st.chunk, st.max_periods)
+
+        def first_test(r):  # the fixed plan's first period test (a row's first cell: from rest)
+            return (st.transient if r["i"] == 0 else st.transient_continuation) + w
+
         changed, ddc, dk, early_dc, early_dk = [], [], [], [], []
         by_cell = {(r["i"], r["j"]): r for r in a}
         by_cell_b = {(r["i"], r["j"]): r for r in b}
@@ -262,7 +268,7 @@ def cmd_settle(args) -> dict:
                 ddc.append(abs(ra["dc"] - rb["dc"]))
                 if ra["kmax"] == ra["kmax"]:
                     dk.append(abs(ra["kmax"] - rb["kmax"]) / max(abs(ra["kmax"]), 1e-12))
-                if rb["periods"] < ra["periods"]:  # the cells that stopped early
+                if rb["periods"] < first_test(ra):  # the cells that stopped early
                     early_dc.append(ddc[-1])
                     early_dk.append(dk[-1] if ra["kmax"] == ra["kmax"] else 0.0)
         table = []
@@ -288,7 +294,7 @@ def cmd_settle(args) -> dict:
                "periods_median": [float(np.median(per_a)), float(np.median(per_b))],
                "steps_mean": [float(np.mean([r["steps"] for r in a])),
                               float(np.mean([r["steps"] for r in b]))],
-               "early": int(np.sum(per_b < per_a)),
+               "early": int(sum(r["periods"] < first_test(r) for r in b)),
                "changed": len(changed),
                "dc_abs_max": max(ddc, default=0.0),
                "dc_abs_p99": float(np.quantile(ddc, 0.99)) if ddc else 0.0,

@@ -91,7 +91,7 @@ def test_a_slow_cell_next_to_a_doubling_is_not_labelled_early(w, b, refined):
     assert (c.label_npq, c.dc) == (g.label_npq, pytest.approx(g.dc, abs=1e-6 if refined
                                                               else 2e-3))
     # the window the fixed plan measures is the same: its numbers are equal
-    assert c.dc == a.dc and c.kmax == a.kmax
+    assert c.dc == a.dc and c.kmax == a.kmax and c.lyapunov == a.lyapunov
 
 
 def test_batched_chains_equal_the_scalar_chain_with_the_adaptive_transient():
