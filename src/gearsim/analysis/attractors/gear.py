@@ -189,6 +189,8 @@ def fill_orbit_margins(pairs: Sequence[tuple[ModelParameters, Steady | None]], s
 #: :data:`NEWTON_STEP_RTOL` of the motion's range (so its window's points are the orbit's)
 NEWTON_TOL = 1e-9
 NEWTON_STEP_RTOL = 1e-5
+#: Newton iterations of :func:`newton_orbits` with ``solve`` (a settled reading is close)
+SOLVE_ITER = 8
 #: ... and its section points have no shorter period: two phases ``m`` apart (``m`` a proper
 #: divisor of ``n``) closer than this fraction of the range everywhere make it a reading of a
 #: period-``m`` orbit (Newton on ``P^n`` also converges to the fixed points of ``P^m``)
@@ -206,14 +208,18 @@ def _shorter_period(s: Steady) -> bool:
     return False
 
 
-def newton_orbits(pairs: Sequence[tuple[ModelParameters, Steady | None]], st
-                  ) -> list[tuple[np.ndarray, np.ndarray] | None]:
+def newton_orbits(pairs: Sequence[tuple[ModelParameters, Steady | None]], st,
+                  solve: bool = False) -> list[tuple[np.ndarray, np.ndarray] | None]:
     """Per ``(cell parameters, motion)``: ``(y, M)``, the section state of the motion's orbit
     Newton-converged in *that* cell (:data:`NEWTON_TOL`, at most one Newton step of
     :data:`NEWTON_STEP_RTOL` from its section state) and the monodromy of its ``n`` periods
-    there, where the orbit has its least period (:data:`LEAST_PERIOD_RTOL`) and ``|mu|max <
-    1``; else None. The orbits of one period share kernel calls
-    (:func:`gearsim.numerics.variational.monodromies`, the cell's own RK4 map)."""
+    there, where the motion's points have no shorter period (:data:`LEAST_PERIOD_RTOL`) and
+    ``|mu|max < 1``; else None. The orbits of one period share kernel calls
+    (:func:`gearsim.numerics.variational.monodromies`, the cell's own RK4 map). ``solve``:
+    where one small step does not converge, the one orbit solver
+    (:func:`gearsim.analysis.orbits.newton_orbit`, :data:`SOLVE_ITER` iterations, the cell's
+    own settings) from the motion's state; the caller then checks that the orbit found is the
+    motion's (its points, its least period)."""
     from gearsim.dynamics.model import N_STATE
     from gearsim.numerics.integrate import STATUS_OK
     from gearsim.numerics.shooting import newton_step, sorted_eigs
@@ -252,6 +258,21 @@ def newton_orbits(pairs: Sequence[tuple[ModelParameters, Steady | None]], st
                         again.append(i)
                         y_again.append(y1)
             group, ys = again, y_again
+    if solve:
+        from gearsim.analysis.orbits import OrbitError, newton_orbit
+
+        for n, group in by_n.items():
+            for i in group:
+                if out[i] is not None:
+                    continue
+                p, s = pairs[i]
+                try:
+                    y, _yn, M, r, _ = newton_orbit(p, n, s.final_state, st, tol=NEWTON_TOL,
+                                                   max_iter=SOLVE_ITER)  # fmt: skip
+                except OrbitError:
+                    continue
+                if r < NEWTON_TOL and abs(sorted_eigs(M)[0]) < 1.0:
+                    out[i] = (y, M)
     return out
 
 
