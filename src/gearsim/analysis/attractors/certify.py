@@ -77,7 +77,7 @@ class Certificate:
     def distance(self, y: np.ndarray) -> np.ndarray:
         """``P``-norm distance of states ``y`` ``(..., 10)`` to the centre, over ``r``."""
         z = (y[..., self.ev] - self.centre[self.ev]) / self.scales
-        q = np.einsum("...i,ij,...j->...", z, self.P, z)
+        q = np.sum((z @ self.P) * z, axis=-1)
         return np.sqrt(np.maximum(q, 0.0)) / self.r
 
     def confirmed(self, hist: np.ndarray, filled: np.ndarray) -> np.ndarray:

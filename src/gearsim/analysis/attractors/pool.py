@@ -236,10 +236,13 @@ class _Judge:
         live = [(a, c) for a, c in cell.certs.items() if c is not None and not kn.ambiguous[a]]
         if not live:
             return out
-        hist = np.stack([j.hist for j in jobs])
-        filled = np.array([j.filled for j in jobs], dtype=np.int64)
+        # the pairs ending in the last chunk (older ones were tested at earlier checks, or
+        # predate the certificate: the start is tested again at its next check)
+        tail = self.opts.chunk + max(c.n for _, c in live)
+        hist = np.stack([j.hist[-tail:] for j in jobs])
+        filled = np.minimum([j.filled for j in jobs], hist.shape[1])
         for a, c in live:
-            ok = (out < 0) & c.confirmed(hist, filled)
+            ok = (out < 0) & c.confirmed(hist[:, -(self.opts.chunk + c.n):], filled)
             out[ok] = a
         return out
 
