@@ -280,3 +280,43 @@ def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) 
     """Per ``(cell parameters, motion)``: whether the motion is a stable periodic orbit of *that*
     cell, Newton-converged there at its least period (:func:`newton_orbits`)."""
     return [o is not None for o in newton_orbits(pairs, st)]
+
+
+#: periods of the long run that decides whether a cloud next to diverging starts is bounded
+LONG_RUN = 4000
+
+
+def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAttractors]:
+    """A chaotic or quasi-periodic attractor of a cell where some start diverged (the
+    parametric instability of the nearly linear mesh near w = 2 at small backlash: motions
+    that grow after their window look like clouds in it) is checked by a :data:`LONG_RUN`-period
+    run from the first of its starts (transient, then the measuring budget): where that
+    diverges, the attractor is no attractor and its starts count as diverged (its periods are
+    the start's too). The last step of every gear mapper, after :func:`least_periods`."""
+    from gearsim.analysis.attractors.matching import drop
+    from gearsim.cell.chains import simulate_cells
+
+    todo = []  # (cell, attractor index, start)
+    for c, ca in enumerate(found):
+        if not np.any(ca.start_labels < 0):
+            continue
+        for a in ca.attractors:
+            s = a.steady
+            if s.status == "ok" and s.period <= 0 and a.n_starts > 0:
+                i = int(np.nonzero(ca.start_labels == a.index)[0][0])
+                todo.append((c, a.index, i))
+    if not todo:
+        return found
+    lst = st.with_(transient=LONG_RUN - st.max_periods,
+                   transient_continuation=LONG_RUN - st.max_periods)  # fmt: skip
+    res = simulate_cells([params_list[c] for c, _, _ in todo], settings=lst,
+                         u0=[np.asarray(found[c].starts[i], dtype=float)[:10]
+                             for c, _, i in todo])  # fmt: skip
+    gone: dict[int, set[int]] = {}
+    for (c, a, i), r in zip(todo, res, strict=True):
+        found[c].start_periods_run[i] += int(r.periods)  # the long run is the start's too
+        if gear_steady(r).status == "diverged":
+            gone.setdefault(c, set()).add(a)
+    return [drop(ca, gone.get(c, set())) for c, ca in enumerate(found)]
+
+

@@ -45,6 +45,7 @@ import numpy as np
 from gearsim.analysis.attractors.certify import certify, certify_many, eligible, worth
 from gearsim.analysis.attractors.gear import (
     GearCells,
+    bounded_clouds,
     fill_orbit_margins,
     gear_steady,
     newton_orbits,
@@ -383,43 +384,4 @@ def map_gear_cells(
                      [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
     system.fill_margins(found)
     found = [least_periods(ca, opts.merge_rtol) for ca in found]
-    return _bounded(params_list, found, st)
-
-
-#: periods of the long run that decides whether a cloud next to diverging starts is bounded
-LONG_RUN = 4000
-
-
-def _bounded(params_list, found: list[CellAttractors], st) -> list[CellAttractors]:
-    """A chaotic or quasi-periodic attractor of a cell where some start diverged (the
-    parametric instability of the nearly linear mesh near w = 2 at small backlash: motions
-    that grow after their window look like clouds in it) is checked by a :data:`LONG_RUN`-period
-    run from the first of its starts (transient, then the measuring budget): where that
-    diverges, the attractor is no attractor and its starts count as diverged."""
-    from gearsim.analysis.attractors.matching import drop
-    from gearsim.cell.chains import simulate_cells
-
-    todo = []  # (cell, attractor index, start)
-    for c, ca in enumerate(found):
-        if not np.any(ca.start_labels < 0):
-            continue
-        for a in ca.attractors:
-            s = a.steady
-            if s.status == "ok" and s.period <= 0 and a.n_starts > 0:
-                i = int(np.nonzero(ca.start_labels == a.index)[0][0])
-                todo.append((c, a.index, i))
-    if not todo:
-        return found
-    lst = st.with_(transient=LONG_RUN - st.max_periods,
-                   transient_continuation=LONG_RUN - st.max_periods)  # fmt: skip
-    res = simulate_cells([params_list[c] for c, _, _ in todo], settings=lst,
-                         u0=[np.asarray(found[c].starts[i], dtype=float)[:10]
-                             for c, _, i in todo])  # fmt: skip
-    gone: dict[int, set[int]] = {}
-    for (c, a, i), r in zip(todo, res, strict=True):
-        found[c].start_periods_run[i] += int(r.periods)  # the long run is the start's too
-        if gear_steady(r).status == "diverged":
-            gone.setdefault(c, set()).add(a)
-    return [drop(ca, gone.get(c, set())) for c, ca in enumerate(found)]
-
-
+    return bounded_clouds(params_list, found, st)
