@@ -26,10 +26,9 @@ import numpy as np
 
 from gearsim.calibration.fidelity import FidelitySettings, measure
 from gearsim.calibration.search import FreeParameter, LoggedObjective, params_from_vector
-from gearsim.calibration.sweeps import PLANE_W_GRID, backlash_threshold
+from gearsim.calibration.sweeps import PLANE_W_GRID, backlash_threshold, current_study
 from gearsim.calibration.targets import Measured, score
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.study.config import Study
 
 #: the shared box (every form): a window around the landmark fit and MODEL.md's feasibility
 #: sets (a wider box, Fe/Fm 1.2-2.4, eps 0-0.6, phi -120..60 deg, gave 15 of 17 first Sobol
@@ -79,8 +78,8 @@ class Form:
         """The search-scale parameters at vector ``x``: the base is the study's standard set
         (:meth:`gearsim.study.config.Study.parameters`) with the form's fixed changes,
         ``Fm = st.Fm``, ``b = st.b0``."""
-        return params_from_vector(x, self.free, Study.load().parameters().model, Fm=st.Fm, b=st.b0,
-                                  **self.fixed)
+        return params_from_vector(x, self.free, current_study().parameters().model, Fm=st.Fm,
+                                  b=st.b0, **self.fixed)
 
     def w_factor(self, params: ModelParameters) -> float:
         """``r`` of the frequency-scale mapping (1 on the mesh scale)."""

@@ -19,6 +19,7 @@ from gearsim.cell.motion import double_sided
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.cell.sweep import sweep_records, sweep_records_many
 from gearsim.dynamics.parameters import ModelParameters
+from gearsim.study.config import Study, study_root
 
 #: the integration of every calibration sweep: DP5 at rtol 1e-7 and 40 periods of transient on
 #: continuation (16 flips 1T/2T next to a period doubling). Every field that decides a result is
@@ -64,9 +65,7 @@ class SweepSettings:
 
     def integration(self) -> IntegrationSettings:
         if self.lanes:
-            from gearsim.study.config import Study
-
-            return Study.load().settings
+            return current_study().settings
         return self.sim
 
     def to_dict(self) -> dict[str, Any]:
@@ -74,6 +73,22 @@ class SweepSettings:
         if self.lanes:
             d["sim"] = asdict(self.integration())
         return d
+
+
+_STUDIES: dict[tuple, Study] = {}
+
+
+def current_study() -> Study:
+    """``Study.load()``, loaded once per study root and version of its configuration files: a fit
+    asks for it for every candidate, and a load parses and checks the whole configuration (~1 s,
+    a tenth of a population's evaluation)."""
+    root = study_root().resolve()
+    key = (str(root),) + tuple(sorted((str(p), p.stat().st_mtime_ns)
+                                      for p in (root / "config").glob("*.yaml")))
+    if key not in _STUDIES:
+        _STUDIES.clear()
+        _STUDIES[key] = Study.load()
+    return _STUDIES[key]
 
 
 def w_sweep(params: ModelParameters, grid: np.ndarray, settings: IntegrationSettings | None = None,
