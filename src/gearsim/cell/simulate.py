@@ -228,8 +228,9 @@ def repeats_throughout(section, scale, w, n_max, rtol):
 
 def next_settle_check(done: int, st: IntegrationSettings, transient: int, window: int) -> int:
     """Periods since the cell's start at the adaptive transient's next check after ``done``:
-    ``window + settle_check``, then every ``settle_check`` periods, at most ``transient +
-    window`` (the last check: the fixed plan's first measuring chunk)."""
+    :data:`EARLY_LEAD` + :data:`EARLY_WINDOW` periods into the tangent lead, then every
+    ``settle_check`` periods, at most ``transient + window`` (the last check: the fixed plan's
+    first measuring chunk)."""
     first = transient - min(st.tangent_lead, transient) + EARLY_LEAD + min(EARLY_WINDOW, window)
     return min(first if done < first else done + st.settle_check, transient + window)
 
