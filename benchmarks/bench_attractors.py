@@ -56,6 +56,7 @@ from gearsim.analysis.attractors import (  # noqa: E402
     same_attractor,
     sobol_unit,
 )
+from gearsim.analysis.attractors.gear import bounded_clouds  # noqa: E402
 from gearsim.analysis.attractors.recurrence import map_attractors  # noqa: E402
 from gearsim.cell import chains, pool  # noqa: E402
 from gearsim.numerics import batch  # noqa: E402
@@ -77,7 +78,8 @@ def reference(cells, st, states):
                                          for y in states],
                            continuation_transient=system.settings.transient_continuation)
     system.fill_margins(found)
-    return [least_periods(ca, opts.merge_rtol) for ca in found]
+    return bounded_clouds(cells, [least_periods(ca, opts.merge_rtol) for ca in found],
+                          system.settings)
 
 
 def long_run(p, y0, st, periods: int = 4000):

@@ -17,6 +17,11 @@ Subcommands (results as JSON in benchmarks/results/, plane frames in benchmarks/
   state: which of the two it agrees with, and whether the start state (not the step) decides.
 * ``audit FRAME --config ... --plane wb [--set rtol=...]``: the audit's verdicts (agreement with
   DP5) on a frame, CPU seconds; ``--tight`` settings override the audit's DP5 settings.
+* ``settle --config config/quick.yaml --planes wb wxi [--every k] [--sweeps]``: the adaptive
+  transient (``integration.settle_check``) against the fixed plan, side by side in one process
+  (CPU alternated ``--repeats`` times): periods, steps and CPU per cell, every label, status,
+  DC and Kmax compared, and every cell whose label changes simulated ``--long`` periods from
+  each run's own start state (its left neighbour's final state): which reading is right.
 
 Usage (one process per core; ``nice -n 5`` while the background fits run):
     python benchmarks/bench_lesswork.py cells --spp 128 160 192 256
@@ -203,6 +208,107 @@ def cmd_compare(args) -> dict:
     return {"ref": args.ref, "new": args.new, "summary": summary, "rows": rows}
 
 
+def _rows_records(config, plane, every):
+    from gearsim.study.config import Study
+    from gearsim.study.grid import tile_ids
+    from gearsim.study.tiles import row_specs, simulate_rows_batched
+
+    study = Study.of(config)
+    specs = [s for t in tile_ids(config, plane) for s in row_specs(study, plane, t)][::every]
+    c0 = time.process_time()
+    rec = []
+    for k in range(0, len(specs), 80):  # the default tile_rows: 80 lanes at once
+        rec += simulate_rows_batched(specs[k : k + 80])
+    return rec, time.process_time() - c0, study
+
+
+def _long_label(study, plane, rec, start, periods):
+    """The fixed plan after ``periods`` periods of transient from ``start`` (None: rest)."""
+    import numpy as np
+
+    from gearsim.cell.simulate import simulate_cell
+
+    pl = study.config["planes"][plane]
+    p = study.parameters(plane=plane).model.with_(**{pl["x"]["name"]: float(rec["x"]),
+                                                     pl["y"]["name"]: float(rec["y"])})
+    st = study.settings.with_(settle_check=0)
+    y = None if start is None else np.asarray(start, dtype=float)
+    c = simulate_cell(p, y, settings=st, transient=periods).classification
+    return f"{c.label} {c.label_npq} {c.status}"
+
+
+def cmd_settle(args) -> dict:
+    import numpy as np
+
+    out = {"config": args.config, "every": args.every, "load_before": loadavg(), "planes": {}}
+    fixed = _config(args.config, {"settle_check": 0})
+    adaptive = _config(args.config, {"settle_check": args.check})
+    for plane in args.planes:
+        cpu = {"fixed": [], "adaptive": []}
+        recs = {}
+        for _ in range(args.repeats):
+            for tag, cfg in (("fixed", fixed), ("adaptive", adaptive)):
+                recs[tag], c, study = _rows_records(cfg, plane, args.every)
+                cpu[tag].append(c)
+        a, b = recs["fixed"], recs["adaptive"]
+        key = lambda r: (r["label"], r["label_npq"], r["status"])  # noqa: E731
+        st = study.settings
+        w = min(st.chunk, st.max_periods)
+
+        def first_test(r):  # the fixed plan's first period test (a row's first cell: from rest)
+            return (st.transient if r["i"] == 0 else st.transient_continuation) + w
+
+        changed, ddc, dk, early_dc, early_dk = [], [], [], [], []
+        by_cell = {(r["i"], r["j"]): r for r in a}
+        by_cell_b = {(r["i"], r["j"]): r for r in b}
+        for ra, rb in zip(a, b, strict=True):
+            if key(ra) != key(rb):
+                changed.append((ra, rb))
+            elif ra["n"] > 0:
+                ddc.append(abs(ra["dc"] - rb["dc"]))
+                if ra["kmax"] == ra["kmax"]:
+                    dk.append(abs(ra["kmax"] - rb["kmax"]) / max(abs(ra["kmax"]), 1e-12))
+                if rb["periods"] < first_test(ra):  # the cells that stopped early
+                    early_dc.append(ddc[-1])
+                    early_dk.append(dk[-1] if ra["kmax"] == ra["kmax"] else 0.0)
+        table = []
+        for ra, rb in changed:
+            left_a = by_cell.get((ra["i"] - 1, ra["j"]))
+            left_b = by_cell_b.get((rb["i"] - 1, rb["j"]))
+            sa = None if left_a is None or left_a["status"] in ("diverged", "budget") \
+                else left_a["final_state"]
+            sb = None if left_b is None or left_b["status"] in ("diverged", "budget") \
+                else left_b["final_state"]
+            row = {"i": ra["i"], "j": ra["j"], "x": ra["x"], "y": ra["y"],
+                   "fixed": " ".join(map(str, key(ra))), "fixed_periods": ra["periods"],
+                   "adaptive": " ".join(map(str, key(rb))), "adaptive_periods": rb["periods"],
+                   "long_from_fixed_start": _long_label(study, plane, ra, sa, args.long),
+                   "long_from_adaptive_start": _long_label(study, plane, rb, sb, args.long)}
+            table.append(row)
+            print(row, flush=True)
+        per_a = np.array([r["periods"] for r in a])
+        per_b = np.array([r["periods"] for r in b])
+        res = {"cells": len(a), "cpu_s": cpu,
+               "cpu_ratio": min(cpu["adaptive"]) / min(cpu["fixed"]),
+               "periods_mean": [float(per_a.mean()), float(per_b.mean())],
+               "periods_median": [float(np.median(per_a)), float(np.median(per_b))],
+               "steps_mean": [float(np.mean([r["steps"] for r in a])),
+                              float(np.mean([r["steps"] for r in b]))],
+               "early": int(sum(r["periods"] < first_test(r) for r in b)),
+               "changed": len(changed),
+               "dc_abs_max": max(ddc, default=0.0),
+               "dc_abs_p99": float(np.quantile(ddc, 0.99)) if ddc else 0.0,
+               "kmax_rel_max": max(dk, default=0.0),
+               "kmax_rel_p99": float(np.quantile(dk, 0.99)) if dk else 0.0,
+               "early_dc_abs_max": max(early_dc, default=0.0),
+               "early_kmax_rel_max": max(early_dk, default=0.0),
+               "table": table}
+        out["planes"][plane] = res
+        print(plane, json.dumps({k: v for k, v in res.items() if k != "table"}), flush=True)
+    out["load_after"] = loadavg()
+    return out
+
+
 def cmd_audit(args) -> dict:
     import pandas as pd
 
@@ -371,6 +477,13 @@ def main(argv=None) -> int:
     t.add_argument("--plane", default="wb")
     t.add_argument("--every", type=int, default=10)
     t.add_argument("--repeats", type=int, default=2)
+    h = sub.add_parser("settle")
+    h.add_argument("--config", default=None)
+    h.add_argument("--planes", nargs="+", default=["wb", "wxi"])
+    h.add_argument("--every", type=int, default=1, help="only every k-th row")
+    h.add_argument("--check", type=int, default=4, help="settle_check of the adaptive run")
+    h.add_argument("--long", type=int, default=4000, help="periods of the long reference")
+    h.add_argument("--repeats", type=int, default=1)
     g = sub.add_parser("landmarks")
     g.add_argument("--config", default=None)
     g.add_argument("--set", nargs="*", help="integration overrides key=value")
@@ -379,7 +492,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     out = {"cells": cmd_cells, "plane": cmd_plane, "compare": cmd_compare,
            "audit": cmd_audit, "audit-ab": cmd_audit_ab,
-           "landmarks": cmd_landmarks, "tile-ab": cmd_tile_ab}[args.cmd](args)
+           "landmarks": cmd_landmarks, "tile-ab": cmd_tile_ab,
+           "settle": cmd_settle}[args.cmd](args)
     if args.name:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / f"{args.name}.json").write_text(json.dumps(out, indent=1, default=str))

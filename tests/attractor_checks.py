@@ -38,10 +38,12 @@ def assert_same_attractors_per_start(fast, full, fewer_periods: bool = True) -> 
 def reference_attractors(cells, options, settings, forward=None):
     """The recurrence mapper (``gearsim.analysis.attractors.recurrence.map_attractors``, the
     reference the lane pool is checked against) on gear cells: the same Sobol starts, forward
-    states and last steps (margins, least periods) as ``find_attractors``."""
+    states and last steps (margins, least periods, the long run of clouds next to diverging
+    starts) as ``find_attractors``."""
     import numpy as np
 
     from gearsim.analysis.attractors import GearCells, least_periods, sobol_unit
+    from gearsim.analysis.attractors.gear import bounded_clouds
     from gearsim.analysis.attractors.recurrence import map_attractors
 
     system = GearCells(cells, settings)
@@ -55,4 +57,5 @@ def reference_attractors(cells, options, settings, forward=None):
     found = map_attractors(system, len(cells), starts, opts, continuation=cont,
                            continuation_transient=system.settings.transient_continuation)
     system.fill_margins(found)
-    return [least_periods(ca, opts.merge_rtol) for ca in found]
+    return bounded_clouds(cells, [least_periods(ca, opts.merge_rtol) for ca in found],
+                          system.settings)

@@ -87,3 +87,21 @@ def test_the_issue_cell_holds_one_orbit_at_its_least_period_and_no_growing_attra
         assert 0 < c.diverged_fraction < 1
     assert np.array_equal(ca.start_labels, full.start_labels)
     assert ca.early.sum() > 0
+
+
+def test_a_cloud_next_to_diverging_starts_is_checked_by_a_long_run():
+    """w = 1.873, b = 0.00125 (standard set, 16 starts): 15 starts diverge; the 16th's window
+    reads quasi-periodic (Kmax 0.4, amplitude flat over the window) and its 4 000-period run
+    from the same start grows: no attractor, every start diverged. The reference: the long run
+    itself (the scalar integrator; its amplitude ~0.5 after the transient, ~2e4 at the end)."""
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+
+    p = Study.load().parameters(w=1.873, b=0.00125).model
+    ca = find_attractors(p, FinderOptions(starts=16), settings=ST)
+    assert ca.attractors == [] and ca.diverged_fraction == 1.0
+    # the start whose window read a cloud: its own long run grows without bound
+    longest = int(np.argmax(ca.start_periods_run))
+    assert ca.start_periods_run[longest] > 3000
+    long = run_periods(p, ca.starts[longest], 4000, ST)
+    a = long.summaries.xmax - long.summaries.xmin
+    assert long.status != 0 or a[-100:].min() > 100 * a[250:350].max()

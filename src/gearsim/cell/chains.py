@@ -14,15 +14,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from gearsim.cell import simulate
 from gearsim.cell.simulate import (
     CellResult,
     IntegrationSettings,
     diverged_result,
     finish_cell,
     initial_tangent,
+    next_settle_check,
     period_of,
     recurrence_probe,
     seeds_continuation,
+    settled_period,
 )
 from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, static_state
@@ -47,6 +50,8 @@ _LEAD = 2  # end of the transient with the tangent vector on (simulate_cell's ta
 _BUDGET = 3  # the cell needs more steps than IntegrationSettings.max_steps: not integrated
 _MEASURE = 1
 _PROBE = 4  # transient_recurrence: a continued cell's probe for recurrence, recorded
+_SETTLE = 5  # settle_check: the adaptive transient, tangent on and recorded
+_RECORDED = (_MEASURE, _PROBE, _SETTLE)
 
 
 @dataclass
@@ -71,6 +76,7 @@ class _Chain:
     measured: int = 0
     tangent0: np.ndarray | None = None  # initial tangent vector of the current cell
     lead: int = 0  # periods of tangent lead of the current cell
+    transient: int = 0  # transient of the current cell (settle_check: the longest)
     results: list[CellResult] = field(default_factory=list)
 
     @property
@@ -200,7 +206,9 @@ def simulate_cells(
 def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, continuation: bool,
                 on_cell, floquet: str = "slow", orbits: OrbitCache | None = None) -> None:
     # records of the measured periods, or of a longer recurrence probe
-    lanes = Lanes(len(chains), max(st.max_periods, st.transient_recurrence))
+    # (the adaptive transient keeps its last window plus one check interval)
+    lanes = Lanes(len(chains), max(st.max_periods, st.transient_recurrence,
+                                   _window(st) + st.settle_check))
     for l, ch in enumerate(chains):
         ch.lane = l
         ch.start = ch.u0
@@ -228,7 +236,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             l = c.lane
             hcol[l] = c.h
             ist[_ST, l] = 0
-            ist[_POS, l] = c.measured if c.phase in (_MEASURE, _PROBE) else -1
+            ist[_POS, l] = c.measured if c.phase in _RECORDED else -1
             ist[_K, l] = c.k
         lanes.set_column(_H, hcol)
         # the tangent vector is only needed while some lane measures (else: the transient)
@@ -240,7 +248,7 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             c.k += done
             c.left -= done
             c.steps += int(ist[_STEPS, l])
-            if c.phase in (_MEASURE, _PROBE):
+            if c.phase in _RECORDED:
                 c.measured += done
             if ist[_ST, l] != 0:
                 # diverged (during the transient or a chunk): simulate_cell's diverged record
@@ -251,11 +259,13 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                     _finish(c, diverged_result(c.cells[c.i], c.k, 0, status="budget"), lanes,
                             st, continuation, on_cell)
                 elif c.phase == _TRANSIENT:
-                    _begin_lead(c, lanes, st)
+                    (_begin_settle if st.settle_check else _begin_lead)(c, lanes, st)
                 elif c.phase == _LEAD:
                     _begin_measure(c, lanes, st)
                 elif c.phase == _PROBE:
                     _end_probe(c, lanes, st)
+                elif c.phase == _SETTLE:
+                    _settle_check(c, lanes, st, continuation, on_cell, floquet, orbits)
                 else:
                     _decide(c, lanes, st, continuation, on_cell, floquet, orbits)
         active = [ch for ch in chains if not ch.finished]
@@ -304,6 +314,7 @@ def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     ch.tangent0 = initial_tangent(params)
     lanes.load_state(ch.lane, np.concatenate([y, ch.tangent0]))
     ch.lead = min(st.tangent_lead, transient)
+    ch.transient = transient
     probe = recurrence_probe(st, ch.start is not None, transient)
     if probe:
         # simulate_cell's probe: the tangent runs from the start, the periods are recorded
@@ -316,8 +327,23 @@ def _begin_transient(ch: _Chain, lanes: Lanes, st: IntegrationSettings, transien
     if transient - ch.lead > 0:
         ch.phase = _TRANSIENT
         ch.left = transient - ch.lead
+    elif st.settle_check:
+        _begin_settle(ch, lanes, st)
     else:
         _begin_lead(ch, lanes, st)
+
+
+def _begin_settle(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
+    """The tangent vector starts (as :func:`_begin_lead`); its lead is recorded and checked
+    every ``settle_check`` periods (simulate_cell's adaptive transient)."""
+    if ch.lead == 0:
+        _begin_lead(ch, lanes, st)  # no lead: nothing to check before the fixed plan
+        return
+    lanes.set_rows(ch.lane, _Y + 10, ch.tangent0)
+    lanes.reset_modes(ch.lane)
+    done = ch.k - ch.period
+    ch.phase, ch.measured = _SETTLE, 0
+    ch.left = next_settle_check(done, st, ch.transient, _window(st)) - done
 
 
 def _begin_lead(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
@@ -346,6 +372,44 @@ def _end_probe(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
         lanes.load_state(ch.lane, np.concatenate([y, ch.tangent0]))
         ch.k = ch.period
         _begin_transient(ch, lanes, st, st.transient_continuation)
+
+
+def _window(st: IntegrationSettings) -> int:
+    """The window of the adaptive transient's checks: the first measuring chunk's length."""
+    return min(st.chunk, st.max_periods)
+
+
+def _settle_check(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_cell,
+                  floquet: str = "slow", orbits: OrbitCache | None = None) -> None:
+    """A check of the adaptive transient (simulate_cell's): finish when the last window is
+    settled; at the end of the transient that window is the first measuring chunk."""
+    params = ch.cells[ch.i]
+    w = _window(st)
+    done = ch.k - ch.period
+    if done >= ch.transient + w:
+        _keep_last(lanes, ch.lane, ch.measured, w)
+        ch.phase, ch.measured = _MEASURE, w
+        _decide(ch, lanes, st, continuation, on_cell, floquet, orbits)
+        return
+    s = lanes.summaries(ch.lane, ch.measured, copy=False).tail(min(w, simulate.EARLY_WINDOW))
+    n = settled_period(s, params, st)
+    if n > 0:
+        y = lanes.state(ch.lane, N_STATE)
+        res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps, floquet, orbits)
+        _finish(ch, res, lanes, st, continuation, on_cell)
+        return
+    lanes.reset_modes(ch.lane)  # a new run_periods call in simulate_cell
+    ch.left = next_settle_check(done, st, ch.transient, w) - done
+    if ch.measured + ch.left > lanes.sec.shape[1]:
+        _keep_last(lanes, ch.lane, ch.measured, w)
+        ch.measured = w
+
+
+def _keep_last(lanes: Lanes, lane: int, measured: int, w: int) -> None:
+    """Move the last ``w`` of the ``measured`` records of ``lane`` to the front."""
+    if measured > w:
+        for a in (lanes.sec, lanes.nface, lanes.nback, lanes.fout):
+            a[lane, :w] = a[lane, measured - w : measured].copy()
 
 
 def _begin_measure(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
@@ -401,4 +465,5 @@ def warm_up() -> float:
         method="rk4", transient=2, transient_continuation=1, chunk=4, max_periods=8, n_max=2
     )
     simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
+    simulate.repeats_throughout(np.zeros((4, N_STATE)), 1.0, 1.0, 4, 1e-7)  # settle_check's
     return time.perf_counter() - t0

@@ -5,6 +5,16 @@ with ``transient_recurrence`` a continued cell's transient ends early when its s
 then measures in chunks of mesh periods and stops as soon as a period ``n <= n_max`` is
 established and confirmed, or when the budget ``max_periods`` is spent (then chaos,
 quasi-periodic or unsettled is decided by the Lyapunov exponent).
+
+With ``settle_check = s > 0`` the transient adapts to the contraction: the tangent lead (the
+transient's last ``tangent_lead`` periods) is recorded, and from :data:`EARLY_LEAD` +
+:data:`EARLY_WINDOW` periods into it, every ``s`` periods, its last :data:`EARLY_WINDOW` periods
+are a window for the period test: the cell ends at once when that window has a period, is
+settled and repeats to :data:`EARLY_RTOL` throughout (:func:`settled_period`; it is labelled as
+it stands). A cell that does not settle so reaches the end of its transient plus ``chunk``
+periods: that last window is the fixed plan's first measuring chunk, and measuring goes on as
+without the option (period test, budget, refinement and statuses unchanged). The chain's next
+cell starts from the state where the cell ended.
 """
 
 from __future__ import annotations
@@ -15,12 +25,21 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from gearsim.cell.classify import (
     Classification,
     estimate_period,
 )
-from gearsim.cell.verify import FLOQUET, OrbitCache, fill_margins, read_window, verify_motion
+from gearsim.cell.verify import (
+    FLOQUET,
+    REFINE_RTOL,
+    OrbitCache,
+    fill_margins,
+    read_window,
+    verify_motion,
+    window_settle,
+)
 from gearsim.dynamics.model import (
     N_STATE,
     mesh_force_series,
@@ -51,6 +70,9 @@ __all__ = [
     "diverged_result",
     "seeds_continuation",
     "period_of",
+    "settled_period",
+    "EARLY_WINDOW",
+    "next_settle_check",
     "recurrence_probe",
     "initial_tangent",
     "Trajectory",
@@ -155,6 +177,64 @@ def period_of(s: PeriodSummaries, params: ModelParameters, st: IntegrationSettin
                            st.period_rtol, 16)
 
 
+#: the adaptive transient ends when, besides the period test, every section point of the window
+#: repeats after ``n`` to this (relative, as the period test): then its oldest point is within
+#: ``EARLY_RTOL / |1 - mu|`` of the orbit, and the window's DC and Kmax (over all its periods)
+#: are those of the fixed plan's later window to ~1e-6 (docs/decisions.md, "Adaptive settling")
+EARLY_RTOL = 1e-7
+#: the adaptive transient's window (at most ``chunk``): the period test's shortest window for
+#: periods up to 4 (``max(2 n, 16) + n`` points); a longer period is confirmed by the fixed plan
+EARLY_WINDOW = 20
+#: periods of tangent lead before the adaptive transient's first window (the window's exponent
+#: is that of a vector aligned over at least these periods)
+EARLY_LEAD = 4
+
+
+def settled_period(s: PeriodSummaries, params: ModelParameters,
+                   st: IntegrationSettings) -> int:
+    """The period ``n`` of window ``s`` if it would be labelled as it stands, settled
+    throughout: every point within :data:`EARLY_RTOL` of the one ``n`` periods later
+    (:func:`repeats_throughout`, the cheap test first: most windows fail it), the period test's
+    period (:func:`period_of`) and a settle distance at most
+    :data:`~gearsim.cell.verify.REFINE_RTOL`; else 0. The adaptive transient's test."""
+    scale = max(float(s.xmax.max() - s.xmin.min()), 1e-9)
+    n = repeats_throughout(s.section, scale, float(params.w), 4, EARLY_RTOL)
+    if n == 0 or period_of(s, params, st) != n or not window_settle(params, s, n) <= REFINE_RTOL:
+        return 0
+    return n
+
+
+@njit(cache=True, nogil=True)
+def repeats_throughout(section, scale, w, n_max, rtol):
+    """Smallest ``n <= n_max`` such that every row of ``section`` (``x``, ``x'`` in its first two
+    columns) repeats after ``n`` rows to ``rtol`` (``x`` relative to ``scale``, ``x'`` to
+    ``scale w``), or 0 (NaN fails)."""
+    m = section.shape[0]
+    tol_x = rtol * scale
+    tol_v = rtol * scale * max(w, 1e-3)
+    for n in range(1, n_max + 1):
+        if m <= n:
+            return 0
+        ok = True
+        for i in range(n, m):
+            if not (abs(section[i, 0] - section[i - n, 0]) <= tol_x
+                    and abs(section[i, 1] - section[i - n, 1]) <= tol_v):
+                ok = False
+                break
+        if ok:
+            return n
+    return 0
+
+
+def next_settle_check(done: int, st: IntegrationSettings, transient: int, window: int) -> int:
+    """Periods since the cell's start at the adaptive transient's next check after ``done``:
+    :data:`EARLY_LEAD` + :data:`EARLY_WINDOW` periods into the tangent lead, then every
+    ``settle_check`` periods, at most ``transient + window`` (the last check: the fixed plan's
+    first measuring chunk)."""
+    first = transient - min(st.tangent_lead, transient) + EARLY_LEAD + min(EARLY_WINDOW, window)
+    return min(first if done < first else done + st.settle_check, transient + window)
+
+
 def recurrence_probe(st: IntegrationSettings, continued: bool, transient: int) -> int:
     """Periods of the recurrence probe of a cell (``transient_recurrence``), 0 for none: only a
     continued cell whose transient is longer than the probe has one."""
@@ -250,6 +330,9 @@ def simulate_cell(
         return diverged_result(params, k, 0, status="budget")
     lead = min(st.tangent_lead, transient)
     yt = None
+    n = 0
+    measured = 0
+    parts: list[PeriodSummaries] = []
     probe = recurrence_probe(st, u0 is not None, transient)
     if probe:
         # the start of the transient with the tangent on, recorded: if it already recurs (on
@@ -264,17 +347,39 @@ def simulate_cell(
         r = run_periods(params, y, transient - lead, st, start_period=k, parray=p)
         y, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
         steps += r.n_steps
-    parts: list[PeriodSummaries] = []
     if yt is None:
         yt = np.concatenate([y, initial_tangent(params)])
+    if st.settle_check > 0 and lead > 0 and status == STATUS_OK:
+        # the adaptive transient (module docstring): the lead recorded, checked every s periods
+        window = min(st.chunk, max_periods)
+        done = transient - lead
+        while True:
+            r = run_periods(params, yt, next_settle_check(done, st, transient, window) - done,
+                            st, start_period=k, tangent=True, h_init=h, parray=p)
+            yt, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
+            steps += r.n_steps
+            done += r.periods_done
+            if status != STATUS_OK:
+                break
+            parts = [PeriodSummaries.concat([*parts, r.summaries]).tail(window)]
+            if done >= transient + window:
+                # the fixed plan's first measuring chunk: its period test and budget
+                measured = window
+                n = period_of(parts[0], params, st)
+                if n == 0 and measured < max_periods and steps > st.max_steps:
+                    return diverged_result(params, k, steps, status="budget")
+                break
+            n = settled_period(parts[0].tail(EARLY_WINDOW), params, st)
+            if n > 0:
+                parts = [parts[0].tail(EARLY_WINDOW)]
+                break
+        lead = 0
     if lead > 0 and status == STATUS_OK:
         # the tangent vector aligns during the end of the transient (not recorded)
         r = run_periods(params, yt, lead, st, start_period=k, tangent=True, h_init=h, parray=p)
         yt, k, h, status = r.state, k + r.periods_done, r.h_last, r.status
         steps += r.n_steps
-    n = 0
-    measured = 0
-    while status == STATUS_OK and measured < max_periods:
+    while status == STATUS_OK and n == 0 and measured < max_periods:
         m = min(st.chunk, max_periods - measured)
         r = run_periods(params, yt, m, st, start_period=k, tangent=True, h_init=h, parray=p)
         parts.append(r.summaries)

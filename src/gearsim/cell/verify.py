@@ -300,12 +300,18 @@ def read_window(params: ModelParameters, summaries: PeriodSummaries, n: int,
         Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold,
     )  # fmt: skip
     if n > 0:
-        scale = float(summaries.xmax.max() - summaries.xmin.min())
-        # contiguous copies: a strided view of the lanes' records misses Numba's fast dispatch
-        xs = np.ascontiguousarray(summaries.section[:, 0])
-        vs = np.ascontiguousarray(summaries.section[:, 1])
-        cls.settle = float(settle_estimate(xs, vs, int(n), scale, float(params.w), 96)[0])
+        cls.settle = window_settle(params, summaries, n)
     return window, cls
+
+
+def window_settle(params: ModelParameters, summaries: PeriodSummaries, n: int) -> float:
+    """The settle distance of the recorded periods ``summaries`` for period ``n``
+    (:func:`gearsim.cell.classify.settle_estimate`, relative to their x range)."""
+    scale = float(summaries.xmax.max() - summaries.xmin.min())
+    # contiguous copies: a strided view of the lanes' records misses Numba's fast dispatch
+    xs = np.ascontiguousarray(summaries.section[:, 0])
+    vs = np.ascontiguousarray(summaries.section[:, 1])
+    return float(settle_estimate(xs, vs, int(n), scale, float(params.w), 96)[0])
 
 
 def needs_refinement(cls: Classification, floquet: str = "slow") -> bool:
@@ -513,5 +519,5 @@ def verify_motion(params: ModelParameters, window: PeriodSummaries, cls: Classif
 
 __all__ = ["REFINE_RTOL", "BIFURCATION_MARGIN", "FLOQUET", "OrbitCache", "Refinement",
            "fill_margins", "floquet_margin",
-           "needs_refinement",
+           "needs_refinement", "window_settle",
            "refine", "orbit_classification", "verify_motion"]

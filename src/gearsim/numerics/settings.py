@@ -37,6 +37,7 @@ INTEGER_BOUNDS: dict[str, tuple[int, int]] = {
     "tangent_lead": (0, 10_000),
     "max_steps": (1000, 1_000_000_000),
     "transient_recurrence": (0, 100_000),
+    "settle_check": (0, 10_000),
 }
 
 
@@ -88,6 +89,14 @@ class IntegrationSettings:
         ``k`` must be at least ``tangent_lead`` (the tangent vector's alignment) and 17 (the
         period test's shortest window: 16 confirming points); ``k >= transient_continuation``
         means no probe.
+    settle_check
+        0 (off, the default): every transient runs to its end. ``s > 0``: the transient adapts
+        to the measured contraction (:mod:`gearsim.cell.simulate`): the tangent lead is
+        recorded and checked every ``s`` periods; the cell ends as soon as the last window has
+        a period, is settled (settle distance at most
+        :data:`gearsim.cell.verify.REFINE_RTOL`) and repeats throughout. A cell that does not
+        settle so runs the whole transient and then measures as with the option off. Not
+        together with ``transient_recurrence``.
     floquet
         Which periodic cells get their Floquet margin ``mu_max``
         (:mod:`gearsim.cell.verify`): ``"slow"`` only the cells Newton-refined because they
@@ -111,6 +120,7 @@ class IntegrationSettings:
     tangent_lead: int = 24
     max_steps: int = 5_000_000
     transient_recurrence: int = 0
+    settle_check: int = 0
     floquet: str = "margin"
 
     def __post_init__(self) -> None:
@@ -136,6 +146,11 @@ class IntegrationSettings:
             raise ParameterError(
                 f"setting 'transient_recurrence' = {k!r} must be 0 (off) or an integer in "
                 f"[{lo}, 100000] (at least tangent_lead and {RECURRENCE_MIN})"
+            )
+        if k and self.settle_check:
+            raise ParameterError(
+                f"settings 'transient_recurrence' = {k} and 'settle_check' = "
+                f"{self.settle_check}: at most one of them may be nonzero"
             )
 
     def with_(self, **changes: Any) -> IntegrationSettings:

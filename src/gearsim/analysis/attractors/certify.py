@@ -1,9 +1,11 @@
 """Certified neighbourhoods of stable periodic orbits: where an early label needs no recurrence.
 
 For a periodic attractor of period ``n`` whose orbit is a stable orbit of its cell (its section
-state Newton-converged on the cell's own RK4 map, at its least period, |mu|max < 1:
-:func:`gearsim.analysis.attractors.gear.newton_orbits`), a neighbourhood of that fixed point
-``c`` of the ``n``-period map (phase 0) is *certified* in a norm adapted to the orbit:
+state Newton-converged on the cell's own RK4 map, |mu|max < 1:
+:func:`gearsim.analysis.attractors.gear.newton_orbits`, the one orbit solver where one small
+step does not converge; the orbit's points those of the attractor to the merge tolerance, at
+its least period: :func:`_the_motions`), a neighbourhood of that fixed point ``c`` of the
+``n``-period map (phase 0) is *certified* in a norm adapted to the orbit:
 
 * the monodromy ``M`` of the orbit's own ``n`` periods at ``c`` (the one Newton used), in the
   scaled coordinates ``z = (y - c) / s`` (``s`` the orbit's displacement range for
@@ -23,8 +25,9 @@ state Newton-converged on the cell's own RK4 map, at its least period, |mu|max <
   :data:`SAMPLE_SEED`) to inside ``rho' r``, ``rho' = (1 + rho) / 2``, each sample keeping the
   orbit's contact sequence (the entries into face and back contact of every period equal to
   the orbit's: no contact gained or lost, no grazing on the sampled paths). Radii from
-  ``FinderOptions.certify_radius`` down by factors of 3 (``certify_tries`` of them); none
-  passing leaves the orbit uncertified (its starts keep the recurrence rule).
+  ``FinderOptions.certify_radius`` down by factors of 3 (``certify_tries`` of them: 0.3 to
+  0.0037 of the range by default); none passing leaves the orbit uncertified (its starts keep
+  the recurrence rule).
 
 A probing start is labelled onto a certified orbit when one of its section points ``y_k`` lies
 inside the ellipsoid and the point ``n`` periods later, ``y_{k+n}``, lies inside it too and
@@ -51,6 +54,9 @@ CENTRE_FRACTION = 0.05
 RANDOM = 12
 #: seed of the random boundary points (recorded: the samples of an orbit are reproducible)
 SAMPLE_SEED = 0
+#: the certified orbit's points lie within this fraction of the range of the motion's (the
+#: finder's merge tolerance: the orbit is that attractor)
+MERGE_RTOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -71,7 +77,7 @@ class Certificate:
     def distance(self, y: np.ndarray) -> np.ndarray:
         """``P``-norm distance of states ``y`` ``(..., 10)`` to the centre, over ``r``."""
         z = (y[..., self.ev] - self.centre[self.ev]) / self.scales
-        q = np.einsum("...i,ij,...j->...", z, self.P, z)
+        q = np.sum((z @ self.P) * z, axis=-1)
         return np.sqrt(np.maximum(q, 0.0)) / self.r
 
     def confirmed(self, hist: np.ndarray, filled: np.ndarray) -> np.ndarray:
@@ -161,6 +167,27 @@ def _ellipsoid(M: np.ndarray, scales: np.ndarray) -> tuple[np.ndarray, float] | 
     return P / lam[0], rho
 
 
+def _the_motions(s: Steady, pts: np.ndarray) -> bool:
+    """Whether the orbit's points ``pts`` ``(n, 2)`` (phase 0 on) are the motion ``s``'s, to the
+    merge tolerance of the finder (:data:`MERGE_RTOL` of the range, any cyclic shift), at its
+    least period (no two phases ``m | n`` apart within
+    :data:`gearsim.analysis.attractors.gear.LEAST_PERIOD_RTOL`): Newton on ``P^n`` also
+    converges to other orbits, the fixed points of ``P^m`` among them."""
+    from gearsim.analysis.attractors.gear import LEAST_PERIOD_RTOL
+    from gearsim.analysis.attractors.matching import _near_all
+
+    n = s.period
+    sx, sv = max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)
+    sc = np.array([sx, sv])
+    for m in range(1, n):
+        if n % m == 0 and np.all(np.abs(pts - np.roll(pts, -m, axis=0)) / sc
+                                 <= LEAST_PERIOD_RTOL):  # fmt: skip
+            return False
+    own = np.asarray(s.points, dtype=float)[-n:, :2]
+    tx, tv = MERGE_RTOL * sx, MERGE_RTOL * sv
+    return _near_all(pts, own, tx, tv) and _near_all(own, pts, tx, tv)
+
+
 def _images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settings,
             packed: dict[int, np.ndarray]):
     """The ``n``-period images of the states ``rows`` (one SIMD lane each, without the tangent
@@ -181,7 +208,8 @@ def _images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settin
     lanes.run(N, n, 0.0, float(getattr(settings, "divergence_bound", 1.0e6)), False)
     idx = np.arange(k)
     fin = lanes.view[idx // LANES, _Y : _Y + 10, idx % LANES]
-    return fin, ist[_ST, :k].copy(), lanes.nface[:k, :n].copy(), lanes.nback[:k, :n].copy()
+    return (fin, ist[_ST, :k].copy(), lanes.nface[:k, :n].copy(), lanes.nback[:k, :n].copy(),
+            lanes.sec[:k, :n, :2].copy())  # fmt: skip
 
 
 def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radius: float,
@@ -202,8 +230,14 @@ def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radi
     from gearsim.analysis.attractors.gear import newton_orbits
 
     if orbits is None:
-        orbits = newton_orbits([(p, s if eligible(s, s.period) else None) for p, s in pairs],
-                               settings)  # fmt: skip
+        orbits = [None] * len(pairs)
+    redo = [i for i, o in enumerate(orbits) if o is None]
+    if redo:  # the one orbit solver where one small Newton step does not converge
+        got = newton_orbits([(pairs[i][0], pairs[i][1] if eligible(pairs[i][1], pairs[i][1].period)
+                              else None) for i in redo], settings, solve=True)  # fmt: skip
+        orbits = list(orbits)
+        for i, o in zip(redo, got, strict=True):
+            orbits[i] = o
     by_n: dict[int, list[int]] = {}
     for i, (p, s) in enumerate(pairs):
         if orbits[i] is not None and eligible(s, s.period):
@@ -243,13 +277,13 @@ def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radi
                     rows.append(yy)
                 plist += [pairs[i][0]] * (len(dirs) + 1)
                 owner += [k] * (len(dirs) + 1)
-            fin, status, face_all, back_all = _images(plist, rows, n, settings, packed)
+            fin, status, face_all, back_all, sec = _images(plist, rows, n, settings, packed)
             spent += len(rows) * n
             owner = np.array(owner)
             left = []
             for k, (i, y, ev, scales, P, rho, _dirs) in enumerate(todo):
                 q = np.nonzero(owner == k)[0]
-                ok = bool(np.all(status[q] == 0))
+                ok = bool(np.all(status[q] == 0)) and _the_motions(pairs[i][1], sec[q[0]])
                 if ok:  # every sample with the centre's (the orbit's) contact sequence
                     ok = bool(np.all(face_all[q] == face_all[q[0]])
                               and np.all(back_all[q] == back_all[q[0]]))  # fmt: skip

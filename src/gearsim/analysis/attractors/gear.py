@@ -189,6 +189,8 @@ def fill_orbit_margins(pairs: Sequence[tuple[ModelParameters, Steady | None]], s
 #: :data:`NEWTON_STEP_RTOL` of the motion's range (so its window's points are the orbit's)
 NEWTON_TOL = 1e-9
 NEWTON_STEP_RTOL = 1e-5
+#: Newton iterations of :func:`newton_orbits` with ``solve`` (a settled reading is close)
+SOLVE_ITER = 8
 #: ... and its section points have no shorter period: two phases ``m`` apart (``m`` a proper
 #: divisor of ``n``) closer than this fraction of the range everywhere make it a reading of a
 #: period-``m`` orbit (Newton on ``P^n`` also converges to the fixed points of ``P^m``)
@@ -206,14 +208,18 @@ def _shorter_period(s: Steady) -> bool:
     return False
 
 
-def newton_orbits(pairs: Sequence[tuple[ModelParameters, Steady | None]], st
-                  ) -> list[tuple[np.ndarray, np.ndarray] | None]:
+def newton_orbits(pairs: Sequence[tuple[ModelParameters, Steady | None]], st,
+                  solve: bool = False) -> list[tuple[np.ndarray, np.ndarray] | None]:
     """Per ``(cell parameters, motion)``: ``(y, M)``, the section state of the motion's orbit
     Newton-converged in *that* cell (:data:`NEWTON_TOL`, at most one Newton step of
     :data:`NEWTON_STEP_RTOL` from its section state) and the monodromy of its ``n`` periods
-    there, where the orbit has its least period (:data:`LEAST_PERIOD_RTOL`) and ``|mu|max <
-    1``; else None. The orbits of one period share kernel calls
-    (:func:`gearsim.numerics.variational.monodromies`, the cell's own RK4 map)."""
+    there, where the motion's points have no shorter period (:data:`LEAST_PERIOD_RTOL`) and
+    ``|mu|max < 1``; else None. The orbits of one period share kernel calls
+    (:func:`gearsim.numerics.variational.monodromies`, the cell's own RK4 map). ``solve``:
+    where one small step does not converge, the one orbit solver
+    (:func:`gearsim.analysis.orbits.newton_orbit`, :data:`SOLVE_ITER` iterations, the cell's
+    own settings) from the motion's state; the caller then checks that the orbit found is the
+    motion's (its points, its least period)."""
     from gearsim.dynamics.model import N_STATE
     from gearsim.numerics.integrate import STATUS_OK
     from gearsim.numerics.shooting import newton_step, sorted_eigs
@@ -252,6 +258,21 @@ def newton_orbits(pairs: Sequence[tuple[ModelParameters, Steady | None]], st
                         again.append(i)
                         y_again.append(y1)
             group, ys = again, y_again
+    if solve:
+        from gearsim.analysis.orbits import OrbitError, newton_orbit
+
+        for n, group in by_n.items():
+            for i in group:
+                if out[i] is not None:
+                    continue
+                p, s = pairs[i]
+                try:
+                    y, _yn, M, r, _ = newton_orbit(p, n, s.final_state, st, tol=NEWTON_TOL,
+                                                   max_iter=SOLVE_ITER)  # fmt: skip
+                except OrbitError:
+                    continue
+                if r < NEWTON_TOL and abs(sorted_eigs(M)[0]) < 1.0:
+                    out[i] = (y, M)
     return out
 
 
@@ -259,3 +280,43 @@ def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) 
     """Per ``(cell parameters, motion)``: whether the motion is a stable periodic orbit of *that*
     cell, Newton-converged there at its least period (:func:`newton_orbits`)."""
     return [o is not None for o in newton_orbits(pairs, st)]
+
+
+#: periods of the long run that decides whether a cloud next to diverging starts is bounded
+LONG_RUN = 4000
+
+
+def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAttractors]:
+    """A chaotic or quasi-periodic attractor of a cell where some start diverged (the
+    parametric instability of the nearly linear mesh near w = 2 at small backlash: motions
+    that grow after their window look like clouds in it) is checked by a :data:`LONG_RUN`-period
+    run from the first of its starts (transient, then the measuring budget): where that
+    diverges, the attractor is no attractor and its starts count as diverged (its periods are
+    the start's too). The last step of every gear mapper, after :func:`least_periods`."""
+    from gearsim.analysis.attractors.matching import drop
+    from gearsim.cell.chains import simulate_cells
+
+    todo = []  # (cell, attractor index, start)
+    for c, ca in enumerate(found):
+        if not np.any(ca.start_labels < 0):
+            continue
+        for a in ca.attractors:
+            s = a.steady
+            if s.status == "ok" and s.period <= 0 and a.n_starts > 0:
+                i = int(np.nonzero(ca.start_labels == a.index)[0][0])
+                todo.append((c, a.index, i))
+    if not todo:
+        return found
+    lst = st.with_(transient=LONG_RUN - st.max_periods,
+                   transient_continuation=LONG_RUN - st.max_periods)  # fmt: skip
+    res = simulate_cells([params_list[c] for c, _, _ in todo], settings=lst,
+                         u0=[np.asarray(found[c].starts[i], dtype=float)[:10]
+                             for c, _, i in todo])  # fmt: skip
+    gone: dict[int, set[int]] = {}
+    for (c, a, i), r in zip(todo, res, strict=True):
+        found[c].start_periods_run[i] += int(r.periods)  # the long run is the start's too
+        if gear_steady(r).status == "diverged":
+            gone.setdefault(c, set()).add(a)
+    return [drop(ca, gone.get(c, set())) for c, ca in enumerate(found)]
+
+

@@ -170,6 +170,31 @@ def least_periods(ca: CellAttractors, merge_rtol: float = 1e-3) -> CellAttractor
     )
 
 
+def drop(ca: CellAttractors, gone: set[int]) -> CellAttractors:
+    """``ca`` without the attractors ``gone`` (indices): their starts count as diverged, the
+    rest renumbered most starts first."""
+    if not gone:
+        return ca
+    kept = sorted((a for a in ca.attractors if a.index not in gone),
+                  key=lambda a: (-a.n_starts, a.index))  # fmt: skip
+    new = {a.index: r for r, a in enumerate(kept)}
+    k = ca.n_starts
+    for r, a in enumerate(kept):
+        a.index = r
+        a.basin_fraction = float(a.n_starts / k) if k else 0.0
+    top = max([a for a in new] + list(gone) + [0])
+    remap = np.array([new.get(i, -1) for i in range(top + 1)] + [-1], dtype=np.int64)
+    labels = np.asarray(ca.start_labels, dtype=np.int64)
+    return CellAttractors(
+        attractors=kept,
+        starts=ca.starts,
+        start_labels=remap[labels] if len(labels) else labels,
+        early=ca.early,
+        start_periods_run=ca.start_periods_run,
+        continuation={name: int(remap[v]) for name, v in ca.continuation.items()},
+    )
+
+
 def same_attractor(
     a: Steady, b: Steady, *, merge_rtol: float = 1e-3, grid: int = 32, cloud_overlap: float = 0.5
 ) -> bool:

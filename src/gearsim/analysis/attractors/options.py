@@ -64,7 +64,7 @@ class FinderOptions:
     lanes: int = POOL_LANES
     certified: bool = True
     certify_radius: float = 0.3
-    certify_tries: int = 3
+    certify_tries: int = 5
     newton_seeds: bool = True
 
     def __post_init__(self):

@@ -45,6 +45,7 @@ import numpy as np
 from gearsim.analysis.attractors.certify import certify, certify_many, eligible, worth
 from gearsim.analysis.attractors.gear import (
     GearCells,
+    bounded_clouds,
     fill_orbit_margins,
     gear_steady,
     newton_orbits,
@@ -236,10 +237,13 @@ class _Judge:
         live = [(a, c) for a, c in cell.certs.items() if c is not None and not kn.ambiguous[a]]
         if not live:
             return out
-        hist = np.stack([j.hist for j in jobs])
-        filled = np.array([j.filled for j in jobs], dtype=np.int64)
+        # the pairs ending in the last chunk (older ones were tested at earlier checks, or
+        # predate the certificate: the start is tested again at its next check)
+        tail = self.opts.chunk + max(c.n for _, c in live)
+        hist = np.stack([j.hist[-tail:] for j in jobs])
+        filled = np.minimum([j.filled for j in jobs], hist.shape[1])
         for a, c in live:
-            ok = (out < 0) & c.confirmed(hist, filled)
+            ok = (out < 0) & c.confirmed(hist[:, -(self.opts.chunk + c.n):], filled)
             out[ok] = a
         return out
 
@@ -379,6 +383,5 @@ def map_gear_cells(
                      [c.early for c in cells], [c.periods for c in cells],
                      [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
     system.fill_margins(found)
-    return [least_periods(ca, opts.merge_rtol) for ca in found]
-
-
+    found = [least_periods(ca, opts.merge_rtol) for ca in found]
+    return bounded_clouds(params_list, found, st)
