@@ -255,7 +255,7 @@ def cmd_settle(args) -> dict:
         st = study.settings
         w = min(st.chunk, st.max_periods)
 
-        def first_test(r):  # the fixed plan's first period test (a row's first cell: from rest)
+        def first_test(r, st=st, w=w):  # the fixed plan's first period test (row start: rest)
             return (st.transient if r["i"] == 0 else st.transient_continuation) + w
 
         changed, ddc, dk, early_dc, early_dk = [], [], [], [], []

@@ -199,7 +199,8 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("attractors", "critical"): RESULT["critical"],
     ("attractors", "basin_fraction"): ("1", "share of the cell's seeded starts that reach it"),
     ("attractors", "n_starts"): ("1", "seeded starts that reach it"),
-    ("attractors", "n_early"): ("1", "of those, labelled early (certified ellipsoid or recurrence)"),
+    ("attractors", "n_early"): ("1", "of those, labelled early (certified ellipsoid or "
+                                     "recurrence)"),
     ("attractors", "found_by"): (
         "", "who reached it: subset of forward (continuation state), backward, start"
     ),
