@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gearsim.cell import simulate
+from gearsim.cell.classify import repeats_throughout
 from gearsim.cell.simulate import (
     CellResult,
     IntegrationSettings,
@@ -465,5 +466,6 @@ def warm_up() -> float:
         method="rk4", transient=2, transient_continuation=1, chunk=4, max_periods=8, n_max=2
     )
     simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
-    simulate.repeats_throughout(np.zeros((4, N_STATE)), 1.0, 1.0, 4, 1e-7)  # settle_check's
+    z = np.zeros((4, N_STATE))
+    repeats_throughout(z[:, 0], z[:, 1], 1.0, 1.0, 4, 1e-7)  # settle_check's
     return time.perf_counter() - t0

@@ -25,11 +25,11 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from gearsim.cell.classify import (
     Classification,
     estimate_period,
+    repeats_throughout,
 )
 from gearsim.cell.verify import (
     FLOQUET,
@@ -194,36 +194,15 @@ def settled_period(s: PeriodSummaries, params: ModelParameters,
                    st: IntegrationSettings) -> int:
     """The period ``n`` of window ``s`` if it would be labelled as it stands, settled
     throughout: every point within :data:`EARLY_RTOL` of the one ``n`` periods later
-    (:func:`repeats_throughout`, the cheap test first: most windows fail it), the period test's
-    period (:func:`period_of`) and a settle distance at most
+    (:func:`~gearsim.cell.classify.repeats_throughout`, the cheap test first: most windows
+    fail it), the period test's period (:func:`period_of`) and a settle distance at most
     :data:`~gearsim.cell.verify.REFINE_RTOL`; else 0. The adaptive transient's test."""
     scale = max(float(s.xmax.max() - s.xmin.min()), 1e-9)
-    n = repeats_throughout(s.section, scale, float(params.w), 4, EARLY_RTOL)
+    n = repeats_throughout(s.section[:, 0], s.section[:, 1], scale, float(params.w), 4,
+                           EARLY_RTOL)
     if n == 0 or period_of(s, params, st) != n or not window_settle(params, s, n) <= REFINE_RTOL:
         return 0
     return n
-
-
-@njit(cache=True, nogil=True)
-def repeats_throughout(section, scale, w, n_max, rtol):
-    """Smallest ``n <= n_max`` such that every row of ``section`` (``x``, ``x'`` in its first two
-    columns) repeats after ``n`` rows to ``rtol`` (``x`` relative to ``scale``, ``x'`` to
-    ``scale w``), or 0 (NaN fails)."""
-    m = section.shape[0]
-    tol_x = rtol * scale
-    tol_v = rtol * scale * max(w, 1e-3)
-    for n in range(1, n_max + 1):
-        if m <= n:
-            return 0
-        ok = True
-        for i in range(n, m):
-            if not (abs(section[i, 0] - section[i - n, 0]) <= tol_x
-                    and abs(section[i, 1] - section[i - n, 1]) <= tol_v):
-                ok = False
-                break
-        if ok:
-            return n
-    return 0
 
 
 def next_settle_check(done: int, st: IntegrationSettings, transient: int, window: int) -> int:
