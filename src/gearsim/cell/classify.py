@@ -39,7 +39,8 @@ settle distance
     total static excitation ``Fm + Fe w^2``.
 diverged
     A motion without a period whose amplitude grows over the window (:func:`amplitude_grows`),
-    like one that leaves the divergence bound: not an attractor, no pattern.
+    like one that leaves the divergence bound: not an attractor, no pattern. Where the linear
+    limit of the mesh is unstable, one whose long run grows (:mod:`gearsim.cell.growth`).
 Lyapunov exponent
     Largest exponent per unit dimensionless time from the variational equations (exact across
     the switches because the field is continuous), averaged over the analysed window.
@@ -405,6 +406,11 @@ class Classification:
     critical: str = ""  # kind of that multiplier: fold | period_doubling | neimark_sacker
     refined: bool = False  # the label is that of the Newton-refined orbit
     settle: float = float("nan")  # settle distance of the window (relative to the x range)
+    # motions without a period (chaos, quasi-periodic): the linear limit's largest multiplier
+    # (gearsim.cell.growth) and, where it exceeds 1, the periods of the long run that showed the
+    # motion bounded (or, status diverged, growing); NaN where neither was needed
+    mu_lin: float = float("nan")
+    long_run: float = float("nan")
 
     @property
     def kmax(self) -> float:

@@ -15,6 +15,10 @@ it stands). A cell that does not settle so reaches the end of its transient plus
 periods: that last window is the fixed plan's first measuring chunk, and measuring goes on as
 without the option (period test, budget, refinement and statuses unchanged). The chain's next
 cell starts from the state where the cell ended.
+
+A motion without a period where the mesh's linear limit is unstable is labelled only after its
+long run shows it bounded (:func:`gearsim.cell.growth.check_growth`, the last step here and in
+the batched driver).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from gearsim.cell.classify import (
     estimate_period,
     repeats_throughout,
 )
+from gearsim.cell.growth import check_growth
 from gearsim.cell.verify import (
     FLOQUET,
     REFINE_RTOL,
@@ -162,8 +167,11 @@ def diverged_result(params: ModelParameters, k: int, steps: int,
 
 
 def seeds_continuation(res: CellResult) -> bool:
-    """Whether a cell's final state may start the next cell of a continuation chain."""
-    return res.classification.status not in ("diverged", "budget")
+    """Whether a cell's final state may start the next cell of a continuation chain: not after
+    a divergence or the step budget; a cell that only its long run showed growing
+    (:mod:`gearsim.cell.growth`, checked after the chain) seeds with its window's end state."""
+    c = res.classification
+    return c.status not in ("diverged", "budget") or c.long_run == c.long_run
 
 
 def period_of(s: PeriodSummaries, params: ModelParameters, st: IntegrationSettings) -> int:
@@ -377,6 +385,7 @@ def simulate_cell(
         return diverged_result(params, k, steps)
     res = finish_cell(params, summaries, n, st, yt, k, start_period, steps, floquet)
     fill_margins([res], st.with_(floquet=max(floquet, st.floquet, key=FLOQUET.index)))
+    check_growth([res], st)
     if spectrum:
         periods = (max(200, res.classification.window_periods) if spectrum is True
                    else int(spectrum))
