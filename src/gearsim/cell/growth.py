@@ -32,7 +32,7 @@ from gearsim.dynamics.parameters import ModelParameters
 
 #: mesh periods of the long run from the end of the window (docs/decisions.md, "Growing
 #: motions"): a nearly linear motion grows over one quarter of it (1 000 periods) by mu_lin^1000,
-#: at least the rule's GROWTH_STEP wherever mu_lin > 1 + 2e-5
+#: enough for both parts of amplitude_grows wherever mu_lin > 1 + 3.2e-5
 LONG_RUN = 4000
 
 #: motions that the long run checks
