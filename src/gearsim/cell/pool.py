@@ -112,6 +112,10 @@ class PoolStats:
     radii: list = field(default_factory=list)  # certified radii (None: no radius passed)
     early_certified: int = 0  # starts labelled inside a certified ellipsoid
     early_recurrence: int = 0  # starts labelled by recurrence
+    seeds_tried: int = 0  # neighbouring cells' motions continued by Newton into a cell
+    seeds_run: int = 0  # ... converged there as an orbit the cell did not know (a seed run)
+    seeds_confirmed: int = 0  # ... whose run confirmed the orbit (a recurrence target)
+    seed_periods: int = 0  # lane-periods of the seeds' runs
 
     @property
     def lane_use(self) -> float:
