@@ -394,10 +394,13 @@ def assemble(opts: FinderOptions, starts, labels, is_early, periods_run, known, 
             if a >= 0:
                 cont_found[c].setdefault(a, set()).add(name)
         new = np.full(K[c], -1, dtype=np.int64)
+        done: dict[int, int] = {}  # id(motion) -> its index (one motion merges once)
         for i in range(K[c]):
             if labels[c][i] >= 0:
                 s = known[c].own.get(i, known[c].steadies[labels[c][i]])
-                new[i] = kn.add(s)
+                if id(s) not in done:
+                    done[id(s)] = kn.add(s)
+                new[i] = done[id(s)]
         labels[c] = new
         known[c] = kn
     out = []
