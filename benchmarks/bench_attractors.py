@@ -64,7 +64,7 @@ from gearsim.study.config import Study  # noqa: E402
 
 OPTS = FinderOptions(starts=16, seed=0)
 #: the rule of the finder before certified labels and Newton seeds (recurrence alone)
-OLD = OPTS.with_(certified=False, newton_seeds=False)
+OLD = OPTS.with_(certified=False, newton_seeds=False, neighbour_seeds=False)
 
 
 def reference(cells, st, states):
@@ -148,6 +148,12 @@ class KernelMeter:
                 "kernel_cpu_s": self.cpu}  # fmt: skip
 
 
+def row_neighbours(rows) -> list[list[int]]:
+    """Per cell: the previous and the next cell of its row (``rows[k]``: row of cell k)."""
+    return [[m for m in (k - 1, k + 1) if 0 <= m < len(rows) and rows[m] == rows[k]]
+            for k in range(len(rows))]
+
+
 def rows_of(plane: str, n: int, js, base, st):
     """Cells, forward states and forward motions of rows ``js`` of a plane at n x n."""
     yname, lo, hi = PLANES[plane]
@@ -186,6 +192,9 @@ def summary(found, cpu: float, meter: KernelMeter, stats=None) -> dict:
             "early_certified": stats.early_certified / n,
             "early_recurrence": stats.early_recurrence / n,
             "certify_lane_periods_per_start": stats.certify_periods / n,
+            "seeds": {"tried": stats.seeds_tried, "run": stats.seeds_run,
+                      "confirmed": stats.seeds_confirmed,
+                      "lane_periods_per_start": stats.seed_periods / n},
             "orbits_tried": len(radii), "orbits_certified": int(len(got)),
             "radius_counts": {f"{r:.4g}": int(np.sum(np.isclose(got, r)))
                               for r in sorted(set(got.tolist()), reverse=True)},
@@ -221,6 +230,7 @@ def main() -> None:
     # ---- side by side: every 4th cell of two rows per plane at 400 x 400
     cells, states, motions = [], [], []
     near: list[bool] = []  # the cell is next to a change of the row's motion
+    row_of: list[int] = []  # the cells' rows (neighbours: the next cells of a row)
     for plane, js in (("wb", (150, 300)), ("wxi", (100, 250))):
         rows = list(js[:1] if args.quick else js)
         extra = [int(400 * (r + 0.5) / args.extra_rows) for r in range(args.extra_rows)]
@@ -236,6 +246,7 @@ def main() -> None:
             states += [s[k] for k in take]
             motions += [m[k] for k in take]
             near += [nb[k] for k in take]
+            row_of += [len(set(row_of))] * len(take)
     side = {}
     names = ("pool", "recurrence") + (("reference",) if args.reference else ())
     cpus: dict = {}
@@ -254,7 +265,8 @@ def main() -> None:
                 found += reference(cells[sl], st, states[sl])
             else:
                 found += find_attractors(cells[sl], opts, settings=st,
-                                         forward_results=motions[sl], stats=stats)
+                                         forward_results=motions[sl], stats=stats,
+                                         neighbours=row_neighbours(row_of[sl]))
         row = summary(found, time.process_time() - c0, meter, stats)
         cpus.setdefault(name, []).append(row["cpu_s"])
         if name not in side or row["cpu_s"] < side[name]["cpu_s"]:
@@ -342,7 +354,8 @@ def main() -> None:
                   f"{100 * v['early_recurrence']:.0f} % by recurrence (counted at the chunk "
                   f"checks); {v['orbits_certified']}/{v['orbits_tried']} orbits certified, "
                   f"radii {v['radius_counts']}, certification "
-                  f"{v['certify_lane_periods_per_start']:.1f} lane-periods per start")
+                  f"{v['certify_lane_periods_per_start']:.1f} lane-periods per start; seeds from "
+                  f"the neighbours {v['seeds']}")
     if "agreement" in out:
         a = out["agreement"]
         print(f"agreement with full-length runs: {a['starts'] - a['labels_differing']}/"

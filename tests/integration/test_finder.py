@@ -185,3 +185,16 @@ def test_every_periodic_attractor_carries_the_floquet_margin_of_its_orbit():
             assert abs(flow.mu_max - mu) < 1e-4, (p.w, mu, flow.mu_max)
             checked += 1
     assert checked >= len(CELLS)
+
+
+def test_no_copy_of_an_orbit_at_its_doubling():
+    """w = 1.423, xi = 0.07015 (the study's wxi plane, xi index 100 of 400): 14 starts end on
+    the refined 1/4T orbit at its period doubling (|mu|max 0.99984), 2 on a 1/8T reading of
+    its undecayed alternation (no margin of its own): one attractor, period 4, all 16 starts."""
+    from gearsim.study.config import Study
+
+    study = Study.load()
+    p = study.parameters().model.with_(w=1.423, xi=0.07015)
+    ca = find_attractors(p, FinderOptions(starts=16, seed=0), settings=study.settings)
+    assert [(a.steady.period, a.n_starts) for a in ca.attractors] == [(4, 16)]
+    assert ca.attractors[0].steady.info["critical"] == "period_doubling"

@@ -61,3 +61,28 @@ def test_without_margins_the_merge_tolerance_decides():
     split = _steady(2, [[0.4 + 5e-3, 0.1], [0.4 - 5e-3, 0.1]], nan)
     assert len(least_periods(_cell([one, near], [3, 3], [0] * 3 + [1] * 3)).attractors) == 1
     assert len(least_periods(_cell([one, split], [3, 3], [0] * 3 + [1] * 3)).attractors) == 2
+
+
+def test_a_2n_reading_beside_an_orbit_at_its_doubling_is_that_orbit():
+    """w = 1.423, xi = 0.07015 (the wxi plane's row at xi index 100): a refined 1/4T orbit at
+    its period doubling (|mu|max 0.99984) and a 1/8T reading without a margin whose points
+    alternate 1.8e-3 of the range about it (the alternation not decayed): one orbit, reported
+    at period 4. The same reading beside an orbit that is not at a doubling is kept."""
+    nan = float("nan")
+    four = [[0.89445, 0.05926], [0.67055, -0.47917], [0.60228, 0.03778], [0.88108, -0.45994]]
+    eight = [[0.60345, 0.03806], [0.88015, -0.46057], [0.89316, 0.05977], [0.67115, -0.47961],
+             [0.6012, 0.03751], [0.88195, -0.45934], [0.89562, 0.05872], [0.67005, -0.47873]]
+    at = dict(refined=True, status="bifurcation", critical="period_doubling", label_npq="4-3-0")
+    short = _steady(4, four, 0.999836, dc=0.60833)
+    short.scale_x, short.scale_v = 1.2269, 1.2269 * 1.423
+    short.info.update(at)
+    long = _steady(8, eight, nan, dc=0.60844)
+    long.scale_x, long.scale_v = 1.2276, 1.2276 * 1.423
+    out = least_periods(_cell([short, long], [14, 2], [0] * 14 + [1] * 2))
+    assert [(a.steady.period, a.n_starts) for a in out.attractors] == [(4, 16)]
+    for change in ({"status": "ok"}, {"critical": "fold"}, {"refined": False}):
+        other = _steady(4, four, 0.999836, dc=0.60833)
+        other.scale_x, other.scale_v = short.scale_x, short.scale_v
+        other.info.update({**at, **change})
+        kept = least_periods(_cell([other, long], [14, 2], [0] * 14 + [1] * 2))
+        assert [a.steady.period for a in kept.attractors] == [4, 8]

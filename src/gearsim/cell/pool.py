@@ -112,6 +112,10 @@ class PoolStats:
     radii: list = field(default_factory=list)  # certified radii (None: no radius passed)
     early_certified: int = 0  # starts labelled inside a certified ellipsoid
     early_recurrence: int = 0  # starts labelled by recurrence
+    seeds_tried: int = 0  # neighbouring cells' motions continued by Newton into a cell
+    seeds_run: int = 0  # ... converged there as an orbit the cell did not know (a seed run)
+    seeds_confirmed: int = 0  # ... whose run confirmed the orbit (a recurrence target)
+    seed_periods: int = 0  # lane-periods of the seeds' runs
 
     @property
     def lane_use(self) -> float:
@@ -256,6 +260,7 @@ def run_pool(
     probe: _Pool | None = None
     meas = _Pool(LANES, max(st.max_periods, 1))
     packed: dict[int, tuple[ModelParameters, np.ndarray]] = {}  # id(params) -> packed
+    tangents: dict[int, tuple[ModelParameters, np.ndarray]] = {}  # id(params) -> tangent0
 
     def load_new(pool: _Pool, job: PoolJob, y: np.ndarray) -> None:
         p = job.params
@@ -283,7 +288,10 @@ def run_pool(
             c = _Chain(index=0, cells=[p], u0=y, period0=job.period0)
             c.start, c.period, c.k, c.N, c.h, c.nu = y, job.period0, job.period0, N, \
                 p.mesh_period / N, nu
-            c.tangent0 = initial_tangent(p)
+            tg = tangents.get(id(p))
+            if tg is None:  # the starts of a cell share their parameters and tangent
+                tg = tangents[id(p)] = (p, initial_tangent(p))
+            c.tangent0 = tg[1]
             c.lead = min(st.tangent_lead, job.transient)
             # the probe pool runs whole chunks (its lanes stay in step); the rest of the
             # transient runs in the measuring pool before the lead

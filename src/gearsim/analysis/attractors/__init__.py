@@ -25,6 +25,7 @@ from gearsim.analysis.attractors.results import (
 from gearsim.analysis.attractors.tiles import (
     TILE_COLUMNS,
     cell_group_records,
+    grid_neighbours,
     steady_from_row,
     tile_records,
 )
@@ -32,6 +33,7 @@ from gearsim.analysis.attractors.tiles import (
 __all__ = [
     "FOUND_BY", "TILE_COLUMNS", "Attractor", "CellAttractors", "FinderOptions", "GearCells",
     "Hysteresis", "Steady", "cell_group_records", "find_attractors", "gear_steady",
+    "grid_neighbours",
     "hysteresis", "least_periods", "n_real", "same_attractor", "sobol_unit", "start_box",
     "steady_from_row", "summary_lines", "tile_records",
 ]

@@ -23,6 +23,7 @@ def find_attractors(
     forward_results: Sequence[Steady | None] | None = None,
     start_states=None,
     stats: PoolStats | None = None,
+    neighbours=None,
 ) -> CellAttractors | list[CellAttractors]:
     """Coexisting attractors of one gear cell (``cells`` a :class:`ModelParameters`: one
     :class:`CellAttractors`) or of many (a sequence: one per cell, all starts in one lane pool).
@@ -35,7 +36,10 @@ def find_attractors(
     the already classified forward motion (a :class:`Steady`, e.g. of the plane tile's row)
     used instead of running ``forward``; ``start_states`` its own ``(K, 10)`` start states
     instead of the Sobol starts (basin pictures). ``stats``: a
-    :class:`gearsim.cell.pool.PoolStats` collecting the lane use. Attractors most likely first.
+    :class:`gearsim.cell.pool.PoolStats` collecting the lane use. ``neighbours`` (many cells):
+    per cell the indices of its neighbouring cells in ``cells`` (e.g.
+    :func:`~gearsim.analysis.attractors.tiles.grid_neighbours`), whose motions seed it
+    (``FinderOptions.neighbour_seeds``). Attractors most likely first.
     """
     options = options if options is not None else FinderOptions()
     one = isinstance(cells, ModelParameters)
@@ -48,6 +52,6 @@ def find_attractors(
         backward=per_cell(backward), forward_results=per_cell(forward_results),
         start_states=None if start_states is None else (
             [np.asarray(start_states, dtype=float)] if one else start_states),
-        stats=stats,
+        stats=stats, neighbours=None if one else neighbours,
     )  # fmt: skip
     return found[0] if one else found

@@ -173,22 +173,19 @@ def _the_motions(s: Steady, pts: np.ndarray) -> bool:
     least period (no two phases ``m | n`` apart within
     :data:`gearsim.analysis.attractors.gear.LEAST_PERIOD_RTOL`): Newton on ``P^n`` also
     converges to other orbits, the fixed points of ``P^m`` among them."""
-    from gearsim.analysis.attractors.gear import LEAST_PERIOD_RTOL
+    from gearsim.analysis.attractors.gear import shorter_period
     from gearsim.analysis.attractors.matching import _near_all
 
     n = s.period
     sx, sv = max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)
-    sc = np.array([sx, sv])
-    for m in range(1, n):
-        if n % m == 0 and np.all(np.abs(pts - np.roll(pts, -m, axis=0)) / sc
-                                 <= LEAST_PERIOD_RTOL):  # fmt: skip
-            return False
+    if shorter_period(pts, np.array([sx, sv])):
+        return False
     own = np.asarray(s.points, dtype=float)[-n:, :2]
     tx, tv = MERGE_RTOL * sx, MERGE_RTOL * sv
     return _near_all(pts, own, tx, tv) and _near_all(own, pts, tx, tv)
 
 
-def _images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settings,
+def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settings,
             packed: dict[int, np.ndarray]):
     """The ``n``-period images of the states ``rows`` (one SIMD lane each, without the tangent
     vector: the cells' one RK4 kernel, as a probing lane runs them), their status and the
@@ -277,7 +274,7 @@ def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radi
                     rows.append(yy)
                 plist += [pairs[i][0]] * (len(dirs) + 1)
                 owner += [k] * (len(dirs) + 1)
-            fin, status, face_all, back_all, sec = _images(plist, rows, n, settings, packed)
+            fin, status, face_all, back_all, sec = images(plist, rows, n, settings, packed)
             spent += len(rows) * n
             owner = np.array(owner)
             left = []

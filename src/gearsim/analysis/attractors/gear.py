@@ -200,7 +200,14 @@ LEAST_PERIOD_RTOL = 1e-4
 def _shorter_period(s: Steady) -> bool:
     n = s.period
     pts = np.asarray(s.points, dtype=float)[-n:, :2]
-    sc = np.array([max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)])
+    return shorter_period(pts, np.array([max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)]))
+
+
+def shorter_period(pts: np.ndarray, sc: np.ndarray) -> bool:
+    """Whether ``n`` section points ``pts`` ``(n, 2)`` (scales ``sc`` of ``x`` and ``x'``) repeat
+    after a proper divisor ``m`` of ``n`` within :data:`LEAST_PERIOD_RTOL`: a period-``m``
+    orbit read ``n`` times."""
+    n = len(pts)
     for m in range(1, n):
         if n % m == 0 and np.all(np.abs(pts - np.roll(pts, -m, axis=0)) / sc
                                  <= LEAST_PERIOD_RTOL):  # fmt: skip
@@ -282,34 +289,66 @@ def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) 
     return [o is not None for o in newton_orbits(pairs, st)]
 
 
-#: periods of the long run that decides whether a cloud next to diverging starts is bounded
-LONG_RUN = 4000
+def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st
+                    ) -> list[tuple[np.ndarray, np.ndarray] | None]:
+    """Per ``(cell parameters, a periodic motion of a neighbouring cell)``: ``(y, points)``, the
+    section state of that motion's orbit continued by Newton into *this* cell (the one orbit
+    solver from the motion's section state on this cell's RK4 map, :func:`newton_orbits` with
+    ``solve``: converged to :data:`NEWTON_TOL`, |mu|max < 1) and its ``n`` section points
+    ``(n, 2)`` there (one lane each, :func:`gearsim.analysis.attractors.certify.images`),
+    where they have no shorter period (:func:`shorter_period`; Newton on ``P^n`` also
+    converges to the fixed points of ``P^m``, e.g. across a period doubling); else None.
+    Attractors.jl's ``AttractorSeedContinueMatch``: seeds continued from the neighbours."""
+    from gearsim.analysis.attractors.certify import images
+    from gearsim.dynamics.model import pack_parameters
+
+    got = newton_orbits(pairs, st, solve=True)
+    out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(pairs)
+    by_n: dict[int, list[int]] = {}
+    for i, o in enumerate(got):
+        if o is not None:
+            by_n.setdefault(pairs[i][1].period, []).append(i)
+    for n, group in by_n.items():
+        plist = [pairs[i][0] for i in group]
+        packed = {id(p): pack_parameters(p) for p in plist}
+        _fin, status, _face, _back, sec = images(plist, [got[i][0] for i in group], n, st,
+                                                 packed)  # fmt: skip
+        for q, i in enumerate(group):
+            s = pairs[i][1]
+            pts = sec[q]
+            sc = np.array([max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)])
+            if status[q] == 0 and np.all(np.isfinite(pts)) and not shorter_period(pts, sc):
+                out[i] = (got[i][0], pts)
+    return out
 
 
 def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAttractors]:
-    """A chaotic or quasi-periodic attractor of a cell where some start diverged (the
-    parametric instability of the nearly linear mesh near w = 2 at small backlash: motions
-    that grow after their window look like clouds in it) is checked by a :data:`LONG_RUN`-period
-    run from the first of its starts (transient, then the measuring budget): where that
-    diverges, the attractor is no attractor and its starts count as diverged (its periods are
-    the start's too). The last step of every gear mapper, after :func:`least_periods`."""
+    """A chaotic or quasi-periodic attractor of a cell where the mesh's linear limit is unstable
+    (``mu_lin > 1``: the parametric instability of the nearly linear mesh near w = 2; motions that
+    grow after their window look like clouds in it) is checked by the rule of
+    :func:`gearsim.cell.growth.check_growth`: the full-length run of the first of its starts,
+    then a long run from its end (:data:`gearsim.cell.growth.LONG_RUN` periods); where that
+    diverges or grows, the attractor is no attractor and its starts count as diverged (the
+    periods are the start's too). A cloud whose own run was checked already is not run again.
+    The last step of every gear mapper, after :func:`least_periods`."""
     from gearsim.analysis.attractors.matching import drop
     from gearsim.cell.chains import simulate_cells
+    from gearsim.cell.growth import linear_multipliers
 
     todo = []  # (cell, attractor index, start)
     for c, ca in enumerate(found):
-        if not np.any(ca.start_labels < 0):
-            continue
         for a in ca.attractors:
             s = a.steady
-            if s.status == "ok" and s.period <= 0 and a.n_starts > 0:
+            if (s.status == "ok" and s.period <= 0 and a.n_starts > 0
+                    and not math.isfinite((s.info or {}).get("long_run", math.nan))):
                 i = int(np.nonzero(ca.start_labels == a.index)[0][0])
                 todo.append((c, a.index, i))
+    mus = linear_multipliers([params_list[c] for c, _, _ in todo], st)
+    todo = [t for t, mu in zip(todo, mus, strict=True) if mu > 1.0]
     if not todo:
         return found
-    lst = st.with_(transient=LONG_RUN - st.max_periods,
-                   transient_continuation=LONG_RUN - st.max_periods)  # fmt: skip
-    res = simulate_cells([params_list[c] for c, _, _ in todo], settings=lst,
+    res = simulate_cells([params_list[c] for c, _, _ in todo],
+                         settings=st.with_(transient_continuation=st.transient),
                          u0=[np.asarray(found[c].starts[i], dtype=float)[:10]
                              for c, _, i in todo])  # fmt: skip
     gone: dict[int, set[int]] = {}
@@ -317,6 +356,7 @@ def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAtt
         found[c].start_periods_run[i] += int(r.periods)  # the long run is the start's too
         if gear_steady(r).status == "diverged":
             gone.setdefault(c, set()).add(a)
+        else:  # bounded: the attractor records its check
+            info = next(x for x in found[c].attractors if x.index == a).steady.info
+            info["mu_lin"], info["long_run"] = r.classification.mu_lin, r.classification.long_run
     return [drop(ca, gone.get(c, set())) for c, ca in enumerate(found)]
-
-

@@ -105,7 +105,14 @@ def multiple_copy(short: Steady, long: Steady, merge_rtol: float = 1e-3) -> bool
     ``short`` counted k times: same impact state, DC within :data:`ORBIT_DC`, every point of
     each within :data:`ORBIT_RTOL` of the range of a point of the other and |mu|max of ``long``
     the k-th power of that of ``short`` (:data:`MULTIPLE_MU_RTOL`); without both margins, the
-    points within ``merge_rtol`` of each other (the merge test's own tolerance)."""
+    points within ``merge_rtol`` of each other (the merge test's own tolerance), or within
+    :data:`ORBIT_RTOL` when ``long`` (period 2 n, no margin of its own) sits beside an orbit
+    at its period doubling (refined, status ``bifurcation``, critical multiplier
+    ``period_doubling``): a stable orbit at a doubling has no stable period-2n orbit next to
+    it (supercritical: the 2n branch is born when the orbit loses stability; subcritical: the
+    2n branch beside it is unstable), so that reading is the orbit's alternation, decaying by
+    |mu|max ~ 1 per n periods, and no Newton orbit of period 2n is found for it (w = 1.423,
+    xi = 0.07015: 1/4T with |mu|max 0.99984, a 1/8T reading 1.8e-3 of the range from it)."""
     n, m = short.period, long.period
     if n <= 0 or m <= n or m % n or short.status != "ok" or long.status != "ok":
         return False
@@ -123,7 +130,11 @@ def multiple_copy(short: Steady, long: Steady, merge_rtol: float = 1e-3) -> bool
         want = float(mu_a) ** (m // n)
         if not abs(float(mu_b) - want) <= MULTIPLE_MU_RTOL * max(want, 1e-12):
             return False
-    tx, tv = _tolerances(short, long, ORBIT_RTOL if with_mu else merge_rtol)
+    doubling = (not with_mu and m == 2 * n and mu_a is not None and math.isfinite(mu_a)
+                and mu_a < 1.0 and bool(ia.get("refined")) and ia.get("status") == "bifurcation"
+                and ia.get("critical") == "period_doubling"
+                and (mu_b is None or not math.isfinite(mu_b)))  # fmt: skip
+    tx, tv = _tolerances(short, long, ORBIT_RTOL if with_mu or doubling else merge_rtol)
     return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
 
 
@@ -383,10 +394,13 @@ def assemble(opts: FinderOptions, starts, labels, is_early, periods_run, known, 
             if a >= 0:
                 cont_found[c].setdefault(a, set()).add(name)
         new = np.full(K[c], -1, dtype=np.int64)
+        done: dict[int, int] = {}  # id(motion) -> its index (one motion merges once)
         for i in range(K[c]):
             if labels[c][i] >= 0:
                 s = known[c].own.get(i, known[c].steadies[labels[c][i]])
-                new[i] = kn.add(s)
+                if id(s) not in done:
+                    done[id(s)] = kn.add(s)
+                new[i] = done[id(s)]
         labels[c] = new
         known[c] = kn
     out = []

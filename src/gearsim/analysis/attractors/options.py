@@ -42,7 +42,11 @@ class FinderOptions:
     forward-continuation motion (``forward_results``) is a recurrence target from the first
     chunk when it is a stable orbit Newton-converged in this cell at its least period
     (:func:`gearsim.analysis.attractors.gear.newton_verified`); otherwise it becomes one only
-    when a start's full-length run reaches it.
+    when a start's full-length run reaches it. ``neighbour_seeds``: a cell's known attractors
+    also come from its neighbouring cells (``neighbours`` of the call): their periodic motions
+    of another label, continued by Newton into this cell
+    (:func:`gearsim.analysis.attractors.gear.continue_orbits`) and run there for their
+    classification, are recurrence targets (and certified) once that run confirms them.
     """
 
     starts: int = 16
@@ -66,6 +70,7 @@ class FinderOptions:
     certify_radius: float = 0.3
     certify_tries: int = 5
     newton_seeds: bool = True
+    neighbour_seeds: bool = True
 
     def __post_init__(self):
         for name in _POSITIVE_INTS + ("scouts",):

@@ -46,13 +46,14 @@ from gearsim.analysis.attractors.certify import certify, certify_many, eligible,
 from gearsim.analysis.attractors.gear import (
     GearCells,
     bounded_clouds,
+    continue_orbits,
     fill_orbit_margins,
     gear_steady,
     newton_orbits,
     newton_verified,
     sobol_unit,
 )
-from gearsim.analysis.attractors.matching import _Known, assemble, least_periods
+from gearsim.analysis.attractors.matching import _Known, _near_all, assemble, least_periods
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.results import FOUND_BY, CellAttractors, Steady
 from gearsim.cell.pool import GO, MEASURE, PARK, STOP, PoolJob, PoolStats, run_pool
@@ -60,6 +61,14 @@ from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import steps_per_period
 
 _CONT = {-1: "forward", -2: "backward"}
+#: job keys of a cell's seeds continued from its neighbours: -3, -4, ...
+_SEED = -3
+
+
+def _same_points(p: np.ndarray, q: np.ndarray, s: Steady, rtol: float) -> bool:
+    """Every point of ``p`` within ``rtol`` of the range of ``s`` of a point of ``q`` and back."""
+    tx, tv = rtol * max(s.scale_x, 1e-9), rtol * max(s.scale_v, 1e-9)
+    return _near_all(p, q, tx, tv) and _near_all(q, p, tx, tv)
 
 
 def _verified(s: Steady) -> bool:
@@ -89,6 +98,9 @@ class _Cell:
         self.parked: list[PoolJob] = []
         self.certs: dict = {}  # attractor index -> Certificate or None
         self.pre = False  # the forward motion's certificate taken before the pool (None: none)
+        self.opened = False
+        self.tried: set = set()  # (period, label, n-p-q) of the neighbours' motions tried
+        self.seeds: list[tuple[np.ndarray, int]] = []  # continued orbits: (points, period)
 
 
 class _Judge:
@@ -96,10 +108,13 @@ class _Judge:
 
     def __init__(self, cells: list[_Cell], forward, backward, forward_results, st,
                  opts: FinderOptions, history: int, early: bool, stats: PoolStats,
-                 seeds: Sequence[bool] | None = None):
+                 seeds: Sequence[bool] | None = None,
+                 neighbours: Sequence[Sequence[int]] | None = None):
         self.stats = stats
         self.seeds = seeds
         self.cells = deque(cells)
+        self.by_c = {cell.c: cell for cell in cells}
+        self.neighbours = neighbours if early and opts.neighbour_seeds else None
         self.forward = forward
         self.backward = backward
         self.early = early
@@ -113,6 +128,7 @@ class _Judge:
     # ---- the queue
     def _open(self, cell: _Cell) -> None:
         c = cell.c
+        cell.opened = True
         fr = None if self.forward_results is None else self.forward_results[c]
         if fr is not None:
             cell.cont.append(("forward", fr))
@@ -124,6 +140,8 @@ class _Judge:
             self._continuation(cell, -1, self.forward[c])
         if self.backward is not None and self.backward[c] is not None:
             self._continuation(cell, -2, self.backward[c])
+        if self.neighbours is not None:
+            self._seed(cell, self._neighbour_motions(c))
         for i, y in enumerate(cell.starts):
             job = PoolJob(key=(cell, i), params=cell.params, u0=y, transient=int(self.st.transient),
                           probe=self.early, history=self.history)  # fmt: skip
@@ -191,18 +209,109 @@ class _Judge:
     def finished(self, job: PoolJob) -> None:
         cell, i = job.key
         s = gear_steady(job.result)
-        if i < 0:
+        if i <= _SEED:
+            self.stats.seed_periods += int(job.result.periods)
+            self._seeded(cell, i, s)
+        elif i < 0:
             cell.cont.append((_CONT[i], s))
             seed = (self.early and self.opts.newton_seeds
                     and newton_verified([(cell.params, s)], self.st)[0])  # fmt: skip
             cell.known.add(s, target=seed or _verified(s))
         else:
+            new = len(cell.known.steadies)
             cell.labels[i] = cell.known.add(s)
             cell.known.own[i] = s
             cell.periods[i] = int(job.result.periods)
+            if cell.labels[i] == new and self.neighbours is not None and s.period > 0:
+                for nb in self.neighbours[cell.c]:  # a new orbit: a seed of the open neighbours
+                    other = self.by_c.get(nb)
+                    if other is not None and other.opened and np.any(other.labels == -2):
+                        self._seed(other, [s], first=True)
         if cell.runner is job:
             cell.runner = None
             self._release(cell)
+
+    # ---- seeds from the neighbours
+    def _neighbour_motions(self, c: int) -> list[Steady]:
+        """The periodic motions known in the neighbouring cells of cell ``c``: their forward
+        motions and, where they are open, the motions their starts' runs reached."""
+        out = []
+        for nb in self.neighbours[c]:
+            fr = None if self.forward_results is None else self.forward_results[nb]
+            if fr is not None:
+                out.append(fr)
+            other = self.by_c.get(nb)
+            if other is not None and other.opened:
+                out += [s for a, s in enumerate(other.known.steadies) if other.known.target[a]]
+        return out
+
+    def _seed(self, cell: _Cell, motions: Sequence[Steady], first: bool = False) -> None:
+        """Neighbouring cells' periodic motions of a label this cell does not know yet,
+        continued by Newton into it (:func:`continue_orbits`: converged here, |mu|max < 1, at
+        their least period) and not an orbit the cell knows: each a job of the cell (its
+        classification, tangent lead and measurement from the orbit's state) whose motion
+        becomes a recurrence target when it confirms the orbit (:meth:`_seeded`)."""
+        kn = cell.known
+        have = {(t.period, t.label, (t.info or {}).get("label_npq")) for t in kn.steadies}
+        todo = []
+        for s in motions:
+            key = (s.period, s.label, (s.info or {}).get("label_npq"))
+            if (s.status != "ok" or s.period <= 0 or s.final_state is None
+                    or (s.info or {}).get("status", "ok") != "ok"
+                    or key in have or key in cell.tried):  # fmt: skip
+                continue
+            cell.tried.add(key)
+            todo.append(s)
+        if not todo:
+            return
+        got = continue_orbits([(cell.params, s) for s in todo], self.st)
+        self.stats.seeds_tried += len(todo)
+        for s, g in zip(todo, got, strict=True):
+            if g is None:
+                continue
+            y, pts = g
+            n = s.period
+            if any(_same_points(pts, t.points[-t.period:, :2], t, self.opts.merge_rtol)
+                   for t in kn.steadies
+                   if t.period > 0 and (t.period % n == 0 or n % t.period == 0)):  # fmt: skip
+                continue  # an orbit the cell knows
+            if any(_same_points(pts, q, s, self.opts.merge_rtol) for q, m in cell.seeds if m == n):
+                continue
+            cell.seeds.append((pts, n))
+            job = PoolJob(key=(cell, _SEED - len(cell.seeds) + 1), params=cell.params,
+                          u0=np.asarray(y, dtype=float)[:10],
+                          transient=int(self.st.tangent_lead), probe=False)  # fmt: skip
+            self.stats.seeds_run += 1
+            if first:
+                self.ready.appendleft(job)
+            else:
+                self.ready.append(job)
+
+    def _seeded(self, cell: _Cell, i: int, s: Steady) -> None:
+        """A seed's run: its motion joins the cell's known attractors as a recurrence target
+        when it is that orbit (period, status ``ok``, points within the merge tolerance);
+        never a continuation reading (no attractor of the cell unless a start reaches it)."""
+        pts, n = cell.seeds[_SEED - i]
+        if (s.status == "ok" and s.period == n and (s.info or {}).get("status") == "ok"
+                and _same_points(pts, s.points[-n:, :2], s, self.opts.merge_rtol)):  # fmt: skip
+            cell.known.add(s, target=True)
+            self.stats.seeds_confirmed += 1
+            self._retest(cell)
+
+    def _retest(self, cell: _Cell) -> None:
+        """The parked starts of ``cell`` tested again at once (a new target): the ones that hit
+        are labelled, the rest stay parked."""
+        if not cell.parked:
+            return
+        hit = self._hits(cell, cell.parked)
+        rest = []
+        for j, a in zip(cell.parked, hit, strict=True):
+            if a >= 0:
+                self._label(cell, j, a)
+                j.where, j.saved = "done", None
+            else:
+                rest.append(j)
+        cell.parked = rest
 
     # ---- helpers
     def _certify(self, cell: _Cell) -> None:
@@ -301,6 +410,15 @@ class _Judge:
                 self.ready.appendleft(j)
 
 
+def _first_wave(neighbours: Sequence[Sequence[int]]) -> list[bool]:
+    """The cells opened first: each cell in order joins unless a neighbour already did (on a
+    grid every other cell), so that the rest find their neighbours' attractors known."""
+    first = [False] * len(neighbours)
+    for c, nbs in enumerate(neighbours):
+        first[c] = not any(first[k] for k in nbs if k < c)
+    return first
+
+
 def _forward_margins(params_list, forward_results, st) -> None:
     """The Floquet margins of the plane rows' periodic motions in shared kernel calls, before
     the pool (the margins the finder's last step would take one by one at a certification;
@@ -337,6 +455,7 @@ def map_gear_cells(
     forward_results: Sequence[Steady | None] | None = None,
     start_states: Sequence[np.ndarray] | None = None,
     stats: PoolStats | None = None,
+    neighbours: Sequence[Sequence[int]] | None = None,
 ) -> list[CellAttractors]:
     """Coexisting attractors of many gear cells through one lane pool (module docstring); the
     arguments of :func:`gearsim.analysis.attractors.find_attractors`."""
@@ -344,7 +463,8 @@ def map_gear_cells(
     st = system.settings
     n = len(params_list)
     for name, seq in (("forward", forward), ("backward", backward),
-                      ("forward_results", forward_results), ("start_states", start_states)):
+                      ("forward_results", forward_results), ("start_states", start_states),
+                      ("neighbours", neighbours)):
         if seq is not None and len(seq) != n:
             raise ParameterError(f"{name}: one entry per cell expected")  # fmt: skip
     opts = options.resolved(st.period_rtol)
@@ -362,8 +482,12 @@ def map_gear_cells(
         if opts.newton_seeds:
             seeds = [o is not None for o in orbits]
     cells = [_Cell(c, p, st_states[c], opts) for c, p in enumerate(params_list)]
+    order = cells
+    if neighbours is not None and opts.early and opts.neighbour_seeds:
+        first = _first_wave(neighbours)
+        order = sorted(cells, key=lambda cell: (not first[cell.c], cell.c))
     groups: dict[tuple, list[_Cell]] = {}
-    for cell in cells:
+    for cell in order:
         p = cell.params
         key = (steps_per_period(p, st), p.var_ratio_order if p.var_ratio != 0.0 else None)
         groups.setdefault(key, []).append(cell)
@@ -372,7 +496,7 @@ def map_gear_cells(
         if opts.early and opts.certified and forward_results is not None:
             _precertify(group, forward_results, st, opts, history, stats, orbits)
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
-                       opts.early, stats, seeds)  # fmt: skip
+                       opts.early, stats, seeds, neighbours)  # fmt: skip
         run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,
                  stats=stats)  # fmt: skip
     for cell in cells:

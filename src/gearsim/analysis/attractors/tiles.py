@@ -24,6 +24,23 @@ TILE_COLUMNS = ("plane", "tile", "i", "j", "x", "y", "attractor", "n_attractors"
 
 
 
+def grid_neighbours(ij: Sequence[tuple[int, int]]) -> list[list[int]]:
+    """Per cell of a grid sample (its indices ``(i, j)`` along x and y): the nearest cells of
+    the sample on either side along each axis (at most four), as indices into ``ij``."""
+    rows: dict[int, list[tuple[int, int]]] = {}
+    cols: dict[int, list[tuple[int, int]]] = {}
+    for k, (i, j) in enumerate(ij):
+        rows.setdefault(int(j), []).append((int(i), k))
+        cols.setdefault(int(i), []).append((int(j), k))
+    out: list[list[int]] = [[] for _ in ij]
+    for line in list(rows.values()) + list(cols.values()):
+        line.sort()
+        for (_, a), (_, b) in zip(line, line[1:], strict=False):
+            out[a].append(b)
+            out[b].append(a)
+    return out
+
+
 def tile_records(spec: Mapping[str, Any], cells, found: Sequence[CellAttractors]
                  ) -> list[dict[str, Any]]:
     """The attractor-tile records (:data:`TILE_COLUMNS`) of ``cells`` and their attractors."""
@@ -114,7 +131,8 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
                                        for r, p in zip(rows, plist, strict=True)]
     options = FinderOptions(starts=int(spec["starts"]), seed=int(spec["seed"]))
     found = find_attractors(plist, options, settings=settings, forward=fwd,
-                            forward_results=known, stats=spec.get("stats"))  # fmt: skip
+                            forward_results=known, stats=spec.get("stats"),
+                            neighbours=grid_neighbours([(c[0], c[1]) for c in cells]))  # fmt: skip
     return tile_records(spec, cells, found)
 
 
