@@ -229,6 +229,24 @@ def _track(acc, ph, y, p, mode):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
+def turn_extremum(x0, v0, x1, v1, hh, t, w, P, r0):
+    """The turning point of x inside an accepted step (x' changes sign): ``(found, xe, fe)``.
+
+    ``xe`` the Hermite cubic's extremum on the step from time ``t`` (within the period) over
+    ``hh``, ``fe`` the tracked mesh force there (x' = 0, mesh phase ``w (t + s hh)``), for the
+    per-period extremes. The one source for the event layer's accepted steps and the RK4 grid
+    steps that stand with a turning point (:func:`gearsim.numerics.steps.grid_step_flag`).
+    """
+    se = hermite_extremum(x0, v0, x1, v1, hh)
+    if se > 0.0:
+        xe = hermite(x0, v0, x1, v1, hh, se)
+        pe = w * (t + se * hh)
+        fe = tracked_force(math.cos(pe), math.sin(pe), xe, 0.0, P, r0, abs(r0))
+        return True, xe, fe
+    return False, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True, _nrt=False)
 def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tangent, ks, ytmp,
                      ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code, t_abs0):
     """Integrate from ``t`` to ``t_stop`` (times within the period) with located switches.
@@ -340,18 +358,12 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
         # ---- no switch: accept the whole step
         if mode[0] == 0:
             acc[ACC_TD] += hh
-        v0 = y[1]
-        v1 = ynew[1]
-        if v0 * v1 < 0.0:
-            se = hermite_extremum(y[0], v0, ynew[0], v1, hh)
-            if se > 0.0:
-                xe = hermite(y[0], v0, ynew[0], v1, hh, se)
+        if y[1] * ynew[1] < 0.0:
+            found, xe, fe = turn_extremum(y[0], y[1], ynew[0], ynew[1], hh, t, w,
+                                          field_params(p, 0, 1), float(mode[0]))
+            if found:
                 acc[ACC_XMAX] = max(acc[ACC_XMAX], xe)
                 acc[ACC_XMIN] = min(acc[ACC_XMIN], xe)
-                r0 = float(mode[0])
-                pe = w * (t + se * hh)
-                fe = tracked_force(math.cos(pe), math.sin(pe), xe, 0.0, field_params(p, 0, 1), r0,
-                                   abs(r0))
                 acc[ACC_FMAX] = max(acc[ACC_FMAX], fe)
                 acc[ACC_FMIN] = min(acc[ACC_FMIN], fe)
         for i in range(n):
