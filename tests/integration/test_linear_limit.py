@@ -111,3 +111,25 @@ def test_a_bounded_chaotic_cell_away_from_the_tongue_keeps_its_label():
     res = simulate_cell(p, np.array(BOUNDED_U0), settings=ST)
     c = res.classification
     assert c.motion == "chaos" and c.mu_lin < 1.0 and math.isnan(c.long_run)
+
+
+def test_every_cloud_of_a_tongue_cell_is_checked_by_its_long_run():
+    """w = 2.065, b = 0.00125 (mu_lin 1.0007, standard set, 16 starts): the finder's clouds are
+    checked even where no start diverged (before the rule: four quasi-periodic attractors and no
+    diverged start; 4 000-period runs of three of them grow). Every cloud left carries its
+    bounded long run; the reference: its first start run 4 400 periods by the scalar
+    integrator stays inside the bound without growing."""
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+
+    p = Study.load().parameters(w=2.065, b=0.00125).model
+    assert linear_multipliers([p], ST)[0] > 1.0
+    ca = find_attractors(p, FinderOptions(starts=16), settings=ST)
+    assert ca.diverged_fraction > 0
+    for a in ca.attractors:
+        if a.steady.period > 0:
+            continue
+        assert a.steady.info["long_run"] == LONG_RUN
+        i = int(np.nonzero(ca.start_labels == a.index)[0][0])
+        run = run_periods(p, ca.starts[i], LONG_RUN + 400, ST)
+        assert run.status == 0
+        assert not grows(run.summaries.xmax[400:], run.summaries.xmin[400:])

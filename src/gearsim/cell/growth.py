@@ -37,6 +37,8 @@ LONG_RUN = 4000
 
 #: motions that the long run checks
 CHECKED = ("chaos", "quasi-periodic")
+#: long runs per batched kernel call
+CALL_LANES = 256
 
 _MU_LIN: dict[tuple, float] = {}
 
@@ -99,7 +101,9 @@ def _long_runs(cells: Sequence, st, periods: int) -> list[tuple[bool, int, int]]
         s = run.summaries
         out[i] = (run.status == 0 and len(s) == periods and not grows(s.xmax, s.xmin),
                   run.periods_done, run.n_steps)  # fmt: skip
-    for idx in groups.values():
+    # at most CALL_LANES per kernel call: each lane records its periods (~0.3 MB per lane)
+    calls = [g[k : k + CALL_LANES] for g in groups.values() for k in range(0, len(g), CALL_LANES)]
+    for idx in calls:
         y = np.zeros((len(idx), 20))
         y[:, :10] = [cells[i].final_state[:10] for i in idx]
         summ, _fin, status, steps = run_periods_batched(
