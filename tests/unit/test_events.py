@@ -1,4 +1,5 @@
-"""The RK4 grid step's event test (gearsim.numerics.steps.grid_step_flag) against the event layer.
+"""The RK4 grid step's event test (gearsim.numerics.steps.grid_step_flag, turn_stands) against
+the event layer.
 
 A grid step with a turning point of x (x' changes sign) stands without the event layer only
 when the Hermite cubic of x over the step cannot leave its contact region; the event layer's
@@ -13,7 +14,7 @@ import pytest
 from gearsim.dynamics.model import N_SWITCH, field_params, region_of
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.events import scan_switches, turn_extremum
-from gearsim.numerics.steps import grid_step_flag
+from gearsim.numerics.steps import grid_step_flag, turn_stands
 
 
 def _step(x0, v0, x1, v1, rest=0.0):
@@ -47,8 +48,9 @@ def test_a_turning_point_stands_only_where_the_event_layer_sees_no_switch(b):
         x1 = x0 + 0.5 * h * (v0 + v1) + 0.02 * b * rng.standard_normal()
         y, yn = _step(x0, v0, x1, v1)
         M = (float(r0), float(abs(r0))) + (1.0,) * 4 + (1.0,) * 4
-        event, turn = grid_step_flag(y, yn, h, P, M, A, 1e6, False)
+        event, turn = grid_step_flag(y, yn, P, M, A, 1e6, False)
         assert not (event and turn)
+        turn = turn and turn_stands(y, yn, h, P, float(r0))
         mode[0] = r0
         c, _, _ = scan_switches(np.array(y), np.array(yn), h, mode, gaps, active)
         if turn:
@@ -66,8 +68,13 @@ def test_a_step_without_turning_point_or_switch_is_no_event():
     P = field_params(p, 0, 1)
     M = (1.0, 1.0) + (1.0,) * 8
     y, yn = _step(0.8, 0.1, 0.81, 0.09)
-    assert grid_step_flag(y, yn, 0.03, P, M, (0.0,) * 4, 1e6, False) == (False, False)
+    assert grid_step_flag(y, yn, P, M, (0.0,) * 4, 1e6, False) == (False, False)
     y, yn = _step(0.8, 0.1, 0.29, -0.09)  # left face contact: an event
-    assert grid_step_flag(y, yn, 0.03, P, M, (0.0,) * 4, 1e6, False) == (True, False)
+    assert grid_step_flag(y, yn, P, M, (0.0,) * 4, 1e6, False) == (True, False)
     y, yn = _step(0.8, 0.1, 0.81, 2e6)  # beyond the divergence bound: an event
-    assert grid_step_flag(y, yn, 0.03, P, M, (0.0,) * 4, 1e6, False) == (True, False)
+    assert grid_step_flag(y, yn, P, M, (0.0,) * 4, 1e6, False) == (True, False)
+    y, yn = _step(0.8, 0.1, 0.81, -0.09)  # a turning point deep in contact: it stands
+    assert grid_step_flag(y, yn, P, M, (0.0,) * 4, 1e6, False) == (False, True)
+    assert turn_stands(y, yn, 0.03, P, 1.0)
+    y, yn = _step(0.3005, -0.1, 0.3006, 0.09)  # a minimum of x at the boundary: redone
+    assert not turn_stands(y, yn, 0.03, P, 1.0)

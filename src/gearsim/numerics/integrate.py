@@ -79,6 +79,7 @@ from gearsim.numerics.steps import (
     rk4_state,
     rk4_steps_per_period,
     rk4_tangent,
+    turn_stands,
 )
 
 __all__ = [
@@ -175,8 +176,8 @@ def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings
     yn = rk4_state(ys, h, C[i2], S[i2], vA, C[i2 + 1], S[i2 + 1], vM, C[i2 + 2], S[i2 + 2], vB,
                    lam, Q[i2], Q[i2 + 1], Q[i2 + 2], P, M)
     A = (p[P_ACT], p[P_ACT + 1], p[P_ACT + 2], p[P_ACT + 3])
-    event, turn = grid_step_flag(ys, yn, h, P, M, A, bound, bearings)
-    if event:
+    event, turn = grid_step_flag(ys, yn, P, M, A, bound, bearings)
+    if event or (turn and not turn_stands(ys, yn, h, P, M[0])):
         return True
     if tangent:
         z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])

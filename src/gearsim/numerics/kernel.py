@@ -75,9 +75,8 @@ from gearsim.numerics.events import (
     N_CNT,
     advance_interval,
     channels,
-    turn_extremum,
 )
-from gearsim.numerics.integrate import end_period_tangent
+from gearsim.numerics.integrate import _rk4_grid_interval, end_period_tangent
 from gearsim.numerics.steps import (
     FASTMATH,
     METHOD_RK4,
@@ -103,9 +102,7 @@ _FMN = _TD + 2
 _XMX = _TD + 3
 _XMN = _TD + 4
 _FLAG = _TD + 5  # 1.0: the lane needs the event layer for the current step; 2.0: a turning point
-_X0 = _TD + 6  # x and x' at the start of the current step (the turning point's Hermite cubic)
-_V0 = _TD + 7
-NROW = _V0 + 1
+NROW = _FLAG + 1
 BLOCK = NROW * LANES
 
 # ---- integer rows (2-D array [NI, n_lanes]; touched by scalar code only) ---------------------
@@ -201,9 +198,8 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     yn = rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M)
     A = (blk[r + (_PAR + P_ACT) * L], blk[r + (_PAR + P_ACT + 1) * L],
          blk[r + (_PAR + P_ACT + 2) * L], blk[r + (_PAR + P_ACT + 3) * L])
-    flag, turn = grid_step_flag(y, yn, h, P, M, A, bound, bearings)
-    blk[r + _X0 * L] = y[0]
-    blk[r + _V0 * L] = y[1]
+    event, turn = grid_step_flag(y, yn, P, M, A, bound, bearings)
+    flag = event | turn
     _store10(blk, r + _Y * L, flag, y, yn)
     if tangent:
         z = _load10(blk, o, _Y + 10, q)
@@ -224,7 +220,7 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     blk[r + _FMN * L] = _sel(flag, fmn, _fmin(fmn, fl))
     blk[r + _XMX * L] = _sel(flag, xmx, _fmax(xmx, yn[0]))
     blk[r + _XMN * L] = _sel(flag, xmn, _fmin(xmn, yn[0]))
-    blk[r + _FLAG * L] = _sel(flag, 1.0, _sel(turn, 2.0, 0.0))
+    blk[r + _FLAG * L] = _sel(event, 1.0, _sel(turn, 2.0, 0.0))
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
@@ -239,9 +235,9 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
     forms' terms are computed) beside the general one (``general`` True: both, for every lane;
     a lane without them gets the base loop's numbers, bit for bit: an inactive channel is never
     flagged and the forms' terms of a base lane are exact zeros).
-    Lanes that need no event are updated in place (state, tangent, accumulators; flag 2.0 when
-    the step has a turning point for :func:`_turn_lane`); lanes with an event (flag 1.0) are
-    left untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
+    Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes (1.0: an
+    event, 2.0: a turning point of x) are left untouched for :func:`_redo_lane`. Returns True if
+    any lane is flagged.
     """
     o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
     for q in range(LANES):
@@ -255,11 +251,15 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
 
 # ============================================================================ flagged lanes
 @njit(cache=True, nogil=True, _nrt=False)
-def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
-    """Redo grid step ``j`` of lane ``q`` with the event layer (the scalar integrator's call).
+def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk, turn, general, tabs):
+    """Redo grid step ``j`` of lane ``q`` as the scalar integrator does.
 
-    The lane's rows are copied into the scalar work arrays of ``wk``, advanced by
-    :func:`gearsim.numerics.events.advance_interval` over ``[j h, (j + 1) h]`` and copied back.
+    The lane's rows are copied into the scalar work arrays of ``wk``; a turning point (``turn``)
+    takes the scalar path's grid step (:func:`gearsim.numerics.integrate._rk4_grid_interval`
+    with the phase tables ``tabs``: the same step as the vector one, which stands when its
+    turning point cannot graze, with its extremum); an event, or a turning point that may graze,
+    is advanced by :func:`gearsim.numerics.events.advance_interval` over ``[j h, (j + 1) h]``.
+    The rows are copied back.
     """
     wy, pw, mode, gaps, active, acc, cnt, ks, ytmp, ynew, ytry, ev_t, ev_c = wk
     L = LANES
@@ -282,12 +282,17 @@ def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
     cnt[CNT_NB] = ist[_NB, l]
     cnt[CNT_STEPS] = 0
     h = blk[r + _H * L]
-    T = 2.0 * np.pi / pw[P_W]
-    t_end = T if j == N - 1 else (j + 1) * h
-    nerr = N_STATE if pw[P_DOF6] != 0.0 else 2
-    status = advance_interval(METHOD_RK4, j * h, t_end, wy, pw, mode, gaps, active,
-                              20 if tangent else 10, nerr, tangent, ks, ytmp, ynew, ytry, 0.0,
-                              0.0, 0.0, T, bound, acc, cnt, ev_t, ev_c, 0.0)
+    C, S, LAM, CV, SV, Q = tabs
+    status = 0
+    if not turn or _rk4_grid_interval(j, h, wy, pw, mode, tangent, C, S, LAM, CV, SV, Q, general,
+                                      bound, acc):
+        T = 2.0 * np.pi / pw[P_W]
+        t_end = T if j == N - 1 else (j + 1) * h
+        nerr = N_STATE if pw[P_DOF6] != 0.0 else 2
+        status = advance_interval(METHOD_RK4, j * h, t_end, wy, pw, mode, gaps, active,
+                                  20 if tangent else 10, nerr, tangent, ks, ytmp, ynew, ytry, 0.0,
+                                  0.0, 0.0, T, bound, acc, cnt, ev_t, ev_c, 0.0)
+        ist[_STEPS, l] += cnt[CNT_STEPS] - 1  # the grid step itself is counted per period
     # ---- store back
     for i in range(20):
         blk[r + (_Y + i) * L] = wy[i]
@@ -303,27 +308,10 @@ def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
     blk[r + _XMN * L] = acc[ACC_XMIN]
     ist[_NF, l] = cnt[CNT_NF]
     ist[_NB, l] = cnt[CNT_NB]
-    ist[_STEPS, l] += cnt[CNT_STEPS] - 1  # the grid step itself is counted per period
     if status != 0:
         ist[_ST, l] = 1
         ist[_STEPS, l] += j + 1
         blk[r + _H * L] = 0.0  # freeze the lane
-
-
-@njit(cache=True, nogil=True, _nrt=False)
-def _turn_lane(blk, o, q, j):
-    """Fold the turning point of lane ``q``'s grid step ``j`` (it stands) into its extremes."""
-    L = LANES
-    r = o + q
-    h = blk[r + _H * L]
-    found, xe, fe = turn_extremum(blk[r + _X0 * L], blk[r + _V0 * L], blk[r + _Y * L],
-                                  blk[r + (_Y + 1) * L], h, j * h, blk[r + (_PAR + P_W) * L],
-                                  field_params(blk, r + _PAR * L, L), blk[r + _R0 * L])
-    if found:
-        blk[r + _XMX * L] = _fmax(blk[r + _XMX * L], xe)
-        blk[r + _XMN * L] = _fmin(blk[r + _XMN * L], xe)
-        blk[r + _FMX * L] = _fmax(blk[r + _FMX * L], fe)
-        blk[r + _FMN * L] = _fmin(blk[r + _FMN * L], fe)
 
 
 # ============================================================================ the kernel
@@ -431,10 +419,8 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
                         if fq != 0.0:
                             ll = bi * L + q
                             if ist[_ST, ll] == 0:
-                                if fq == 1.0:
-                                    _redo_lane(blk, o, q, ll, ist, j, N, lam, bound, tangent, wk)
-                                else:
-                                    _turn_lane(blk, o, q, j)
+                                _redo_lane(blk, o, q, ll, ist, j, N, lam, bound, tangent, wk,
+                                           fq == 2.0, general, (C, S, LAM, CV, SV, Q))
         # ---- period end: tangent growth, records
         for l in range(n_lanes):
             if ist[_ST, l] != 0:

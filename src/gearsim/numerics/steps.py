@@ -290,31 +290,18 @@ def _inside(x, gap, r, m):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def grid_step_flag(y, yn, h, P, M, A, bound, bearings):
-    """``(event, turn)`` of an RK4 grid step from ``y`` to ``yn`` (step ``h``).
+def grid_step_flag(y, yn, P, M, A, bound, bearings):
+    """``(event, turn)`` of an RK4 grid step from ``y`` to ``yn``.
 
     ``event``: the step must be redone by the event layer: a contact region changed, a watched
-    bearing velocity changed sign, the state left the divergence bound, or x' changed sign where
-    the Hermite cubic of x over the step may reach the mesh boundary (a possible grazing
-    contact). ``turn``: x' changed sign and the cubic stays inside its region: the step stands,
-    and its turning point goes into the per-period extremes (:func:`gearsim.numerics.events.
-    turn_extremum`). The cubic lies in the convex hull of its Bernstein points ``x0``,
-    ``x0 + h x0'/3``, ``x1 - h x1'/3``, ``x1``, so those four inside the region (with a margin
-    far above the rounding of the cubic) exclude a crossing; a turning point in a bearing
-    channel is always an event. ``A`` are the four bearing channels' active flags;
-    ``bearings`` is false when no channel has a clearance (a loop invariant in the vector
-    kernel).
+    bearing velocity changed sign, or the state left the divergence bound. ``turn`` (and no
+    event): x' changed sign, a turning point of x inside the step; it stands when
+    :func:`turn_stands` (else the event layer redoes it: a possible grazing contact), and its
+    extremum goes into the per-period extremes (:func:`gearsim.numerics.events.turn_extremum`).
+    ``A`` are the four bearing channels' active flags; ``bearings`` is false when no channel has
+    a clearance (a loop invariant in the vector kernel).
     """
-    b = P[P_B]
-    r0 = M[0]
-    mesh = b > 0.0
-    turn = y[1] * yn[1] < 0.0
-    c1 = y[0] + (h / 3.0) * y[1]
-    c2 = yn[0] - (h / 3.0) * yn[1]
-    m = 1e-9 * (1.0 + b + abs(y[0]) + abs(yn[0]))
-    inside = (_inside(y[0], b, r0, m) & _inside(c1, b, r0, m) & _inside(c2, b, r0, m)
-              & _inside(yn[0], b, r0, m))
-    event = (mesh & (region_of(yn[0], b) != r0)) | (turn & mesh & (not inside))
+    event = (P[P_B] > 0.0) & (region_of(yn[0], P[P_B]) != M[0])
     if bearings:
         event = event | _watch(y[3], yn[2], yn[3], P[P_GAP + 0], M[2], A[0])
         event = event | _watch(y[5], yn[4], yn[5], P[P_GAP + 1], M[3], A[1])
@@ -325,7 +312,32 @@ def grid_step_flag(y, yn, h, P, M, A, bound, bearings):
     ok = ok & (abs(yn[6]) < bound) & (abs(yn[7]) < bound) & (abs(yn[8]) < bound)
     ok = ok & (abs(yn[9]) < bound)
     event = event | (not ok)
-    return event, turn & (not event)
+    return event, (y[1] * yn[1] < 0.0) & (not event)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _inside(x, gap, r, m):
+    """``x`` lies in the region ``r`` (-1, 0, 1 as a double) of ``[-gap, gap]`` by more than ``m``."""
+    return (((r > 0.0) & (x > gap + m)) | ((r < 0.0) & (x < -gap - m))
+            | ((r == 0.0) & (abs(x) < gap - m)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def turn_stands(y, yn, h, P, r0):
+    """A grid step (``h``) with a turning point of x stands: the Hermite cubic of x over it
+    cannot reach the mesh boundary from its region ``r0`` (or the mesh has no backlash).
+
+    The cubic lies in the convex hull of its Bernstein points ``x0``, ``x0 + h x0'/3``,
+    ``x1 - h x1'/3``, ``x1``: all four inside the region (with a margin far above the cubic's
+    rounding) exclude a crossing and a grazing excursion, so the event layer would find no
+    switch in the step.
+    """
+    b = P[P_B]
+    m = 1e-9 * (1.0 + b + abs(y[0]) + abs(yn[0]))
+    c1 = y[0] + (h / 3.0) * y[1]
+    c2 = yn[0] - (h / 3.0) * yn[1]
+    return (b <= 0.0) | (_inside(y[0], b, r0, m) & _inside(c1, b, r0, m)
+                         & _inside(c2, b, r0, m) & _inside(yn[0], b, r0, m))
 
 
 def rk4_steps_per_period(params, settings, substeps: int = 1) -> int:
