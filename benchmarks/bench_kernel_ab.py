@@ -32,6 +32,7 @@ from pathlib import Path
 from _common import loadavg, run_json_worker, save
 
 ROOT = Path(__file__).resolve().parents[1]
+HERE = Path(__file__).resolve().parent
 
 # Runs inside each version's interpreter: prints one JSON line of timings.
 WORKER = r"""
@@ -57,15 +58,11 @@ for p in cs:
 y0 = np.array(y0)
 lanes = batch.Lanes(n, periods)
 N = 256
+from bench_kernel import load_lanes
+def setup():
+    load_lanes(lanes, cs, y0, N)
 out = {}
 for tangent in (False, True):
-    def setup():
-        lanes.ist[:] = 0
-        lanes.ist[batch._POS] = 0
-        lanes.ist[batch._K] = 100
-        for l, p in enumerate(cs):
-            lanes.load_params(l, p, N)
-            lanes.load_state(l, y0[l])
     setup()
     lanes.run(N, 1, 0.0, 1e6, tangent)  # compile / load the cache
     cpu = []
@@ -88,13 +85,6 @@ print(json.dumps(out))
 # One persistent worker per version for --paired: set-up and compile, then one timed run per
 # line read from stdin ("state" or "tangent"), its CPU seconds printed.
 PAIRED_WORKER = WORKER.split("out = {}")[0] + r"""
-def setup():
-    lanes.ist[:] = 0
-    lanes.ist[batch._POS] = 0
-    lanes.ist[batch._K] = 100
-    for l, p in enumerate(cs):
-        lanes.load_params(l, p, N)
-        lanes.load_state(l, y0[l])
 for tangent in (False, True):
     setup()
     lanes.run(N, 1, 0.0, 1e6, tangent)
@@ -114,8 +104,8 @@ def paired(srcs: dict, caches: dict, build: str, n: int, periods: int, pairs: in
 
     procs = {}
     for v in ("old", "new"):
-        env = dict(os.environ, PYTHONPATH=str(srcs[v]), NUMBA_CACHE_DIR=str(caches[v]),
-                   NUMBA_NUM_THREADS="1")
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(srcs[v]), str(HERE)]),
+                   NUMBA_CACHE_DIR=str(caches[v]), NUMBA_NUM_THREADS="1")
         env.pop("NUMBA_CPU_NAME", None)
         env.pop("NUMBA_CPU_FEATURES", None)
         if build != "host":
@@ -164,8 +154,8 @@ def export(rev: str, dest: Path, paths: tuple[str, ...] = ("src",)) -> Path:
 
 
 def run_version(src: Path, cache: Path, n: int, periods: int, repeats: int) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache),
-               NUMBA_NUM_THREADS="1")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(src), str(HERE)]),
+               NUMBA_CACHE_DIR=str(cache), NUMBA_NUM_THREADS="1")
     return run_json_worker(WORKER, [n, periods, repeats], env)
 
 

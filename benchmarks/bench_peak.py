@@ -47,7 +47,7 @@ import numpy as np
 from numba import njit
 from gearsim.numerics import batch, kernel
 from gearsim.numerics.steps import FASTMATH
-from bench_kernel import cells, start_states
+from bench_kernel import cells, load_lanes, start_states
 from bench_kernel_asm import native_body
 
 L = batch.LANES
@@ -120,12 +120,7 @@ y0 = start_states(cs)
 lanes = batch.Lanes(n, periods)
 N = 256
 def setup():
-    lanes.ist[:] = 0
-    lanes.ist[batch._POS] = 0
-    lanes.ist[batch._K] = 100
-    for l, p in enumerate(cs):
-        lanes.load_params(l, p, N)
-        lanes.load_state(l, y0[l])
+    load_lanes(lanes, cs, y0, N)
 for tangent in (False, True):
     setup()
     lanes.run(N, 1, 0.0, 1e6, tangent)  # compile

@@ -164,13 +164,22 @@ def rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M):
     return axpy10(z, h / 6.0, acc)
 
 
-@njit(cache=True, nogil=True, fastmath=FASTMATH, _nrt=False)
-def rk4_step(t, y, h, p, mode, tangent, yout):
-    """RK4 step on arrays from time ``t`` (within the period) over ``h``; writes ``yout``."""
+@njit(cache=True, nogil=True, inline="always")
+def _rk4_phases(t, h, p):
+    """cos of the mesh phase and the friction arm's phase at a step's start, middle and end
+    (time ``t`` within the period, step ``h``), with the phases themselves."""
     w = p[P_W]
     ph = w * t
     pm = w * (t + 0.5 * h)
     pe = w * (t + h)
+    return (ph, pm, pe, math.cos(ph), math.cos(pm), math.cos(pe), arm_phase(w, t),
+            arm_phase(w, t + 0.5 * h), arm_phase(w, t + h))
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, _nrt=False)
+def rk4_step(t, y, h, p, mode, tangent, yout):
+    """RK4 step on arrays from time ``t`` (within the period) over ``h``; writes ``yout``."""
+    ph, pm, pe, cA, cM, cB, qA, qM, qB = _rk4_phases(t, h, p)
     vA = 0.0
     vM = 0.0
     vB = 0.0
@@ -179,11 +188,9 @@ def rk4_step(t, y, h, p, mode, tangent, yout):
         vA = variable_ratio(p, math.cos(nu * ph), math.sin(nu * ph))
         vM = variable_ratio(p, math.cos(nu * pm), math.sin(nu * pm))
         vB = variable_ratio(p, math.cos(nu * pe), math.sin(nu * pe))
-    cA, cM, cB = math.cos(ph), math.cos(pm), math.cos(pe)
     P = field_params(p, 0, 1)
     M = mode_tuple(mode)
     lam = float(mode[MODE_FRICTION])
-    qA, qM, qB = arm_phase(w, t), arm_phase(w, t + 0.5 * h), arm_phase(w, t + h)
     ys = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9])
     yn = rk4_state(ys, h, cA, math.sin(ph), vA, cM, math.sin(pm), vM, cB, math.sin(pe), vB, lam,
                    qA, qM, qB, P, M)
@@ -195,6 +202,24 @@ def rk4_step(t, y, h, p, mode, tangent, yout):
         for i in range(N_STATE):
             yout[10 + i] = zn[i]
     return 0.0
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, _nrt=False)
+def rk4_tangent_step(t, y, h, p, mode, yout):
+    """The tangent vector's part of :func:`rk4_step` alone (``y[10:20]`` to ``yout[10:20]``).
+
+    The tangent's RK4 step does not enter the state's, so the event layer's switch search takes
+    its trial steps without it and steps the tangent once over the step that stands: the same
+    numbers as ``rk4_step(..., tangent=True)``.
+    """
+    ph, pm, pe, cA, cM, cB, qA, qM, qB = _rk4_phases(t, h, p)
+    P = field_params(p, 0, 1)
+    M = mode_tuple(mode)
+    lam = float(mode[MODE_FRICTION])
+    z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
+    zn = rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M)
+    for i in range(N_STATE):
+        yout[10 + i] = zn[i]
 
 
 # ---------------------------------------------------------------------------- DP5 on arrays
