@@ -47,6 +47,17 @@ def start_states(cs, periods=100):
     return np.array(out)
 
 
+def load_lanes(lanes, cs, y0, N):
+    """Set-up of a timed batched run: counters reset (start at period 100), the cells'
+    parameters and start states loaded into ``lanes`` (a ``batch.Lanes``)."""
+    lanes.ist[:] = 0
+    lanes.ist[batch._POS] = 0
+    lanes.ist[batch._K] = 100
+    for lane, p in enumerate(cs):
+        lanes.load_params(lane, p, N)
+        lanes.load_state(lane, y0[lane])
+
+
 def scalar(cs, y0, method, tangent, periods):
     """Steps/s of integrate_periods over the cells one by one."""
     st = IntegrationSettings(method=method)

@@ -9,7 +9,14 @@ and without the tangent vector, and the new/old ratio (target: >= 0.95) of the m
 rounds and of the best rounds (the best round is the least disturbed by other jobs on a loaded
 machine).
 
+With ``--paired K`` both versions stay loaded in two worker processes and take turns run by run
+(K pairs of one timed run each, the order swapped every pair): on a loaded machine the ratio of
+two neighbouring runs drifts far less than runs minutes apart. Reported: each version's best and
+median run, and the median and quartiles of the K paired ratios new/old. ``--build znver3``
+runs the AVX2 build (``NUMBA_CPU_NAME`` and :func:`gearsim.numerics.cache.avx2_features`).
+
 Usage: python benchmarks/bench_kernel_ab.py --rev REV [--rounds 3] [--quick]
+       python benchmarks/bench_kernel_ab.py --rev REV --paired 30 [--build znver3]
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ from pathlib import Path
 from _common import loadavg, run_json_worker, save
 
 ROOT = Path(__file__).resolve().parents[1]
+HERE = Path(__file__).resolve().parent
 
 # Runs inside each version's interpreter: prints one JSON line of timings.
 WORKER = r"""
@@ -50,15 +58,11 @@ for p in cs:
 y0 = np.array(y0)
 lanes = batch.Lanes(n, periods)
 N = 256
+from bench_kernel import load_lanes
+def setup():
+    load_lanes(lanes, cs, y0, N)
 out = {}
 for tangent in (False, True):
-    def setup():
-        lanes.ist[:] = 0
-        lanes.ist[batch._POS] = 0
-        lanes.ist[batch._K] = 100
-        for l, p in enumerate(cs):
-            lanes.load_params(l, p, N)
-            lanes.load_state(l, y0[l])
     setup()
     lanes.run(N, 1, 0.0, 1e6, tangent)  # compile / load the cache
     cpu = []
@@ -78,6 +82,68 @@ print(json.dumps(out))
 """
 
 
+# One persistent worker per version for --paired: set-up and compile, then one timed run per
+# line read from stdin ("state" or "tangent"), its CPU seconds printed.
+PAIRED_WORKER = WORKER.split("out = {}")[0] + r"""
+for tangent in (False, True):
+    setup()
+    lanes.run(N, 1, 0.0, 1e6, tangent)
+print("ready", flush=True)
+for line in sys.stdin:
+    tangent = line.strip() == "tangent"
+    setup()
+    c0 = time.process_time()
+    lanes.run(N, periods, 0.0, 1e6, tangent)
+    print(time.process_time() - c0, flush=True)
+"""
+
+
+def paired(srcs: dict, caches: dict, build: str, n: int, periods: int, pairs: int) -> dict:
+    """Old and new workers alive together, one timed run each in turn (see the docstring)."""
+    from gearsim.numerics.cache import avx2_features
+
+    procs = {}
+    for v in ("old", "new"):
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(srcs[v]), str(HERE)]),
+                   NUMBA_CACHE_DIR=str(caches[v]), NUMBA_NUM_THREADS="1")
+        env.pop("NUMBA_CPU_NAME", None)
+        env.pop("NUMBA_CPU_FEATURES", None)
+        if build != "host":
+            env["NUMBA_CPU_NAME"] = build
+            env["NUMBA_CPU_FEATURES"] = avx2_features()
+        procs[v] = subprocess.Popen([sys.executable, "-c", PAIRED_WORKER, str(n), str(periods),
+                                     "1"], env=env, stdin=subprocess.PIPE,
+                                    stdout=subprocess.PIPE, text=True)
+    for p in procs.values():
+        while p.stdout.readline().strip() != "ready":
+            pass
+    grid = n * periods * 256
+    out = {}
+    for kind in ("state", "tangent"):
+        t: dict[str, list[float]] = {"old": [], "new": []}
+        for i in range(pairs):
+            for v in (("old", "new") if i % 2 == 0 else ("new", "old")):
+                procs[v].stdin.write(kind + "\n")
+                procs[v].stdin.flush()
+                t[v].append(float(procs[v].stdout.readline()))
+        ratios = sorted(o / w for o, w in zip(t["old"], t["new"]))
+        q = statistics.quantiles(ratios, n=4)
+        out[kind] = {"old_best": grid / min(t["old"]), "new_best": grid / min(t["new"]),
+                     "old_median": grid / statistics.median(t["old"]),
+                     "new_median": grid / statistics.median(t["new"]),
+                     "paired_ratio_median": statistics.median(ratios),
+                     "paired_ratio_quartiles": [q[0], q[2]], "cpu_s": t}
+        r = out[kind]
+        print(f"{build} {kind:8s} old best {r['old_best'] / 1e6:.1f} M/s (median "
+              f"{r['old_median'] / 1e6:.1f})  new best {r['new_best'] / 1e6:.1f} M/s (median "
+              f"{r['new_median'] / 1e6:.1f})  paired new/old x{r['paired_ratio_median']:.3f} "
+              f"(quartiles {q[0]:.3f}-{q[2]:.3f}, {pairs} pairs)  load {loadavg()}", flush=True)
+    for p in procs.values():
+        p.stdin.close()
+        p.wait()
+    return out
+
+
 def export(rev: str, dest: Path, paths: tuple[str, ...] = ("src",)) -> Path:
     """``git archive`` of ``paths`` at ``rev`` into ``dest``; returns the src directory."""
     dest.mkdir(parents=True, exist_ok=True)
@@ -88,8 +154,8 @@ def export(rev: str, dest: Path, paths: tuple[str, ...] = ("src",)) -> Path:
 
 
 def run_version(src: Path, cache: Path, n: int, periods: int, repeats: int) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(cache),
-               NUMBA_NUM_THREADS="1")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(src), str(HERE)]),
+               NUMBA_CACHE_DIR=str(cache), NUMBA_NUM_THREADS="1")
     return run_json_worker(WORKER, [n, periods, repeats], env)
 
 
@@ -98,12 +164,20 @@ def main(argv=None) -> int:
     ap.add_argument("--rev", required=True, help="git revision of the old kernel")
     ap.add_argument("--rounds", type=int, default=3, help="alternating old/new rounds")
     ap.add_argument("--quick", action="store_true", help="fewer periods")
+    ap.add_argument("--paired", type=int, default=0, help="pairs of runs, workers kept alive")
+    ap.add_argument("--build", default="host", help="NUMBA_CPU_NAME for --paired (host: none)")
     args = ap.parse_args(argv)
     n, periods, repeats = 32, (40 if args.quick else 200), 9
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         versions = {"old": export(args.rev, tmp / "old"), "new": ROOT / "src"}
         caches = {"old": tmp / "cache_old", "new": tmp / "cache_new"}
+        if args.paired:
+            res = paired(versions, caches, args.build, n, 100, args.paired)
+            print(save("kernel_ab_paired", {"rev_old": args.rev, "build": args.build, "lanes": n,
+                                            "periods": 100, "result": res,
+                                            "load_end": loadavg()}))
+            return 0
         rounds: dict[str, list[dict]] = {"old": [], "new": []}
         for r in range(args.rounds):
             for name in (("old", "new") if r % 2 == 0 else ("new", "old")):

@@ -16,14 +16,19 @@ its own empty Numba cache (``inspect_asm`` needs code compiled in the process) m
 * the share of peak = cell-steps/s x flops per cell-step / peak flops/s, and the vector width.
 
 The builds run one after the other, each cold-compiled (its compile time is reported too).
+With ``--rev REV`` the package at that git revision (``git archive``) runs beside this checkout:
+for each build, old and new alternate (the order swapped every round) for ``--rounds`` rounds,
+the first round cold-compiled (machine code and flops counted), the later ones from that
+round's cache; reported per version and build: the median of the rounds' rates and the best.
 
-Usage: python benchmarks/bench_peak.py [--quick] [--builds host,znver3]
+Usage: python benchmarks/bench_peak.py [--quick] [--builds host,znver3] [--rev REV --rounds 2]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import tempfile
 from pathlib import Path
@@ -42,7 +47,7 @@ import numpy as np
 from numba import njit
 from gearsim.numerics import batch, kernel
 from gearsim.numerics.steps import FASTMATH
-from bench_kernel import cells, start_states
+from bench_kernel import cells, load_lanes, start_states
 from bench_kernel_asm import native_body
 
 L = batch.LANES
@@ -105,7 +110,7 @@ def fma_peak(blk, b, c, n):
     return blk[0]
 
 
-n, periods, repeats = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+n, periods, repeats, cold = (int(a) for a in sys.argv[1:5])
 out = {"lanes": L}
 blk = np.ones(12 * L)
 t0 = time.perf_counter(); c0 = time.process_time()
@@ -115,12 +120,7 @@ y0 = start_states(cs)
 lanes = batch.Lanes(n, periods)
 N = 256
 def setup():
-    lanes.ist[:] = 0
-    lanes.ist[batch._POS] = 0
-    lanes.ist[batch._K] = 100
-    for l, p in enumerate(cs):
-        lanes.load_params(l, p, N)
-        lanes.load_state(l, y0[l])
+    load_lanes(lanes, cs, y0, N)
 for tangent in (False, True):
     setup()
     lanes.run(N, 1, 0.0, 1e6, tangent)  # compile
@@ -149,7 +149,7 @@ for tangent in (False, True):
         cpu.append(time.process_time() - c0)
     rate = n * periods * N / sorted(cpu)[len(cpu) // 2]
     out["tangent" if tangent else "state"] = {"cell_steps_per_s": rate}
-for sig, asm in kernel._block_step.inspect_asm().items():
+for sig, asm in (kernel._block_step.inspect_asm().items() if cold else ()):
     t, general = (str(x) for x in sig[-2:])
     if "False" in general:  # the base loop
         out["tangent" if "True" in t else "state"].update(arith_per_cell_step(asm))
@@ -161,40 +161,103 @@ print(json.dumps(out))
 """
 
 
-def run_build(cpu: str, n: int, periods: int, repeats: int) -> dict:
-    with tempfile.TemporaryDirectory(prefix="gearsim_peak_") as cache:
-        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT / "src"), str(HERE)]),
-                   NUMBA_CACHE_DIR=cache, NUMBA_NUM_THREADS="1")
+def run_build(cpu: str, n: int, periods: int, repeats: int, src: Path = ROOT / "src",
+              cache: Path | None = None) -> dict:
+    """One build of the package at ``src`` in a fresh interpreter; cold unless ``cache`` holds
+    that build's kernels already (then no machine code is counted)."""
+    with tempfile.TemporaryDirectory(prefix="gearsim_peak_") as tmp:
+        cache = cache or Path(tmp)
+        cold = not any(cache.rglob("*.nbi"))
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(src), str(HERE)]),
+                   NUMBA_CACHE_DIR=str(cache), NUMBA_NUM_THREADS="1")
         env.pop("NUMBA_CPU_NAME", None)
         env.pop("NUMBA_CPU_FEATURES", None)
         if cpu != "host":
             env["NUMBA_CPU_NAME"] = cpu
             env["NUMBA_CPU_FEATURES"] = avx2_features()
-        return run_json_worker(WORKER, [n, periods, repeats], env)
+        return run_json_worker(WORKER, [n, periods, repeats, int(cold)], env)
+
+
+def _line(name: str, r: dict) -> str:
+    return (f"{name:12s} peak width {r['peak_vector_width']}, kernel width "
+            f"{r['tangent'].get('vector_width')}: peak {r['peak_gflops']:.1f} GFLOP/s; "
+            + "; ".join(f"{k} {r[k]['cell_steps_per_s'] / 1e6:.1f} M cell-steps/s x "
+                        f"{r[k].get('flops_per_cell_step', 0):.0f} flops = {r[k]['gflops']:.1f} "
+                        f"GFLOP/s ({100 * r[k]['share_of_peak']:.0f} % of peak, "
+                        f"{r[k].get('stack_spills_reloads_per_cell_step', 0):.0f} stack "
+                        "accesses per cell-step)"
+                        for k in ("state", "tangent"))
+            + f"; compile {r['compile_cpu_s']:.0f} CPU-s; load {r['load_end']}")
+
+
+def side_by_side(rev: str, builds: list[str], rounds: int, n: int, periods: int,
+                 repeats: int) -> dict:
+    """Old (``rev``) and new alternating per build; the counted flops of the cold round."""
+    from bench_kernel_ab import export
+
+    out: dict = {}
+    with tempfile.TemporaryDirectory(prefix="gearsim_peak_ab_") as tmp:
+        tmp = Path(tmp)
+        srcs = {"old": export(rev, tmp / "old"), "new": ROOT / "src"}
+        for cpu in builds:
+            runs: dict[str, list[dict]] = {"old": [], "new": []}
+            for r in range(rounds):
+                for v in (("old", "new") if r % 2 == 0 else ("new", "old")):
+                    cache = tmp / f"cache_{v}_{cpu}"
+                    cache.mkdir(exist_ok=True)
+                    load0 = loadavg()
+                    res = run_build(cpu, n, periods, repeats, srcs[v], cache)
+                    res["load_start"], res["load_end"] = load0, loadavg()
+                    for k in ("state", "tangent"):  # the cold round's machine code
+                        for key, val in (runs[v][0] if runs[v] else res)[k].items():
+                            res[k].setdefault(key, val)
+                        flops = res[k]["flops_per_cell_step"]
+                        res[k]["gflops"] = res[k]["cell_steps_per_s"] * flops / 1e9
+                        res[k]["share_of_peak"] = res[k]["gflops"] / res["peak_gflops"]
+                    runs[v].append(res)
+                    print(_line(f"{cpu} {v} r{r}", res), flush=True)
+            summ = {}
+            for v in ("old", "new"):
+                for k in ("state", "tangent"):
+                    rates = [x[k]["cell_steps_per_s"] for x in runs[v]]
+                    shares = [x[k]["share_of_peak"] for x in runs[v]]
+                    summ[f"{v}_{k}"] = {"median_cell_steps_per_s": statistics.median(rates),
+                                        "best_cell_steps_per_s": max(rates),
+                                        "median_share": statistics.median(shares),
+                                        "best_share": max(shares)}
+            for k in ("state", "tangent"):
+                o, nw = summ[f"old_{k}"], summ[f"new_{k}"]
+                print(f"{cpu:7s} {k:7s} old {o['median_cell_steps_per_s'] / 1e6:.1f} M "
+                      f"({100 * o['median_share']:.0f} %; best {100 * o['best_share']:.0f} %)"
+                      f"  new {nw['median_cell_steps_per_s'] / 1e6:.1f} M "
+                      f"({100 * nw['median_share']:.0f} %; best {100 * nw['best_share']:.0f} %)"
+                      f"  new/old x{nw['median_cell_steps_per_s'] / o['median_cell_steps_per_s']:.2f}"
+                      f" (best x{nw['best_cell_steps_per_s'] / o['best_cell_steps_per_s']:.2f})",
+                      flush=True)
+            out[cpu] = {"runs": runs, "summary": summ}
+    return out
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer periods")
     ap.add_argument("--builds", default="host,znver3", help="NUMBA_CPU_NAME values (host: none)")
+    ap.add_argument("--rev", help="git revision to run beside this checkout (alternating)")
+    ap.add_argument("--rounds", type=int, default=2, help="alternating rounds with --rev")
     args = ap.parse_args(argv)
     n, periods, repeats = 32, (40 if args.quick else 200), (3 if args.quick else 7)
+    if args.rev:
+        res = side_by_side(args.rev, args.builds.split(","), args.rounds, n, periods, repeats)
+        print(save("peak_ab", {"machine": machine(), "rev_old": args.rev, "lanes": n,
+                               "periods": periods, "builds": res}))
+        return 0
     builds = {}
     for cpu in args.builds.split(","):
         load0 = loadavg()
         r = run_build(cpu, n, periods, repeats)
         r["load_start"], r["load_end"] = load0, loadavg()
         builds[cpu] = r
-        print(f"{cpu:8s} peak width {r['peak_vector_width']}, kernel width "
-              f"{r['tangent'].get('vector_width')}: peak {r['peak_gflops']:.1f} GFLOP/s; "
-              + "; ".join(f"{k} {r[k]['cell_steps_per_s'] / 1e6:.1f} M cell-steps/s x "
-                          f"{r[k].get('flops_per_cell_step', 0):.0f} flops = {r[k]['gflops']:.1f} "
-                          f"GFLOP/s ({100 * r[k]['share_of_peak']:.0f} % of peak, "
-                          f"{r[k].get('stack_spills_reloads_per_cell_step'):.0f} stack "
-                          "accesses per cell-step)"
-                          for k in ("state", "tangent"))
-              + f"; cold compile {r['compile_cpu_s']:.0f} CPU-s; load {r['load_end']}",
-              flush=True)
+        print(_line(cpu, r), flush=True)
     path = save("peak", {"machine": machine(), "lanes": n, "periods": periods,
                          "builds": builds})
     print(path)

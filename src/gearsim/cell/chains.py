@@ -3,7 +3,8 @@ next cell on its own schedule.
 
 :func:`simulate_rows` is :func:`gearsim.cell.sweep.continuation_chain` for many chains at once, with
 the early-stopping logic of :func:`gearsim.cell.simulate.simulate_cell` per lane (transient, chunks,
-period test after each chunk, classification by :func:`gearsim.cell.simulate.finish_cell`).
+period test after each chunk, classification by :func:`gearsim.cell.simulate.finish_cell`), then
+the long runs of :func:`gearsim.cell.growth.check_growth` in shared kernel calls.
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gearsim.cell import simulate
+from gearsim.cell.classify import repeats_throughout
+from gearsim.cell.growth import check_growth
 from gearsim.cell.simulate import (
     CellResult,
     IntegrationSettings,
@@ -154,6 +157,9 @@ def simulate_rows(
         _run_chains(chains, st, bound, continuation, on_cell, floquet, orbits)
         for ch in chains:
             out[ch.index] = ch.results
+        # motions without a period where the linear limit is unstable: the long run decides
+        # (after the chains: the chains went on from the windows' end states, as simulate_cell's)
+        check_growth([r for ch in chains for r in ch.results], st)
     return out  # type: ignore[return-value]
 
 
@@ -465,5 +471,6 @@ def warm_up() -> float:
         method="rk4", transient=2, transient_continuation=1, chunk=4, max_periods=8, n_max=2
     )
     simulate_cells([ModelParameters(w=1.0), ModelParameters(w=1.3, b=0.2)], settings=st)
-    simulate.repeats_throughout(np.zeros((4, N_STATE)), 1.0, 1.0, 4, 1e-7)  # settle_check's
+    z = np.zeros((4, N_STATE))
+    repeats_throughout(z[:, 0], z[:, 1], 1.0, 1.0, 4, 1e-7)  # settle_check's
     return time.perf_counter() - t0

@@ -39,7 +39,8 @@ settle distance
     total static excitation ``Fm + Fe w^2``.
 diverged
     A motion without a period whose amplitude grows over the window (:func:`amplitude_grows`),
-    like one that leaves the divergence bound: not an attractor, no pattern.
+    like one that leaves the divergence bound: not an attractor, no pattern. Where the linear
+    limit of the mesh is unstable, one whose long run grows (:mod:`gearsim.cell.growth`).
 Lyapunov exponent
     Largest exponent per unit dimensionless time from the variational equations (exact across
     the switches because the field is continuous), averaged over the analysed window.
@@ -103,20 +104,40 @@ def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, 
         window = max(2 * n, min_confirm)
         if window + n > m:
             return 0
-        ok = True
-        for i in range(m - window, m):
-            dx = abs(section_x[i] - section_x[i - n])
-            dv = abs(section_v[i] - section_v[i - n])
-            if not (dx <= tol_x and dv <= tol_v):  # NaN fails the test
-                ok = False
-                break
-        if ok:
+        if repeats_after(section_x, section_v, n, m - window, tol_x, tol_v):
             if n > 1 and _spread_decays(section_x, m, window, n, tol_x):
                 return 0  # a decaying transient mimics period n: integrate on
             return n
         if _converges_geometrically(section_x, section_v, m, n, scale, tol_x, min_confirm):
             if n > 1 and _lower_period_transient(section_x, m, n, min_confirm):
                 return 0  # the lag-d differences decay as well: a lower period's transient
+            return n
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def repeats_after(section_x, section_v, n, first, tol_x, tol_v):
+    """Whether every section point from index ``first`` on repeats the one ``n`` samples
+    earlier to ``tol_x`` in ``x`` and ``tol_v`` in ``x'`` (NaN fails): the one repeat
+    comparison of the period test and of :func:`repeats_throughout`."""
+    for i in range(max(first, n), len(section_x)):
+        if not (abs(section_x[i] - section_x[i - n]) <= tol_x
+                and abs(section_v[i] - section_v[i - n]) <= tol_v):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def repeats_throughout(section_x, section_v, scale, w, n_max, rtol):
+    """Smallest ``n <= n_max`` such that every point of the section sequence repeats after
+    ``n`` samples to ``rtol`` (``x`` relative to ``scale``, ``x'`` to ``scale w``, as the period
+    test), or 0 (NaN fails)."""
+    tol_x = rtol * scale
+    tol_v = rtol * scale * max(w, 1e-3)
+    for n in range(1, n_max + 1):
+        if len(section_x) <= n:
+            return 0
+        if repeats_after(section_x, section_v, n, n, tol_x, tol_v):
             return n
     return 0
 
@@ -385,6 +406,11 @@ class Classification:
     critical: str = ""  # kind of that multiplier: fold | period_doubling | neimark_sacker
     refined: bool = False  # the label is that of the Newton-refined orbit
     settle: float = float("nan")  # settle distance of the window (relative to the x range)
+    # motions without a period (chaos, quasi-periodic): the linear limit's largest multiplier
+    # (gearsim.cell.growth) and, where it exceeds 1, the periods of the long run that showed the
+    # motion bounded (or, status diverged, growing); NaN where neither was needed
+    mu_lin: float = float("nan")
+    long_run: float = float("nan")
 
     @property
     def kmax(self) -> float:

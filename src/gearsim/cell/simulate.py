@@ -15,6 +15,10 @@ it stands). A cell that does not settle so reaches the end of its transient plus
 periods: that last window is the fixed plan's first measuring chunk, and measuring goes on as
 without the option (period test, budget, refinement and statuses unchanged). The chain's next
 cell starts from the state where the cell ended.
+
+A motion without a period where the mesh's linear limit is unstable is labelled only after its
+long run shows it bounded (:func:`gearsim.cell.growth.check_growth`, the last step here and in
+the batched driver).
 """
 
 from __future__ import annotations
@@ -25,12 +29,13 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from gearsim.cell.classify import (
     Classification,
     estimate_period,
+    repeats_throughout,
 )
+from gearsim.cell.growth import check_growth
 from gearsim.cell.verify import (
     FLOQUET,
     REFINE_RTOL,
@@ -162,8 +167,11 @@ def diverged_result(params: ModelParameters, k: int, steps: int,
 
 
 def seeds_continuation(res: CellResult) -> bool:
-    """Whether a cell's final state may start the next cell of a continuation chain."""
-    return res.classification.status not in ("diverged", "budget")
+    """Whether a cell's final state may start the next cell of a continuation chain: not after
+    a divergence or the step budget; a cell that only its long run showed growing
+    (:mod:`gearsim.cell.growth`, checked after the chain) seeds with its window's end state."""
+    c = res.classification
+    return c.status not in ("diverged", "budget") or c.long_run == c.long_run
 
 
 def period_of(s: PeriodSummaries, params: ModelParameters, st: IntegrationSettings) -> int:
@@ -194,36 +202,15 @@ def settled_period(s: PeriodSummaries, params: ModelParameters,
                    st: IntegrationSettings) -> int:
     """The period ``n`` of window ``s`` if it would be labelled as it stands, settled
     throughout: every point within :data:`EARLY_RTOL` of the one ``n`` periods later
-    (:func:`repeats_throughout`, the cheap test first: most windows fail it), the period test's
-    period (:func:`period_of`) and a settle distance at most
+    (:func:`~gearsim.cell.classify.repeats_throughout`, the cheap test first: most windows
+    fail it), the period test's period (:func:`period_of`) and a settle distance at most
     :data:`~gearsim.cell.verify.REFINE_RTOL`; else 0. The adaptive transient's test."""
     scale = max(float(s.xmax.max() - s.xmin.min()), 1e-9)
-    n = repeats_throughout(s.section, scale, float(params.w), 4, EARLY_RTOL)
+    n = repeats_throughout(s.section[:, 0], s.section[:, 1], scale, float(params.w), 4,
+                           EARLY_RTOL)
     if n == 0 or period_of(s, params, st) != n or not window_settle(params, s, n) <= REFINE_RTOL:
         return 0
     return n
-
-
-@njit(cache=True, nogil=True)
-def repeats_throughout(section, scale, w, n_max, rtol):
-    """Smallest ``n <= n_max`` such that every row of ``section`` (``x``, ``x'`` in its first two
-    columns) repeats after ``n`` rows to ``rtol`` (``x`` relative to ``scale``, ``x'`` to
-    ``scale w``), or 0 (NaN fails)."""
-    m = section.shape[0]
-    tol_x = rtol * scale
-    tol_v = rtol * scale * max(w, 1e-3)
-    for n in range(1, n_max + 1):
-        if m <= n:
-            return 0
-        ok = True
-        for i in range(n, m):
-            if not (abs(section[i, 0] - section[i - n, 0]) <= tol_x
-                    and abs(section[i, 1] - section[i - n, 1]) <= tol_v):
-                ok = False
-                break
-        if ok:
-            return n
-    return 0
 
 
 def next_settle_check(done: int, st: IntegrationSettings, transient: int, window: int) -> int:
@@ -398,6 +385,7 @@ def simulate_cell(
         return diverged_result(params, k, steps)
     res = finish_cell(params, summaries, n, st, yt, k, start_period, steps, floquet)
     fill_margins([res], st.with_(floquet=max(floquet, st.floquet, key=FLOQUET.index)))
+    check_growth([res], st)
     if spectrum:
         periods = (max(200, res.classification.window_periods) if spectrum is True
                    else int(spectrum))

@@ -41,7 +41,7 @@ from gearsim.dynamics.model import (
     tracked_force,
 )
 from gearsim.dynamics.model import P_W as _P_W
-from gearsim.numerics.steps import METHOD_DP5, METHOD_RK4, trial_step
+from gearsim.numerics.steps import METHOD_DP5, METHOD_RK4, rk4_tangent_step, trial_step
 
 # accumulator slots (float array ``acc``)
 ACC_TD = 0  # time inside the backlash
@@ -229,6 +229,24 @@ def _track(acc, ph, y, p, mode):
 
 
 @njit(cache=True, nogil=True, _nrt=False)
+def turn_extremum(x0, v0, x1, v1, hh, t, w, P, r0):
+    """The turning point of x inside an accepted step (x' changes sign): ``(found, xe, fe)``.
+
+    ``xe`` the Hermite cubic's extremum on the step from time ``t`` (within the period) over
+    ``hh``, ``fe`` the tracked mesh force there (x' = 0, mesh phase ``w (t + s hh)``), for the
+    per-period extremes. The one source for the event layer's accepted steps and the RK4 grid
+    steps that stand with a turning point (:func:`gearsim.numerics.steps.grid_step_flag`).
+    """
+    se = hermite_extremum(x0, v0, x1, v1, hh)
+    if se > 0.0:
+        xe = hermite(x0, v0, x1, v1, hh, se)
+        pe = w * (t + se * hh)
+        fe = tracked_force(math.cos(pe), math.sin(pe), xe, 0.0, P, r0, abs(r0))
+        return True, xe, fe
+    return False, 0.0, 0.0
+
+
+@njit(cache=True, nogil=True, _nrt=False)
 def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tangent, ks, ytmp,
                      ynew, ytry, rtol, atol, hmax, T, bound, acc, cnt, ev_t, ev_code, t_abs0):
     """Integrate from ``t`` to ``t_stop`` (times within the period) with located switches.
@@ -243,6 +261,10 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
     w = p[_P_W]
     h_min = 1e-12 * T
     status = STATUS_OK
+    # RK4: trial steps of the state alone, the tangent vector stepped once over each step that
+    # stands (rk4_tangent_step: the same numbers; the switch search's trial steps are ~4 a switch)
+    lazy = tangent and method == METHOD_RK4
+    tg = tangent and not lazy
     while t < t_stop:
         if method == METHOD_RK4:
             hh = t_stop - t
@@ -252,7 +274,7 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
             hh = min(acc[ACC_H], hmax, t_stop - t)
             if t_stop - t - hh < 1e-9 * hh:
                 hh = t_stop - t
-        err = trial_step(method, t, y, hh, p, mode, n, nerr, tangent, ks, ytmp, ynew, rtol, atol,
+        err = trial_step(method, t, y, hh, p, mode, n, nerr, tg, ks, ytmp, ynew, rtol, atol,
                          acc[ACC_K1] != 0.0)
         cnt[CNT_STEPS] += 1
         if method == METHOD_DP5:
@@ -276,7 +298,7 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
             if graze:
                 # verify the excursion with a real step to the predicted extremum
                 te = first_s * hh
-                trial_step(method, t, y, te, p, mode, n, nerr, tangent, ks, ytmp, ytry, rtol,
+                trial_step(method, t, y, te, p, mode, n, nerr, tg, ks, ytmp, ytry, rtol,
                            atol, False)
                 cnt[CNT_STEPS] += 1
                 if region_of(ytry[ci], gap) == mode[c]:
@@ -296,9 +318,11 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
                 new_region = r_far
             pre_pos = r_far < mode[c]  # sign of x - bnd on the side we leave
             th = first_s * hh
+            th_try = th
             for _ in range(60):
-                trial_step(method, t, y, th, p, mode, n, nerr, tangent, ks, ytmp, ytry, rtol,
+                trial_step(method, t, y, th, p, mode, n, nerr, tg, ks, ytmp, ytry, rtol,
                            atol, False)
+                th_try = th
                 cnt[CNT_STEPS] += 1
                 g = ytry[ci] - bnd
                 if abs(g) <= 1e-12 * (1.0 + gap):
@@ -315,6 +339,8 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
                 if hi_t - lo_t < 1e-15 * T:
                     break
             # land on the switch (old region up to here)
+            if lazy:
+                rk4_tangent_step(t, y, th_try, p, mode, ytry)
             if mode[0] == 0:
                 acc[ACC_TD] += th
             for i in range(n):
@@ -338,20 +364,16 @@ def advance_interval(method, t, t_stop, y, p, mode, gaps, active, n, nerr, tange
             _track(acc, w * t, y, p, mode)
             continue
         # ---- no switch: accept the whole step
+        if lazy:
+            rk4_tangent_step(t, y, hh, p, mode, ynew)
         if mode[0] == 0:
             acc[ACC_TD] += hh
-        v0 = y[1]
-        v1 = ynew[1]
-        if v0 * v1 < 0.0:
-            se = hermite_extremum(y[0], v0, ynew[0], v1, hh)
-            if se > 0.0:
-                xe = hermite(y[0], v0, ynew[0], v1, hh, se)
+        if y[1] * ynew[1] < 0.0:
+            found, xe, fe = turn_extremum(y[0], y[1], ynew[0], ynew[1], hh, t, w,
+                                          field_params(p, 0, 1), float(mode[0]))
+            if found:
                 acc[ACC_XMAX] = max(acc[ACC_XMAX], xe)
                 acc[ACC_XMIN] = min(acc[ACC_XMIN], xe)
-                r0 = float(mode[0])
-                pe = w * (t + se * hh)
-                fe = tracked_force(math.cos(pe), math.sin(pe), xe, 0.0, field_params(p, 0, 1), r0,
-                                   abs(r0))
                 acc[ACC_FMAX] = max(acc[ACC_FMAX], fe)
                 acc[ACC_FMIN] = min(acc[ACC_FMIN], fe)
         for i in range(n):

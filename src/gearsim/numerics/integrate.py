@@ -10,8 +10,9 @@ Two methods on the one field (:mod:`gearsim.dynamics.model`) and the one event l
   (:func:`gearsim.numerics.steps.rk4_steps_per_period`), phases from the tables of
   :func:`gearsim.numerics.steps.phase_tables`. A grid step that
   :func:`gearsim.numerics.steps.grid_step_flag` flags
-  (a region change, a watched velocity sign change, the divergence bound) is redone by the event
-  layer. This is the batched kernel's algorithm for one lane, so the two give bit-identical
+  (a region change, a watched bearing velocity sign change, a turning point of x that may graze
+  the mesh boundary, the divergence bound) is redone by the event layer; a step with a turning
+  point inside its region stands, its extremum folded in (:func:`events.turn_extremum`). This is the batched kernel's algorithm for one lane, so the two give bit-identical
   section points (tests/unit/test_batch.py).
 
 Sections. Integration runs period by period (``T = 2 pi / w``, time measured within the period so
@@ -64,6 +65,7 @@ from gearsim.numerics.events import (
     STATUS_STEP_COLLAPSE,
     advance_interval,
     channels,
+    turn_extremum,
 )
 from gearsim.numerics.settings import IntegrationSettings
 from gearsim.numerics.steps import (
@@ -158,8 +160,9 @@ def end_period_tangent(z):
 def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings, bound, acc):
     """The vector kernel's grid step for one cell; returns True if the event layer must redo it.
 
-    Same arithmetic as ``kernel._lane_step`` (both inline :func:`rk4_state`, :func:`rk4_tangent`
-    and :func:`grid_step_flag`): an unflagged step is stored with its accumulators.
+    Same arithmetic as ``kernel._lane_step`` and its turning-point pass (both inline
+    :func:`rk4_state`, :func:`rk4_tangent` and :func:`grid_step_flag`, then call
+    :func:`turn_extremum`): a step that stands is stored with its accumulators.
     """
     i2 = 2 * j
     P = field_params(p, 0, 1)
@@ -172,7 +175,8 @@ def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings
     yn = rk4_state(ys, h, C[i2], S[i2], vA, C[i2 + 1], S[i2 + 1], vM, C[i2 + 2], S[i2 + 2], vB,
                    lam, Q[i2], Q[i2 + 1], Q[i2 + 2], P, M)
     A = (p[P_ACT], p[P_ACT + 1], p[P_ACT + 2], p[P_ACT + 3])
-    if grid_step_flag(ys, yn, P, M, A, bound, bearings):
+    event, turn = grid_step_flag(ys, yn, h, P, M, A, bound, bearings)
+    if event:
         return True
     if tangent:
         z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
@@ -190,6 +194,13 @@ def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings
     acc[ACC_FMIN] = min(acc[ACC_FMIN], fl)
     acc[ACC_XMAX] = max(acc[ACC_XMAX], yn[0])
     acc[ACC_XMIN] = min(acc[ACC_XMIN], yn[0])
+    if turn:
+        found, xe, fe = turn_extremum(ys[0], ys[1], yn[0], yn[1], h, j * h, p[P_W], P, r0)
+        if found:
+            acc[ACC_XMAX] = max(acc[ACC_XMAX], xe)
+            acc[ACC_XMIN] = min(acc[ACC_XMIN], xe)
+            acc[ACC_FMAX] = max(acc[ACC_FMAX], fe)
+            acc[ACC_FMIN] = min(acc[ACC_FMIN], fe)
     return False
 
 

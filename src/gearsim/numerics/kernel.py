@@ -75,6 +75,7 @@ from gearsim.numerics.events import (
     N_CNT,
     advance_interval,
     channels,
+    turn_extremum,
 )
 from gearsim.numerics.integrate import end_period_tangent
 from gearsim.numerics.steps import (
@@ -101,8 +102,10 @@ _FMX = _TD + 1
 _FMN = _TD + 2
 _XMX = _TD + 3
 _XMN = _TD + 4
-_FLAG = _TD + 5  # 1.0 when the lane needs the event layer for the current step
-NROW = _FLAG + 1
+_FLAG = _TD + 5  # 1.0: the lane needs the event layer for the current step; 2.0: a turning point
+_X0 = _TD + 6  # x and x' at the start of the current step (the turning point's Hermite cubic)
+_V0 = _TD + 7
+NROW = _V0 + 1
 BLOCK = NROW * LANES
 
 # ---- integer rows (2-D array [NI, n_lanes]; touched by scalar code only) ---------------------
@@ -198,7 +201,9 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     yn = rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M)
     A = (blk[r + (_PAR + P_ACT) * L], blk[r + (_PAR + P_ACT + 1) * L],
          blk[r + (_PAR + P_ACT + 2) * L], blk[r + (_PAR + P_ACT + 3) * L])
-    flag = grid_step_flag(y, yn, P, M, A, bound, bearings)
+    flag, turn = grid_step_flag(y, yn, h, P, M, A, bound, bearings)
+    blk[r + _X0 * L] = y[0]
+    blk[r + _V0 * L] = y[1]
     _store10(blk, r + _Y * L, flag, y, yn)
     if tangent:
         z = _load10(blk, o, _Y + 10, q)
@@ -219,7 +224,7 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     blk[r + _FMN * L] = _sel(flag, fmn, _fmin(fmn, fl))
     blk[r + _XMX * L] = _sel(flag, xmx, _fmax(xmx, yn[0]))
     blk[r + _XMN * L] = _sel(flag, xmn, _fmin(xmn, yn[0]))
-    blk[r + _FLAG * L] = _sel(flag, 1.0, 0.0)
+    blk[r + _FLAG * L] = _sel(flag, 1.0, _sel(turn, 2.0, 0.0))
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
@@ -234,8 +239,9 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
     forms' terms are computed) beside the general one (``general`` True: both, for every lane;
     a lane without them gets the base loop's numbers, bit for bit: an inactive channel is never
     flagged and the forms' terms of a base lane are exact zeros).
-    Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes are left
-    untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
+    Lanes that need no event are updated in place (state, tangent, accumulators; flag 2.0 when
+    the step has a turning point for :func:`_turn_lane`); lanes with an event (flag 1.0) are
+    left untouched for :func:`_redo_lane`. Returns True if any lane is flagged.
     """
     o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
     for q in range(LANES):
@@ -302,6 +308,22 @@ def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk):
         ist[_ST, l] = 1
         ist[_STEPS, l] += j + 1
         blk[r + _H * L] = 0.0  # freeze the lane
+
+
+@njit(cache=True, nogil=True, _nrt=False)
+def _turn_lane(blk, o, q, j):
+    """Fold the turning point of lane ``q``'s grid step ``j`` (it stands) into its extremes."""
+    L = LANES
+    r = o + q
+    h = blk[r + _H * L]
+    found, xe, fe = turn_extremum(blk[r + _X0 * L], blk[r + _V0 * L], blk[r + _Y * L],
+                                  blk[r + (_Y + 1) * L], h, j * h, blk[r + (_PAR + P_W) * L],
+                                  field_params(blk, r + _PAR * L, L), blk[r + _R0 * L])
+    if found:
+        blk[r + _XMX * L] = _fmax(blk[r + _XMX * L], xe)
+        blk[r + _XMN * L] = _fmin(blk[r + _XMN * L], xe)
+        blk[r + _FMX * L] = _fmax(blk[r + _FMX * L], fe)
+        blk[r + _FMN * L] = _fmin(blk[r + _FMN * L], fe)
 
 
 # ============================================================================ the kernel
@@ -405,10 +427,14 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
                                        cvB, svB, lam, qA, qM, qB, bound, False, False)
                 if anyf:
                     for q in range(L):
-                        if blk[o + _FLAG * L + q] != 0.0:
+                        fq = blk[o + _FLAG * L + q]
+                        if fq != 0.0:
                             ll = bi * L + q
                             if ist[_ST, ll] == 0:
-                                _redo_lane(blk, o, q, ll, ist, j, N, lam, bound, tangent, wk)
+                                if fq == 1.0:
+                                    _redo_lane(blk, o, q, ll, ist, j, N, lam, bound, tangent, wk)
+                                else:
+                                    _turn_lane(blk, o, q, j)
         # ---- period end: tangent growth, records
         for l in range(n_lanes):
             if ist[_ST, l] != 0:

@@ -164,13 +164,22 @@ def rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M):
     return axpy10(z, h / 6.0, acc)
 
 
-@njit(cache=True, nogil=True, fastmath=FASTMATH, _nrt=False)
-def rk4_step(t, y, h, p, mode, tangent, yout):
-    """RK4 step on arrays from time ``t`` (within the period) over ``h``; writes ``yout``."""
+@njit(cache=True, nogil=True, inline="always")
+def _rk4_phases(t, h, p):
+    """cos of the mesh phase and the friction arm's phase at a step's start, middle and end
+    (time ``t`` within the period, step ``h``), with the phases themselves."""
     w = p[P_W]
     ph = w * t
     pm = w * (t + 0.5 * h)
     pe = w * (t + h)
+    return (ph, pm, pe, math.cos(ph), math.cos(pm), math.cos(pe), arm_phase(w, t),
+            arm_phase(w, t + 0.5 * h), arm_phase(w, t + h))
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, _nrt=False)
+def rk4_step(t, y, h, p, mode, tangent, yout):
+    """RK4 step on arrays from time ``t`` (within the period) over ``h``; writes ``yout``."""
+    ph, pm, pe, cA, cM, cB, qA, qM, qB = _rk4_phases(t, h, p)
     vA = 0.0
     vM = 0.0
     vB = 0.0
@@ -179,11 +188,9 @@ def rk4_step(t, y, h, p, mode, tangent, yout):
         vA = variable_ratio(p, math.cos(nu * ph), math.sin(nu * ph))
         vM = variable_ratio(p, math.cos(nu * pm), math.sin(nu * pm))
         vB = variable_ratio(p, math.cos(nu * pe), math.sin(nu * pe))
-    cA, cM, cB = math.cos(ph), math.cos(pm), math.cos(pe)
     P = field_params(p, 0, 1)
     M = mode_tuple(mode)
     lam = float(mode[MODE_FRICTION])
-    qA, qM, qB = arm_phase(w, t), arm_phase(w, t + 0.5 * h), arm_phase(w, t + h)
     ys = (y[0], y[1], y[2], y[3], y[4], y[5], y[6], y[7], y[8], y[9])
     yn = rk4_state(ys, h, cA, math.sin(ph), vA, cM, math.sin(pm), vM, cB, math.sin(pe), vB, lam,
                    qA, qM, qB, P, M)
@@ -195,6 +202,24 @@ def rk4_step(t, y, h, p, mode, tangent, yout):
         for i in range(N_STATE):
             yout[10 + i] = zn[i]
     return 0.0
+
+
+@njit(cache=True, nogil=True, fastmath=FASTMATH, _nrt=False)
+def rk4_tangent_step(t, y, h, p, mode, yout):
+    """The tangent vector's part of :func:`rk4_step` alone (``y[10:20]`` to ``yout[10:20]``).
+
+    The tangent's RK4 step does not enter the state's, so the event layer's switch search takes
+    its trial steps without it and steps the tangent once over the step that stands: the same
+    numbers as ``rk4_step(..., tangent=True)``.
+    """
+    ph, pm, pe, cA, cM, cB, qA, qM, qB = _rk4_phases(t, h, p)
+    P = field_params(p, 0, 1)
+    M = mode_tuple(mode)
+    lam = float(mode[MODE_FRICTION])
+    z = (y[10], y[11], y[12], y[13], y[14], y[15], y[16], y[17], y[18], y[19])
+    zn = rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M)
+    for i in range(N_STATE):
+        yout[10 + i] = zn[i]
 
 
 # ---------------------------------------------------------------------------- DP5 on arrays
@@ -258,25 +283,49 @@ def _watch(v0, u1, v1, gap, r, act):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def grid_step_flag(y, yn, P, M, A, bound, bearings):
-    """True when an RK4 grid step from ``y`` to ``yn`` must be redone by the event layer.
+def _inside(x, gap, r, m):
+    """``x`` lies in the region ``r`` (-1, 0, 1 as a double) of ``[-gap, gap]`` by more than ``m``."""
+    return (((r > 0.0) & (x > gap + m)) | ((r < 0.0) & (x < -gap - m))
+            | ((r == 0.0) & (abs(x) < gap - m)))
 
-    A contact region changed, a watched velocity changed sign (a possible grazing excursion
-    inside the step, and the Hermite extremum the per-period extremes need), or the state left
-    the divergence bound. ``A`` are the four bearing channels' active flags; ``bearings`` is
-    false when no channel has a clearance (a loop invariant in the vector kernel).
+
+@njit(cache=True, nogil=True, inline="always")
+def grid_step_flag(y, yn, h, P, M, A, bound, bearings):
+    """``(event, turn)`` of an RK4 grid step from ``y`` to ``yn`` (step ``h``).
+
+    ``event``: the step must be redone by the event layer: a contact region changed, a watched
+    bearing velocity changed sign, the state left the divergence bound, or x' changed sign where
+    the Hermite cubic of x over the step may reach the mesh boundary (a possible grazing
+    contact). ``turn``: x' changed sign and the cubic stays inside its region: the step stands,
+    and its turning point goes into the per-period extremes (:func:`gearsim.numerics.events.
+    turn_extremum`). The cubic lies in the convex hull of its Bernstein points ``x0``,
+    ``x0 + h x0'/3``, ``x1 - h x1'/3``, ``x1``, so those four inside the region (with a margin
+    far above the rounding of the cubic) exclude a crossing; a turning point in a bearing
+    channel is always an event. ``A`` are the four bearing channels' active flags;
+    ``bearings`` is false when no channel has a clearance (a loop invariant in the vector
+    kernel).
     """
-    flag = ((P[P_B] > 0.0) & (region_of(yn[0], P[P_B]) != M[0])) | (y[1] * yn[1] < 0.0)
+    b = P[P_B]
+    r0 = M[0]
+    mesh = b > 0.0
+    turn = y[1] * yn[1] < 0.0
+    c1 = y[0] + (h / 3.0) * y[1]
+    c2 = yn[0] - (h / 3.0) * yn[1]
+    m = 1e-9 * (1.0 + b + abs(y[0]) + abs(yn[0]))
+    inside = (_inside(y[0], b, r0, m) & _inside(c1, b, r0, m) & _inside(c2, b, r0, m)
+              & _inside(yn[0], b, r0, m))
+    event = (mesh & (region_of(yn[0], b) != r0)) | (turn & mesh & (not inside))
     if bearings:
-        flag = flag | _watch(y[3], yn[2], yn[3], P[P_GAP + 0], M[2], A[0])
-        flag = flag | _watch(y[5], yn[4], yn[5], P[P_GAP + 1], M[3], A[1])
-        flag = flag | _watch(y[7], yn[6], yn[7], P[P_GAP + 2], M[4], A[2])
-        flag = flag | _watch(y[9], yn[8], yn[9], P[P_GAP + 3], M[5], A[3])
+        event = event | _watch(y[3], yn[2], yn[3], P[P_GAP + 0], M[2], A[0])
+        event = event | _watch(y[5], yn[4], yn[5], P[P_GAP + 1], M[3], A[1])
+        event = event | _watch(y[7], yn[6], yn[7], P[P_GAP + 2], M[4], A[2])
+        event = event | _watch(y[9], yn[8], yn[9], P[P_GAP + 3], M[5], A[3])
     ok = (abs(yn[0]) < bound) & (abs(yn[1]) < bound) & (abs(yn[2]) < bound)
     ok = ok & (abs(yn[3]) < bound) & (abs(yn[4]) < bound) & (abs(yn[5]) < bound)
     ok = ok & (abs(yn[6]) < bound) & (abs(yn[7]) < bound) & (abs(yn[8]) < bound)
     ok = ok & (abs(yn[9]) < bound)
-    return flag | (not ok)
+    event = event | (not ok)
+    return event, turn & (not event)
 
 
 def rk4_steps_per_period(params, settings, substeps: int = 1) -> int:

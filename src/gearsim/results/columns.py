@@ -84,6 +84,17 @@ RESULT: dict[str, tuple[str, str]] = {
         "1 (of the x range)",
         "estimated distance of the last section point from the periodic orbit it settles to",
     ),
+    "mu_lin": (
+        "1 (per mesh period)",
+        "motions without a period: largest Floquet multiplier modulus of the mesh's linear "
+        "limit (the model at b = 0, no clearance; > 1: a nearly linear motion grows without "
+        "bound); NULL for the other motions",
+    ),
+    "long_run": (
+        "mesh periods",
+        "where mu_lin > 1: periods of the long run from the window's end that showed the motion "
+        "bounded (its label stands) or growing (status diverged); NULL where none was needed",
+    ),
     "periods": ("mesh periods", "mesh periods integrated in all for this cell"),
     "steps": ("1", "integrator steps taken for this cell"),
 }

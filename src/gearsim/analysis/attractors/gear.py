@@ -322,34 +322,33 @@ def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st
     return out
 
 
-#: periods of the long run that decides whether a cloud next to diverging starts is bounded
-LONG_RUN = 4000
-
-
 def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAttractors]:
-    """A chaotic or quasi-periodic attractor of a cell where some start diverged (the
-    parametric instability of the nearly linear mesh near w = 2 at small backlash: motions
-    that grow after their window look like clouds in it) is checked by a :data:`LONG_RUN`-period
-    run from the first of its starts (transient, then the measuring budget): where that
-    diverges, the attractor is no attractor and its starts count as diverged (its periods are
-    the start's too). The last step of every gear mapper, after :func:`least_periods`."""
+    """A chaotic or quasi-periodic attractor of a cell where the mesh's linear limit is unstable
+    (``mu_lin > 1``: the parametric instability of the nearly linear mesh near w = 2; motions that
+    grow after their window look like clouds in it) is checked by the rule of
+    :func:`gearsim.cell.growth.check_growth`: the full-length run of the first of its starts,
+    then a long run from its end (:data:`gearsim.cell.growth.LONG_RUN` periods); where that
+    diverges or grows, the attractor is no attractor and its starts count as diverged (the
+    periods are the start's too). A cloud whose own run was checked already is not run again.
+    The last step of every gear mapper, after :func:`least_periods`."""
     from gearsim.analysis.attractors.matching import drop
     from gearsim.cell.chains import simulate_cells
+    from gearsim.cell.growth import linear_multipliers
 
     todo = []  # (cell, attractor index, start)
     for c, ca in enumerate(found):
-        if not np.any(ca.start_labels < 0):
-            continue
         for a in ca.attractors:
             s = a.steady
-            if s.status == "ok" and s.period <= 0 and a.n_starts > 0:
+            if (s.status == "ok" and s.period <= 0 and a.n_starts > 0
+                    and not math.isfinite((s.info or {}).get("long_run", math.nan))):
                 i = int(np.nonzero(ca.start_labels == a.index)[0][0])
                 todo.append((c, a.index, i))
+    mus = linear_multipliers([params_list[c] for c, _, _ in todo], st)
+    todo = [t for t, mu in zip(todo, mus, strict=True) if mu > 1.0]
     if not todo:
         return found
-    lst = st.with_(transient=LONG_RUN - st.max_periods,
-                   transient_continuation=LONG_RUN - st.max_periods)  # fmt: skip
-    res = simulate_cells([params_list[c] for c, _, _ in todo], settings=lst,
+    res = simulate_cells([params_list[c] for c, _, _ in todo],
+                         settings=st.with_(transient_continuation=st.transient),
                          u0=[np.asarray(found[c].starts[i], dtype=float)[:10]
                              for c, _, i in todo])  # fmt: skip
     gone: dict[int, set[int]] = {}
@@ -357,6 +356,7 @@ def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAtt
         found[c].start_periods_run[i] += int(r.periods)  # the long run is the start's too
         if gear_steady(r).status == "diverged":
             gone.setdefault(c, set()).add(a)
+        else:  # bounded: the attractor records its check
+            info = next(x for x in found[c].attractors if x.index == a).steady.info
+            info["mu_lin"], info["long_run"] = r.classification.mu_lin, r.classification.long_run
     return [drop(ca, gone.get(c, set())) for c, ca in enumerate(found)]
-
-
