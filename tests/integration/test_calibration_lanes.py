@@ -84,11 +84,15 @@ def test_a_lane_fit_leaves_its_state_after_every_generation(tmp_path):
     import json
 
     from gearsim.calibration.lane_fit import collect_fit, fit_form_cmaes, state_path
+    from gearsim.calibration.search import log_lines
 
     form = FORMS["single_dof"]
+    plain = tmp_path / "logs" / "single_dof-lanes.s4.jsonl"
+    packed = tmp_path / "logs" / "single_dof-lanes.s4.jsonl.gz"  # a finished fit's log
     rec = fit_form_cmaes(form, seed=4, log_dir=tmp_path / "logs", max_evals=1, final=False,
                          log=lambda s: None)
-    lines = (tmp_path / "logs" / "single_dof-lanes.s4.jsonl").read_text().splitlines()
+    assert packed.is_file() and not plain.exists()
+    lines = log_lines(packed)
     state = json.loads(state_path(tmp_path / "logs", "single_dof", 4).read_text())
     # one generation: its population logged, the start among them, the state the record's
     assert rec["nfev"] == len(lines) == state["nfev"] and rec["stopped_by"] == "max_evals"
@@ -105,7 +109,8 @@ def test_a_lane_fit_leaves_its_state_after_every_generation(tmp_path):
     # resumed with a larger budget: the same search continues, its log kept and extended
     more = fit_form_cmaes(form, seed=4, log_dir=tmp_path / "logs", max_evals=rec["nfev"] + 1,
                           final=False, log=lambda s: None)
-    lines2 = (tmp_path / "logs" / "single_dof-lanes.s4.jsonl").read_text().splitlines()
+    assert packed.is_file() and not plain.exists()
+    lines2 = log_lines(packed)
     assert more["resumed"] == 1 and lines2[:len(lines)] == lines
     assert more["nfev"] == len(lines2) > rec["nfev"]
     assert more["curve"][:len(rec["curve"])] == rec["curve"]

@@ -85,7 +85,12 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
     the search stopped. A fit with a checkpoint (:func:`checkpoint_path`) resumes from it:
     its evaluation log is kept (cut to the checkpoint's evaluations) and the search continues
     exactly where it stopped."""
-    from gearsim.calibration.search import checkpoint_evaluations, run_cmaes
+    from gearsim.calibration.search import (
+        checkpoint_evaluations,
+        compress_log,
+        log_lines,
+        run_cmaes,
+    )
 
     if not form.available():
         return {"form": form.name, "skipped": f"needs parameters {form.requires}"}
@@ -94,15 +99,19 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
     logp = str(Path(log_dir) / f"{form.name}-lanes.s{seed}.jsonl")
     statep = state_path(log_dir, form.name, seed)
     ckp = checkpoint_path(log_dir, form.name, seed)
+    gz = Path(logp + ".gz")  # a finished fit's log, compressed
     done = checkpoint_evaluations(ckp)
     if done is None:
         Path(logp).unlink(missing_ok=True)
+        gz.unlink(missing_ok=True)
         statep.unlink(missing_ok=True)
     else:
         # the log as far as the checkpoint: a generation cut off after its log line was
         # written and before the checkpoint is evaluated again
-        lines = Path(logp).read_text().splitlines() if Path(logp).is_file() else []
+        src = Path(logp) if Path(logp).is_file() else gz
+        lines = log_lines(src) if src.is_file() else []
         Path(logp).write_text("".join(line + "\n" for line in lines[:done]))
+        gz.unlink(missing_ok=True)
         log(f"[{form.name} s{seed}] resuming from {ckp} after {done} evaluations")
     batch = FormBatch(form, LANES, logp)
     bounds = [(f.lower, f.upper) for f in form.free]
@@ -148,6 +157,7 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
         rec.update(J=J, terms=terms, measured=m.to_dict() if m else None, b_star_bisection=b)
         log(f"[{form.name} s{seed}] exact (DP5) J = {J:.4f}")
     rec["run"] = run.record()
+    compress_log(logp)
     return rec
 
 
@@ -177,6 +187,7 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
     evaluations and curve from the log, no CPU time); the Pareto fronts of all logged evaluations
     (:func:`gearsim.calibration.pareto.pareto_record`) and the per-target evidence."""
     from gearsim.calibration.pareto import coexist_tally, pareto_record
+    from gearsim.calibration.search import log_files, log_lines
 
     d = Path(forms_dir)
     out: dict[str, Any] = {}
@@ -191,13 +202,13 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
                 "seed", "search", "nfev", "stopped_by", "runs", "J_lanes", "J", "terms", "best",
                 "measured", "cpu_s_search", "wall_s_search", "run", "budget", "curve")
                 if k in rec}
-        for f in sorted((d / "logs").glob(f"{name}-lanes.s*.jsonl")):
+        for f in log_files(d / "logs", f"{name}-lanes.s*"):
             seed = f.name.split(".")[1][1:]
             if seed in seeds:
                 continue
             # a search still running or stopped before its record: its logged evaluations,
             # its wall and CPU seconds from its state (none without one: 0, "timed": False)
-            Jl = [json.loads(line)["J"] for line in f.read_text().splitlines() if line]
+            Jl = [json.loads(line)["J"] for line in log_lines(f) if line]
             if Jl:
                 curve = np.minimum.accumulate(Jl)
                 seeds[seed] = {"seed": int(seed), "nfev": len(Jl), "stopped_by": "unfinished",

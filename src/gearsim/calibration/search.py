@@ -7,6 +7,7 @@ the per-form fits, :mod:`gearsim.calibration.form_search`) uses these; only the 
 
 from __future__ import annotations
 
+import gzip
 import json
 import math
 import os
@@ -116,13 +117,40 @@ class LoggedObjective:
         return self.evaluate(x)[0]
 
 
+def log_files(log_dir: str | Path, pattern: str = "*") -> list[Path]:
+    """The evaluation logs ``<pattern>.jsonl`` in ``log_dir``, and ``<pattern>.jsonl.gz``: the
+    log of a finished lane fit is kept compressed (:func:`compress_log`)."""
+    d = Path(log_dir)
+    return sorted([*d.glob(f"{pattern}.jsonl"), *d.glob(f"{pattern}.jsonl.gz")])
+
+
+def log_lines(path: str | Path) -> list[str]:
+    """The lines of an evaluation log, plain or gzip-compressed (by its name)."""
+    p = Path(path)
+    if p.suffix == ".gz":
+        with gzip.open(p, "rt") as fh:
+            return fh.read().splitlines()
+    return p.read_text().splitlines()
+
+
+def compress_log(path: str | Path) -> Path:
+    """``<path>.gz`` in place of the plain log ``path`` (a finished fit's log is read, never
+    appended to); returns the compressed file."""
+    p = Path(path)
+    gz = p.with_name(p.name + ".gz")
+    with p.open("rb") as src, gzip.open(gz, "wb", compresslevel=9) as dst:
+        dst.write(src.read())
+    p.unlink()
+    return gz
+
+
 def logged_evaluations(log_dir: str | Path) -> Iterator[tuple[str, str, dict[str, Any]]]:
     """Every logged evaluation with a measurement in ``<log_dir>/<form>-<level>.<tag>.jsonl``
-    (the logs of :class:`LoggedObjective` and of the lane fits), as ``(form, level, record)``
-    in file and line order."""
-    for f in sorted(Path(log_dir).glob("*.jsonl")):
+    (or its compressed ``.jsonl.gz``; the logs of :class:`LoggedObjective` and of the lane
+    fits), as ``(form, level, record)`` in file and line order."""
+    for f in log_files(log_dir):
         form, level = f.name.split(".")[0].rsplit("-", 1)
-        for line in f.read_text().splitlines():
+        for line in log_lines(f):
             rec = json.loads(line)
             if rec.get("measured"):
                 yield form, level, rec
