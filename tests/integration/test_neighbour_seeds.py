@@ -19,7 +19,8 @@ from gearsim.analysis.attractors import (
     gear_steady,
     grid_neighbours,
 )
-from gearsim.analysis.attractors.gear import continue_orbits, shorter_period
+from gearsim.analysis.attractors.certify import continue_orbits
+from gearsim.analysis.attractors.gear import shorter_period
 from gearsim.cell import chains
 from gearsim.cell.pool import PoolStats
 from gearsim.dynamics.parameters import ModelParameters

@@ -209,6 +209,40 @@ def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, setting
             lanes.sec[:k, :n, :2].copy())  # fmt: skip
 
 
+def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st
+                    ) -> list[tuple[np.ndarray, np.ndarray] | None]:
+    """Per ``(cell parameters, a periodic motion of a neighbouring cell)``: ``(y, points)``, the
+    section state of that motion's orbit continued by Newton into *this* cell (the one orbit
+    solver from the motion's section state on this cell's RK4 map,
+    :func:`gearsim.analysis.attractors.gear.newton_orbits` with ``solve``: converged to its
+    ``NEWTON_TOL``, |mu|max < 1) and its ``n`` section points ``(n, 2)`` there (one lane each,
+    :func:`images`), where they have no shorter period
+    (:func:`gearsim.analysis.attractors.gear.shorter_period`; Newton on ``P^n`` also converges to
+    the fixed points of ``P^m``, e.g. across a period doubling); else None. Attractors.jl's
+    ``AttractorSeedContinueMatch``: seeds continued from the neighbours."""
+    from gearsim.analysis.attractors.gear import newton_orbits, shorter_period
+    from gearsim.dynamics.model import pack_parameters
+
+    got = newton_orbits(pairs, st, solve=True)
+    out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(pairs)
+    by_n: dict[int, list[int]] = {}
+    for i, o in enumerate(got):
+        if o is not None:
+            by_n.setdefault(pairs[i][1].period, []).append(i)
+    for n, group in by_n.items():
+        plist = [pairs[i][0] for i in group]
+        packed = {id(p): pack_parameters(p) for p in plist}
+        _fin, status, _face, _back, sec = images(plist, [got[i][0] for i in group], n, st,
+                                                 packed)  # fmt: skip
+        for q, i in enumerate(group):
+            s = pairs[i][1]
+            pts = sec[q]
+            sc = np.array([max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)])
+            if status[q] == 0 and np.all(np.isfinite(pts)) and not shorter_period(pts, sc):
+                out[i] = (got[i][0], pts)
+    return out
+
+
 def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radius: float,
                  tries: int, orbits: Sequence | None = None
                  ) -> tuple[list[Certificate | None], int]:

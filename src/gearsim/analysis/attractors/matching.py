@@ -161,24 +161,7 @@ def least_periods(ca: CellAttractors, merge_rtol: float = 1e-3) -> CellAttractor
         a.n_starts += b.n_starts
         a.n_early += b.n_early
         a.found_by = tuple(f for f in FOUND_BY if f in found)
-    kept = sorted((a for a in atts if a.index not in into), key=lambda a: (-a.n_starts, a.index))
-    new = {a.index: r for r, a in enumerate(kept)}
-    for b_i, a_i in into.items():
-        new[b_i] = new[a_i]
-    k = ca.n_starts
-    for r, a in enumerate(kept):
-        a.index = r
-        a.basin_fraction = float(a.n_starts / k) if k else 0.0
-    remap = np.array([new.get(i, -1) for i in range(max(new) + 1)] + [-1], dtype=np.int64)
-    labels = np.asarray(ca.start_labels, dtype=np.int64)
-    return CellAttractors(
-        attractors=kept,
-        starts=ca.starts,
-        start_labels=remap[labels] if len(labels) else labels,
-        early=ca.early,
-        start_periods_run=ca.start_periods_run,
-        continuation={name: int(remap[v]) for name, v in ca.continuation.items()},
-    )
+    return _renumbered(ca, set(into), into)
 
 
 def drop(ca: CellAttractors, gone: set[int]) -> CellAttractors:
@@ -186,14 +169,23 @@ def drop(ca: CellAttractors, gone: set[int]) -> CellAttractors:
     rest renumbered most starts first."""
     if not gone:
         return ca
-    kept = sorted((a for a in ca.attractors if a.index not in gone),
+    return _renumbered(ca, gone, {})
+
+
+def _renumbered(ca: CellAttractors, out: set[int], into: dict[int, int]) -> CellAttractors:
+    """``ca`` without the attractors ``out`` (indices), the starts of each one in ``into`` moved
+    to the attractor it maps to, the others' starts diverged (-1); the rest renumbered most
+    starts first, basin fractions over the cell's starts."""
+    top = max([a.index for a in ca.attractors] + [0])
+    kept = sorted((a for a in ca.attractors if a.index not in out),
                   key=lambda a: (-a.n_starts, a.index))  # fmt: skip
     new = {a.index: r for r, a in enumerate(kept)}
+    for b_i, a_i in into.items():
+        new[b_i] = new[a_i]
     k = ca.n_starts
     for r, a in enumerate(kept):
         a.index = r
         a.basin_fraction = float(a.n_starts / k) if k else 0.0
-    top = max([a for a in new] + list(gone) + [0])
     remap = np.array([new.get(i, -1) for i in range(top + 1)] + [-1], dtype=np.int64)
     labels = np.asarray(ca.start_labels, dtype=np.int64)
     return CellAttractors(

@@ -45,7 +45,7 @@ class FinderOptions:
     when a start's full-length run reaches it. ``neighbour_seeds``: a cell's known attractors
     also come from its neighbouring cells (``neighbours`` of the call): their periodic motions
     of another label, continued by Newton into this cell
-    (:func:`gearsim.analysis.attractors.gear.continue_orbits`) and run there for their
+    (:func:`gearsim.analysis.attractors.certify.continue_orbits`) and run there for their
     classification, are recurrence targets (and certified) once that run confirms them.
     """
 

@@ -42,11 +42,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gearsim.analysis.attractors.certify import certify, certify_many, eligible, worth
+from gearsim.analysis.attractors.certify import (
+    certify,
+    certify_many,
+    continue_orbits,
+    eligible,
+    worth,
+)
 from gearsim.analysis.attractors.gear import (
     GearCells,
     bounded_clouds,
-    continue_orbits,
     fill_orbit_margins,
     gear_steady,
     newton_orbits,
