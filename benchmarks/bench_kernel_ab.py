@@ -126,7 +126,7 @@ def paired(srcs: dict, caches: dict, build: str, n: int, periods: int, pairs: in
                 procs[v].stdin.write(kind + "\n")
                 procs[v].stdin.flush()
                 t[v].append(float(procs[v].stdout.readline()))
-        ratios = sorted(o / w for o, w in zip(t["old"], t["new"]))
+        ratios = sorted(o / w for o, w in zip(t["old"], t["new"], strict=True))
         q = statistics.quantiles(ratios, n=4)
         out[kind] = {"old_best": grid / min(t["old"]), "new_best": grid / min(t["new"]),
                      "old_median": grid / statistics.median(t["old"]),

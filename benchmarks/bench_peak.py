@@ -231,7 +231,8 @@ def side_by_side(rev: str, builds: list[str], rounds: int, n: int, periods: int,
                       f"({100 * o['median_share']:.0f} %; best {100 * o['best_share']:.0f} %)"
                       f"  new {nw['median_cell_steps_per_s'] / 1e6:.1f} M "
                       f"({100 * nw['median_share']:.0f} %; best {100 * nw['best_share']:.0f} %)"
-                      f"  new/old x{nw['median_cell_steps_per_s'] / o['median_cell_steps_per_s']:.2f}"
+                      f"  new/old "
+                      f"x{nw['median_cell_steps_per_s'] / o['median_cell_steps_per_s']:.2f}"
                       f" (best x{nw['best_cell_steps_per_s'] / o['best_cell_steps_per_s']:.2f})",
                       flush=True)
             out[cpu] = {"runs": runs, "summary": summ}

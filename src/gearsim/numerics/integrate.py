@@ -12,8 +12,9 @@ Two methods on the one field (:mod:`gearsim.dynamics.model`) and the one event l
   :func:`gearsim.numerics.steps.grid_step_flag` flags
   (a region change, a watched bearing velocity sign change, a turning point of x that may graze
   the mesh boundary, the divergence bound) is redone by the event layer; a step with a turning
-  point inside its region stands, its extremum folded in (:func:`events.turn_extremum`). This is the batched kernel's algorithm for one lane, so the two give bit-identical
-  section points (tests/unit/test_batch.py).
+  point inside its region stands, its extremum folded in (:func:`events.turn_extremum`). This
+  is the batched kernel's algorithm for one lane, so the two give bit-identical section points
+  (tests/unit/test_batch.py).
 
 Sections. Integration runs period by period (``T = 2 pi / w``, time measured within the period so
 the mesh phase is exact late in long chains), each period split into ``substeps`` equal output

@@ -283,13 +283,6 @@ def _watch(v0, u1, v1, gap, r, act):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _inside(x, gap, r, m):
-    """``x`` lies in the region ``r`` (-1, 0, 1 as a double) of ``[-gap, gap]`` by more than ``m``."""
-    return (((r > 0.0) & (x > gap + m)) | ((r < 0.0) & (x < -gap - m))
-            | ((r == 0.0) & (abs(x) < gap - m)))
-
-
-@njit(cache=True, nogil=True, inline="always")
 def grid_step_flag(y, yn, P, M, A, bound, bearings):
     """``(event, turn)`` of an RK4 grid step from ``y`` to ``yn``.
 
@@ -317,7 +310,8 @@ def grid_step_flag(y, yn, P, M, A, bound, bearings):
 
 @njit(cache=True, nogil=True, inline="always")
 def _inside(x, gap, r, m):
-    """``x`` lies in the region ``r`` (-1, 0, 1 as a double) of ``[-gap, gap]`` by more than ``m``."""
+    """``x`` lies in the region ``r`` (-1, 0, 1 as a double) of ``[-gap, gap]`` by more than
+    ``m``."""
     return (((r > 0.0) & (x > gap + m)) | ((r < 0.0) & (x < -gap - m))
             | ((r == 0.0) & (abs(x) < gap - m)))
 
