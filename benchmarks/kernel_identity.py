@@ -130,8 +130,7 @@ def compare(old: dict, new: dict) -> dict:
         bad = [c for c in DISCRETE if c in a and str(a[c]) != str(b.get(c))]
         if bad:
             g["discrete"] += 1
-            if len(g["discrete_examples"]) < 5:
-                g["discrete_examples"].append([str(key), {c: (a[c], b.get(c)) for c in bad}])
+            g["discrete_examples"].append([str(key), {c: (a[c], b.get(c)) for c in bad}])
         same = True
         for c, v in a.items():
             w = b.get(c)

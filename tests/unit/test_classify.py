@@ -133,6 +133,27 @@ def test_decaying_alternation_is_not_period_two():
     assert estimate_period(x2, v, scale=1.0, w=1.0, period_rtol=1e-4) == 2
 
 
+def test_beating_approach_to_period_one_is_not_period_two():
+    """A 1T orbit with complex multipliers 0.9 exp(+-i (pi - 0.2)) (the quick wxi plane at
+    w = 1.81, xi = 0.0565): the section points alternate with beats, the lag-2 differences
+    reach the tolerance a few samples before the lag-1 ones do, and the window would read
+    period 2. Its last points already repeat after one sample: integrate on (0), then period 1;
+    a true period-2 orbit with the same transient stays period 2 throughout."""
+    def seq(m, orbit):
+        k = np.arange(m)
+        z = 3e-4 * (-0.9 * np.exp(0.2j)) ** k * np.exp(0.4j)
+        return np.tile(orbit, m)[:m] + z.real, -0.2 + 0.5 * z.imag
+
+    got = [estimate_period(*seq(m, [0.3]), scale=1.0, w=1.0) for m in (48, 52, 56, 64)]
+    assert got == [0, 1, 1, 1]
+    for m in (48, 52, 56, 64):
+        assert estimate_period(*seq(m, [0.2, 0.7]), scale=1.0, w=1.0) == 2
+    # the lag-2 repeat alone passes at m = 48 (what read period 2 without the least-period check)
+    x, v = seq(48, [0.3])
+    assert np.all(np.abs(x[-16:] - x[-18:-2]) <= 1e-5)
+    assert not np.all(np.abs(np.diff(x[-17:])) <= 1e-5)
+
+
 def _geometric_reference(x, n, scale, tol, max_window=96):
     """The geometric rule written out with numpy (docstring of classify._converges_geometrically,
     lag n), independent of the compiled code."""

@@ -105,7 +105,8 @@ def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, 
         if window + n > m:
             return 0
         if repeats_after(section_x, section_v, n, m - window, tol_x, tol_v):
-            if n > 1 and _spread_decays(section_x, m, window, n, tol_x):
+            if n > 1 and (_spread_decays(section_x, m, window, n, tol_x)
+                          or _lower_period_at_end(section_x, section_v, m, n, tol_x, tol_v)):
                 return 0  # a decaying transient mimics period n: integrate on
             return n
         if _converges_geometrically(section_x, section_v, m, n, scale, tol_x, min_confirm):
@@ -162,6 +163,20 @@ def _lower_period_transient(section_x, m, n, min_confirm, max_window=96, share=0
         sd0 = _tail_spread(section_x, j0, 2 * n, d)
         sd4 = _tail_spread(section_x, m - 1, 2 * n, d)
         if sd0 > 0.0 and (sd0 - sd4) / sd0 >= share * rel_n:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _lower_period_at_end(section_x, section_v, m, n, tol_x, tol_v):
+    """True if the window's last ``2 n`` points already repeat after a divisor ``d < n`` of
+    ``n``: the points converge onto a period-``d`` orbit (the lag-``d`` differences fall below
+    the tolerance inside the window, e.g. a 1T orbit with a complex multiplier near -1 whose
+    alternation decays by beats), and the window reads period ``n`` only because lag ``n``
+    reached the tolerance first. The least period is ``d``, not settled yet. A true
+    period-``n`` orbit's lag-``d`` differences are its own spread, above the tolerance."""
+    for d in range(1, n):
+        if n % d == 0 and repeats_after(section_x, section_v, d, m - 2 * n, tol_x, tol_v):
             return True
     return False
 
