@@ -22,7 +22,6 @@ SHARED_GROUPS = {
     "test_pipeline.py": "tiny_run",
     "test_catalogue_integrity.py": "tiny_run",
     "test_trust_runs.py": "tiny_run",
-    "test_slurm.py": "tiny_run",  # the same targets through SLURM, compared with tiny_run's
     # tests/tiny_study.py: the tiny study with a (w, eps) plane, under the worker's basetemp
     "test_figures_planes.py": "tiny_study",
     "test_explorer.py": "tiny_study",
@@ -34,6 +33,10 @@ SHARED_GROUPS = {
 # tiny_run >= 240 (its fixture 190), test_attractors_pipeline 139, test_cluster 33; the rest of
 # this list runs whole pipelines or a fresh compile too, ordered by what they run.
 LONGEST_FIRST: tuple[str, ...] = (
+    # the tiny workflow through SLURM (~370 s, mostly waiting on the scheduler's status queries):
+    # first, on one worker, while the other runs tiny_run, which it compares with at its end
+    # (workflow_helpers.tiny_run_once: one run for both workers)
+    "test_slurm.py",
     "tiny_run",  # the tiny workflow, then rebuilds, dry runs and a killed-and-resumed run
     "test_one_source.py",  # compiles a modified copy of the package from an empty cache
     "test_attractors_equivalence.py",  # two finders on a 40 x 40 plane, 16 starts per cell
@@ -95,10 +98,8 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session")
 def tiny_run(tmp_path_factory):
-    """The whole workflow on config/tiny.yaml (2 cores, 4-row tiles), run once per session."""
-    from workflow_helpers import make_workdir, smk, targets
+    """:func:`workflow_helpers.tiny_run_once` as a fixture (the files of its SHARED_GROUPS
+    unit)."""
+    from workflow_helpers import tiny_run_once
 
-    wd = make_workdir(tmp_path_factory.mktemp("tiny"))
-    tg = targets(wd, "config/tiny.yaml")
-    r = smk(wd, *tg, "--cores", "2", "--configfile", "config/tiny.yaml")
-    return wd, tg, r
+    return tiny_run_once(tmp_path_factory)

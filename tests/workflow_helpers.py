@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import fcntl
+import json
 import os
 import shutil
 import subprocess
@@ -70,3 +72,25 @@ def smk_in(workdir, *args, check=True, timeout=900):
     if check and r.returncode != 0:
         raise AssertionError(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
     return r
+
+
+def tiny_run_once(tmp_path_factory):
+    """The whole workflow on config/tiny.yaml (2 cores, 4-row tiles), run once for the whole
+    session: under pytest-xdist the first worker that asks runs it in the session's shared temp
+    folder, holding a file lock, and a worker asking meanwhile waits for it and reads the same
+    run (its record: targets, exit code, output). ``(workdir, targets, CompletedProcess)``."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    wd, record = root / "tiny_run", root / "tiny_run.json"
+    with open(root / "tiny_run.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not record.exists():
+            make_workdir(wd)
+            tg = targets(wd, "config/tiny.yaml")
+            r = smk(wd, *tg, "--cores", "2", "--configfile", "config/tiny.yaml")
+            record.write_text(json.dumps({"targets": tg, "returncode": r.returncode,
+                                          "stdout": r.stdout, "stderr": r.stderr}))
+    rec = json.loads(record.read_text())
+    done = subprocess.CompletedProcess(["snakemake"], rec["returncode"], rec["stdout"],
+                                       rec["stderr"])
+    return wd, rec["targets"], done

@@ -31,7 +31,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk
+from workflow_helpers import ROOT, SNAKEMAKE, _env, make_workdir, smk, tiny_run_once
 
 pytestmark = pytest.mark.slow
 
@@ -104,7 +104,7 @@ def _sacct_settled(prefix: str, since: str, jobs: set[int], timeout: float = 60)
 
 
 @pytest.fixture(scope="module")
-def slurm_run(cluster, tiny_run, tmp_path_factory):
+def slurm_run(cluster, tmp_path_factory):
     """The tiny configuration's default target through profiles/slurm; the first tile job seen
     running is cancelled."""
     wd = make_workdir(tmp_path_factory.mktemp("slurm"))
@@ -144,7 +144,7 @@ def slurm_run(cluster, tiny_run, tmp_path_factory):
     jobs = _sacct_settled(prefix, since, submitted)
     print(f"SLURM run: {wall:.0f} s wall, {len(submitted)} SLURM jobs")
     return {"wd": wd, "jobs": jobs, "submitted": submitted, "killed": killed, "log": text,
-            "local": tiny_run[0]}
+            "local": lambda: tiny_run_once(tmp_path_factory)[0]}
 
 
 def test_every_job_went_through_slurm_and_completed(slurm_run):
@@ -194,7 +194,7 @@ BUILD_INFO = ("built", "git_commit", "git_dirty")
 
 def test_catalogue_equals_the_local_run(slurm_run):
     ours = _tables(slurm_run["wd"] / CATALOGUE)
-    local = _tables(slurm_run["local"] / CATALOGUE)
+    local = _tables(slurm_run["local"]() / CATALOGUE)  # waits for tiny_run if it still runs
     assert ours.keys() == local.keys()
     assert len(local["cells"]) == 128
     for name in local:
