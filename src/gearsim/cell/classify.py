@@ -38,9 +38,12 @@ settle distance
     the largest value at the Poincare section, each divided by the mean load ``Fm`` or by the
     total static excitation ``Fm + Fe w^2``.
 diverged
-    A motion without a period whose amplitude grows over the window (:func:`amplitude_grows`),
-    like one that leaves the divergence bound: not an attractor, no pattern. Where the linear
-    limit of the mesh is unstable, one whose long run grows (:mod:`gearsim.cell.growth`).
+    A motion that leaves the divergence bound: not an attractor, no pattern. Where the linear
+    limit of the mesh is unstable, also one without a period whose long run grows
+    (:mod:`gearsim.cell.growth`). A window whose amplitude grows throughout
+    (:func:`amplitude_grows`) is ``unsettled``, not diverged by itself: a slow transient onto a
+    larger bounded orbit rises the same way (the long run tells the two apart where the
+    linear limit is unstable; elsewhere a large motion is bounded by it).
 Lyapunov exponent
     Largest exponent per unit dimensionless time from the variational equations (exact across
     the switches because the field is continuous), averaged over the analysed window.
@@ -68,10 +71,10 @@ MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
 
 #: a motion without a period whose largest peak-to-peak amplitude x_max - x_min rises from each
 #: quarter of the analysed window to the next by at least GROWTH_STEP, the last quarter's at
-#: least GROWTH_MIN times the first's, grows without bound (the parametric instability of the
-#: nearly linear mesh at w near 2): it is ``diverged``, never chaos or quasi-periodic (a motion
-#: that settles onto a larger bounded one within the window rises in one step, not in three;
-#: docs/decisions.md)
+#: least GROWTH_MIN times the first's, grows: never chaos or quasi-periodic; ``unsettled`` from
+#: its window (a slow approach to a larger bounded orbit rises so too), ``diverged`` when the
+#: long run of gearsim.cell.growth grows (the parametric instability of the nearly linear mesh
+#: at w near 2; docs/decisions.md)
 GROWTH_MIN = 1.1
 GROWTH_STEP = 1.02
 
@@ -476,12 +479,17 @@ def classify_motion(
         status = "ok" if settled else "not_converged"
         label = f"{I}/{n}T"
         label_npq = f"{n}-{p}-{q}"
-    elif amplitude_grows(win.xmax, win.xmin):
-        # a growing motion is not an attractor and has no pattern
+    elif not np.all(np.isfinite(np.asarray(win.xmax) - np.asarray(win.xmin))):
+        # the amplitude left the floating-point range: not an attractor, no pattern
         motion = status = label = "diverged"
         label_npq = ""
     else:
-        if lyap > lyap_threshold:
+        if amplitude_grows(win.xmax, win.xmin):
+            # the amplitude rises throughout the window: a slow transient onto a larger bounded
+            # motion, or the parametric instability; no label from this window either way
+            # (where the linear limit is unstable gearsim.cell.growth's long run decides)
+            motion = "unsettled"
+        elif lyap > lyap_threshold:
             motion = "chaos"
         elif lyap >= -lyap_threshold:
             motion = "quasi-periodic"

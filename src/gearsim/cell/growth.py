@@ -12,9 +12,10 @@ nor the variable-ratio forcing, which are all in ``g``). ``mu_lin > 1`` (the pri
 parametric resonance of the mesh stiffness near ``w = 2``): every motion that becomes nearly
 linear grows like ``mu_lin^k``.
 
-At such a point a motion without a period (chaos, quasi-periodic) may be a growing motion whose
-growth starts after its analysed window: it keeps its label only after a :data:`LONG_RUN`-period
-run from the end of its window stays within the divergence bound and does not grow
+At such a point a motion without a period (chaos, quasi-periodic, unsettled: the classifier
+reads a window whose amplitude grows throughout as unsettled) may be a growing motion: it keeps
+its label only after a :data:`LONG_RUN`-period run from the end of its window stays within the
+divergence bound and does not grow
 (:func:`grows`); else it is ``diverged`` (:func:`check_growth`, the last step of the batched and
 the scalar driver: :func:`gearsim.cell.chains.simulate_rows`,
 :func:`gearsim.cell.simulate.simulate_cell`).
@@ -35,8 +36,8 @@ from gearsim.dynamics.parameters import ModelParameters
 #: enough for both parts of amplitude_grows wherever mu_lin > 1 + 3.2e-5
 LONG_RUN = 4000
 
-#: motions that the long run checks
-CHECKED = ("chaos", "quasi-periodic")
+#: motions that the long run checks (``unsettled``: among them the windows whose amplitude grew)
+CHECKED = ("chaos", "quasi-periodic", "unsettled")
 #: long runs per batched kernel call
 CALL_LANES = 256
 
@@ -118,7 +119,8 @@ def _long_runs(cells: Sequence, st, periods: int) -> list[tuple[bool, int, int]]
 
 def check_growth(results: Sequence, st, periods: int = LONG_RUN) -> None:
     """The rule for motions without a period, in place on
-    :class:`~gearsim.cell.simulate.CellResult` s: each chaotic or quasi-periodic result gets its
+    :class:`~gearsim.cell.simulate.CellResult` s: each chaotic, quasi-periodic or unsettled
+    result gets its
     ``mu_lin``; where ``mu_lin > 1`` a ``periods``-period run from its final state decides
     (``long_run`` = its periods): bounded, the label stands; diverged or growing, the result
     becomes ``diverged`` (its window's readings kept). The run's periods and steps are the

@@ -290,9 +290,10 @@ def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) 
 
 
 def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAttractors]:
-    """A chaotic or quasi-periodic attractor of a cell where the mesh's linear limit is unstable
-    (``mu_lin > 1``: the parametric instability of the nearly linear mesh near w = 2; motions that
-    grow after their window look like clouds in it) is checked by the rule of
+    """A chaotic, quasi-periodic or unsettled motion of a cell where the mesh's linear limit is
+    unstable (``mu_lin > 1``: the parametric instability of the nearly linear mesh near w = 2;
+    motions that grow after their window look like clouds in it, and one growing inside its
+    window reads unsettled) is checked by the rule of
     :func:`gearsim.cell.growth.check_growth`: the full-length run of the first of its starts,
     then a long run from its end (:data:`gearsim.cell.growth.LONG_RUN` periods); where that
     diverges or grows, the attractor is no attractor and its starts count as diverged (the
@@ -306,7 +307,8 @@ def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAtt
     for c, ca in enumerate(found):
         for a in ca.attractors:
             s = a.steady
-            if (s.status == "ok" and s.period <= 0 and a.n_starts > 0
+            if (s.period <= 0 and (s.status == "ok" or a.label == "unsettled")
+                    and a.n_starts > 0
                     and not math.isfinite((s.info or {}).get("long_run", math.nan))):
                 i = int(np.nonzero(ca.start_labels == a.index)[0][0])
                 todo.append((c, a.index, i))
