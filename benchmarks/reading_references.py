@@ -14,6 +14,7 @@ chain hands the cell (its left neighbour's final state and period) the cell is s
   classified window.
 
 Usage: python benchmarks/reading_references.py wxi:3:25 b035:74 [--long 4000]
+       python benchmarks/reading_references.py --config config/config.yaml wb:120:300
        python benchmarks/reading_references.py --identity benchmarks/results/kernel_identity.json
 """
 
@@ -24,13 +25,14 @@ import ast
 import json
 import sys
 import time
+from math import nan
 
 import numpy as np
 from _common import loadavg, save, setup_env
 
 setup_env()
 
-from gearsim.cell.simulate import simulate_cell  # noqa: E402
+from gearsim.cell.simulate import seeds_next, simulate_cell  # noqa: E402
 from gearsim.study import tiles  # noqa: E402
 from gearsim.study.audit import audit_settings  # noqa: E402
 from gearsim.study.config import Study  # noqa: E402
@@ -83,7 +85,9 @@ def _chain(study: Study, key: str):
         params = base.with_(**{spec["name"]: float(values[k])})
         prev = recs[k - 1] if k > 0 else None
         rec = recs[k]
-    if prev is None or prev["status"] == "diverged":
+    long_run = prev.get("long_run") if prev is not None else None
+    if prev is None or not seeds_next(str(prev["status"]),
+                                      nan if long_run is None else float(long_run)):
         return params, rec, None, 0
     return params, rec, np.asarray(prev["final_state"], float), int(prev["final_period"])
 
@@ -107,13 +111,20 @@ def references(study: Study, key: str, long: int) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("records", nargs="*", help="PLANE:j:i or SWEEP:k of config/quick.yaml")
+    ap.add_argument("records", nargs="*", help="PLANE:j:i or SWEEP:k of the configuration")
     ap.add_argument("--identity", metavar="JSON",
                     help="also every record read differently in this kernel_identity.py result "
                          "(its old reading kept beside ours)")
     ap.add_argument("--long", type=int, default=4000, help="dp5_long's transient in periods")
+    ap.add_argument("--config", action="append",
+                    help="configuration files merged over config/config.yaml (default: "
+                         "config/quick.yaml with kernel_identity.py's settings); given, the "
+                         "records are those of a run of these files with their own settings")
     args = ap.parse_args(argv)
-    study = Study.load(["config/quick.yaml"], OVERRIDES, root=".")
+    if args.config:
+        study = Study.load(args.config, root=".")
+    else:
+        study = Study.load(["config/quick.yaml"], OVERRIDES, root=".")
     load0, res = loadavg(), []
     keys, before = list(args.records), {}
     if args.identity:

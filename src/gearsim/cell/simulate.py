@@ -166,12 +166,19 @@ def diverged_result(params: ModelParameters, k: int, steps: int,
                       params)
 
 
+def seeds_next(status: str, long_run: float) -> bool:
+    """Whether a cell of this ``status`` and ``long_run`` starts the next cell of a continuation
+    chain from its final state: not after a divergence or the step budget (the next cell starts
+    from the static state); a cell that only its long run showed growing
+    (:mod:`gearsim.cell.growth`, checked after the chain) seeds with its window's end state. The
+    one rule for results (:func:`seeds_continuation`) and for their table rows (the audit)."""
+    return status not in ("diverged", "budget") or long_run == long_run
+
+
 def seeds_continuation(res: CellResult) -> bool:
-    """Whether a cell's final state may start the next cell of a continuation chain: not after
-    a divergence or the step budget; a cell that only its long run showed growing
-    (:mod:`gearsim.cell.growth`, checked after the chain) seeds with its window's end state."""
+    """:func:`seeds_next` of a result."""
     c = res.classification
-    return c.status not in ("diverged", "budget") or c.long_run == c.long_run
+    return seeds_next(c.status, c.long_run)
 
 
 def period_of(s: PeriodSummaries, params: ModelParameters, st: IntegrationSettings) -> int:
