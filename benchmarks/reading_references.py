@@ -25,14 +25,12 @@ import ast
 import json
 import sys
 import time
-from math import nan
 
-import numpy as np
 from _common import loadavg, save, setup_env
 
 setup_env()
 
-from gearsim.cell.simulate import seeds_next, simulate_cell  # noqa: E402
+from gearsim.cell.simulate import chain_start, simulate_cell  # noqa: E402
 from gearsim.study import tiles  # noqa: E402
 from gearsim.study.audit import audit_settings  # noqa: E402
 from gearsim.study.config import Study  # noqa: E402
@@ -85,11 +83,7 @@ def _chain(study: Study, key: str):
         params = base.with_(**{spec["name"]: float(values[k])})
         prev = recs[k - 1] if k > 0 else None
         rec = recs[k]
-    long_run = prev.get("long_run") if prev is not None else None
-    if prev is None or not seeds_next(str(prev["status"]),
-                                      nan if long_run is None else float(long_run)):
-        return params, rec, None, 0
-    return params, rec, np.asarray(prev["final_state"], float), int(prev["final_period"])
+    return (params, rec, *chain_start(prev))
 
 
 def references(study: Study, key: str, long: int) -> dict:

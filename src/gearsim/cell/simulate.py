@@ -175,6 +175,19 @@ def seeds_next(status: str, long_run: float) -> bool:
     return status not in ("diverged", "budget") or long_run == long_run
 
 
+def chain_start(prev) -> tuple[np.ndarray | None, int]:
+    """``(u0, start_period)`` of a chain's cell from its left neighbour's table row ``prev`` (a
+    mapping with ``status``, ``long_run``, ``final_state``, ``final_period``; None for a row's
+    first cell): where the chain started it (:func:`seeds_next`; ``(None, 0)``: the static
+    state). Tables written before ``long_run`` existed lack it (NaN)."""
+    if prev is None:
+        return None, 0
+    long_run = prev.get("long_run")
+    if not seeds_next(str(prev["status"]), float("nan") if long_run is None else float(long_run)):
+        return None, 0
+    return np.asarray(prev["final_state"], dtype=float), int(prev["final_period"])
+
+
 def seeds_continuation(res: CellResult) -> bool:
     """:func:`seeds_next` of a result."""
     c = res.classification

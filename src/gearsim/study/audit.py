@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from gearsim.cell.simulate import seeds_next, simulate_cell
+from gearsim.cell.simulate import chain_start, simulate_cell
 from gearsim.study.config import Study
 
 
@@ -30,7 +30,7 @@ def audit_frame(study: Study, plane: str, cells, progress=None):
 
     Each audited cell starts exactly where the pipeline started it: from the final state of its
     left neighbour in the row (continuation), or from rest for the first cell of a row and after
-    a neighbour that does not seed the chain (:func:`gearsim.cell.simulate.seeds_next`).
+    a neighbour that does not seed the chain (:func:`gearsim.cell.simulate.chain_start`).
     """
     aud = study.config["audit"]
     n = len(cells)
@@ -51,14 +51,8 @@ def audit_frame(study: Study, plane: str, cells, progress=None):
         c = cells.iloc[r]
         i, j = int(c["i"]), int(c["j"])
         params = base.with_(**{pl["x"]["name"]: float(c["x"]), pl["y"]["name"]: float(c["y"])})
-        u0, start = None, 0
         left = index.get((i - 1, j))
-        prev = cells.iloc[left] if left is not None else None
-        long_run = prev.get("long_run") if prev is not None else None
-        if prev is not None and seeds_next(str(prev["status"]),
-                                           float("nan") if long_run is None else float(long_run)):
-            u0 = np.asarray(prev["final_state"], dtype=float)
-            start = int(prev["final_period"])
+        u0, start = chain_start(cells.iloc[left] if left is not None else None)
         res = simulate_cell(params, u0, settings=tight, start_period=start)
         t = res.row()
         rows.append(

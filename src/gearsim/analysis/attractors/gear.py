@@ -301,14 +301,13 @@ def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAtt
     The last step of every gear mapper, after :func:`least_periods`."""
     from gearsim.analysis.attractors.matching import drop
     from gearsim.cell.chains import simulate_cells
-    from gearsim.cell.growth import linear_multipliers
+    from gearsim.cell.growth import CHECKED, linear_multipliers
 
     todo = []  # (cell, attractor index, start)
     for c, ca in enumerate(found):
         for a in ca.attractors:
             s = a.steady
-            if (s.period <= 0 and (s.status == "ok" or a.label == "unsettled")
-                    and a.n_starts > 0
+            if (s.period <= 0 and a.label in CHECKED and a.n_starts > 0
                     and not math.isfinite((s.info or {}).get("long_run", math.nan))):
                 i = int(np.nonzero(ca.start_labels == a.index)[0][0])
                 todo.append((c, a.index, i))
