@@ -23,9 +23,10 @@ MAX_YAML_BYTES = 1_000_000
 MAX_YAML_NODES = 200_000
 
 
-class _Loader(yaml.SafeLoader):
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):
     """SafeLoader that also reads YAML 1.2 / JSON floats without a dot (``1e-12``) as numbers
-    (PyYAML's YAML 1.1 resolver would read them as strings)."""
+    (PyYAML's YAML 1.1 resolver would read them as strings). LibYAML's parser where PyYAML has
+    it (~10 x faster: every job reads the configuration), the same nodes and the same values."""
 
 
 _Loader.add_implicit_resolver(
