@@ -11,13 +11,9 @@
 # On demand only (not in `all`: ~60 ms per periodic cell, hours on a 400 x 400 plane):
 #   snakemake --cores 2 results/wb/orbits.parquet
 
-
-from gearsim.analysis.bifcurves import pipeline_orbit_tables
-
-ORBIT_TABLES = pipeline_orbit_tables(config)  # config `orbits: {continuation, curves}`
+ORBIT_TABLES = gcfg.orbit_tables(config)  # config `orbits: {continuation, curves}`
 ORBITS_STANDARD = "standard" in ORBIT_TABLES
 CURVE_PLANES = [plane for plane in PLANES if f"{plane}_curves" in ORBIT_TABLES]
-
 
 rule refine_orbits:
     input:
@@ -37,7 +33,6 @@ rule refine_orbits:
     shell:
         "gearsim refine-orbits --plane {wildcards.plane} --cells {input.cells} "
         "--configfile {input.config} --out {output.orbits} > {log} 2>&1"
-
 
 # Exact landmarks of the standard sweep: continuation over the sweep's range from its start.
 rule standard_continuation:
@@ -64,7 +59,6 @@ rule standard_continuation:
         "gearsim continue --name w --from {params.start} --to {params.stop} --period 1 "
         "{params.sets} --sweep {input.sweep} --out {output.branches} "
         "--figure {output.figure} > {log} 2>&1"
-
 
 # Two-parameter bifurcation curves over a plane's pattern map.
 rule bifurcation_curves:
@@ -94,7 +88,6 @@ rule bifurcation_curves:
         "gearsim bifurcation-curves --plane {wildcards.plane} --cells {input.cells} "
         "{params.points} --workers {threads} --configfile {input.config} "
         "--out {output.curves} > {log} 2>&1"
-
 
 # the continuation tables by the names the figures read (figures.registry, `Inputs.orbits`)
 ORBIT_FILES = (

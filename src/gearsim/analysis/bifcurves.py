@@ -378,16 +378,3 @@ def follow_curves(
                      wall_s=time.perf_counter() - t0, workers=workers, method=method,
                      relocations=relocations, status=status)
     return out
-
-
-def pipeline_orbit_tables(config) -> list[str]:
-    """The continuation tables the pipeline makes for a config (workflow/rules/orbits.smk):
-    ``standard`` (config ``orbits.continuation`` and a sweep named ``standard``) and
-    ``<plane>_curves`` for every plane (``orbits.curves``)."""
-    opts = dict(config.get("orbits") or {})
-    out = []
-    if opts.get("continuation", True) and "standard" in (config.get("sweeps") or {}):
-        out.append("standard")
-    if opts.get("curves", True):
-        out += [f"{plane}_curves" for plane in (config.get("planes") or {})]
-    return out

@@ -21,14 +21,15 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.errors import ConfigError
+from gearsim.numerics.settings import IntegrationSettings
 from gearsim.safe_yaml import load_mapping
 from gearsim.study.config_io import load_standard_parameters
 from gearsim.study.schema import check_config, project_root, validate_schema
 
-__all__ = ["ConfigError", "Parameters", "Study", "project_root"]
+# IntegrationSettings: the type of the `integration:` section, for readers above the numerics
+__all__ = ["ConfigError", "IntegrationSettings", "Parameters", "Study", "project_root"]
 
 DEFAULT_CONFIG = "config/config.yaml"
 DEFAULT_STANDARD_PARAMETERS = "config/standard_parameters.yaml"
@@ -296,6 +297,19 @@ def logs_dir(config: Mapping) -> Path:
     """Where a study's logs go (``logs`` or ``studies/<study>/logs``)."""
     study = config.get("study")
     return Path("logs") if study is None else Path("studies", study, "logs")
+
+
+def orbit_tables(config) -> list[str]:
+    """The continuation tables the pipeline makes for a config (workflow/rules/orbits.smk):
+    ``standard`` (config ``orbits.continuation`` and a sweep named ``standard``) and
+    ``<plane>_curves`` for every plane (``orbits.curves``)."""
+    opts = dict(config.get("orbits") or {})
+    out = []
+    if opts.get("continuation", True) and "standard" in (config.get("sweeps") or {}):
+        out.append("standard")
+    if opts.get("curves", True):
+        out += [f"{plane}_curves" for plane in (config.get("planes") or {})]
+    return out
 
 
 def integration_settings(config: Mapping) -> IntegrationSettings:

@@ -10,11 +10,8 @@ attractor of a cell: ``i``, ``j``, ``attractor``, ``label``, ``motion``, ``I``, 
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from matplotlib.colors import BoundaryNorm, ListedColormap
-from matplotlib.patches import Patch
 
 from gearsim.analysis.paper import COEXIST_POINT, PAPER_COEXIST
 from gearsim.presentation.figures import style
@@ -33,6 +30,12 @@ def _pattern_text(row) -> str:
 def figure_basins(starts: pd.DataFrame, attractors: pd.DataFrame, *, title: str | None = None):
     """Basin picture: the start grid in ``(x, x')`` coloured by the attractor reached, with the
     attractors' section points drawn on top; legend with pattern and basin fraction."""
+    # matplotlib here, not at the top: the workflow reads this module's figure table on every
+    # parse, without drawing
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.patches import Patch
+
     nx = int(starts["ix"].max()) + 1
     nv = int(starts["iv"].max()) + 1
     grid = np.full((nv, nx), -1, dtype=int)
@@ -77,6 +80,8 @@ def figure_basins(starts: pd.DataFrame, attractors: pd.DataFrame, *, title: str 
 # ------------------------------------------------------------------------------ hysteresis
 def figure_hysteresis(sweeps: pd.DataFrame, *, title: str | None = None):
     """Forward and backward sweeps side by side: (a) Poincare x, (b) DC; the band shaded."""
+    import matplotlib.pyplot as plt
+
     from gearsim.analysis.attractors import hysteresis
 
     h = hysteresis(sweeps)
@@ -266,6 +271,12 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
                        xlim=None, ylim=None):
     """(a) number of attractors per cell; (b) the dominant pattern (most starts), hatched where
     another attractor coexists. ``att``: attractor-tile rows (one per attractor of a cell)."""
+    # matplotlib here, not at the top: the workflow reads this module's figure table on every
+    # parse, without drawing
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.patches import Patch
+
     real = att[(att["attractor"] >= 0) & (att["motion"] != "unsettled")]
     cells = att.drop_duplicates(["i", "j"])[["i", "j", "x", "y", "n_attractors"]]
     xs, ys, N = _grid(cells, "n_attractors")
@@ -321,6 +332,8 @@ def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
                          title: str | None = None, xlim=None, ylim=None):
     """Basin fraction of the attractor the forward continuation chain reaches (the plane's
     own cell label), per cell; grey where it was reached by no sampled start (fraction 0)."""
+    import matplotlib.pyplot as plt
+
     fw = att[att["found_by"].fillna("").str.contains("forward")]
     cells = att.drop_duplicates(["i", "j"])[["i", "j", "x", "y"]]
     merged = cells.merge(fw[["i", "j", "basin_fraction"]], on=["i", "j"], how="left")
@@ -353,7 +366,13 @@ def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
     unsettled, diverged). The top leaves room for a figure title (``suptitle``).
     ``cells``: a plane's cell rows (``x``, ``y``, ``motion``, ``status``, ``mu_max``, and
     ``refined`` if present)."""
-    from matplotlib.colors import LogNorm
+    import matplotlib.pyplot as plt  # here, not at the top: the workflow reads this module's
+    from matplotlib.colors import (  # figure table on every parse
+        BoundaryNorm,
+        ListedColormap,
+        LogNorm,
+    )
+    from matplotlib.patches import Patch
 
     df = cells[["x", "y"]].copy()
     mu = pd.to_numeric(cells["mu_max"], errors="coerce").to_numpy(dtype=float)

@@ -68,9 +68,8 @@ class Inputs:
 
 def orbit_available(name: str, sweeps, planes, orbits=None) -> bool:
     """Whether the pipeline makes the continuation table ``name``: listed in ``orbits``
-    (:func:`gearsim.analysis.bifcurves.pipeline_orbit_tables`), or when that is not given, its
-    sweep or
-    plane is configured."""
+    (:func:`gearsim.study.config.orbit_tables`), or when that is not given, its sweep or plane
+    is configured."""
     if orbits is not None:
         return name in orbits
     if name.endswith("_curves"):
