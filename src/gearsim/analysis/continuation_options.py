@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from gearsim.analysis.orbits import SHOOTING
-from gearsim.cell.simulate import IntegrationSettings
+from gearsim.numerics.settings import IntegrationSettings
 
 
 @dataclass

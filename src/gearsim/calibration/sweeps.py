@@ -16,9 +16,9 @@ import pandas as pd
 
 from gearsim.calibration.search import bisect_bool
 from gearsim.cell.motion import double_sided
-from gearsim.cell.simulate import IntegrationSettings
 from gearsim.cell.sweep import sweep_records, sweep_records_many
 from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics.settings import IntegrationSettings
 from gearsim.study.config import Study, study_root
 
 #: the integration of every calibration sweep: DP5 at rtol 1e-7 and 40 periods of transient on

@@ -57,17 +57,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS, MOTIONS  # noqa: F401  (re-exported)
 from gearsim.numerics.integrate import PeriodSummaries
-
-KMAX_READINGS = {
-    "kmax_peak_mean": "max over the steady motion of F / Fm",
-    "kmax_peak_static": "max over the steady motion of F / (Fm + Fe w^2)",
-    "kmax_section_mean": "max over the Poincare samples of F / Fm",
-    "kmax_section_static": "max over the Poincare samples of F / (Fm + Fe w^2)",
-}
-DEFAULT_KMAX = "kmax_peak_static"
-
-MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
 
 #: a motion without a period whose largest peak-to-peak amplitude x_max - x_min rises from each
 #: quarter of the analysed window to the next by at least GROWTH_STEP, the last quarter's at

@@ -17,6 +17,19 @@ from __future__ import annotations
 
 from typing import Any
 
+#: The four Kmax readings of a cell (:mod:`gearsim.cell.classify`) and the one the maps show.
+#: Here, beside the motion classes, so that readers of tables need not load the integrators.
+KMAX_READINGS = {
+    "kmax_peak_mean": "max over the steady motion of F / Fm",
+    "kmax_peak_static": "max over the steady motion of F / (Fm + Fe w^2)",
+    "kmax_section_mean": "max over the Poincare samples of F / Fm",
+    "kmax_section_static": "max over the Poincare samples of F / (Fm + Fe w^2)",
+}
+DEFAULT_KMAX = "kmax_peak_static"
+
+#: The motion labels a classification takes.
+MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")
+
 
 def double_sided(I: Any, q: Any = None) -> Any:
     """Whether the tooth back is hit: ``I`` in {2, -1}, or ``q > 0`` when ``q`` is given."""

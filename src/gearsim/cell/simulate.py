@@ -61,6 +61,7 @@ from gearsim.numerics.integrate import (
     run_periods,
     steps_lower_bound,
 )
+from gearsim.numerics.settings import TANGENT_SEED
 from gearsim.numerics.variational import Spectrum, lyapunov_spectrum
 
 __all__ = [
@@ -84,7 +85,6 @@ __all__ = [
     "trajectory",
 ]
 
-TANGENT_SEED = 20251022  # fixed seed of the initial tangent vector (recorded in provenance)
 _CLASSIFICATION_FIELDS = tuple(f.name for f in fields(Classification))
 
 

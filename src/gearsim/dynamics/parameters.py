@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from gearsim.dynamics import model as _m
 from gearsim.errors import ParameterError, reject_unknown  # noqa: E402  (ParameterError re-exported)
 
 # name -> (lower, upper, lower inclusive, upper inclusive, meaning)
@@ -205,6 +204,8 @@ class ModelParameters:
     def to_array(self) -> np.ndarray:
         """The float64 vector the Numba kernels read
         (:func:`gearsim.dynamics.model.pack_parameters`)."""
+        from gearsim.dynamics import model as _m  # Numba: loaded where the kernels are
+
         return _m.pack_parameters(self)
 
 
@@ -228,6 +229,7 @@ def mesh_mode_ratio(params: ModelParameters) -> float:
     """
     if params.model != "6dof" or params.rho_p == 0.0 or params.rho_g == 0.0:
         return 1.0  # rigid or decoupled bearings: the mesh mode is sqrt(Km / Me) itself
+    from gearsim.dynamics import model as _m
     lin = params.with_(eps=0.0, xi=0.0, xi_py=0.0, xi_pz=0.0, xi_gy=0.0, xi_gz=0.0, friction=0.0,
                        var_ratio=0.0, mesh_damping_contact=0.0)
     p = lin.to_array()

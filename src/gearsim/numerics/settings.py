@@ -11,7 +11,18 @@ from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 from gearsim.dynamics.parameters import ParameterError
-from gearsim.numerics.steps import METHODS
+
+# The integration methods' codes, as the kernels read them (gearsim.numerics.steps). Defined
+# here, without Numba, so that reading a configuration does not load the compiler.
+METHOD_DP5 = 0
+METHOD_RK4 = 1
+METHODS = {"dp5": METHOD_DP5, "rk4": METHOD_RK4}
+# DP5 with the tangent vector in the error norm (kernel code only, not a settings method:
+# run_periods(..., tangent=True, tangent_error=True), the shooting path of gearsim.analysis.orbits)
+METHOD_DP5_TANGENT = 2
+
+#: Fixed seed of a cell's initial tangent vector (gearsim.cell.simulate; recorded in provenance).
+TANGENT_SEED = 20251022
 
 #: Shortest useful ``transient_recurrence``: the period test confirms over at least 16 points
 #: (``estimate_period``'s ``min_confirm``), so period 1 needs 17 recorded periods.

@@ -38,13 +38,12 @@ from gearsim.dynamics.model import (
     rhs,
     variable_ratio,
 )
-
-METHOD_DP5 = 0
-METHOD_RK4 = 1
-METHODS = {"dp5": METHOD_DP5, "rk4": METHOD_RK4}
-# DP5 with the tangent vector in the error norm (kernel code only, not a settings method:
-# run_periods(..., tangent=True, tangent_error=True), the shooting path of gearsim.analysis.orbits)
-METHOD_DP5_TANGENT = 2
+from gearsim.numerics.settings import (  # noqa: F401  (the integration methods' codes)
+    METHOD_DP5,
+    METHOD_DP5_TANGENT,
+    METHOD_RK4,
+    METHODS,
+)
 
 # FMA contraction only (no reassociation; NaN/inf semantics kept): the same flag on every RK4
 # path, so the scalar and the batched kernels round identically.

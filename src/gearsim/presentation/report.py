@@ -51,8 +51,7 @@ from gearsim.analysis.paper import (
     listed_patterns,
     within,
 )
-from gearsim.cell.classify import KMAX_READINGS
-from gearsim.cell.motion import double_sided, face_impact, no_impact
+from gearsim.cell.motion import KMAX_READINGS, double_sided, face_impact, no_impact
 from gearsim.presentation.report_inputs import (
     fallback_notes,
     load_audits,

@@ -20,7 +20,7 @@ from gearsim.analysis.paper import (
     THRESHOLD_TOL,
     within,
 )
-from gearsim.cell.classify import KMAX_READINGS
+from gearsim.cell.motion import KMAX_READINGS
 from gearsim.presentation.report_record import Report
 from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import plane_lines, point_lines, sweep_lines

@@ -17,7 +17,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from gearsim.cell.simulate import TANGENT_SEED
+from gearsim.numerics.settings import TANGENT_SEED
 from gearsim.study.config import Study
 
 #: Packages whose versions go into the provenance.

@@ -19,10 +19,9 @@ from typing import Any
 import yaml
 from jsonschema import Draft202012Validator, validators
 
-from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters, ParameterError, check_value
 from gearsim.errors import ConfigError
-from gearsim.numerics.settings import INTEGER_BOUNDS
+from gearsim.numerics.settings import INTEGER_BOUNDS, IntegrationSettings
 from gearsim.study.grid import axis_values, sweep_values
 
 #: Names of planes, sweeps, point sets and studies: a letter, then letters, digits or ``_``.

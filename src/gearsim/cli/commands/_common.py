@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.errors import UsageError
+from gearsim.numerics.settings import IntegrationSettings
 from gearsim.physical.geometry import GearGeometry
 from gearsim.physical.units import (
     DEFAULT_GEAR,

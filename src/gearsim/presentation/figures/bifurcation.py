@@ -16,7 +16,7 @@ import pandas as pd
 from matplotlib.lines import Line2D
 
 from gearsim.analysis.landmarks import find_landmarks
-from gearsim.cell.classify import DEFAULT_KMAX
+from gearsim.cell.motion import DEFAULT_KMAX
 from gearsim.presentation.figures import style
 from gearsim.presentation.figures.data import explode_poincare, sweep_axis
 

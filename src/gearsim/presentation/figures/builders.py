@@ -232,7 +232,7 @@ def _fig_dc(number: int, plane: str):
 
 def _fig_kmax(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
-        from gearsim.cell.classify import DEFAULT_KMAX, KMAX_READINGS
+        from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
         from gearsim.presentation.figures.data import plane_grid
         from gearsim.presentation.figures.planes import figure_kmax, robust_max
 

@@ -16,9 +16,9 @@ from gearsim.analysis.paper import (
     PAPER_XI_THRESHOLD,
 )
 from gearsim.cell.motion import double_sided
-from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.errors import UsageError
+from gearsim.study.config import IntegrationSettings  # the configuration's integration section
 
 
 @dataclass

@@ -11,20 +11,19 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
-from gearsim.cell.simulate import (
-    CellResult,
-    IntegrationSettings,
-    Trajectory,
-    simulate_cell,
-    trajectory,
-)
-from gearsim.cell.sweep import continuation_chain
-from gearsim.dynamics.model import static_state
 from gearsim.dynamics.parameters import ModelParameters
+
+if TYPE_CHECKING:
+    from gearsim.cell.simulate import CellResult, IntegrationSettings, Trajectory
+
+# The simulating helpers below (seed states, point simulations, continuation, points of a point
+# table) import the integrators where they run: a figure job that only reads tables does not
+# load Numba and the kernels.
 
 # columns of a cells table that are not axis parameters
 _RESERVED = {"i", "j", "tile", "plane", "parameter", "value", "direction", "poincare_x",
@@ -131,6 +130,8 @@ class PointMotion:
 
 def seed_state(params: ModelParameters, x: float, v: float) -> np.ndarray:
     """A section state with mesh coordinates ``(x, v)`` and the bearings at their static state."""
+    from gearsim.dynamics.model import static_state
+
     y = static_state(params.to_array())
     y[0], y[1] = float(x), float(v)
     return y
@@ -144,6 +145,8 @@ def seed_from_sweep(sweep: pd.DataFrame | None, params: ModelParameters,
     otherwise only ``(x, x')`` of its last section point are known and the bearing coordinates
     start from the static state.
     """
+    from gearsim.dynamics.model import static_state
+
     if sweep is None or len(sweep) == 0:
         return None, "static state"
     target = getattr(params, name)
@@ -166,6 +169,8 @@ def reach(params: ModelParameters, targets: Sequence[float], *, sweep: pd.DataFr
     With the sweep's full final states: one continuation step from the nearest swept value at
     or below each target. Otherwise a forward continuation chain (:func:`continuation_to`).
     """
+    from gearsim.cell.simulate import simulate_cell
+
     if sweep is not None and len(sweep) and "final_state" in sweep.columns:
         out = {}
         vals = sweep["value"].to_numpy(dtype=float)
@@ -200,6 +205,8 @@ def continuation_to(
     Seeding a single point from a stored section state is not enough: the sweep tables keep only
     ``(x, x')``, and with the bearings reset the motion can land on a coexisting attractor.
     """
+    from gearsim.cell.sweep import continuation_chain
+
     tg = sorted(float(t) for t in targets)
     if not tg:
         return {}
@@ -237,6 +244,8 @@ def simulate_point(
     ``periods`` defaults to a whole number of motion periods, at least ``min_periods``
     (chaotic motion: ``4 * min_periods``).
     """
+    from gearsim.cell.simulate import simulate_cell, trajectory
+
     st = settings or IntegrationSettings()
     res = result if result is not None else simulate_cell(params, u0, settings=st)
     n = res.classification.n
@@ -275,6 +284,8 @@ def points_from_table(df: pd.DataFrame, params: ModelParameters, *,
     --points``): rows with ``tau, x, xdot, mesh_force, section_x, section_v`` lists and the
     classification columns; ``start`` picks the rows reached by continuation or from rest."""
     from gearsim.cell.classify import Classification
+    from gearsim.cell.simulate import CellResult, Trajectory
+
 
     rows = df[df["start"] == start] if "start" in df.columns else df
     fields = Classification.__dataclass_fields__

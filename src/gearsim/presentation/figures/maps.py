@@ -54,7 +54,7 @@ def _map_dc(df: pd.DataFrame):
 
 
 def _map_kmax(df: pd.DataFrame):
-    from gearsim.cell.classify import DEFAULT_KMAX, KMAX_READINGS
+    from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
     from gearsim.presentation.figures.planes import figure_kmax
 
     return (figure_kmax(df), f"Maximum dynamic load coefficient in the {axes_text(df)} plane: "

@@ -13,7 +13,7 @@ import pandas as pd
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.patches import Patch, Rectangle
 
-from gearsim.cell.classify import DEFAULT_KMAX
+from gearsim.cell.motion import DEFAULT_KMAX
 from gearsim.presentation.figures import style
 from gearsim.presentation.figures.data import cell_edges, plane_centres, plane_grid
 

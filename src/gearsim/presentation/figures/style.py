@@ -66,7 +66,7 @@ def param_symbol(name: str) -> str:
 def kmax_label(reading: str | None = None) -> str:
     """Axis label of Kmax naming the reading used (see
     :data:`gearsim.cell.classify.KMAX_READINGS`)."""
-    from gearsim.cell.classify import DEFAULT_KMAX
+    from gearsim.cell.motion import DEFAULT_KMAX
 
     reading = reading or DEFAULT_KMAX
     norm = r"F_m + F_e\omega^2" if reading.endswith("static") else "F_m"
