@@ -13,7 +13,8 @@ HEAVY = ("numba", "scipy.optimize", "matplotlib.pyplot", "sqlalchemy")
 
 def _loaded(code: str) -> list[str]:
     """The HEAVY modules a fresh interpreter holds after ``code``."""
-    probe = f"{code}\nimport json, sys\nprint(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))"
+    probe = (f"{code}\nimport json, sys\n"
+             f"print(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))")
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
