@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
     from gearsim.analysis.attractors import TILE_COLUMNS, cell_group_records
-    from gearsim.results import catalogue
+    from gearsim.results import parquet
     from gearsim.study import grid as ggrid
     from gearsim.study import provenance as gprov
     from gearsim.study.cluster import describe, map_unordered, open_client
@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     check_output(out)  # writable, with room, before any simulation
     label = f"{args.plane}/attractor tile {args.tile}"
     progress = Progress(label, total)
-    started = catalogue.now_iso()
+    started = parquet.now_iso()
     t0 = time.perf_counter()
     records: list[dict] = []
     done = 0
@@ -148,11 +148,11 @@ def run(args: argparse.Namespace) -> int:
         gprov.plane_subtree(study, args.plane), kind="attractors", name=args.plane,
         scope="analysis",
         study=study, tile=args.tile, rows=[rows.start, rows.stop], workers=workers,
-        started=started, finished=catalogue.now_iso(), wall_s=wall, cells=total,
+        started=started, finished=parquet.now_iso(), wall_s=wall, cells=total,
         starts=int(ms["starts"]), seed=int(ms.get("seed", 0)), every=int(ms.get("every", 1)),
         forward_states=tile_df is not None,
     )  # fmt: skip
-    catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
     print(f"{label}: wrote {out} ({total} cells, {len(df)} attractor rows in {wall:.1f} s)",
           file=sys.stderr, flush=True)  # fmt: skip
     return 0

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.analysis.continuation import continue_orbit, write_branches
     from gearsim.analysis.continuation_options import Continuation
     from gearsim.analysis.orbits import SEEDING, find_periodic_orbit
-    from gearsim.results import catalogue
+    from gearsim.results import parquet
     from gearsim.study import provenance as gprov
 
     study = study_from_args(args)
@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(outputs)  # before any computation
     deadline = time.monotonic() + args.budget_s
     params = base.with_(**{yn: at, xn: x0})
-    started = catalogue.now_iso()
+    started = parquet.now_iso()
     t0 = time.perf_counter()
     skip = _unusable_plane(args.cells) if args.cells else None
     if skip is not None:
@@ -113,17 +113,17 @@ def run(args: argparse.Namespace) -> int:
     prov = gprov.provenance(
         gprov.plane_subtree(study, args.plane), kind="curves", name=args.plane, study=study,
         scope="analysis",
-        started=started, finished=catalogue.now_iso(), wall_s=wall, seed_value=at,
+        started=started, finished=parquet.now_iso(), wall_s=wall, seed_value=at,
         branch_wall_s=t_branch, curve_wall_s=wall - t_branch, reasons=curves.attrs["reasons"],
         workers="in-process", status=status, budget_s=args.budget_s,
     )
     branches.attrs["provenance"] = prov
     write_branches(branches, Path(f"{stem}_branches.parquet"))
     points = points.assign(plane=args.plane, name2=yn, value2=at)
-    catalogue.write_parquet(points, Path(f"{stem}_points.parquet"),
-                            {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(points, Path(f"{stem}_points.parquet"),
+                            {parquet.PROVENANCE_KEY: prov})
     curves = curves.assign(plane=args.plane)
-    catalogue.write_parquet(curves, out, {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(curves, out, {parquet.PROVENANCE_KEY: prov})
     import pandas as pd
 
     from gearsim.presentation.figures.style import save_figure
@@ -221,14 +221,14 @@ def _write_skipped(args, study, outputs, why: str, started: str, at: float, yn: 
     from gearsim.analysis.continuation import COLUMNS, write_branches
     from gearsim.presentation.figures.style import save_figure
     from gearsim.presentation.orbit_plots import figure_curves
-    from gearsim.results import catalogue
+    from gearsim.results import parquet
     from gearsim.study import provenance as gprov
 
     out, points_path, branches_path, png = outputs
     reason = f"curves skipped: {why}"
     prov = gprov.provenance(
         gprov.plane_subtree(study, args.plane), kind="curves", name=args.plane, study=study,
-        scope="analysis", started=started, finished=catalogue.now_iso(), wall_s=0.0,
+        scope="analysis", started=started, finished=parquet.now_iso(), wall_s=0.0,
         seed_value=at, reasons=[reason], workers="in-process", status="skipped",
         budget_s=args.budget_s,
     )
@@ -236,9 +236,9 @@ def _write_skipped(args, study, outputs, why: str, started: str, at: float, yn: 
     branches.attrs.update(provenance=prov, reasons=[reason], status="skipped")
     write_branches(branches, branches_path)
     points = pd.DataFrame(columns=list(POINT_COLUMNS)).assign(plane=args.plane, name2=yn, value2=at)
-    catalogue.write_parquet(points, points_path, {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(points, points_path, {parquet.PROVENANCE_KEY: prov})
     curves = pd.DataFrame(columns=list(CURVE_COLUMNS)).assign(plane=args.plane)
-    catalogue.write_parquet(curves, out, {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(curves, out, {parquet.PROVENANCE_KEY: prov})
     import textwrap
 
     from gearsim.presentation.orbit_plots import param_label
@@ -260,12 +260,12 @@ def _given_points(path: str, params, xn: str, x0: float, x1: float):
     import pandas as pd
 
     from gearsim.analysis.continuation import COLUMNS
-    from gearsim.results import catalogue
+    from gearsim.results import parquet
 
     p = Path(path)
     if not p.is_file():
         raise UsageError(f"--points: file not found: {path}")
-    meta = catalogue.read_metadata(p, b"gearsim.analysis.continuation") or {}
+    meta = parquet.read_metadata(p, b"gearsim.analysis.continuation") or {}
     theirs = dict(meta.get("params") or {})
     ours = params.to_dict()
     diff = [k for k in ours if k != xn and theirs.get(k) != ours[k]]

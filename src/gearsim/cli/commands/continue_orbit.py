@@ -96,10 +96,10 @@ def run(args: argparse.Namespace) -> int:
     df.attrs["parameters_source"] = source
     write_branches(df, out)
     from gearsim.analysis.bifcurves import bifurcation_points
-    from gearsim.results import catalogue
+    from gearsim.results import parquet
 
     points_path = out.with_name(out.stem + "_points.parquet")
-    catalogue.write_parquet(bifurcation_points(df).assign(name2="", value2=float("nan")),
+    parquet.write_parquet(bifurcation_points(df).assign(name2="", value2=float("nan")),
                             points_path, {b"gearsim.analysis.continuation": dict(df.attrs)})
     from gearsim.presentation.figures.style import save_figure
     from gearsim.presentation.orbit_plots import figure_branches
@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--sweep: file not found: {args.sweep}")
         table = exact_landmarks(bifurcation_points(df), pd.read_parquet(args.sweep))
         landmarks_path = out.with_name(out.stem + "_landmarks.parquet")
-        catalogue.write_parquet(table, landmarks_path, {b"gearsim.cell.sweep": str(args.sweep)})
+        parquet.write_parquet(table, landmarks_path, {b"gearsim.cell.sweep": str(args.sweep)})
         if not args.json:
             print("\n".join(report_lines(table)))
     if args.json:

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.analysis.orbit_cells import refine_cells
     from gearsim.analysis.orbits import shooting_settings
     from gearsim.cli.commands.simulate_tile import Progress
-    from gearsim.results import catalogue
+    from gearsim.results import parquet
     from gearsim.study import provenance as gprov
 
     study = study_from_args(args)
@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.study.preflight import check_output
 
     check_output(args.out)  # writable, with room, before any Newton solve
-    started = catalogue.now_iso()
+    started = parquet.now_iso()
     t0 = time.perf_counter()
     todo = int(((cells["n"] >= 1) & (cells["status"] != "diverged")).sum())
     progress = Progress(f"refine-orbits {args.plane}", max(1, min(todo, args.limit or todo)))
@@ -64,10 +64,10 @@ def run(args: argparse.Namespace) -> int:
     prov = gprov.provenance(
         gprov.plane_subtree(study, args.plane), kind="orbits", name=args.plane, study=study,
         scope="analysis",
-        started=started, finished=catalogue.now_iso(), wall_s=wall, cells=len(df),
+        started=started, finished=parquet.now_iso(), wall_s=wall, cells=len(df),
         settings=st.to_dict(), workers="in-process",
     )
-    catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(df, args.out, {parquet.PROVENANCE_KEY: prov})
     flagged = df[df["orbit_flag"] != ""]
     ms = float(df["orbit_ms"].mean()) if len(df) else float("nan")
     sim_ms = float(cells["elapsed_s"].mean() * 1e3) if "elapsed_s" in cells else float("nan")

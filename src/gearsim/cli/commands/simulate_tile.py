@@ -13,7 +13,7 @@ from gearsim.cli.commands._common import (
     check_plane,
     study_from_args,
 )
-from gearsim.results import catalogue
+from gearsim.results import parquet
 from gearsim.study import provenance, tiles
 from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
 from gearsim.study.config import results_dir
@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     # every argument checked; before any simulation: the folder is writable and has room for
     # the tile and its temporary copy (~350 bytes per cell; 1 kB per cell leaves a margin)
     check_new_file(out, need=2 * 1024 * nx * len(rows) + (64 << 10))
-    started = catalogue.now_iso()
+    started = parquet.now_iso()
     t0 = time.perf_counter()
     banner = f"{label}: rows {rows.start}..{rows.stop - 1} x {nx} cells"
     if in_process:
@@ -131,11 +131,11 @@ def run(args: argparse.Namespace) -> int:
         rows=[rows.start, rows.stop],
         workers=workers,
         started=started,
-        finished=catalogue.now_iso(),
+        finished=parquet.now_iso(),
         wall_s=wall,
         cells=len(df),
     )
-    catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
     print(
         f"{label}: wrote {out} ({len(df)} cells in {wall:.1f} s, {len(df) / wall:.2f} cells/s)",
         file=sys.stderr,

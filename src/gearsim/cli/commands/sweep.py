@@ -14,7 +14,7 @@ from gearsim.cli.commands._common import (
 )
 from gearsim.cli.commands.simulate_tile import Progress
 from gearsim.errors import UsageError
-from gearsim.results import catalogue
+from gearsim.results import parquet
 from gearsim.study.config import results_dir
 from gearsim.study.grid import sweep_values
 from gearsim.study.provenance import point_subtree, provenance, sweep_subtree
@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         else res / "points" / f"{args.points}.parquet"
     )
     out = check_new_file(args.out or default)
-    started = catalogue.now_iso()
+    started = parquet.now_iso()
     t0 = time.perf_counter()
     if args.name:
         if args.name not in config["sweeps"]:
@@ -136,11 +136,11 @@ def run(args: argparse.Namespace) -> int:
         name=name,
         study=study,
         started=started,
-        finished=catalogue.now_iso(),
+        finished=parquet.now_iso(),
         wall_s=wall,
         cells=len(df),
         workers="in-process",
     )
-    catalogue.write_parquet(df, out, {catalogue.PROVENANCE_KEY: prov})
+    parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
     print(f"{kind} {name}: wrote {out} ({len(df)} rows in {wall:.1f} s)", file=sys.stderr)
     return 0
