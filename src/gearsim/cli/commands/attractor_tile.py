@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from gearsim.cli.commands._common import add_config_arguments, study_from_args
-from gearsim.cli.commands.simulate_tile import Progress
+from gearsim.cli.commands._progress import Progress
 from gearsim.errors import UsageError
 
 NAME = "attractor-tile"

@@ -82,7 +82,7 @@ def _cells(args) -> int:
 def _audit(args) -> int:
     import pandas as pd
 
-    from gearsim.cli.commands.simulate_tile import Progress
+    from gearsim.cli.commands._progress import Progress
     from gearsim.results import catalogue
     from gearsim.study import provenance
 

@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gearsim.analysis.orbit_cells import refine_cells
     from gearsim.analysis.orbits import shooting_settings
-    from gearsim.cli.commands.simulate_tile import Progress
+    from gearsim.cli.commands._progress import Progress
     from gearsim.results import parquet
     from gearsim.study import provenance as gprov
 

@@ -13,6 +13,7 @@ from gearsim.cli.commands._common import (
     check_plane,
     study_from_args,
 )
+from gearsim.cli.commands._progress import Progress
 from gearsim.results import parquet
 from gearsim.study import provenance, tiles
 from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
@@ -21,37 +22,6 @@ from gearsim.study.grid import tile_rows
 
 NAME = "simulate-tile"
 HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and write its Parquet file"
-
-
-class Progress:
-    """Per-tile log lines (cells done/total, cells per second) and a tqdm bar on a terminal."""
-
-    def __init__(self, label: str, total: int, *, stream=None, every_s: float = 0.0) -> None:
-        self.label = label
-        self.stream = stream or sys.stderr
-        self.bar = None
-        if sys.stdout.isatty():
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, desc=label, unit="cell", file=sys.stdout)
-        self.last = 0
-        self.every_s = every_s
-
-    def __call__(self, done: int, total: int, elapsed: float) -> None:
-        rate = done / elapsed if elapsed > 0 else float("nan")
-        if self.bar is not None:
-            self.bar.update(done - self.last)
-        self.last = done
-        print(
-            f"[{time.strftime('%H:%M:%S')}] {self.label}: {done}/{total} cells "
-            f"({100 * done / max(total, 1):.0f}%), {rate:.2f} cells/s, {elapsed:.1f} s",
-            file=self.stream,
-            flush=True,
-        )
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

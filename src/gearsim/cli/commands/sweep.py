@@ -12,7 +12,7 @@ from gearsim.cli.commands._common import (
     check_new_file,
     command_parameters,
 )
-from gearsim.cli.commands.simulate_tile import Progress
+from gearsim.cli.commands._progress import Progress
 from gearsim.errors import UsageError
 from gearsim.results import parquet
 from gearsim.study.config import results_dir
