@@ -178,6 +178,23 @@ def _fit_table(args) -> int:
     return 0
 
 
+def _seed_bests(forms_dir: Path, name: str) -> dict[str, tuple[dict, bool]]:
+    """``seed -> (best set, finished)`` of a form's fit: a finished seed's record
+    (``<form>.s<n>.json``), else the checkpoint state of a seed still running or cut off
+    (``logs/<form>-lanes.s<n>.state.json``: its best so far)."""
+    out: dict[str, tuple[dict, bool]] = {}
+    for f in sorted(forms_dir.glob(f"{name}.s*.json")):
+        best = json.loads(f.read_text()).get("best")
+        if best:
+            out[f.name.split(".")[1]] = (best, True)
+    for f in sorted(forms_dir.glob(f"logs/{name}-lanes.s*.state.json")):
+        key = f.name.split(".")[1]
+        best = json.loads(f.read_text()).get("best")
+        if key not in out and best:
+            out[key] = (best, False)
+    return dict(sorted(out.items()))
+
+
 def _coexist(args) -> int:
     """The Figs 9-11 search around the paper's point at each form's start and seeds' bests."""
     import numpy as np
@@ -191,13 +208,17 @@ def _coexist(args) -> int:
     out = Path(args.out)
     record = json.loads(out.read_text()) if out.is_file() else {}
     scan: dict = {"w": ws, "b": bs, "starts": 64, "forms": {}}
+    old = record.get("coexist_scan") or {}
+    if all(old.get(k) == scan[k] for k in ("w", "b", "starts")):
+        scan["forms"] = dict(old.get("forms") or {})  # the same grid: other forms' scans kept
     for name in _known_form_names(args):
         form = FORMS[name]
         sets = {"start": form.start}
-        for f in sorted(Path(args.forms_dir).glob(f"{name}.s*.json")):
-            best = json.loads(f.read_text()).get("best")
-            if best:
-                sets[f.stem.split(".")[1]] = [best[q.name] for q in form.free]
+        unfinished = []
+        for key, (best, done) in _seed_bests(Path(args.forms_dir), name).items():
+            sets[key] = [best[q.name] for q in form.free]
+            if not done:
+                unfinished.append(key)
         ps = [form.params(x, st) for x in sets.values()]
         rows = coexist_scan(ps, ws, bs, st, continuation=form.continuation,
                             w_factors=[form.w_factor(p) for p in ps])
@@ -205,7 +226,7 @@ def _coexist(args) -> int:
         for r in rows:
             r["set"] = keys[r["set"]]
         scan["forms"][name] = {"sets": {k: [float(v) for v in x] for k, x in sets.items()},
-                               "rows": rows}
+                               "unfinished": unfinished, "rows": rows}
         both = [r for r in rows if r.get("motions") and len(r["motions"]) > 1]
         print(f"{name}: {len(rows)} points, {len(both)} with more than one motion")
     record["coexist_scan"] = scan
