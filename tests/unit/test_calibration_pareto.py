@@ -136,15 +136,21 @@ def test_collect_fit_reads_a_seed_resumed_past_its_record_from_its_log(tmp_path)
 
 def test_coexist_sets_are_finished_records_first_then_checkpoints(tmp_path):
     """The Figs 9-11 scan's seed sets: a seed's record where it finished, else its checkpoint's
-    best so far (marked unfinished); a seed with neither is not scanned."""
+    best so far (marked unfinished), as where it was resumed past its record; a seed with
+    neither is not scanned."""
     import json
 
-    from gearsim.cli.commands.calibrate import _seed_bests
+    from gearsim.calibration.lane_fit import seed_bests
 
     (tmp_path / "logs").mkdir()
-    (tmp_path / "f.s1.json").write_text(json.dumps({"best": {"xi": 0.1}}))
-    (tmp_path / "logs/f-lanes.s1.state.json").write_text(json.dumps({"best": {"xi": 0.2}}))
+    (tmp_path / "f.s1.json").write_text(json.dumps({"seed": 1, "nfev": 5, "best": {"xi": 0.1}}))
+    (tmp_path / "logs/f-lanes.s1.state.json").write_text(
+        json.dumps({"nfev": 5, "best": {"xi": 0.2}}))
+    (tmp_path / "f.s4.json").write_text(json.dumps({"seed": 4, "nfev": 5, "best": {"xi": 0.4}}))
+    (tmp_path / "logs/f-lanes.s4.state.json").write_text(  # resumed past its record
+        json.dumps({"nfev": 9, "best": {"xi": 0.5}}))
     (tmp_path / "logs/f-lanes.s2.state.json").write_text(json.dumps({"best": {"xi": 0.3}}))
     (tmp_path / "logs/f-lanes.s3.state.json").write_text(json.dumps({"nfev": 0}))
-    (tmp_path / "g.s1.json").write_text(json.dumps({"best": {"xi": 9.0}}))
-    assert _seed_bests(tmp_path, "f") == {"s1": ({"xi": 0.1}, True), "s2": ({"xi": 0.3}, False)}
+    (tmp_path / "g.s1.json").write_text(json.dumps({"seed": 1, "nfev": 5, "best": {"xi": 9.0}}))
+    assert seed_bests(tmp_path, "f") == {"s1": ({"xi": 0.1}, True), "s2": ({"xi": 0.3}, False),
+                                         "s4": ({"xi": 0.5}, False)}

@@ -179,6 +179,31 @@ def run_forms_cmaes(names: Sequence[str], forms_dir: str | Path, *, seeds: Seque
             log(f"wrote {d / f'{name}.s{seed}.json'}")
 
 
+def superseded(rec: dict, forms_dir: Path, name: str) -> bool:
+    """Whether a seed's record was resumed past (its state holds more evaluations): the seed is
+    then its log and state, unfinished."""
+    sp = state_path(forms_dir / "logs", name, int(rec["seed"]))
+    return sp.is_file() and json.loads(sp.read_text())["nfev"] > rec["nfev"]
+
+
+def seed_bests(forms_dir: str | Path, name: str) -> dict[str, tuple[dict, bool]]:
+    """``"s<n>" -> (best set, finished)`` of a form's lane fit, with :func:`collect_fit`'s
+    rule: a seed's record unless it was resumed past it, else its checkpoint state (a seed
+    still running or cut off: its best so far)."""
+    d = Path(forms_dir)
+    out: dict[str, tuple[dict, bool]] = {}
+    for f in sorted(d.glob(f"{name}.s*.json")):
+        rec = json.loads(f.read_text())
+        if rec.get("best") and not superseded(rec, d, name):
+            out[f"s{int(rec['seed'])}"] = (rec["best"], True)
+    for f in sorted(d.glob(f"logs/{name}-lanes.s*.state.json")):
+        key = f.name.split(".")[1]
+        best = json.loads(f.read_text()).get("best")
+        if key not in out and best:
+            out[key] = (best, False)
+    return dict(sorted(out.items()))
+
+
 def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
     """docs/calibration.json's ``fit`` entry from ``<forms_dir>/<form>.s<seed>.json``: per form
     its seeds' records (evaluations, why each stopped, best J in lanes and exact, the best-J
@@ -195,8 +220,7 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
         seeds = {}
         for f in sorted(d.glob(f"{name}.s*.json")):
             rec = json.loads(f.read_text())
-            sp = state_path(d / "logs", name, int(rec["seed"]))
-            if sp.is_file() and json.loads(sp.read_text())["nfev"] > rec["nfev"]:
+            if superseded(rec, d, name):
                 continue  # resumed past its record and not finished again: its log and state
             seeds[str(rec["seed"])] = {k: rec[k] for k in (
                 "seed", "search", "nfev", "stopped_by", "runs", "J_lanes", "J", "terms", "best",

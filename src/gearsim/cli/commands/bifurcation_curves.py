@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     write_branches(branches, Path(f"{stem}_branches.parquet"))
     points = points.assign(plane=args.plane, name2=yn, value2=at)
     parquet.write_parquet(points, Path(f"{stem}_points.parquet"),
-                            {parquet.PROVENANCE_KEY: prov})
+                          {parquet.PROVENANCE_KEY: prov})
     curves = curves.assign(plane=args.plane)
     parquet.write_parquet(curves, out, {parquet.PROVENANCE_KEY: prov})
     import pandas as pd

@@ -178,29 +178,13 @@ def _fit_table(args) -> int:
     return 0
 
 
-def _seed_bests(forms_dir: Path, name: str) -> dict[str, tuple[dict, bool]]:
-    """``seed -> (best set, finished)`` of a form's fit: a finished seed's record
-    (``<form>.s<n>.json``), else the checkpoint state of a seed still running or cut off
-    (``logs/<form>-lanes.s<n>.state.json``: its best so far)."""
-    out: dict[str, tuple[dict, bool]] = {}
-    for f in sorted(forms_dir.glob(f"{name}.s*.json")):
-        best = json.loads(f.read_text()).get("best")
-        if best:
-            out[f.name.split(".")[1]] = (best, True)
-    for f in sorted(forms_dir.glob(f"logs/{name}-lanes.s*.state.json")):
-        key = f.name.split(".")[1]
-        best = json.loads(f.read_text()).get("best")
-        if key not in out and best:
-            out[key] = (best, False)
-    return dict(sorted(out.items()))
-
-
 def _coexist(args) -> int:
     """The Figs 9-11 search around the paper's point at each form's start and seeds' bests."""
     import numpy as np
 
     from gearsim.calibration.fidelity import FidelitySettings, coexist_scan
     from gearsim.calibration.forms import FORMS
+    from gearsim.calibration.lane_fit import seed_bests
 
     st = FidelitySettings(lanes=True)
     ws = np.round(np.arange(0.76, 0.8801, 0.02), 4).tolist()
@@ -215,7 +199,7 @@ def _coexist(args) -> int:
         form = FORMS[name]
         sets = {"start": form.start}
         unfinished = []
-        for key, (best, done) in _seed_bests(Path(args.forms_dir), name).items():
+        for key, (best, done) in seed_bests(args.forms_dir, name).items():
             sets[key] = [best[q.name] for q in form.free]
             if not done:
                 unfinished.append(key)

@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
     points_path = out.with_name(out.stem + "_points.parquet")
     parquet.write_parquet(bifurcation_points(df).assign(name2="", value2=float("nan")),
-                            points_path, {b"gearsim.analysis.continuation": dict(df.attrs)})
+                          points_path, {b"gearsim.analysis.continuation": dict(df.attrs)})
     from gearsim.presentation.figures.style import save_figure
     from gearsim.presentation.orbit_plots import figure_branches
 
