@@ -42,6 +42,15 @@ def _wait_for(path: Path, timeout: float = 60) -> dict:
     raise TimeoutError(f"{path} not written")
 
 
+def _wait_for_workers(address: str, n: int, timeout: float = 120) -> None:
+    """Both worker processes start at once but register one by one: the tile is asked to run
+    only when the scheduler holds all of them, so that its log names the full cluster."""
+    from distributed import Client
+
+    with Client(address, timeout=timeout) as client:
+        client.wait_for_workers(n, timeout=timeout)
+
+
 def _stop(proc: subprocess.Popen) -> None:
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
@@ -84,6 +93,7 @@ def test_tile_on_scheduler_equals_local_cluster(tmp_path):
             [str(DASK), "worker", address, "--nworkers", "2", "--nthreads", "1",
              "--no-dashboard", "--host", "127.0.0.1"],
             cwd=tmp_path, env=_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        _wait_for_workers(address, 2)
         remote_cfg = tmp_path / "remote.yaml"
         remote_cfg.write_text(yaml.safe_dump({"cluster": {"scheduler_address": address}}))
         remote, log = _tile(tmp_path, [*base, small, remote_cfg], "remote.parquet")
