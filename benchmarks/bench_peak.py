@@ -161,6 +161,12 @@ print(json.dumps(out))
 """
 
 
+def _host_features() -> str:
+    from llvmlite import binding as ll
+
+    return ll.get_host_cpu_features().flatten()
+
+
 def run_build(cpu: str, n: int, periods: int, repeats: int, src: Path = ROOT / "src",
               cache: Path | None = None) -> dict:
     """One build of the package at ``src`` in a fresh interpreter; cold unless ``cache`` holds
@@ -172,7 +178,11 @@ def run_build(cpu: str, n: int, periods: int, repeats: int, src: Path = ROOT / "
                    NUMBA_CACHE_DIR=str(cache), NUMBA_NUM_THREADS="1")
         env.pop("NUMBA_CPU_NAME", None)
         env.pop("NUMBA_CPU_FEATURES", None)
-        if cpu != "host":
+        if cpu == "host512":
+            # the host's ISA with LLVM's 256-bit preference off (an Intel AVX-512 core tunes for
+            # ymm; Zen 4 is zmm already)
+            env["NUMBA_CPU_FEATURES"] = _host_features() + ",-prefer-256-bit"
+        elif cpu != "host":
             env["NUMBA_CPU_NAME"] = cpu
             env["NUMBA_CPU_FEATURES"] = avx2_features()
         return run_json_worker(WORKER, [n, periods, repeats, int(cold)], env)
@@ -242,7 +252,8 @@ def side_by_side(rev: str, builds: list[str], rounds: int, n: int, periods: int,
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer periods")
-    ap.add_argument("--builds", default="host,znver3", help="NUMBA_CPU_NAME values (host: none)")
+    ap.add_argument("--builds", default="host,znver3", help="NUMBA_CPU_NAME values (host: none; host512: "
+                    "the host without LLVM's 256-bit preference)")
     ap.add_argument("--rev", help="git revision to run beside this checkout (alternating)")
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds with --rev")
     args = ap.parse_args(argv)
