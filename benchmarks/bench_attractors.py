@@ -169,6 +169,30 @@ def rows_of(plane: str, n: int, js, base, st):
     return cells, states, motions
 
 
+def _motion_kind(a) -> str:
+    """periodic, cloud (chaos, quasi-periodic) or unsettled: what a start's run reached."""
+    if a.steady.status != "ok":
+        return a.steady.status
+    return "periodic" if a.steady.period > 0 else "cloud"
+
+
+def full_length_by_motion(found, n: int) -> dict:
+    """The full-length runs (starts not labelled early) by the motion each reached: starts and
+    periods per start of all ``n`` starts (the share of the mean periods per start that each kind
+    of run costs)."""
+    out: dict[str, dict] = {}
+    for ca in found:
+        for i in np.flatnonzero(~ca.early.astype(bool)):
+            lab = int(ca.start_labels[i])
+            kind = "diverged" if lab < 0 else _motion_kind(ca.attractors[lab])
+            d = out.setdefault(kind, {"starts": 0, "periods": 0})
+            d["starts"] += 1
+            d["periods"] += int(ca.start_periods_run[i])
+    for d in out.values():
+        d["periods_per_start"] = d["periods"] / n
+    return out
+
+
 def summary(found, cpu: float, meter: KernelMeter, stats=None) -> dict:
     n = sum(ca.n_starts for ca in found)
     periods = sum(int(ca.start_periods_run.sum()) for ca in found)
@@ -184,6 +208,7 @@ def summary(found, cpu: float, meter: KernelMeter, stats=None) -> dict:
         "periods_per_early_start": float(P[E].mean()) if E.any() else float("nan"),
         "periods_per_full_start": float(P[~E].mean()) if (~E).any() else float("nan"),
         "full_length_periods_per_start": float(P[~E].sum() / n),
+        "full_length_by_motion": full_length_by_motion(found, n),
     })
     if stats is not None:
         radii = [r for r in stats.radii]
@@ -348,6 +373,9 @@ def main() -> None:
               f"{v['periods_per_early_start']:.1f} periods, full-length "
               f"{v['periods_per_full_start']:.0f} ({v['full_length_periods_per_start']:.1f} per "
               f"start)")
+        print(f"{name:9s} full-length runs by the motion reached: " + "; ".join(
+            f"{k} {d['starts']} starts, {d['periods_per_start']:.1f} periods per start"
+            for k, d in sorted(v["full_length_by_motion"].items())))
     for name, v in side.items():
         if "radius_counts" in v:
             print(f"{name:9s} early: {100 * v['early_certified']:.0f} % certified, "
