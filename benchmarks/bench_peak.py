@@ -252,8 +252,9 @@ def side_by_side(rev: str, builds: list[str], rounds: int, n: int, periods: int,
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer periods")
-    ap.add_argument("--builds", default="host,znver3", help="NUMBA_CPU_NAME values (host: none; host512: "
-                    "the host without LLVM's 256-bit preference)")
+    ap.add_argument("--builds", default="host,znver3",
+                    help="NUMBA_CPU_NAME values (host: none; host512: the host without LLVM's "
+                    "256-bit preference)")
     ap.add_argument("--rev", help="git revision to run beside this checkout (alternating)")
     ap.add_argument("--rounds", type=int, default=2, help="alternating rounds with --rev")
     args = ap.parse_args(argv)

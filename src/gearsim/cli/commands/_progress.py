@@ -10,7 +10,7 @@ import time
 class Progress:
     """Per-tile log lines (cells done/total, cells per second) and a tqdm bar on a terminal."""
 
-    def __init__(self, label: str, total: int, *, stream=None, every_s: float = 0.0) -> None:
+    def __init__(self, label: str, total: int, *, stream=None) -> None:
         self.label = label
         self.stream = stream or sys.stderr
         self.bar = None
@@ -19,7 +19,6 @@ class Progress:
 
             self.bar = tqdm(total=total, desc=label, unit="cell", file=sys.stdout)
         self.last = 0
-        self.every_s = every_s
 
     def __call__(self, done: int, total: int, elapsed: float) -> None:
         rate = done / elapsed if elapsed > 0 else float("nan")
