@@ -12,8 +12,10 @@ One run measures, side by side on the same machine state:
   separately; the rest is the driver loop. Lane use = lane-steps of lanes that took part /
   lane-steps the SIMD blocks computed (idle padding and frozen lanes are the difference);
 * **attractor task** - one task of ``gearsim attractor-tile`` (64 cells x ``starts`` starts of
-  the same rows) split into probing (``GearCells.advance``: kernel and the Python around it),
-  the recurrence test, full-length runs (``GearCells.steady``) and merging.
+  the same rows) through the lane pool: the kernel, the chunk checks (certified ellipsoids,
+  recurrence), the finished runs (classification, refinement), the forward motions'
+  certificates, the neighbours' seeds and the assembly (nested calls: the kernel runs inside
+  several of them).
 
 Effective rate = cell-steps of the cells (their ``steps`` column: grid steps plus the event
 layer's trial steps) / CPU seconds of the whole stage. The ratio effective / kernel says how near
@@ -37,6 +39,7 @@ setup_env()
 import numpy as np  # noqa: E402
 
 from gearsim.analysis import attractors  # noqa: E402
+from gearsim.analysis.attractors import pool as apool  # noqa: E402
 from gearsim.cell import chains, simulate  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
 from gearsim.numerics import batch  # noqa: E402
@@ -73,18 +76,6 @@ def timed(name, fn, *, per_stage=False):
     return wrapper
 
 
-def staged(name, fn):
-    def wrapper(*a, **k):
-        c0 = time.process_time()
-        with stage(name):
-            try:
-                return fn(*a, **k)
-            finally:
-                T_CPU[f"{name}:total"] += time.process_time() - c0
-
-    return wrapper
-
-
 def instrument() -> None:
     adv = batch.advance
 
@@ -103,12 +94,14 @@ def instrument() -> None:
     chains._begin_cell = timed("cell set-up (params, regions)", chains._begin_cell,
                               per_stage=True)  # fmt: skip
     tiles.cell_records = timed("records", tiles.cell_records)
-    G = attractors.GearCells
-    G.advance = staged("probe", G.advance)
-    G.steady = staged("full", G.steady)
-    K = attractors.matching._Known
-    K.recur = timed("recurrence test", K.recur)
-    K.add = timed("merge (_Known.add)", K.add)
+    # the attractor task's stages: the pool's chunk checks and finished runs, the forward
+    # motions' certificates before the pool, the neighbours' seeds, the final assembly
+    P = apool._Judge
+    P.probed = timed("chunk checks (certified, recurrence)", P.probed)
+    P.finished = timed("finished runs (classification, refinement)", P.finished)
+    apool._precertify = timed("forward motions' certificates", apool._precertify)
+    apool.continue_orbits = timed("neighbours' seeds (Newton)", apool.continue_orbits)
+    apool.assemble = timed("assembly (merge)", apool.assemble)
 
 
 def use(st):
@@ -211,29 +204,23 @@ def main(argv=None):
     CALLS.clear()
     LANE.clear()
     TANGENT.clear()
-    spec = task_specs(config, args.plane, args.tile, df)[0]
-    spec = {**spec, "cells": spec["cells"][: args.cells]}
+    spec = task_specs(Study.of(config), args.plane, args.tile, df)[0]
+    spec = {**spec, "cells": spec["cells"][: args.cells],
+            "forward_rows": spec["forward_rows"][: args.cells]}
     c0, w0 = time.process_time(), time.perf_counter()
     with stage("attr"):
         recs = attractors.cell_group_records(spec)
     cpu = time.process_time() - c0
     periods = int(sum({(r["i"], r["j"]): r["periods_run"] for r in recs}.values()))
-    T = dict(T_CPU)
-    g = {}
-    for part, title in (("probe", "probe (GearCells.advance)"),
-                        ("full", "full-length runs (GearCells.steady)")):  # fmt: skip
-        tot = T.pop(f"{part}:total", 0.0)
-        sub = {k.split(":", 1)[1]: T.pop(k) for k in list(T) if k.startswith(f"{part}:")}
-        for k, v in sub.items():
-            g[f"{title}: {k}"] = v
-        g[f"{title}: Python rest"] = tot - sum(sub.values())
-    g.update({k: v for k, v in T.items() if ":" not in k})
-    g["map_attractors / records (rest)"] = cpu - sum(g.values())
+    # the stages nest (the kernel runs inside the certificates and the seeds too): each line is
+    # the CPU inside that call, the kernel line all kernel time of the task
+    g = {("kernel (all of it)" if k == "attr:kernel" else k.split(":", 1)[-1]): v
+         for k, v in T_CPU.items()}
     att = {
         "cells": len(spec["cells"]), "starts": spec["starts"], "cpu_s": cpu,
         "wall_s": time.perf_counter() - w0, "periods_run": periods,
-        "lane_use": {k: use(k) for k in ("probe", "full")}, "stages_cpu_s": g,
-        "tangent_share": {k: TANGENT[k] / max(LANE[f"{k}:useful"], 1) for k in ("probe", "full")},
+        "lane_use": use("attr"), "stages_cpu_s": g,
+        "tangent_share": TANGENT["attr"] / max(LANE["attr:useful"], 1),
     }  # fmt: skip
     out["attractor_task"] = att
     out["load_end"] = loadavg()
