@@ -35,7 +35,7 @@ from pathlib import Path
 
 from _common import loadavg, machine, run_json_worker, save
 
-from gearsim.numerics.cache import avx2_features
+from gearsim.numerics.cache import avx2_features, host_features
 
 ROOT = Path(__file__).resolve().parents[1]
 HERE = Path(__file__).resolve().parent
@@ -161,12 +161,6 @@ print(json.dumps(out))
 """
 
 
-def _host_features() -> str:
-    from llvmlite import binding as ll
-
-    return ll.get_host_cpu_features().flatten()
-
-
 def run_build(cpu: str, n: int, periods: int, repeats: int, src: Path = ROOT / "src",
               cache: Path | None = None) -> dict:
     """One build of the package at ``src`` in a fresh interpreter; cold unless ``cache`` holds
@@ -181,7 +175,7 @@ def run_build(cpu: str, n: int, periods: int, repeats: int, src: Path = ROOT / "
         if cpu == "host512":
             # the host's ISA with LLVM's 256-bit preference off (an Intel AVX-512 core tunes for
             # ymm; Zen 4 is zmm already)
-            env["NUMBA_CPU_FEATURES"] = _host_features() + ",-prefer-256-bit"
+            env["NUMBA_CPU_FEATURES"] = host_features() + ",-prefer-256-bit"
         elif cpu != "host":
             env["NUMBA_CPU_NAME"] = cpu
             env["NUMBA_CPU_FEATURES"] = avx2_features()

@@ -59,6 +59,13 @@ def _refresh(cache: Path, stamp_value: str) -> None:
         pass  # a read-only cache: Numba then compiles in memory
 
 
+def host_features() -> str:
+    """This host's LLVM CPU features (the string ``NUMBA_CPU_FEATURES`` takes)."""
+    from llvmlite import binding as ll
+
+    return ll.get_host_cpu_features().flatten()
+
+
 def avx2_features() -> str:
     """This host's LLVM CPU features with every AVX-512 feature off: ``NUMBA_CPU_FEATURES`` for
     building the AVX2 code of an AVX2-only CPU on an AVX-512 machine.
@@ -66,7 +73,5 @@ def avx2_features() -> str:
     ``NUMBA_CPU_NAME`` alone does not change the instruction set: Numba's JIT takes the host's
     features unless ``NUMBA_CPU_FEATURES`` is set (``NUMBA_CPU_NAME=znver3`` on a Zen 4 still
     emits zmm code)."""
-    from llvmlite import binding as ll
-
-    feats = ll.get_host_cpu_features().flatten().split(",")
+    feats = host_features().split(",")
     return ",".join("-" + f[1:] if f[1:].startswith("avx512") else f for f in feats if f)
