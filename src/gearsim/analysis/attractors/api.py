@@ -6,11 +6,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gearsim.analysis.attractors.gear import GearCells, sobol_unit
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.pool import map_gear_cells
 from gearsim.analysis.attractors.results import CellAttractors, Steady
 from gearsim.cell.pool import PoolStats
-from gearsim.dynamics.parameters import ModelParameters
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 
 def find_attractors(
@@ -47,11 +48,25 @@ def find_attractors(
     def per_cell(v):
         return None if v is None else [v] if one else v
 
+    cell_list = [cells] if one else list(cells)
+    system = GearCells(cell_list, settings)
+    if start_states is None:
+        unit = sobol_unit(options.starts, options.seed)
+        starts = [system.start_states(c, unit) for c in range(len(cell_list))]
+    else:
+        starts = [np.asarray(start_states, dtype=float)] if one else start_states
+    continuation = None
+    if forward is not None or backward is not None:
+        fw, bw = per_cell(forward), per_cell(backward)
+        for name, seq in (("forward", fw), ("backward", bw)):
+            if seq is not None and len(seq) != len(cell_list):
+                raise ParameterError(f"{name}: one entry per cell expected")
+        continuation = [{"forward": None if fw is None else fw[c],
+                         "backward": None if bw is None else bw[c]}
+                        for c in range(len(cell_list))]  # fmt: skip
     found = map_gear_cells(
-        [cells] if one else list(cells), options, settings=settings, forward=per_cell(forward),
-        backward=per_cell(backward), forward_results=per_cell(forward_results),
-        start_states=None if start_states is None else (
-            [np.asarray(start_states, dtype=float)] if one else start_states),
-        stats=stats, neighbours=None if one else neighbours,
+        system, starts, options, continuation=continuation,
+        forward_results=per_cell(forward_results), stats=stats,
+        neighbours=None if one else neighbours,
     )  # fmt: skip
     return found[0] if one else found

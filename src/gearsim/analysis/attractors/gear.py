@@ -44,7 +44,8 @@ class GearCells:
     :func:`gearsim.cell.chains.simulate_cells` for full-length runs, i.e.
     :mod:`gearsim.cell.classify`).
     Section states have 10 components ``(x, x', u_py, u_py', ...)``; ``transient`` is
-    ``settings.transient`` (a start far from the motion is a start "from rest").
+    ``settings.transient`` (a start far from the motion is a start "from rest"),
+    ``transient_continuation`` the settings' one for continuation states.
     """
 
     def __init__(self, params_list: Sequence[ModelParameters], settings=None):
@@ -54,6 +55,7 @@ class GearCells:
         st = settings or IntegrationSettings(method="rk4")
         self.settings = st.with_(method="rk4")
         self.transient = int(self.settings.transient)
+        self.transient_continuation = int(self.settings.transient_continuation)
         from gearsim.cell.verify import OrbitCache
 
         self.orbits = OrbitCache()  # the starts of a cell share their refined orbits
