@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 from workflow_helpers import smk
 
+from gearsim.study.in_place import _legacy_grids
+
 pytestmark = pytest.mark.slow
 
 # a file of one's own that forgot `study:` (README's example: a plane of its own, 2-row tiles)
@@ -82,5 +84,9 @@ def test_results_without_a_record_are_compared_by_their_grids(finished, tmp_path
     r = smk(wd, "-n", "--configfile", "config/tiny.yaml", "config/quick.yaml", check=False)
     assert r.returncode == 2
     assert "results/ holds results of other grids" in r.stderr
-    assert "sweep standard: w 0.1..2.5: 6 points -> w 0.1..2.5: 121 points" in r.stderr
+    assert "plane wb: w 0.1..2.5 x b 0..1: 8 x 8 -> w 0.1..2.5 x b 0..1: 40 x 40" in r.stderr
     assert _files(wd) == before
+    # the grids in place, read from the Parquet files' metadata
+    grids = _legacy_grids(wd / "results")
+    assert grids["sweep standard"] == "w 0.1..2.5: 6 points"
+    assert grids["plane wxi"] == "w 0.1..2.5 x xi 0.04..0.16: 8 x 8"
