@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from workflow_helpers import smk
 
-from gearsim.study.in_place import _legacy_grids
+from gearsim.results.in_place import _legacy_grids
 
 pytestmark = pytest.mark.slow
 

@@ -8,7 +8,7 @@ from snakemake.utils import validate
 
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
-from gearsim.study import in_place as gin
+from gearsim.results import in_place as gin
 from gearsim.study import provenance as gprov
 
 SCHEMA = Path(workflow.basedir) / "workflow/schemas/config.schema.yaml"
@@ -25,7 +25,7 @@ _own_files = [f for f in _own_files if f not in _cli_files]
 if getattr(workflow.config_settings, "replace_workflow_config", False):
     _own_files = []
 # `--config replace_results=true`: this run may replace results that another configuration made
-# (gearsim.study.in_place); an option of the run, not of the study, so not part of its config
+# (gearsim.results.in_place); an option of the run, not of the study, so not part of its config
 _overrides = dict(workflow.config_settings.config or {})
 _replace = _overrides.pop(gin.REPLACE_KEY, False)
 REPLACE_RESULTS = {True: True, False: False, "true": True, "false": False}.get(
@@ -119,7 +119,7 @@ def _preflight():
                 # Snakemake's file and line of this check)
                 print(f"gearsim: error: {exc}", file=sys.stderr)
                 raise SystemExit(2) from None
-    # results that another configuration made are not replaced unasked (gearsim.study.in_place)
+    # results that another configuration made are not replaced unasked (gearsim.results.in_place)
     try:
         gin.check_in_place(RUN_RECORD, "results", replace=REPLACE_RESULTS)
     except UsageError as exc:
