@@ -39,10 +39,10 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from numba.cpython.unsafe.tuple import tuple_setitem
 
 from gearsim.dynamics.model import (
     MODE_FRICTION,
+    N_FIELD,
     N_MODE,
     N_PARAMS,
     N_STATE,
@@ -172,6 +172,17 @@ def _store10(blk, r, flag, old, new):
 
 
 # ============================================================================ the vector step
+# the model-form slots are the field tuple's last three: the base form is its head and zeros
+assert (P_VTE, P_XIO, P_GAM1, N_FIELD) == (26, 27, 28, 29)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _base_form(P):
+    """The field tuple ``P`` with its model-form slots (``P_VTE``, ``P_XIO``, ``P_GAM1``) the
+    constant 0.0 (a static slice and a literal tail: the CPU and CUDA targets both type it)."""
+    return P[:26] + (0.0, 0.0, 0.0)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
                bound, tangent, bearings, forms):
@@ -187,7 +198,7 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     y = _load10(blk, o, _Y, q)
     P = field_params(blk, r + _PAR * L, L)
     if not forms:
-        P = tuple_setitem(tuple_setitem(tuple_setitem(P, P_VTE, 0.0), P_XIO, 0.0), P_GAM1, 0.0)
+        P = _base_form(P)
     M = _lane_modes(blk, o, q)
     h = blk[r + _H * L]
     vrs = blk[r + (_PAR + P_VRS) * L]
