@@ -27,6 +27,7 @@ import numpy as np
 from numba import cuda, float64, int64
 
 from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH
+from gearsim.numerics.device import DeviceError, current
 from gearsim.numerics.events import N_ACC, N_CNT
 from gearsim.numerics.kernel import (
     _DONE,
@@ -127,7 +128,22 @@ def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, t
     phase tables ``tables`` as one tuple). The device holds the lane rows and ``m`` periods of
     records per lane (written from position 0, then placed at each lane's record position), not
     the whole record buffers. Returns the kernel's wall time in seconds (launch to finish).
+    A failed allocation, copy or launch is one :class:`~gearsim.numerics.device.DeviceError`
+    line naming the GPU, the lanes asked and the setting; the host arrays are then unchanged.
     """
+    try:
+        return _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout,
+                               tangent)
+    except _errors() as exc:
+        dev = current()
+        first = (str(exc).splitlines() or [type(exc).__name__])[0][:160]
+        raise DeviceError(
+            f"execution.device: cuda ({dev.name or 'GPU'}): {first} running {ist.shape[1]} "
+            f"lanes x {m} periods of {N} steps; use fewer lanes per job or execution.device: cpu"
+        ) from exc
+
+
+def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent):
     import time
 
     n = ist.shape[1]
