@@ -72,11 +72,9 @@ def reference(cells, st, states):
     system = GearCells(cells, st)
     opts = OLD.resolved(system.settings.period_rtol)
     unit = sobol_unit(opts.starts, opts.seed)
-    found = map_attractors(system, len(cells), [system.start_states(c, unit)
-                                                for c in range(len(cells))], opts,
-                           continuation=[{"forward": np.asarray(y, dtype=float)[:10]}
-                                         for y in states],
-                           continuation_transient=system.settings.transient_continuation)
+    found = map_attractors(system, [system.start_states(c, unit) for c in range(len(cells))],
+                           opts, continuation=[{"forward": np.asarray(y, dtype=float)[:10]}
+                                               for y in states])
     system.fill_margins(found)
     return bounded_clouds(cells, [least_periods(ca, opts.merge_rtol) for ca in found],
                           system.settings)

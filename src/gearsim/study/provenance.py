@@ -62,6 +62,36 @@ def _package_dir() -> Path:
     return Path(__file__).resolve().parents[1]
 
 
+def git_commit(root: str | Path | None = None, short: bool = False
+               ) -> tuple[str | None, bool | None]:
+    """``(commit, dirty)`` of the source checkout (``dirty``: uncommitted changes to tracked
+    files under ``src``; ``short``: git's abbreviated hash), ``(None, None)`` outside a git
+    checkout."""
+    import subprocess
+
+    root = Path(root) if root is not None else _package_dir().parents[1]
+    if not (root / ".git").exists():
+        return None, None
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", *(["--short"] if short else []), "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        if head.returncode != 0:
+            return None, None
+        st = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no", "--", "src"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None, None
+    return head.stdout.strip(), bool(st.stdout.strip()) if st.returncode == 0 else None
+
+
 def code_files(scope: str = "tiles", package: str | Path | None = None) -> list[Path]:
     """The source files that decide the results of a ``scope`` of :data:`CODE_SCOPES`: every
     ``*.py`` of its layers and of the package root, sorted by relative path."""
