@@ -39,7 +39,7 @@ def find_attractors(
     instead of the Sobol starts (basin pictures). ``stats``: a
     :class:`gearsim.cell.pool.PoolStats` collecting the lane use. ``neighbours`` (many cells):
     per cell the indices of its neighbouring cells in ``cells`` (e.g.
-    :func:`~gearsim.analysis.attractors.tiles.grid_neighbours`), whose motions seed it
+    :func:`grid_neighbours`), whose motions seed it
     (``FinderOptions.neighbour_seeds``). Attractors most likely first.
     """
     options = options if options is not None else FinderOptions()
@@ -70,3 +70,20 @@ def find_attractors(
         neighbours=None if one else neighbours,
     )  # fmt: skip
     return found[0] if one else found
+
+
+def grid_neighbours(ij: Sequence[tuple[int, int]]) -> list[list[int]]:
+    """Per cell of a grid sample (its indices ``(i, j)`` along x and y): the nearest cells of
+    the sample on either side along each axis (at most four), as indices into ``ij``."""
+    rows: dict[int, list[tuple[int, int]]] = {}
+    cols: dict[int, list[tuple[int, int]]] = {}
+    for k, (i, j) in enumerate(ij):
+        rows.setdefault(int(j), []).append((int(i), k))
+        cols.setdefault(int(i), []).append((int(j), k))
+    out: list[list[int]] = [[] for _ in ij]
+    for line in list(rows.values()) + list(cols.values()):
+        line.sort()
+        for (_, a), (_, b) in zip(line, line[1:], strict=False):
+            out[a].append(b)
+            out[b].append(a)
+    return out
