@@ -38,7 +38,6 @@ setup_env()
 
 import numpy as np  # noqa: E402
 
-from gearsim.analysis import attractors  # noqa: E402
 from gearsim.analysis.attractors import pool as apool  # noqa: E402
 from gearsim.cell import chains, simulate  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
@@ -198,7 +197,7 @@ def main(argv=None):
     # ---- attractor task: the first task of the tile whose rows were simulated above
     from scipy.stats import qmc  # noqa: F401  (the Sobol starts' import, ~0.5 s once per worker)
 
-    from gearsim.cli.commands.attractor_tile import task_specs
+    from gearsim.study.attractor_tiles import cell_group_records, task_specs
 
     T_CPU.clear()
     CALLS.clear()
@@ -209,7 +208,7 @@ def main(argv=None):
             "forward_rows": spec["forward_rows"][: args.cells]}
     c0, w0 = time.process_time(), time.perf_counter()
     with stage("attr"):
-        recs = attractors.cell_group_records(spec)
+        recs = cell_group_records(spec)
     cpu = time.process_time() - c0
     periods = int(sum({(r["i"], r["j"]): r["periods_run"] for r in recs}.values()))
     # the stages nest (the kernel runs inside the certificates and the seeds too): each line is

@@ -54,8 +54,7 @@ def reference_attractors(cells, options, settings, forward=None):
     if forward is not None:
         cont = [{} if y is None else {"forward": np.asarray(y, dtype=float)[:10]}
                 for y in forward]  # fmt: skip
-    found = map_attractors(system, len(cells), starts, opts, continuation=cont,
-                           continuation_transient=system.settings.transient_continuation)
+    found = map_attractors(system, starts, opts, continuation=cont)
     system.fill_margins(found)
     return bounded_clouds(cells, [least_periods(ca, opts.merge_rtol) for ca in found],
                           system.settings)

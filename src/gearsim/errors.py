@@ -20,7 +20,16 @@ class ConfigError(ParameterError):
     """The pipeline configuration is invalid; the message names the offending key."""
 
 
+class CatalogueError(UsageError):
+    """A tile, plane file or catalogue is unusable; one line naming it (CLI: exit 2)."""
+
+
 USER_ERRORS = (ParameterError, UsageError)
+
+
+def one_line(exc: BaseException) -> str:
+    """The message of ``exc`` on one line (its type's name when it has none)."""
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 def reject_unknown(keys, allowed, what: str) -> None:

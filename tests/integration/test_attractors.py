@@ -39,6 +39,7 @@ class Duffing:
     """The Duffing oscillator as a system of the engine; one cell per forcing frequency."""
 
     transient = 200
+    transient_continuation = 200
 
     def __init__(self, freqs):
         self.freqs = list(freqs)
@@ -93,7 +94,7 @@ def test_duffing_bistable_band_two_attractors_harmonic_balance(W):
     hb = harmonic_balance(W)
     assert len(hb) == 3  # inside the band
     sys_ = Duffing([W])
-    (ca,) = map_attractors(sys_, 1, [sys_.start_states(0, sobol_unit(16, 5))])
+    (ca,) = map_attractors(sys_, [sys_.start_states(0, sobol_unit(16, 5))])
     assert len(ca.attractors) == 2
     amps = sorted(a.steady.info["amplitude"] for a in ca.attractors)
     assert all(a.steady.period == 1 for a in ca.attractors)
@@ -108,7 +109,7 @@ def test_duffing_monostable_band_one_attractor(W):
     hb = harmonic_balance(W)
     assert len(hb) == 1
     sys_ = Duffing([W])
-    (ca,) = map_attractors(sys_, 1, [sys_.start_states(0, sobol_unit(8, 5))])
+    (ca,) = map_attractors(sys_, [sys_.start_states(0, sobol_unit(8, 5))])
     assert len(ca.attractors) == 1
     assert ca.attractors[0].basin_fraction == 1.0
     assert ca.attractors[0].steady.info["amplitude"] == pytest.approx(hb[0], rel=0.01)
@@ -117,8 +118,8 @@ def test_duffing_monostable_band_one_attractor(W):
 def test_duffing_early_equals_full_length():
     sys_ = Duffing([1.12])
     st = [sys_.start_states(0, sobol_unit(6, 2))]
-    fast = map_attractors(sys_, 1, st)
-    full = map_attractors(sys_, 1, st, FinderOptions(early=False))
+    fast = map_attractors(sys_, st)
+    full = map_attractors(sys_, st, FinderOptions(early=False))
     for a, b in zip(fast, full, strict=True):
         assert [x.basin_fraction for x in a.attractors] == [x.basin_fraction for x in b.attractors]
         assert np.array_equal(a.start_labels, b.start_labels)
@@ -151,7 +152,7 @@ def test_readings_of_one_orbit_merge():
     """A refined 1/2T orbit and the bifurcation-status window reading of the same orbit (its
     points a few 1e-3 of the range off, DC within 1e-3) are one attractor; a different n-p-q,
     DC or orbit is not; the basin of the merged attractor counts both starts."""
-    from gearsim.analysis.attractors.matching import _Known
+    from gearsim.analysis.attractors.matching import KnownAttractors
 
     orbit = [[0.08371, -0.18005], [-0.10163, -0.23235]]
     info = {"label_npq": "2-1-1", "dc": 0.4683, "status": "ok", "refined": True}
@@ -165,7 +166,7 @@ def test_readings_of_one_orbit_merge():
     other_orbit = Steady("ok", 2, np.array(orbit) + 0.1, 0.5, 0.5, "1/2T", dict(bif.info))
     for s in (other_npq, other_dc, other_orbit):
         assert not same_attractor(ok, s)
-    kn = _Known(FinderOptions())
+    kn = KnownAttractors(FinderOptions())
     assert kn.add(ok) == kn.add(bif) == 0 and kn.add(other_orbit) == 1
 
 
@@ -217,7 +218,7 @@ def test_bad_settings_rejected():
     with pytest.raises(ParameterError, match="starts"):
         sobol_unit(0, 1)
     with pytest.raises(ParameterError, match="chunk"):
-        map_attractors(Duffing([1.0]), 1, [np.zeros((1, 2))], FinderOptions(chunk=0))
+        map_attractors(Duffing([1.0]), [np.zeros((1, 2))], FinderOptions(chunk=0))
 
 
 def test_forward_backward_sweeps_differ_only_inside_fold_band():

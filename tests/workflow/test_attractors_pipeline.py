@@ -86,7 +86,7 @@ def test_maps_written(ms_run):
 
 
 def test_every_thins_the_attractor_grid():
-    from gearsim.cli.commands.attractor_tile import task_specs
+    from gearsim.study.attractor_tiles import task_specs
     from gearsim.study.config import Study, load_config
 
     cfg = load_config(["config/config.yaml", "config/tiny.yaml"],

@@ -4,27 +4,18 @@ from __future__ import annotations
 
 import os
 import resource
-import subprocess
 import time
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import Any
 
+from gearsim.study.provenance import git_commit
 
-def git_commit() -> str:
+
+def code() -> str:
     """Short git commit of the package's checkout (``+dirty`` with uncommitted changes in it),
     ``unknown`` outside a git checkout."""
-    here = str(Path(__file__).resolve().parents[1])
-    try:
-        head = subprocess.run(["git", "-C", here, "rev-parse", "--short", "HEAD"],
-                              capture_output=True, text=True, timeout=10)
-        if head.returncode != 0:
-            return "unknown"
-        dirty = subprocess.run(["git", "-C", here, "status", "--porcelain", "--", "."],
-                               capture_output=True, text=True, timeout=10)
-        return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
+    commit, dirty = git_commit(short=True)
+    return "unknown" if commit is None else commit + ("+dirty" if dirty else "")
 
 
 def utc_now() -> str:
@@ -45,7 +36,7 @@ class Run:
         self.t0 = time.time()
         self.u0 = user_s()
         self.info = {"start": utc_now(), "load": " ".join(f"{v:.2f}" for v in os.getloadavg()),
-                     "code": git_commit()}
+                     "code": code()}
 
     def record(self) -> dict[str, Any]:
         return {**self.info, "wall_s": time.time() - self.t0, "user_s": user_s() - self.u0,

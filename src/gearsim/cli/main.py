@@ -19,7 +19,7 @@ import sys
 
 from gearsim import __version__
 from gearsim.cli import commands
-from gearsim.errors import USER_ERRORS, UsageError
+from gearsim.errors import USER_ERRORS, UsageError, one_line
 
 __all__ = ["UsageError", "build_parser", "main"]
 
@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args._run(args) or 0)
     except USER_ERRORS as exc:
-        sys.stderr.write(f"gearsim {args.command}: error: {_one_line(exc)}\n")
+        sys.stderr.write(f"gearsim {args.command}: error: {one_line(exc)}\n")
         return 2
     except BrokenPipeError:
         # the reader went away (`gearsim ... | head`): stop quietly, as `cat` does
@@ -96,10 +96,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
 
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
-
-
 def os_error_line(exc: OSError) -> str:
     """``<file>: <cause>`` of an OSError, on one line."""
     from gearsim.study.preflight import os_cause
@@ -117,12 +113,12 @@ def _file_fault_line(exc: Exception) -> str | None:
 
     mod = type(exc).__module__ or ""
     if mod.startswith("pyarrow") or isinstance(exc, sqlite3.DatabaseError):
-        return f"unreadable file ({type(exc).__name__}: {_one_line(exc)})"
+        return f"unreadable file ({type(exc).__name__}: {one_line(exc)})"
     if mod.startswith("yaml"):
-        return f"invalid YAML ({_one_line(exc)})"
+        return f"invalid YAML ({one_line(exc)})"
     if mod.startswith("sqlalchemy.exc"):
         orig = getattr(exc, "orig", None)
-        return f"database fault ({_one_line(orig if orig is not None else exc)})"
+        return f"database fault ({one_line(orig if orig is not None else exc)})"
     return None
 
 

@@ -26,7 +26,8 @@ Files (see docs/pipeline.md)
 
 from __future__ import annotations
 
-from gearsim.results.ingest import build_catalogue, git_commit
+from gearsim.errors import CatalogueError
+from gearsim.results.ingest import build_catalogue
 from gearsim.results.parquet import (
     PLANE_KEY,
     PROVENANCE_KEY,
@@ -64,14 +65,13 @@ from gearsim.results.schema import (
     migrate_catalogue,
     open_catalogue,
 )
-from gearsim.study.integrity import CatalogueError
 
 __all__ = [
     "APPLICATION_ID", "MIGRATIONS", "OLDEST_MIGRATABLE", "PLANE_KEY", "PROVENANCE_KEY", "REBUILD",
     "REQUIRED", "REQUIRED_2", "ROW_COLUMNS", "SCHEMA_VERSION", "TILES_KEY", "Audit", "Base",
     "BifurcationCurve", "BifurcationPoint", "CatalogueError", "CatalogueInfo", "Cell",
     "CellAttractor", "CellOrbit", "ColumnDoc", "Plane", "Run", "Sweep", "SweepPoint",
-    "build_catalogue", "catalogue_problem", "combine_tiles", "git_commit", "make_engine",
+    "build_catalogue", "catalogue_problem", "combine_tiles", "make_engine",
     "migrate_catalogue", "now_iso", "open_catalogue", "publish", "read_metadata",
     "set_aside_damaged", "write_parquet",
 ]

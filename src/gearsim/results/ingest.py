@@ -17,6 +17,7 @@ from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
 from gearsim.cell.simulate import result_columns
+from gearsim.errors import CatalogueError, one_line
 from gearsim.results.parquet import (
     PLANE_KEY,
     PROVENANCE_KEY,
@@ -48,7 +49,7 @@ from gearsim.results.schema import (
     replacing,
 )
 from gearsim.results.views import create_views
-from gearsim.study.integrity import CatalogueError, _one_line
+from gearsim.study.provenance import git_commit
 
 
 # ------------------------------------------------------------------------------ builders
@@ -225,7 +226,7 @@ def _insert_plane(session: Session, f: Path, names: set[str], counts: dict, chun
     except CatalogueError:
         raise
     except (OSError, ValueError, KeyError) as exc:
-        raise CatalogueError(f"plane file {f}: unreadable cells ({_one_line(exc)})") from None
+        raise CatalogueError(f"plane file {f}: unreadable cells ({one_line(exc)})") from None
     coverage.finish(f"plane file {f}")
 
 
@@ -441,33 +442,6 @@ def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
     if rows:
         session.execute(insert(table), rows)
     counts[key] = counts.get(key, 0) + len(rows)
-
-
-def git_commit(root: str | Path | None = None) -> tuple[str | None, bool | None]:
-    """``(commit, dirty)`` of the source checkout, or ``(None, None)`` outside a git checkout."""
-    import subprocess
-
-    root = Path(root) if root is not None else Path(__file__).resolve().parents[3]
-    if not (root / ".git").exists():
-        return None, None
-    try:
-        head = subprocess.run(
-            ["git", "-C", str(root), "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-        )
-        if head.returncode != 0:
-            return None, None
-        st = subprocess.run(
-            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no", "--", "src"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return None, None
-    return head.stdout.strip(), bool(st.stdout.strip()) if st.returncode == 0 else None
 
 
 def _info_rows(session: Session, counts: Mapping[str, int]) -> list[dict[str, Any]]:

@@ -20,8 +20,7 @@ from typing import Any
 
 import pandas as pd
 
-from gearsim.errors import UsageError
-from gearsim.study.integrity import CatalogueError, _one_line
+from gearsim.errors import CatalogueError, UsageError, one_line
 
 PROVENANCE_KEY = b"gearsim.study.provenance"
 PLANE_KEY = b"gearsim.plane"
@@ -128,7 +127,7 @@ def combine_tiles(paths: Iterable[str | Path], out: str | Path, plane_record: Ma
         schema = pa.unify_schemas([t.schema for t in infos], promote_options="permissive")
     except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
         raise CatalogueError(
-            f"plane {plane_record['name']!r}: tiles with incompatible columns ({_one_line(exc)})"
+            f"plane {plane_record['name']!r}: tiles with incompatible columns ({one_line(exc)})"
         ) from None
     provs = [{**t.provenance, "file": str(t.path)} for t in infos]
     meta = {k: v for k, v in (schema.metadata or {}).items() if k == b"pandas"}
@@ -146,7 +145,7 @@ def combine_tiles(paths: Iterable[str | Path], out: str | Path, plane_record: Ma
                     table = pq.read_table(t.path)
                 except Exception as exc:  # damaged pages behind a valid footer
                     raise CatalogueError(
-                        f"tile {t.path}: not a readable Parquet file ({_one_line(exc)})"
+                        f"tile {t.path}: not a readable Parquet file ({one_line(exc)})"
                     ) from None
                 missing = [c for c in ("i", "j", "x", "y") if c not in table.column_names]
                 if missing:
@@ -186,7 +185,7 @@ def _fault(exc: BaseException) -> str:
         from gearsim.study.preflight import os_cause
 
         return os_cause(exc)
-    return _one_line(exc)
+    return one_line(exc)
 
 
 def now_iso() -> str:

@@ -5,9 +5,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from gearsim.errors import CatalogueError, one_line
 from gearsim.results.parquet import _prepare_dir, _tmp_name, now_iso
 from gearsim.results.schema import REBUILD, catalogue_problem, open_catalogue
-from gearsim.study.integrity import CatalogueError, _one_line
 
 
 def publish(built: str | Path, target: str | Path) -> Path:
@@ -34,7 +34,7 @@ def publish(built: str | Path, target: str | Path) -> Path:
         os.replace(tmp, target)
     except OSError as exc:
         raise CatalogueError(
-            f"cannot publish {built} as {target} ({_one_line(exc)}); {target} is unchanged"
+            f"cannot publish {built} as {target} ({one_line(exc)}); {target} is unchanged"
         ) from None
     finally:
         if tmp.exists():
@@ -79,7 +79,7 @@ def set_aside_damaged(published: str | Path, built: str | Path, *,
             aside.parent.mkdir(parents=True, exist_ok=True)
             os.replace(built, aside)
         except OSError as exc:
-            raise CatalogueError(f"cannot move {built} aside ({_one_line(exc)})") from None
+            raise CatalogueError(f"cannot move {built} aside ({one_line(exc)})") from None
         lines.append(f"{built} kept as {aside}")
     return lines
 

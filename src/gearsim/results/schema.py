@@ -37,9 +37,9 @@ from sqlalchemy.exc import DBAPIError as SQLAlchemyDBAPIError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
 from gearsim.cell.simulate import result_columns
+from gearsim.errors import CatalogueError, one_line
 from gearsim.results.parquet import _fault, _prepare_dir, _tmp_name
 from gearsim.results.views import create_views
-from gearsim.study.integrity import CatalogueError, _one_line
 
 #: ``PRAGMA user_version`` of the catalogue this code writes and reads. It rises with every
 #: change of the schema, and :data:`MIGRATIONS` brings an older catalogue up to it.
@@ -435,7 +435,7 @@ def open_catalogue(path: str | Path, *, check: bool = True) -> sqlite3.Connectio
     try:
         con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
     except sqlite3.Error as exc:
-        raise CatalogueError(f"{p}: cannot open the catalogue ({_one_line(exc)})") from None
+        raise CatalogueError(f"{p}: cannot open the catalogue ({one_line(exc)})") from None
     problem = _catalogue_problem(con, check=check)
     if problem:
         con.close()
@@ -455,7 +455,7 @@ def _catalogue_problem(con: sqlite3.Connection, *, check: bool = True,
             for r in con.execute("SELECT name FROM sqlite_master WHERE type IN ('table', 'view')")
         }
     except sqlite3.DatabaseError as exc:
-        return f"not a gearsim catalogue, or damaged ({_one_line(exc)}; {REBUILD})"
+        return f"not a gearsim catalogue, or damaged ({one_line(exc)}; {REBUILD})"
     if app != APPLICATION_ID:
         return f"not a gearsim catalogue (application_id {app:#x}, expected {APPLICATION_ID:#x})"
     if have < version:
@@ -470,9 +470,9 @@ def _catalogue_problem(con: sqlite3.Connection, *, check: bool = True,
         try:
             rows = con.execute("PRAGMA quick_check").fetchall()
         except sqlite3.DatabaseError as exc:
-            return f"damaged ({_one_line(exc)}; {REBUILD})"
+            return f"damaged ({one_line(exc)}; {REBUILD})"
         if [r[0] for r in rows] != ["ok"]:
-            return f"damaged (SQLite quick_check: {_one_line(rows[0][0])}; {REBUILD})"
+            return f"damaged (SQLite quick_check: {one_line(rows[0][0])}; {REBUILD})"
     missing = sorted(required - names)
     if missing:
         return f"catalogue lacks table {missing[0]!r} (damaged; {REBUILD})"
@@ -535,7 +535,7 @@ def migrate_catalogue(path: str | Path) -> tuple[int, int]:
     try:
         con = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True)
     except sqlite3.Error as exc:
-        raise CatalogueError(f"{p}: cannot open the catalogue ({_one_line(exc)})") from None
+        raise CatalogueError(f"{p}: cannot open the catalogue ({one_line(exc)})") from None
     try:
         old = con.execute("PRAGMA user_version").fetchone()[0]
     except sqlite3.DatabaseError:

@@ -16,15 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from gearsim.errors import UsageError
-
-
-class CatalogueError(UsageError):
-    """A tile, plane file or catalogue is unusable; one line naming it (CLI: exit 2)."""
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split()) or type(exc).__name__
+from gearsim.errors import CatalogueError, one_line
 
 
 @dataclass
@@ -53,7 +45,7 @@ def read_footer(path: str | Path, what: str = "file"):
         meta = pq.read_metadata(path)
     except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ... for a damaged footer
         raise CatalogueError(
-            f"{what} {path}: not a readable Parquet file ({_one_line(exc)})"
+            f"{what} {path}: not a readable Parquet file ({one_line(exc)})"
         ) from None
     return meta, dict(meta.metadata or {})
 

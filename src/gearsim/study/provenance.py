@@ -17,6 +17,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from gearsim.numerics.device import current as current_device
 from gearsim.numerics.settings import TANGENT_SEED
 from gearsim.study.config import Study
 
@@ -59,6 +60,36 @@ CODE_SCOPES: dict[str, tuple[str, ...]] = {
 
 def _package_dir() -> Path:
     return Path(__file__).resolve().parents[1]
+
+
+def git_commit(root: str | Path | None = None, short: bool = False
+               ) -> tuple[str | None, bool | None]:
+    """``(commit, dirty)`` of the source checkout (``dirty``: uncommitted changes to tracked
+    files under ``src``; ``short``: git's abbreviated hash), ``(None, None)`` outside a git
+    checkout."""
+    import subprocess
+
+    root = Path(root) if root is not None else _package_dir().parents[1]
+    if not (root / ".git").exists():
+        return None, None
+    try:
+        head = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", *(["--short"] if short else []), "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        if head.returncode != 0:
+            return None, None
+        st = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no", "--", "src"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return None, None
+    return head.stdout.strip(), bool(st.stdout.strip()) if st.returncode == 0 else None
 
 
 def code_files(scope: str = "tiles", package: str | Path | None = None) -> list[Path]:
@@ -164,6 +195,9 @@ def provenance(
         "subtree": subtree,
         "host": platform.node(),
     }
+    device = current_device().record()  # None on the default CPU run: its files are unchanged
+    if device is not None:
+        rec["device"] = device  # where the lanes ran: outside the configuration hash
     rec.update(extra)
     return rec
 

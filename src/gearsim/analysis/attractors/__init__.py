@@ -4,13 +4,20 @@ attractors, basin fractions (docs/multistability.md).
 One entry point, :func:`find_attractors`, with one options object, :class:`FinderOptions`.
 Modules (after Attractors.jl's ``src/mapping``): ``api`` (the entry point), ``options``,
 ``results`` (what it returns), ``matching`` (one attractor or two, recurrence onto a known one,
-the last step of every mapper), the mappers ``pool`` (the lane pool on the batched kernel: the
-gear model) and ``recurrence`` (model-agnostic: the reference), the gear adapter ``gear`` and
-the plane tiles' records ``tiles``; ``hysteresis`` reads the fold of two-way sweeps.
+the last step of every mapper), the finder's contract ``mapper``, the mappers ``pool`` (the
+lane pool on the batched kernel: the gear model) and ``recurrence`` (model-agnostic: the
+reference), the gear adapter ``gear``; ``hysteresis`` reads the fold of two-way sweeps.
+A plane tile's attractor job is :mod:`gearsim.study.attractor_tiles`.
 """
 
-from gearsim.analysis.attractors.api import find_attractors
-from gearsim.analysis.attractors.gear import GearCells, gear_steady, sobol_unit, start_box
+from gearsim.analysis.attractors.api import find_attractors, grid_neighbours
+from gearsim.analysis.attractors.gear import (
+    GearCells,
+    gear_steady,
+    sobol_unit,
+    start_box,
+    steady_from_row,
+)
 from gearsim.analysis.attractors.hysteresis import Hysteresis, hysteresis
 from gearsim.analysis.attractors.matching import least_periods, same_attractor
 from gearsim.analysis.attractors.options import FinderOptions
@@ -22,18 +29,10 @@ from gearsim.analysis.attractors.results import (
     n_real,
     summary_lines,
 )
-from gearsim.analysis.attractors.tiles import (
-    TILE_COLUMNS,
-    cell_group_records,
-    grid_neighbours,
-    steady_from_row,
-    tile_records,
-)
 
 __all__ = [
-    "FOUND_BY", "TILE_COLUMNS", "Attractor", "CellAttractors", "FinderOptions", "GearCells",
-    "Hysteresis", "Steady", "cell_group_records", "find_attractors", "gear_steady",
-    "grid_neighbours",
+    "FOUND_BY", "Attractor", "CellAttractors", "FinderOptions", "GearCells",
+    "Hysteresis", "Steady", "find_attractors", "gear_steady", "grid_neighbours",
     "hysteresis", "least_periods", "n_real", "same_attractor", "sobol_unit", "start_box",
-    "steady_from_row", "summary_lines", "tile_records",
+    "steady_from_row", "summary_lines",
 ]

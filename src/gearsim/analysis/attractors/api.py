@@ -6,11 +6,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from gearsim.analysis.attractors.gear import GearCells, sobol_unit
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.pool import map_gear_cells
 from gearsim.analysis.attractors.results import CellAttractors, Steady
 from gearsim.cell.pool import PoolStats
-from gearsim.dynamics.parameters import ModelParameters
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
 
 
 def find_attractors(
@@ -38,7 +39,7 @@ def find_attractors(
     instead of the Sobol starts (basin pictures). ``stats``: a
     :class:`gearsim.cell.pool.PoolStats` collecting the lane use. ``neighbours`` (many cells):
     per cell the indices of its neighbouring cells in ``cells`` (e.g.
-    :func:`~gearsim.analysis.attractors.tiles.grid_neighbours`), whose motions seed it
+    :func:`grid_neighbours`), whose motions seed it
     (``FinderOptions.neighbour_seeds``). Attractors most likely first.
     """
     options = options if options is not None else FinderOptions()
@@ -47,11 +48,42 @@ def find_attractors(
     def per_cell(v):
         return None if v is None else [v] if one else v
 
+    cell_list = [cells] if one else list(cells)
+    system = GearCells(cell_list, settings)
+    if start_states is None:
+        unit = sobol_unit(options.starts, options.seed)
+        starts = [system.start_states(c, unit) for c in range(len(cell_list))]
+    else:
+        starts = [np.asarray(start_states, dtype=float)] if one else start_states
+    continuation = None
+    if forward is not None or backward is not None:
+        fw, bw = per_cell(forward), per_cell(backward)
+        for name, seq in (("forward", fw), ("backward", bw)):
+            if seq is not None and len(seq) != len(cell_list):
+                raise ParameterError(f"{name}: one entry per cell expected")
+        continuation = [{"forward": None if fw is None else fw[c],
+                         "backward": None if bw is None else bw[c]}
+                        for c in range(len(cell_list))]  # fmt: skip
     found = map_gear_cells(
-        [cells] if one else list(cells), options, settings=settings, forward=per_cell(forward),
-        backward=per_cell(backward), forward_results=per_cell(forward_results),
-        start_states=None if start_states is None else (
-            [np.asarray(start_states, dtype=float)] if one else start_states),
-        stats=stats, neighbours=None if one else neighbours,
+        system, starts, options, continuation=continuation,
+        forward_results=per_cell(forward_results), stats=stats,
+        neighbours=None if one else neighbours,
     )  # fmt: skip
     return found[0] if one else found
+
+
+def grid_neighbours(ij: Sequence[tuple[int, int]]) -> list[list[int]]:
+    """Per cell of a grid sample (its indices ``(i, j)`` along x and y): the nearest cells of
+    the sample on either side along each axis (at most four), as indices into ``ij``."""
+    rows: dict[int, list[tuple[int, int]]] = {}
+    cols: dict[int, list[tuple[int, int]]] = {}
+    for k, (i, j) in enumerate(ij):
+        rows.setdefault(int(j), []).append((int(i), k))
+        cols.setdefault(int(i), []).append((int(j), k))
+    out: list[list[int]] = [[] for _ in ij]
+    for line in list(rows.values()) + list(cols.values()):
+        line.sort()
+        for (_, a), (_, b) in zip(line, line[1:], strict=False):
+            out[a].append(b)
+            out[b].append(a)
+    return out

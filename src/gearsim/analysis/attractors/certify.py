@@ -174,7 +174,7 @@ def _the_motions(s: Steady, pts: np.ndarray) -> bool:
     :data:`gearsim.analysis.attractors.gear.LEAST_PERIOD_RTOL`): Newton on ``P^n`` also
     converges to other orbits, the fixed points of ``P^m`` among them."""
     from gearsim.analysis.attractors.gear import shorter_period
-    from gearsim.analysis.attractors.matching import _near_all
+    from gearsim.analysis.attractors.matching import near_all
 
     n = s.period
     sx, sv = max(s.scale_x, 1e-9), max(s.scale_v, 1e-9)
@@ -182,7 +182,7 @@ def _the_motions(s: Steady, pts: np.ndarray) -> bool:
         return False
     own = np.asarray(s.points, dtype=float)[-n:, :2]
     tx, tv = MERGE_RTOL * sx, MERGE_RTOL * sv
-    return _near_all(pts, own, tx, tv) and _near_all(own, pts, tx, tv)
+    return near_all(pts, own, tx, tv) and near_all(own, pts, tx, tv)
 
 
 def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settings,

@@ -4,7 +4,8 @@ the steady motion of a cell result."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,8 @@ class GearCells:
     :func:`gearsim.cell.chains.simulate_cells` for full-length runs, i.e.
     :mod:`gearsim.cell.classify`).
     Section states have 10 components ``(x, x', u_py, u_py', ...)``; ``transient`` is
-    ``settings.transient`` (a start far from the motion is a start "from rest").
+    ``settings.transient`` (a start far from the motion is a start "from rest"),
+    ``transient_continuation`` the settings' one for continuation states.
     """
 
     def __init__(self, params_list: Sequence[ModelParameters], settings=None):
@@ -54,6 +56,7 @@ class GearCells:
         st = settings or IntegrationSettings(method="rk4")
         self.settings = st.with_(method="rk4")
         self.transient = int(self.settings.transient)
+        self.transient_continuation = int(self.settings.transient_continuation)
         from gearsim.cell.verify import OrbitCache
 
         self.orbits = OrbitCache()  # the starts of a cell share their refined orbits
@@ -328,3 +331,46 @@ def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAtt
             info = next(x for x in found[c].attractors if x.index == a).steady.info
             info["mu_lin"], info["long_run"] = r.classification.mu_lin, r.classification.long_run
     return [drop(ca, gone.get(c, set())) for c, ca in enumerate(found)]
+
+
+def plain_value(v):
+    """A table value as plain data: lists for arrays, None for missing (pandas' NA), Python
+    scalars for NumPy ones."""
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if v is None:
+        return None
+    import pandas as pd
+
+    if v is pd.NA:
+        return None
+    return v.item() if isinstance(v, np.generic) else v
+
+
+def steady_from_row(row: Mapping[str, Any], w: float) -> Steady | None:
+    """The :class:`~gearsim.analysis.attractors.Steady` of a plane tile's cell row (its
+    classification, Poincare points and final state; ``w`` the cell's frequency ratio), None
+    without them."""
+    from gearsim.cell.simulate import result_columns
+
+    if row.get("poincare_x") is None or row.get("n") is None:
+        return None
+    info = {k: plain_value(row.get(k)) for k in result_columns() if k in row}
+    n = int(info.pop("n"))
+    label = str(info.pop("label"))
+    scale = float(info["x_max"]) - float(info["x_min"])
+    scale = scale if math.isfinite(scale) else 0.0
+    status, motion = info.get("status"), info.get("motion")
+    return Steady(
+        status="diverged" if status == "diverged" else (
+            "unsettled" if motion == "unsettled" else "ok"),
+        period=n,
+        points=np.column_stack([np.asarray(row["poincare_x"], dtype=float),
+                                np.asarray(row["poincare_v"], dtype=float)]),
+        scale_x=scale,
+        scale_v=scale * float(w),
+        label=label,
+        info=info,
+        final_state=None if row.get("final_state") is None
+        else np.asarray(row["final_state"], dtype=float),
+    )  # fmt: skip

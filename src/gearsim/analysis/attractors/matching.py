@@ -30,7 +30,7 @@ def _tolerances(a: Steady, b: Steady, rtol: float) -> tuple[float, float]:
     return rtol * sx, rtol * sv
 
 
-def _near_all(p: np.ndarray, q: np.ndarray, tx: float, tv: float) -> bool:
+def near_all(p: np.ndarray, q: np.ndarray, tx: float, tv: float) -> bool:
     """Every point of ``p`` lies within ``(tx, tv)`` of some point of ``q``."""
     dx = np.abs(p[:, None, 0] - q[None, :, 0]) <= tx
     dv = np.abs(p[:, None, 1] - q[None, :, 1]) <= tv
@@ -92,7 +92,7 @@ def _one_orbit(a: Steady, b: Steady, pa: np.ndarray, pb: np.ndarray) -> bool:
     if da is None or db is None or not abs(float(da) - float(db)) <= ORBIT_DC:
         return False
     tx, tv = _tolerances(a, b, ORBIT_RTOL)
-    return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
+    return near_all(pa, pb, tx, tv) and near_all(pb, pa, tx, tv)
 
 
 #: a period-kn reading of a period-n orbit has the n orbit's multipliers to the k-th power:
@@ -135,7 +135,7 @@ def multiple_copy(short: Steady, long: Steady, merge_rtol: float = 1e-3) -> bool
                 and ia.get("critical") == "period_doubling"
                 and (mu_b is None or not math.isfinite(mu_b)))  # fmt: skip
     tx, tv = _tolerances(short, long, ORBIT_RTOL if with_mu or doubling else merge_rtol)
-    return _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv)
+    return near_all(pa, pb, tx, tv) and near_all(pb, pa, tx, tv)
 
 
 def least_periods(ca: CellAttractors, merge_rtol: float = 1e-3) -> CellAttractors:
@@ -212,7 +212,7 @@ def same_attractor(
             return False
         tx, tv = _tolerances(a, b, merge_rtol)
         pa, pb = a.points[-a.period :, :2], b.points[-b.period :, :2]
-        if _near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv):
+        if near_all(pa, pb, tx, tv) and near_all(pb, pa, tx, tv):
             return True
         return _one_orbit(a, b, pa, pb)
     both = np.vstack([a.points[:, :2], b.points[:, :2]])
@@ -226,7 +226,7 @@ def same_attractor(
     return min(fa, fb) >= cloud_overlap
 
 
-class _Known:
+class KnownAttractors:
     """The attractors of one cell found so far, with their recurrence tests precomputed."""
 
     def __init__(self, opts: FinderOptions):
@@ -267,7 +267,7 @@ class _Known:
                 if t.period > 0 and max(s.period, t.period) == 2 * min(s.period, t.period):
                     tx, tv = _tolerances(s, t, self.opts.doubling_rtol)
                     ps, pt = s.points[-s.period :, :2], t.points[-t.period :, :2]
-                    if _near_all(ps, pt, tx, tv) and _near_all(pt, ps, tx, tv):
+                    if near_all(ps, pt, tx, tv) and near_all(pt, ps, tx, tv):
                         self.ambiguous[k] = self.ambiguous[-1] = True
         if s.period > 0 or s.status == "unsettled":
             self._clouds.append(None)  # no cloud: unsettled starts are never labelled early
@@ -378,7 +378,7 @@ def assemble(opts: FinderOptions, starts, labels, is_early, periods_run, known, 
     labels = list(labels)
     known = list(known)
     for c in range(n_cells):
-        kn = _Known(opts)
+        kn = KnownAttractors(opts)
         cont_labels[c], cont_found[c] = {}, {}
         for name, s in cont_steady[c]:
             a = kn.add(s)

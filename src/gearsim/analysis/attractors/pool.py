@@ -2,9 +2,9 @@
 
 Same answer as the recurrence mapper :func:`~gearsim.analysis.attractors.recurrence.map_attractors`
 with the gear model (the same starts, the same recurrence rule
-:meth:`~gearsim.analysis.attractors.matching._Known.recur`, the same merging and the same last
-step :func:`~gearsim.analysis.attractors.matching.assemble`), scheduled so that no lane waits
-for another start:
+:meth:`~gearsim.analysis.attractors.matching.KnownAttractors.recur`, the same merging and the
+same last step :func:`~gearsim.analysis.attractors.matching.assemble`), scheduled so that no
+lane waits for another start:
 
 * Every start is a job of :func:`gearsim.cell.pool.run_pool` whose trajectory *is* its
   full-length run (transient, tangent lead, measurement, period test, classification and
@@ -38,7 +38,7 @@ for another start:
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -56,9 +56,14 @@ from gearsim.analysis.attractors.gear import (
     gear_steady,
     newton_orbits,
     newton_verified,
-    sobol_unit,
 )
-from gearsim.analysis.attractors.matching import _Known, _near_all, assemble, least_periods
+from gearsim.analysis.attractors.mapper import check_inputs
+from gearsim.analysis.attractors.matching import (
+    KnownAttractors,
+    assemble,
+    least_periods,
+    near_all,
+)
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.results import FOUND_BY, CellAttractors, Steady
 from gearsim.cell.pool import GO, MEASURE, PARK, STOP, PoolJob, PoolStats, run_pool
@@ -73,7 +78,7 @@ _SEED = -3
 def _same_points(p: np.ndarray, q: np.ndarray, s: Steady, rtol: float) -> bool:
     """Every point of ``p`` within ``rtol`` of the range of ``s`` of a point of ``q`` and back."""
     tx, tv = rtol * max(s.scale_x, 1e-9), rtol * max(s.scale_v, 1e-9)
-    return _near_all(p, q, tx, tv) and _near_all(q, p, tx, tv)
+    return near_all(p, q, tx, tv) and near_all(q, p, tx, tv)
 
 
 def _verified(s: Steady) -> bool:
@@ -93,7 +98,7 @@ class _Cell:
         self.c = c
         self.params = params
         self.starts = starts
-        self.known = _Known(opts)
+        self.known = KnownAttractors(opts)
         k = len(starts)
         self.labels = np.full(k, -2, dtype=np.int64)
         self.early = np.zeros(k, dtype=bool)
@@ -451,33 +456,33 @@ def _precertify(cells: list[_Cell], forward_results, st, opts: FinderOptions, hi
 
 
 def map_gear_cells(
-    params_list: Sequence[ModelParameters],
-    options: FinderOptions,
+    system: GearCells,
+    starts: Sequence[np.ndarray],
+    options: FinderOptions | None = None,
     *,
-    settings=None,
-    forward: Sequence[np.ndarray | None] | None = None,
-    backward: Sequence[np.ndarray | None] | None = None,
+    continuation: Sequence[Mapping[str, np.ndarray | None]] | None = None,
     forward_results: Sequence[Steady | None] | None = None,
-    start_states: Sequence[np.ndarray] | None = None,
     stats: PoolStats | None = None,
     neighbours: Sequence[Sequence[int]] | None = None,
 ) -> list[CellAttractors]:
-    """Coexisting attractors of many gear cells through one lane pool (module docstring); the
-    arguments of :func:`gearsim.analysis.attractors.find_attractors`."""
-    system = GearCells(params_list, settings)
+    """Coexisting attractors of the gear cells of ``system`` through one lane pool (module
+    docstring): the :class:`~gearsim.analysis.attractors.mapper.AttractorMapper` signature,
+    and per cell the already classified forward motion (``forward_results``) and the
+    neighbouring cells (``neighbours``) of :func:`gearsim.analysis.attractors.find_attractors`."""
+    params_list = system.params
     st = system.settings
-    n = len(params_list)
-    for name, seq in (("forward", forward), ("backward", backward),
-                      ("forward_results", forward_results), ("start_states", start_states),
-                      ("neighbours", neighbours)):
+    n = check_inputs(starts, continuation)
+    if n != len(params_list):
+        raise ParameterError("starts: one array of start states per cell expected")
+    for name, seq in (("forward_results", forward_results), ("neighbours", neighbours)):
         if seq is not None and len(seq) != n:
             raise ParameterError(f"{name}: one entry per cell expected")  # fmt: skip
-    opts = options.resolved(st.period_rtol)
-    if start_states is None:
-        unit = sobol_unit(opts.starts, opts.seed)
-        st_states = [system.start_states(c, unit) for c in range(n)]
-    else:
-        st_states = [np.atleast_2d(np.asarray(s, dtype=float)) for s in start_states]
+    forward = backward = None
+    if continuation is not None:
+        forward = [(m or {}).get("forward") for m in continuation]
+        backward = [(m or {}).get("backward") for m in continuation]
+    opts = (options or FinderOptions()).resolved(st.period_rtol)
+    st_states = [np.atleast_2d(np.asarray(s, dtype=float)) for s in starts]
     history = max(opts.confirm_cloud, opts.confirm + st.n_max, 3 * st.n_max)
     if opts.early and opts.certified and forward_results is not None:
         _forward_margins(params_list, forward_results, st)

@@ -48,50 +48,30 @@ Merging and the last step: :mod:`gearsim.analysis.attractors.matching`.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Protocol
 
 import numpy as np
 
-from gearsim.analysis.attractors.matching import _Known, assemble
+from gearsim.analysis.attractors.mapper import System, check_inputs
+from gearsim.analysis.attractors.matching import KnownAttractors, assemble
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.results import CellAttractors, Steady
-from gearsim.dynamics.parameters import ParameterError
-
-
-class System(Protocol):
-    """What :func:`map_attractors` needs from a model (see the module docstring)."""
-
-    transient: int
-
-    def start_states(self, cell: int, unit: np.ndarray) -> np.ndarray: ...
-
-    def advance(
-        self, cells: np.ndarray, states: np.ndarray, n_periods: int, start_periods: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
-
-    def steady(
-        self, cells: np.ndarray, states: np.ndarray, transient: int, start_periods: np.ndarray
-    ) -> list[Steady]: ...
-
-
 
 
 def map_attractors(
     system: System,
-    n_cells: int,
     starts: Sequence[np.ndarray],
     options: FinderOptions | None = None,
     *,
     continuation: Sequence[Mapping[str, np.ndarray | None]] | None = None,
     continuation_periods: Sequence[Mapping[str, int]] | None = None,
-    continuation_transient: int | None = None,
 ) -> list[CellAttractors]:
-    """Attractors of ``n_cells`` cells of ``system`` from the start states ``starts[c]``.
+    """Attractors of the cells of ``system`` from the start states ``starts[c]`` (the
+    :class:`~gearsim.analysis.attractors.mapper.AttractorMapper` signature).
 
     ``starts``: per cell a ``(K_c, d)`` array of start states (the basin samples);
     ``continuation``: per cell a mapping ``{"forward": state, "backward": state}`` (either may
-    be missing or None), states on a continuation branch run with ``continuation_transient``
-    periods (default ``system.transient``; their attractors get ``found_by`` forward /
+    be missing or None), states on a continuation branch run with
+    ``system.transient_continuation`` periods (their attractors get ``found_by`` forward /
     backward); ``continuation_periods``: the absolute period index of each (forcing not
     T-periodic only). ``options`` (:class:`FinderOptions`; ``period_rtol`` None is the
     classifier's 1e-5): ``scouts`` random starts per cell get full-length runs first, and every
@@ -100,9 +80,8 @@ def map_attractors(
     """
     opts = (options or FinderOptions()).resolved(1e-5)
     early = opts.early
-    if len(starts) != n_cells:
-        raise ParameterError("map_attractors: one array of start states per cell expected")
-    known = [_Known(opts) for _ in range(n_cells)]
+    n_cells = check_inputs(starts, continuation)
+    known = [KnownAttractors(opts) for _ in range(n_cells)]
     starts = [np.atleast_2d(np.asarray(s, dtype=float)) for s in starts]
     K = [len(s) for s in starts]
     labels = [np.full(k, -2, dtype=np.int64) for k in K]  # -2 not yet known
@@ -114,16 +93,10 @@ def map_attractors(
 
     # 1. continuation states (full-length runs with the continuation transient)
     if continuation is not None:
-        if len(continuation) != n_cells:
-            raise ParameterError("map_attractors: one continuation mapping per cell expected")
-        ct = system.transient if continuation_transient is None else int(continuation_transient)
+        ct = int(system.transient_continuation)
         cells, states, names, k0 = [], [], [], []
         for c, m in enumerate(continuation):
             for name, y in (m or {}).items():
-                if name not in ("forward", "backward"):
-                    raise ParameterError(
-                        f"continuation state {name!r}; allowed: forward, backward"
-                    )
                 if y is None:
                     continue
                 cells.append(c)

@@ -1,0 +1,168 @@
+"""Running an attractor tile: the coexisting attractors of every cell of one plane tile
+(the plane's ``multistability: {starts, seed, every}``), in-process or on dask, and its records.
+
+The plane tile's simulated rows (:mod:`gearsim.study.tiles`) give every cell its forward
+continuation state and its classified motion (a known attractor at no cost); the cells are
+cut into tasks of :data:`CELLS_PER_TASK` whose starts share one lane pool
+(:func:`gearsim.analysis.attractors.find_attractors`). One record per attractor of a cell
+(:data:`TILE_COLUMNS`); a cell whose starts all diverged gets one record, ``attractor = -1``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from gearsim.analysis.attractors.api import find_attractors, grid_neighbours
+from gearsim.analysis.attractors.gear import plain_value, steady_from_row
+from gearsim.analysis.attractors.options import FinderOptions
+from gearsim.analysis.attractors.results import CellAttractors, n_real
+from gearsim.cell.simulate import IntegrationSettings
+from gearsim.dynamics.parameters import ModelParameters
+from gearsim.errors import UsageError
+from gearsim.study.cluster import map_unordered
+from gearsim.study.config import Study
+from gearsim.study.tiles import row_specs
+
+#: Columns of a plane's attractor tile (results/<plane>/attractors/<tile>.parquet).
+TILE_COLUMNS = ("plane", "tile", "i", "j", "x", "y", "attractor", "n_attractors", "motion",
+                "status", "label", "label_npq", "I", "n", "p", "q", "dc", "kmax", "lyapunov",
+                "basin_fraction", "n_starts", "n_early", "found_by", "starts",
+                "diverged_fraction", "periods_run", "poincare_x", "poincare_v", "mu_max",
+                "critical", "refined")  # fmt: skip
+
+#: cells per task (their starts share one lane pool: large enough that lanes stay busy)
+CELLS_PER_TASK = 640
+
+
+def multistability(study: Study, plane: str) -> Mapping[str, Any]:
+    """The plane's ``multistability`` settings; one line when the plane has none."""
+    ms = study.config["planes"][plane].get("multistability")
+    if not ms:
+        raise UsageError(f"plane '{plane}' has no 'multistability' (starts, seed) set")
+    return ms
+
+
+def task_specs(study: Study, plane: str, tile: int, tile_df: pd.DataFrame | None) -> list[dict]:
+    """Plain-data tasks of :func:`cell_group_records` for one tile (each cell with its
+    forward-continuation state and the tile's row of it: a known motion)."""
+    ms = multistability(study, plane)
+    rows = row_specs(study, plane, tile)
+    fwd: dict = {}
+    known: dict = {}
+    if tile_df is not None:
+        for rec in tile_df.to_dict("records"):
+            s = rec.get("final_state")
+            key = (int(rec["i"]), int(rec["j"]))
+            fwd[key] = None if s is None else [float(v) for v in s]
+            if "poincare_x" in rec:
+                known[key] = {k: plain_value(v) for k, v in rec.items()}
+    every = int(ms.get("every", 1))
+    cells = [
+        (i, r["j"], float(x), float(r["y_value"]), fwd.get((i, r["j"])))
+        for r in rows
+        if r["j"] % every == 0
+        for i, x in enumerate(r["x_values"])
+        if i % every == 0
+    ]
+    base = rows[0] if rows else {}
+    return [
+        {
+            "plane": plane, "tile": tile, "params": base["params"],
+            "settings": base["settings"], "x_name": base["x_name"], "y_name": base["y_name"],
+            "cells": cells[k : k + CELLS_PER_TASK], "starts": int(ms["starts"]),
+            "forward_rows": [known.get((c[0], c[1])) for c in cells[k : k + CELLS_PER_TASK]],
+            "seed": int(ms.get("seed", 0)),
+        }  # fmt: skip
+        for k in range(0, len(cells), CELLS_PER_TASK)
+    ]
+
+
+def tile_records(spec: Mapping[str, Any], cells, found: Sequence[CellAttractors]
+                 ) -> list[dict[str, Any]]:
+    """The attractor-tile records (:data:`TILE_COLUMNS`) of ``cells`` and their attractors."""
+    out: list[dict[str, Any]] = []
+    for (i, j, x, y, _), ca in zip(cells, found, strict=True):
+        common = {
+            "plane": spec["plane"], "tile": int(spec["tile"]), "i": int(i), "j": int(j),
+            "x": float(x), "y": float(y), "n_attractors": n_real(ca),
+            "starts": int(ca.n_starts), "diverged_fraction": ca.diverged_fraction,
+            "periods_run": int(ca.start_periods_run.sum()),
+        }  # fmt: skip
+        if not ca.attractors:
+            out.append({**common, "attractor": -1, "motion": "diverged", "status": "diverged",
+                        "label": "diverged", "label_npq": "", "I": 0, "n": 0, "p": None,
+                        "q": None, "dc": float("nan"), "kmax": float("nan"),
+                        "lyapunov": float("nan"), "basin_fraction": 0.0, "n_starts": 0,
+                        "n_early": 0, "found_by": "", "poincare_x": [],
+                        "poincare_v": [], "mu_max": float("nan"), "critical": "",
+                        "refined": False})  # fmt: skip
+            continue
+        for a in ca.attractors:
+            r = a.record()
+            out.append({**common, **{k: r.get(k) for k in TILE_COLUMNS if k in r}})
+    return out
+
+
+
+
+def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Attractor records of a group of plane cells (one task of ``gearsim attractor-tile``).
+
+    ``spec`` (plain data): ``plane``, ``tile``, ``params`` (dict), ``settings`` (dict),
+    ``x_name``, ``y_name``, ``cells`` (list of ``(i, j, x, y, forward_state or None)``),
+    ``starts``, ``seed`` and optionally ``forward_rows`` (per cell the plane tile's row of
+    that cell, or None: its motion is known without a run). One record per attractor of each
+    cell; a cell whose starts all diverged gets one record with ``attractor = -1`` and label
+    ``diverged``.
+    """
+    base = ModelParameters.from_mapping(dict(spec["params"]))
+    settings = IntegrationSettings(**spec["settings"])
+    xn, yn = spec["x_name"], spec["y_name"]
+    cells = spec["cells"]
+    plist = [base.with_(**{xn: float(c[2]), yn: float(c[3])}) for c in cells]
+    fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
+    rows = spec.get("forward_rows")
+    known = None if rows is None else [None if r is None else steady_from_row(r, p.w)
+                                       for r, p in zip(rows, plist, strict=True)]
+    options = FinderOptions(starts=int(spec["starts"]), seed=int(spec["seed"]))
+    found = find_attractors(plist, options, settings=settings, forward=fwd,
+                            forward_results=known, stats=spec.get("stats"),
+                            neighbours=grid_neighbours([(c[0], c[1]) for c in cells]))  # fmt: skip
+    return tile_records(spec, cells, found)
+
+
+def records_to_frame(records: list[dict[str, Any]]) -> pd.DataFrame:
+    """Attractor records -> DataFrame with stable dtypes (same schema for every tile), sorted
+    by row, cell and attractor."""
+    df = pd.DataFrame.from_records(records, columns=list(TILE_COLUMNS))
+    for c in ("p", "q"):
+        df[c] = pd.array([None if v is None or v != v else int(v) for v in df[c]], dtype="Int64")
+    return df.sort_values(["j", "i", "attractor"], kind="stable").reset_index(drop=True)
+
+
+def run_attractor_tile(
+    specs: Sequence[Mapping[str, Any]],
+    *,
+    client=None,
+    progress: Callable[[int, int, float], None] | None = None,
+) -> pd.DataFrame:
+    """The attractor records of the tasks ``specs`` (:func:`task_specs`), mapped over
+    ``client`` or in-process when None; ``progress(done_cells, total_cells, elapsed_s)`` after
+    each finished task."""
+    total = sum(len(s["cells"]) for s in specs)
+    t0 = time.perf_counter()
+    records: list[dict] = []
+    done = 0
+    results = (map(cell_group_records, specs) if client is None
+               else map_unordered(client, cell_group_records, specs))  # fmt: skip
+    for recs in results:
+        records.extend(recs)
+        done += len({(r["i"], r["j"]) for r in recs})
+        if progress:
+            progress(done, total, time.perf_counter() - t0)
+    return records_to_frame(records)
