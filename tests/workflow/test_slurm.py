@@ -1,17 +1,24 @@
-"""The workflow through profiles/slurm on a real one-node SLURM cluster.
+"""The workflow through profiles/slurm on a real one-node SLURM cluster, with the faults of a
+cluster injected into its run.
 
 `.ci/slurm-cluster up` installs what is missing (slurm-wlm daemons, munge, slurmdbd, MariaDB),
 writes a slurm.conf for this machine and starts the daemons; `down` stops them afterwards. The
 whole tiny configuration (config/tiny.yaml, the default target: tables, catalogue, figures,
 diagrams, report, explorer) runs through the profile as a user would (partition and account from
-SBATCH_PARTITION and SBATCH_ACCOUNT), and one tile's SLURM job (the tile and its attractor tile)
-is cancelled with ``scancel`` while it runs. Checked:
+SBATCH_PARTITION and SBATCH_ACCOUNT). Into that one run the test injects, one after the other
+(:class:`Faults`, :data:`SBATCH`; docs/pipeline.md "When a cluster job fails"): a job that exits
+1 on its node, the controller stopped and started again, a tile job cancelled, one timed out,
+one requeued mid-run, and the Snakemake process killed with its jobs still queued; the same
+command run again at once stops in one line, and run once those jobs are gone, it finishes.
+Checked:
 
 * every job of the run but the target rule ``all`` ran in a SLURM job, its own or its group's;
-  every SLURM job of the run is in ``sacct`` under the given account, COMPLETED, but the
-  cancelled one, CANCELLED, which Snakemake submitted again and which then COMPLETED;
+  every SLURM job of the run is in ``sacct`` under the given account; each faulted job has its
+  state (FAILED, CANCELLED, TIMEOUT, REQUEUED then COMPLETED) and every Snakemake job's last
+  SLURM job COMPLETED; the timed-out job's retry asked for twice its runtime;
 * the catalogue equals the one of the session's local run (``tiny_run``, conftest.py: the same
-  configuration on ``--cores 2``) value for value (ids and provenance aside);
+  configuration on ``--cores 2``) value for value (ids and provenance aside); no temporary file
+  is left, no job of the run is left in the queue;
 * a tile run as a 2-CPU job step has a 2-worker LocalCluster (one worker per CPU SLURM gave);
 * the profile's grouping: one SLURM job of one CPU per tile (the tile and its attractor tile),
   the small jobs in three group jobs of one CPU each;
@@ -42,7 +49,7 @@ PROFILE = ROOT / "profiles/slurm"
 ACCOUNT = "gearsim-ci"  # created by .ci/slurm-cluster
 CI = os.environ.get("CI") == "1"
 CATALOGUE = "results/catalogue.d/build.sqlite"
-# a hang guard only: the run took 407-519 s on 2 cores at load average 1-15
+# a hang guard only: the run took 407-519 s on 2 cores at load average 1-15 (without faults)
 TIMEOUT = 1800
 #: the profile's group jobs of small jobs (profiles/slurm/config.yaml, groups) and their CPUs
 GROUPS = {"curves": 1, "tables": 1, "report": 1}
