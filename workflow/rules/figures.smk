@@ -13,6 +13,7 @@ TABLE_FILES = {
     "planes": dict(zip(PLANES, CELL_FILES)),
     "points": dict(zip(POINT_SETS, POINT_FILES)),
     "orbits": ORBIT_FILES,
+    "figure_data": FIGURE_DATA_FILES,
 }
 FIGURE_GROUPS = gfr.groups(TABLE_FILES)
 
@@ -25,9 +26,6 @@ for _spec in FIGURE_GROUPS:
         input:
             **gfr.input_paths(_spec, TABLE_FILES),
             config=CONFIG,
-            # a figure that simulates its own points waits for the compiled kernels (it would
-            # otherwise compile them again beside the compile job)
-            kernels=[] if _spec.tables_required else [COMPILED],
         output:
             *[
                 report(p, caption=f"../report/{c}", category="Figures")

@@ -59,11 +59,15 @@ class Inputs:
     # them (config ``orbits:``), the figure is drawn without them otherwise
     orbits: tuple[str, ...] = ()
     optional_orbits: tuple[str, ...] = ()
+    # what the figure draws that is simulated: figure-data tables
+    # ``results/figure_data/NAME.parquet`` (gearsim.study.figure_tables.FIGURE_DATA)
+    figure_data: tuple[str, ...] = ()
 
     def tables(self) -> dict[str, tuple[str, ...]]:
-        """``{"sweeps": names, "planes": names, "points": names, "orbits": names}``."""
+        """``{"sweeps": names, "planes": names, "points": names, "orbits": names,
+        "figure_data": names}``."""
         return {"sweeps": self.sweeps, "planes": self.planes, "points": self.points,
-                "orbits": self.orbits}
+                "orbits": self.orbits, "figure_data": self.figure_data}
 
 
 def orbit_available(name: str, sweeps, planes, orbits=None) -> bool:
@@ -85,8 +89,7 @@ class FigureSpec:
     paper's caption, or for a figure of ours that the paper does not have, what it shows;
     ``inputs``: what the pipeline gives it; ``builder(ctx) -> list[Built]``; ``group``: every
     figure drawn by the same builder call (e.g. (9, 10, 11)), the first is the lead;
-    ``tables_required``: False when the builder draws without its tables (it then simulates
-    the few points it needs itself, Figs 2, 5, 6, 9-11); ``report_caption``: the caption file
+    ``report_caption``: the caption file
     of Snakemake's HTML report (``workflow/report/``), ``figure.rst`` renders ``caption``.
     """
 
@@ -95,7 +98,6 @@ class FigureSpec:
     inputs: Inputs
     builder: Callable[[Context], list[Built]]
     group: tuple[int, ...] = ()
-    tables_required: bool = True
     caption: str = ""  # one line for Snakemake's HTML report
     report_caption: str = "figure.rst"
     in_paper: bool = True
@@ -108,13 +110,15 @@ class FigureSpec:
     def lead(self) -> int:
         return self.members[0]
 
-    def available(self, sweeps, planes, points, orbits=None) -> bool:
+    def available(self, sweeps, planes, points, orbits=None, figure_data=()) -> bool:
         """True when every input is configured (names of the config's sweeps, planes, points;
-        ``orbits``: the continuation tables the pipeline makes)."""
+        ``orbits``: the continuation tables the pipeline makes; ``figure_data``: the
+        figure-data tables it makes)."""
         i = self.inputs
         return (all(s in sweeps for s in i.sweeps) and all(p in planes for p in i.planes)
                 and all(q in points for q in (*i.points, *i.config_points))
-                and all(orbit_available(o, sweeps, planes, orbits) for o in i.orbits))
+                and all(orbit_available(o, sweeps, planes, orbits) for o in i.orbits)
+                and all(f in figure_data for f in i.figure_data))
 
 
 FIGURES: dict[int, FigureSpec] = {}
@@ -134,7 +138,7 @@ def register(spec: FigureSpec) -> FigureSpec:
 register(FigureSpec(1, "Dynamic model of curve-face gear transmission system.", Inputs(), _b._fig1,
                     caption="Schematic of the 6-DOF bending-torsional model (drawn)."))
 register(FigureSpec(2, "Distribution of the system's phase trajectories on the plane.",
-                    Inputs(sweeps=("b015",)), _b._fig2, tables_required=False,
+                    Inputs(figure_data=("fig2",)), _b._fig2,
                     caption="Phase plane split by x = +b and x = -b, with simulated steady "
                     "trajectories of impact states I = 0, 1 and 2."))
 register(FigureSpec(3, "(Caption lost in our copy; the text: schematic diagram of two-parameter "
@@ -150,12 +154,10 @@ register(FigureSpec(5, "Superpositions of the phase diagram and Poincaré mappin
                     "ω = 1.02 2-2-0, (e) ω = 1.072 grazing, (f) ω = 1.25 2-1-0, (g) ω = 1.37 "
                     "4-3-0, (h) ω = 1.384 8-6-0, (i) ω = 1.53 chaotic, (j) ω = 1.7 4-3-0, (k) "
                     "ω = 1.81 2-2-0, (l) ω = 2.24 1-1-0.", Inputs(points=("fig5",)), _b._fig5,
-                    tables_required=False,
                     caption="Phase trajectories with Poincare points at the paper's values of "
                     "w; every panel names the paper's pattern and ours."))
 register(FigureSpec(6, "FFT spectrum: (a) ω = 0.48 1-0-0, (b) ω = 1.02 2-2-0, (c) ω = 1.37 "
                     "4-3-0, (d) ω = 1.53 chaotic.", Inputs(points=("fig6",)), _b._fig6,
-                    tables_required=False,
                     caption="FFT amplitude spectra of x, w and its sub-harmonics marked."))
 register(FigureSpec(7, "Meshing motion law diagram of the system in the (ω, b) parameter plane: "
                     "(a) relative micro-displacement bifurcation diagram of gear pair, (b) "
@@ -173,9 +175,8 @@ _DOUBLE_SIDED = {
        "history diagram, (c) dynamic load coefficient diagram."
     for n, npq in PAPER_FIG9_11.items()}
 for _n in PAPER_FIG9_11:
-    register(FigureSpec(_n, _DOUBLE_SIDED[_n], Inputs(sweeps=("b015",),
-                        config_points=("fig9_11",)), _b._fig9_11, group=(9, 10, 11),
-                        tables_required=False, report_caption=f"fig{_n:02d}.rst"))
+    register(FigureSpec(_n, _DOUBLE_SIDED[_n], Inputs(figure_data=("fig9_11",)), _b._fig9_11,
+                        group=(9, 10, 11), report_caption=f"fig{_n:02d}.rst"))
 register(FigureSpec(12, "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, b) "
                     "parameter plane: (a) DC cloud diagram, (b) I: DC plane distribution "
                     "diagram.", Inputs(planes=("wb",)), _b._fig_dc(12, "wb"),
