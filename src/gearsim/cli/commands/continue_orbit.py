@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
         fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     df.attrs["parameters_source"] = source
     write_branches(df, out)
-    from gearsim.analysis.bifcurves import bifurcation_points
+    from gearsim.analysis.exact_landmarks import bifurcation_points
     from gearsim.results import parquet
 
     points_path = out.with_name(out.stem + "_points.parquet")
