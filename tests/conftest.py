@@ -22,10 +22,12 @@ SHARED_GROUPS = {
     "test_pipeline.py": "tiny_run",
     "test_catalogue_integrity.py": "tiny_run",
     "test_trust_runs.py": "tiny_run",
+    "test_results_in_place.py": "tiny_run",
     # tests/tiny_study.py: the tiny study with a (w, eps) plane, under the worker's basetemp
     "test_figures_planes.py": "tiny_study",
     "test_explorer.py": "tiny_study",
     "test_report_study.py": "tiny_study",
+    "test_kmax_one.py": "tiny_study",
 }
 # Units handed out first, longest first, so the last units to start are short ones and both
 # workers finish close together; units not named here follow in collection order. CPU seconds

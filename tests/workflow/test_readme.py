@@ -74,3 +74,61 @@ def test_readme_sweep_is_the_pipeline_sweep(readme_run, tmp_path):
     np.testing.assert_allclose(sweep["dc"], pipe["dc"], atol=1e-9)
     np.testing.assert_allclose(sweep["kmax"], pipe["kmax"], rtol=1e-6)
     assert "label_npq" in printed and len(printed.splitlines()) > 3
+
+
+def _bash_lines(text: str) -> list[str]:
+    """Every line of the README's bash blocks, continuation lines joined."""
+    out = []
+    for block in re.findall(r"```bash\n(.*?)```", text, flags=re.S):
+        for line in block.replace("\\\n", " ").splitlines():
+            if line.strip() and not line.lstrip().startswith("#"):
+                out.append(line)
+    return out
+
+
+# commands that run for more than a few minutes on 2 cores, or may, with their arguments
+LONG = re.compile(r"^\s*(make (reproduce|test)\b|(\S+=\S+ )*snakemake\b(?!.*(-n\b|--unlock))|"
+                  r"gearsim (refine-orbits|bifurcation-curves|basins|continue)\b)")
+COST = re.compile(r"#.*~\d+ (s|min)\b")
+
+
+def test_readme_long_commands_say_their_cost():
+    lines = [ln for ln in _bash_lines((ROOT / "README.md").read_text()) if LONG.match(ln)]
+    assert len(lines) >= 10, lines
+    assert [ln for ln in lines if not COST.search(ln)] == []
+    # the plane's refinement as printed: bounded by --limit, written outside results/
+    from gearsim.cli.main import build_parser
+
+    refine = next(ln for ln in lines if "refine-orbits" in ln)
+    args = build_parser().parse_args(refine.split("#")[0].split()[1:])
+    assert args.limit is not None and not args.out.startswith("results/")
+
+
+def test_readme_point_output_is_what_point_prints(tmp_path):
+    text = (ROOT / "README.md").read_text()
+    block = re.search(r"`gearsim point --omega 0.48` prints.*?```\n(.*?)```", text, flags=re.S)
+    shown = block.group(1).splitlines()
+    printed = _gearsim("point", "--omega", "0.48", cwd=tmp_path).stdout.splitlines()
+    assert len(printed) == len(shown) == 3
+    for s, p in zip(shown, printed, strict=True):
+        assert p.startswith(s.removesuffix("...").rstrip()), (s, p)
+    # the definition printed beside Kmax is the one the README states
+    from gearsim.cell.motion import KMAX_DEFINITION
+
+    assert f"Kmax = {KMAX_DEFINITION};" in printed[2]
+
+
+def test_readme_fast_look_and_own_study_say_where_they_write():
+    text = (ROOT / "README.md").read_text()
+    quick = next(ln for ln in _bash_lines(text) if "config/quick.yaml" in ln)
+    assert "into results/" in quick
+    for words in ("results/.configuration.json", "--config replace_results=true",
+                  "`studies/<name>/`", "make clean-results"):
+        assert words in text, words
+    # the README's own study: its tile_rows is explained, its torque sweep is the telling one
+    study = re.search(r"```yaml\n(study: weps.*?)```", text, flags=re.S).group(1)
+    import yaml
+
+    cfg = yaml.safe_load(study)
+    assert cfg["sweeps"]["torque"]["fixed"] == {"speed_rpm": 12000}
+    assert "tile_rows: 15       # plane rows per job" in study

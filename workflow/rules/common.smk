@@ -8,6 +8,7 @@ from snakemake.utils import validate
 
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
+from gearsim.results import in_place as gin
 from gearsim.study import provenance as gprov
 
 SCHEMA = Path(workflow.basedir) / "workflow/schemas/config.schema.yaml"
@@ -23,10 +24,18 @@ _own_files = [Path(f).resolve() for f in workflow.configfiles]
 _own_files = [f for f in _own_files if f not in _cli_files]
 if getattr(workflow.config_settings, "replace_workflow_config", False):
     _own_files = []
+# `--config replace_results=true`: this run may replace results that another configuration made
+# (gearsim.results.in_place); an option of the run, not of the study, so not part of its config
+_overrides = dict(workflow.config_settings.config or {})
+_replace = _overrides.pop(gin.REPLACE_KEY, False)
+REPLACE_RESULTS = {True: True, False: False, "true": True, "false": False}.get(
+    _replace.lower() if isinstance(_replace, str) else _replace)
+if REPLACE_RESULTS is None:
+    raise WorkflowError(f"--config {gin.REPLACE_KEY}: true or false, not {_replace!r}")
 try:
     _resolved = gcfg.load_config(
         _own_files + _cli_files,
-        workflow.config_settings.config or None,
+        _overrides or None,
         root=STUDY_ROOT,
     )
 except gcfg.ConfigError as exc:
@@ -110,14 +119,26 @@ def _preflight():
                 # Snakemake's file and line of this check)
                 print(f"gearsim: error: {exc}", file=sys.stderr)
                 raise SystemExit(2) from None
+    # results that another configuration made are not replaced unasked (gearsim.results.in_place)
+    try:
+        gin.check_in_place(RUN_RECORD, "results", replace=REPLACE_RESULTS)
+    except UsageError as exc:
+        print(f"gearsim: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
     for line in set_aside_damaged(
         PUBLISHED_CATALOGUE, CATALOGUE_BUILD, dry_run=_DRY_RUN
     ):
         print(f"gearsim: {line}", file=sys.stderr)
 
 
+RUN_RECORD = gin.run_record(STUDY, _own_files + _cli_files)
 if workflow.is_main_process:  # not again in each job of a cluster executor
     _preflight()
+
+
+onstart:
+    # jobs are about to run (not a dry run, not "nothing to be done"): results/ is this run's now
+    gin.write_record(RUN_RECORD, "results")
 
 
 # 4. What the jobs depend on. CODE_VERSION[scope] hashes the layers a kind of job depends on

@@ -93,20 +93,48 @@ def refine_cells(
     *,
     progress: Callable[[int, int, float], None] | None = None,
     limit: int | None = None,
+    done: pd.DataFrame | None = None,
+    checkpoint: Callable[[pd.DataFrame], None] | None = None,
+    every: int = 0,
 ) -> pd.DataFrame:
-    """Refine every periodic cell of a plane (``cells.parquet`` rows); one row per cell."""
-    periodic = cells[(cells["n"] >= 1) & (cells["status"] != "diverged")]
-    if limit is not None:
-        periodic = periodic.iloc[:limit]
-    rows = []
+    """Refine every periodic cell of a plane (``cells.parquet`` rows); one row per cell, in the
+    order of ``cells``.
+
+    ``done``: rows of an interrupted run (:data:`COLUMNS`), kept and not refined again (each
+    cell is refined alone from its own simulated state, so a resumed run gives the same table).
+    ``checkpoint(table)`` is called with the rows so far after every ``every`` refined cells.
+    """
+    periodic = periodic_cells(cells, limit)
+    rows = [] if done is None else done.to_dict("records")
+    have = {(int(r["i"]), int(r["j"])) for r in rows}
     t0 = time.perf_counter()
-    for k, (_, c) in enumerate(periodic.iterrows()):
+    fresh = 0
+    for _, c in periodic.iterrows():
+        if (int(c["i"]), int(c["j"])) in have:
+            continue
         params = base.with_(**{x_name: float(c["x"]), y_name: float(c["y"])})
         rec = {"plane": c.get("plane", ""), "i": int(c["i"]), "j": int(c["j"]),
                "x": float(c["x"]), "y": float(c["y"]), "label": c["label"], "n": int(c["n"])}
         rec.update(refine_cell(params, int(c["n"]), np.asarray(c["final_state"], dtype=float),
                                settings))
         rows.append(rec)
+        fresh += 1
+        if checkpoint is not None and every > 0 and fresh % every == 0:
+            checkpoint(_table(rows, periodic))
         if progress:
-            progress(k + 1, len(periodic), time.perf_counter() - t0)
+            progress(len(rows), len(periodic), time.perf_counter() - t0)
+    return _table(rows, periodic)
+
+
+def periodic_cells(cells: pd.DataFrame, limit: int | None = None) -> pd.DataFrame:
+    """The cells :func:`refine_cells` refines: periodic, not diverged; the first ``limit``."""
+    periodic = cells[(cells["n"] >= 1) & (cells["status"] != "diverged")]
+    return periodic if limit is None else periodic.iloc[:limit]
+
+
+def _table(rows: list[dict], periodic: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` as a table in the order of ``periodic`` (resumed rows come first in ``rows``)."""
+    order = {(int(i), int(j)): k for k, (i, j) in enumerate(zip(periodic["i"], periodic["j"],
+                                                              strict=True))}
+    rows = sorted(rows, key=lambda r: order.get((int(r["i"]), int(r["j"])), len(order)))
     return pd.DataFrame(rows, columns=list(COLUMNS))

@@ -34,13 +34,6 @@ from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, static_state
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import (
-    _DONE,
-    _H,
-    _K,
-    _POS,
-    _ST,
-    _STEPS,
-    _Y,
     LANES,
     Lanes,
     steps_per_period,
@@ -233,30 +226,27 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             nu = nus.pop() if nus else None
             part = [c for c in part if c.nu is None or c.nu == nu]
         m = min(c.left for c in part)
-        ist = lanes.ist
-        ist[_ST] = -1
-        ist[_DONE] = 0
-        ist[_STEPS] = 0
+        lanes.begin_call()
         hcol = np.zeros(lanes.size)  # h = 0 freezes the lanes that do not take part
         for c in part:
             l = c.lane
             hcol[l] = c.h
-            ist[_ST, l] = 0
-            ist[_POS, l] = c.measured if c.phase in _RECORDED else -1
-            ist[_K, l] = c.k
-        lanes.set_column(_H, hcol)
+            lanes.status[l] = 0
+            lanes.position[l] = c.measured if c.phase in _RECORDED else -1
+            lanes.period[l] = c.k
+        lanes.set_steps(hcol)
         # the tangent vector is only needed while some lane measures (else: the transient)
         tangent = any(c.phase != _TRANSIENT for c in part)
         lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         for c in part:
             l = c.lane
-            done = int(ist[_DONE, l])
+            done = int(lanes.done[l])
             c.k += done
             c.left -= done
-            c.steps += int(ist[_STEPS, l])
+            c.steps += int(lanes.steps[l])
             if c.phase in _RECORDED:
                 c.measured += done
-            if ist[_ST, l] != 0:
+            if lanes.status[l] != 0:
                 # diverged (during the transient or a chunk): simulate_cell's diverged record
                 _finish(c, diverged_result(c.cells[c.i], c.k, c.steps), lanes, st,
                         continuation, on_cell)
@@ -284,15 +274,10 @@ def _compact(lanes: Lanes, chains: list[_Chain]) -> Lanes:
     costs the same with 1 or 8 lanes taking part); the remaining lanes are copied, with their
     records, into a new :class:`Lanes` (lanes are independent: results are unchanged).
     """
-    new = Lanes(len(chains), lanes.sec.shape[1])
-    old = np.array([c.lane for c in chains], dtype=np.int64)
-    idx = np.arange(len(chains))
-    new.view[idx // LANES, :, idx % LANES] = lanes.view[old // LANES, :, old % LANES]
-    new.ist[:, idx] = lanes.ist[:, old]
-    for a in ("sec", "nface", "nback", "fout"):
-        getattr(new, a)[idx] = getattr(lanes, a)[old]
-    for c, l in zip(chains, idx, strict=True):
-        c.lane = int(l)
+    new = Lanes(len(chains), lanes.sec.shape[1], lanes.device)
+    new.gather(lanes, np.array([c.lane for c in chains], dtype=np.int64))
+    for l, c in enumerate(chains):
+        c.lane = l
     return new
 
 
@@ -310,7 +295,7 @@ def _begin_cell(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     if steps_lower_bound(params, st, transient + min(st.chunk, st.max_periods)) > st.max_steps:
         # finished by the driver with status 'budget' (no phase tables of its huge grid)
         ch.phase, ch.left, ch.N, ch.nu = _BUDGET, 0, int(st.steps_per_period), None
-        lanes.set(ch.lane, _H, 0.0)
+        lanes.set_step(ch.lane, 0.0)
         return
     ch.N = steps_per_period(params, st)
     ch.h = params.mesh_period / ch.N
@@ -345,7 +330,7 @@ def _begin_settle(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     if ch.lead == 0:
         _begin_lead(ch, lanes, st)  # no lead: nothing to check before the fixed plan
         return
-    lanes.set_rows(ch.lane, _Y + 10, ch.tangent0)
+    lanes.set_tangent(ch.lane, ch.tangent0)
     lanes.reset_modes(ch.lane)
     done = ch.k - ch.period
     ch.phase, ch.measured = _SETTLE, 0
@@ -354,7 +339,7 @@ def _begin_settle(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
 
 def _begin_lead(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
     """The tangent vector starts; it aligns over ``ch.lead`` periods before measuring."""
-    lanes.set_rows(ch.lane, _Y + 10, ch.tangent0)
+    lanes.set_tangent(ch.lane, ch.tangent0)
     lanes.reset_modes(ch.lane)
     if ch.lead > 0:
         ch.phase = _LEAD
@@ -454,8 +439,7 @@ def _finish(ch: _Chain, res: CellResult, lanes: Lanes, st, continuation, on_cell
         ch.start, ch.period = ch.u0, 0
     ch.i += 1
     if ch.finished:
-        lanes.ist[_ST, ch.lane] = -1
-        lanes.set(ch.lane, _H, 0.0)
+        lanes.freeze(ch.lane)
         return
     _begin_cell(ch, lanes, st)
 

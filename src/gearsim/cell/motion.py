@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-#: The four Kmax readings of a cell (:mod:`gearsim.cell.classify`) and the one the maps show.
+#: The four Kmax readings of a cell (:mod:`gearsim.cell.classify`), each under its own name.
 #: Here, beside the motion classes, so that readers of tables need not load the integrators.
 KMAX_READINGS = {
     "kmax_peak_mean": "max over the steady motion of F / Fm",
@@ -25,7 +25,12 @@ KMAX_READINGS = {
     "kmax_section_mean": "max over the Poincare samples of F / Fm",
     "kmax_section_static": "max over the Poincare samples of F / (Fm + Fe w^2)",
 }
+#: Kmax, the paper's maximum dynamic load coefficient, is this reading (the one docs/model.md
+#: reconstructs): the catalogue's ``kmax`` and what ``gearsim point``, the maps, the explorer and
+#: the scorecard show as Kmax. The other readings keep their own names, never "Kmax".
 DEFAULT_KMAX = "kmax_peak_static"
+#: What Kmax is, in the words printed beside it.
+KMAX_DEFINITION = KMAX_READINGS[DEFAULT_KMAX]
 
 #: The motion labels a classification takes.
 MOTIONS = ("periodic", "quasi-periodic", "chaos", "unsettled", "diverged")

@@ -31,9 +31,9 @@ from gearsim.cell.simulate import (
     recurrence_probe,
 )
 from gearsim.cell.verify import OrbitCache
-from gearsim.dynamics.model import N_PARAMS, N_STATE, pack_parameters
+from gearsim.dynamics.model import N_STATE, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
-from gearsim.numerics.batch import _DONE, _H, _K, _PAR, _POS, _ST, _STEPS, LANES, Lanes
+from gearsim.numerics.batch import LANES, Lanes
 from gearsim.numerics.integrate import steps_lower_bound
 
 #: what a pool's judge answers for a probing job after each chunk of its transient
@@ -155,16 +155,13 @@ class _Pool:
     def release(self, job: PoolJob) -> None:
         l = job.ch.lane
         self.jobs[l] = None
-        self.lanes.ist[_ST, l] = -1
-        self.lanes.set(l, _H, 0.0)
+        self.lanes.freeze(l)
 
     def column(self, job: PoolJob) -> np.ndarray:
-        l = job.ch.lane
-        return self.lanes.view[l // LANES, :, l % LANES].copy()
+        return self.lanes.column(job.ch.lane)
 
     def restore(self, job: PoolJob, col: np.ndarray) -> None:
-        l = job.ch.lane
-        self.lanes.view[l // LANES, :, l % LANES] = col
+        self.lanes.restore(job.ch.lane, col)
 
     def pack(self) -> None:
         """Fewer blocks when the occupied lanes fit in them (the kernel steps every block)."""
@@ -174,16 +171,12 @@ class _Pool:
 
     def _resize(self, n: int) -> None:
         occ = [j for j in self.jobs if j is not None]
-        new = Lanes(max(n, len(occ), 1), self.records)
+        new = Lanes(max(n, len(occ), 1), self.records, self.lanes.device)
         hist = np.full((new.size, self.history, N_STATE), np.nan)
         if occ:
             old = np.array([j.ch.lane for j in occ], dtype=np.int64)
             idx = np.arange(len(occ))
-            new.view[idx // LANES, :, idx % LANES] = self.lanes.view[old // LANES, :,
-                                                                     old % LANES]
-            new.ist[:, idx] = self.lanes.ist[:, old]
-            for a in ("sec", "nface", "nback", "fout"):
-                getattr(new, a)[idx] = getattr(self.lanes, a)[old]
+            new.gather(self.lanes, old)
             hist[idx] = self.hist[old]
             for j, l in zip(occ, idx, strict=True):
                 j.ch.lane = int(l)
@@ -195,15 +188,13 @@ class _Pool:
     def run(self, jobs: list[PoolJob], m: int, N: int, nu, bound: float, tangent: bool,
             record_transient: bool, stats: PoolStats) -> None:
         """Advance the lanes of ``jobs`` (all occupied lanes) ``m`` periods."""
-        ist = self.lanes.ist
-        ist[_ST] = -1
-        ist[_DONE] = 0
-        ist[_STEPS] = 0
+        lanes = self.lanes
+        lanes.begin_call()
         idx = np.array([j.ch.lane for j in jobs], dtype=np.int64)
-        ist[_ST, idx] = 0
-        ist[_POS, idx] = [j.ch.measured if j.ch.phase == _MEASURE
-                          else 0 if record_transient else -1 for j in jobs]  # fmt: skip
-        ist[_K, idx] = [j.ch.k for j in jobs]
+        lanes.status[idx] = 0
+        lanes.position[idx] = [j.ch.measured if j.ch.phase == _MEASURE
+                               else 0 if record_transient else -1 for j in jobs]  # fmt: skip
+        lanes.period[idx] = [j.ch.k for j in jobs]
         t0 = time.process_time()
         self.lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         stats.kernel_cpu_s += time.process_time() - t0
@@ -211,8 +202,8 @@ class _Pool:
         stats.computed += computed
         stats.steps += computed * N
         stats.calls += 1
-        done = ist[_DONE, idx].tolist()
-        steps = ist[_STEPS, idx].tolist()
+        done = lanes.done[idx].tolist()
+        steps = lanes.steps[idx].tolist()
         stats.useful += sum(done)
         stats.periods += sum(done)
         for j, d, n in zip(jobs, done, steps, strict=True):
@@ -268,9 +259,7 @@ def run_pool(
         if pk is None:
             pk = packed[id(p)] = (p, pack_parameters(p))
         l = job.ch.lane
-        v = pool.lanes.view[l // LANES, :, l % LANES]
-        v[_PAR : _PAR + N_PARAMS] = pk[1]
-        v[_H] = job.ch.h
+        pool.lanes.load_packed(l, pk[1], job.ch.h)
         pool.lanes.load_state(l, np.concatenate([y, job.ch.tangent0]))
 
     def load(job: PoolJob) -> None:
@@ -360,7 +349,7 @@ def run_pool(
             m = min(chunk, min(j.ch.left for j in jobs))
             probe.run(jobs, m, N, nu, bound, False, True, stats)
             ready = []
-            status = probe.lanes.ist[_ST]
+            status = probe.lanes.status
             for j in jobs:
                 c = j.ch
                 if status[c.lane] != 0:
@@ -401,8 +390,8 @@ def run_pool(
             jobs = meas.occupied()
             m = min(j.ch.left for j in jobs)
             meas.run(jobs, m, N, nu, bound, True, False, stats)
-            status = meas.lanes.ist[_ST]
-            done = meas.lanes.ist[_DONE]
+            status = meas.lanes.status
+            done = meas.lanes.done
             for j in jobs:
                 c = j.ch
                 l = c.lane

@@ -16,6 +16,7 @@ import numpy as np
 
 from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics.device import current as current_device
 from gearsim.numerics.events import channels
 from gearsim.numerics.integrate import IntegrationSettings, PeriodSummaries
 from gearsim.numerics.kernel import (
@@ -48,9 +49,16 @@ from gearsim.numerics.steps import phase_tables, rk4_steps_per_period
 
 # ============================================================================ lanes
 class Lanes:
-    """Storage of ``n`` lanes in blocks of :data:`LANES` (padding lanes are frozen)."""
+    """Storage of ``n`` lanes in blocks of :data:`LANES` (padding lanes are frozen).
 
-    def __init__(self, n: int, capacity: int):
+    The lanes run on ``device`` ("cpu": the SIMD kernel; "cuda": the CUDA lane kernel of
+    :mod:`gearsim.numerics.cuda_lanes`, the same rows and records copied to the GPU and back);
+    by default the process's device (:func:`gearsim.numerics.device.select`). Callers read and
+    write a lane through the accessors below, not the row constants.
+    """
+
+    def __init__(self, n: int, capacity: int, device: str | None = None):
+        self.device = current_device().kind if device is None else device
         self.n = n
         self.n_blocks = max(1, -(-n // LANES))
         self.size = self.n_blocks * LANES
@@ -109,10 +117,91 @@ class Lanes:
         return self.get_rows(lane, _Y, n)
 
     def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True) -> None:
-        """Advance the lanes with status 0 by ``m`` periods (the kernel :func:`advance`)."""
+        """Advance the lanes with status 0 by ``m`` periods (the kernel :func:`advance`, or the
+        CUDA lane kernel on the same arrays)."""
         C, S, LAM, CV, SV, Q = phase_tables(N, nu)
+        if self.device == "cuda":
+            from gearsim.numerics.cuda_lanes import advance_device
+
+            advance_device(self.blk, self.ist, int(N), int(m), (C, S, LAM, CV, SV, Q), float(nu),
+                           float(bound), self.sec, self.nface, self.nback, self.fout,
+                           bool(tangent))
+            return
         advance(self.blk, self.ist, int(N), int(m), C, S, LAM, CV, SV, Q, float(nu), float(bound),
                 self.sec, self.nface, self.nback, self.fout, bool(tangent))
+
+    # ---- the lane counters (rows of ``ist``, one entry per lane; writable views)
+    @property
+    def status(self) -> np.ndarray:
+        """0 running, 1 diverged, -1 not taking part in the next call."""
+        return self.ist[_ST]
+
+    @property
+    def done(self) -> np.ndarray:
+        """Periods completed in the last call."""
+        return self.ist[_DONE]
+
+    @property
+    def position(self) -> np.ndarray:
+        """Record position of the next call's first period (-1: not recorded)."""
+        return self.ist[_POS]
+
+    @property
+    def period(self) -> np.ndarray:
+        """Absolute period index at the start of the next call (the variable-ratio phase)."""
+        return self.ist[_K]
+
+    @property
+    def steps(self) -> np.ndarray:
+        """RK4 steps taken in the last call (the event layer's trial steps included)."""
+        return self.ist[_STEPS]
+
+    def begin_call(self) -> None:
+        """No lane takes part and the per-call counters are zero (callers then enrol lanes)."""
+        self.ist[_ST] = -1
+        self.ist[_DONE] = 0
+        self.ist[_STEPS] = 0
+
+    # ---- a lane's rows
+    def set_step(self, lane: int, h: float) -> None:
+        """The lane's RK4 step (0 freezes it)."""
+        self._lane(lane)[_H] = h
+
+    def set_steps(self, h: np.ndarray) -> None:
+        """Every lane's RK4 step (0 freezes a lane)."""
+        self.set_column(_H, h)
+
+    def freeze(self, lane: int) -> None:
+        """The lane takes part in no call until it is loaded again."""
+        self.ist[_ST, lane] = -1
+        self._lane(lane)[_H] = 0.0
+
+    def set_tangent(self, lane: int, z) -> None:
+        """The lane's tangent vector (10 entries)."""
+        self.set_rows(lane, _Y + N_STATE, z)
+
+    def load_packed(self, lane: int, packed: np.ndarray, h: float) -> None:
+        """Packed parameters (:func:`gearsim.dynamics.model.pack_parameters`) and the step."""
+        v = self._lane(lane)
+        v[_PAR : _PAR + N_PARAMS] = packed
+        v[_H] = h
+
+    def column(self, lane: int) -> np.ndarray:
+        """A copy of every row of the lane (to park it and :meth:`restore` it bit for bit)."""
+        return self._lane(lane).copy()
+
+    def restore(self, lane: int, col: np.ndarray) -> None:
+        """Put back rows that :meth:`column` returned."""
+        self.view[lane // LANES, :, lane % LANES] = col
+
+    def gather(self, other: Lanes, old: np.ndarray) -> None:
+        """Lanes ``old`` of ``other`` (rows, counters, records) into this one's first lanes."""
+        old = np.asarray(old, dtype=np.int64)
+        idx = np.arange(len(old))
+        self.view[idx // LANES, :, idx % LANES] = other.view[old // LANES, :, old % LANES]
+        self.ist[:, idx] = other.ist[:, old]
+        for a in ("sec", "nface", "nback", "fout"):
+            getattr(self, a)[idx] = getattr(other, a)[old]
 
     def summaries(self, lane: int, n: int, copy: bool = True) -> PeriodSummaries:
         """The first ``n`` recorded periods of ``lane`` (copies, or views into the buffers)."""

@@ -39,10 +39,10 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from numba.cpython.unsafe.tuple import tuple_setitem
 
 from gearsim.dynamics.model import (
     MODE_FRICTION,
+    N_FIELD,
     N_MODE,
     N_PARAMS,
     N_STATE,
@@ -172,6 +172,17 @@ def _store10(blk, r, flag, old, new):
 
 
 # ============================================================================ the vector step
+# the model-form slots are the field tuple's last three: the base form is its head and zeros
+assert (P_VTE, P_XIO, P_GAM1, N_FIELD) == (26, 27, 28, 29)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _base_form(P):
+    """The field tuple ``P`` with its model-form slots (``P_VTE``, ``P_XIO``, ``P_GAM1``) the
+    constant 0.0 (a static slice and a literal tail: the CPU and CUDA targets both type it)."""
+    return P[:26] + (0.0, 0.0, 0.0)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
                bound, tangent, bearings, forms):
@@ -187,7 +198,7 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     y = _load10(blk, o, _Y, q)
     P = field_params(blk, r + _PAR * L, L)
     if not forms:
-        P = tuple_setitem(tuple_setitem(tuple_setitem(P, P_VTE, 0.0), P_XIO, 0.0), P_GAM1, 0.0)
+        P = _base_form(P)
     M = _lane_modes(blk, o, q)
     h = blk[r + _H * L]
     vrs = blk[r + (_PAR + P_VRS) * L]
@@ -314,6 +325,77 @@ def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk, turn, general, 
         blk[r + _H * L] = 0.0  # freeze the lane
 
 
+# ============================================================================ lane bookkeeping
+# The per-lane pieces of a period that every lane kernel shares (this SIMD kernel and the
+# one-thread-per-lane CUDA kernel of :mod:`gearsim.numerics.cuda_lanes`): the same functions, so
+# the two keep one lane state and one record layout.
+@njit(cache=True, nogil=True, inline="always")
+def lane_general(blk, r):
+    """The lane at row offset ``r`` needs the general step: a bearing clearance (its channels
+    watched) or a model-form option (docs/model.md)."""
+    L = LANES
+    g = False
+    for c in range(4):
+        if blk[r + (_PAR + P_ACT + c) * L] != 0.0:
+            g = True
+    if (blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0
+            or blk[r + (_PAR + P_GAM1) * L] != 0.0):
+        g = True
+    return g
+
+
+@njit(cache=True, nogil=True, inline="always")
+def period_start(blk, ist, l, k, nu, sec):
+    """Start period ``k`` of lane ``l``: its section point, the per-period accumulators and
+    counters, and the period's variable-ratio phase."""
+    L = LANES
+    r = (l // L) * BLOCK + (l % L)
+    pos = ist[_POS, l]
+    if pos >= 0:
+        for i in range(N_STATE):
+            sec[l, pos + k, i] = blk[r + (_Y + i) * L]
+    x = blk[r + _Y * L]
+    r0 = blk[r + _R0 * L]
+    f0 = tracked_force(1.0, 0.0, x, blk[r + (_Y + 1) * L], field_params(blk, r + _PAR * L, L),
+                       r0, abs(r0))
+    blk[r + _FMX * L] = f0
+    blk[r + _FMN * L] = f0
+    blk[r + _XMX * L] = x
+    blk[r + _XMN * L] = x
+    blk[r + _TD * L] = 0.0
+    ist[_NF, l] = 0
+    ist[_NB, l] = 0
+    vrs, vrc = period_forcing(blk[r + (_PAR + P_VRA) * L], nu, ist[_K, l] + k)
+    blk[r + (_PAR + P_VRS) * L] = vrs
+    blk[r + (_PAR + P_VRC) * L] = vrc
+
+
+@njit(cache=True, nogil=True, inline="always")
+def period_end(blk, ist, l, k, N, wz, nface, nback, fout):
+    """End period ``k`` of lane ``l``: the tangent vector's growth (renormalised; ``wz`` is
+    scratch of N_STATE), the period's records, the counters."""
+    L = LANES
+    r = (l // L) * BLOCK + (l % L)
+    for i in range(N_STATE):
+        wz[i] = blk[r + (_Y + 10 + i) * L]
+    ly = end_period_tangent(wz)
+    for i in range(N_STATE):
+        blk[r + (_Y + 10 + i) * L] = wz[i]
+    pos = ist[_POS, l]
+    if pos >= 0:
+        kk = pos + k
+        nface[l, kk] = ist[_NF, l]
+        nback[l, kk] = ist[_NB, l]
+        fout[l, kk, O_TDIS] = blk[r + _TD * L]
+        fout[l, kk, O_FMAX] = blk[r + _FMX * L]
+        fout[l, kk, O_FMIN] = blk[r + _FMN * L]
+        fout[l, kk, O_XMAX] = blk[r + _XMX * L]
+        fout[l, kk, O_XMIN] = blk[r + _XMN * L]
+        fout[l, kk, O_LYAP] = ly
+    ist[_DONE, l] += 1
+    ist[_STEPS, l] += N
+
+
 # ============================================================================ the kernel
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
 def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout,
@@ -348,38 +430,14 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
     # would be typed Literal[bool](False) first, and every block step compiled twice
     anyof = np.zeros(1, dtype=np.bool_)
     for l in range(n_lanes):
-        r = (l // L) * BLOCK + (l % L)
-        for c in range(4):
-            if blk[r + (_PAR + P_ACT + c) * L] != 0.0:
-                anyof[0] = True  # a lane with a bearing clearance (its channels watched)
-        if (blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0
-                or blk[r + (_PAR + P_GAM1) * L] != 0.0):
-            anyof[0] = True  # a lane with a model-form option (docs/model.md)
+        if lane_general(blk, (l // L) * BLOCK + (l % L)):
+            anyof[0] = True
     general = anyof[0]
     for k in range(m):
         # ---- period start: section, accumulators, variable-ratio phase of the lane
         for l in range(n_lanes):
-            if ist[_ST, l] != 0:
-                continue
-            r = (l // L) * BLOCK + (l % L)
-            pos = ist[_POS, l]
-            if pos >= 0:
-                for i in range(N_STATE):
-                    sec[l, pos + k, i] = blk[r + (_Y + i) * L]
-            x = blk[r + _Y * L]
-            r0 = blk[r + _R0 * L]
-            f0 = tracked_force(1.0, 0.0, x, blk[r + (_Y + 1) * L],
-                               field_params(blk, r + _PAR * L, L), r0, abs(r0))
-            blk[r + _FMX * L] = f0
-            blk[r + _FMN * L] = f0
-            blk[r + _XMX * L] = x
-            blk[r + _XMN * L] = x
-            blk[r + _TD * L] = 0.0
-            ist[_NF, l] = 0
-            ist[_NB, l] = 0
-            vrs, vrc = period_forcing(blk[r + (_PAR + P_VRA) * L], nu, ist[_K, l] + k)
-            blk[r + (_PAR + P_VRS) * L] = vrs
-            blk[r + (_PAR + P_VRC) * L] = vrc
+            if ist[_ST, l] == 0:
+                period_start(blk, ist, l, k, nu, sec)
         # ---- the N grid steps of the period
         for j in range(N):
             i2 = 2 * j
@@ -423,24 +481,5 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
                                            fq == 2.0, general, (C, S, LAM, CV, SV, Q))
         # ---- period end: tangent growth, records
         for l in range(n_lanes):
-            if ist[_ST, l] != 0:
-                continue
-            r = (l // L) * BLOCK + (l % L)
-            for i in range(N_STATE):
-                wz[i] = blk[r + (_Y + 10 + i) * L]
-            ly = end_period_tangent(wz)
-            for i in range(N_STATE):
-                blk[r + (_Y + 10 + i) * L] = wz[i]
-            pos = ist[_POS, l]
-            if pos >= 0:
-                kk = pos + k
-                nface[l, kk] = ist[_NF, l]
-                nback[l, kk] = ist[_NB, l]
-                fout[l, kk, O_TDIS] = blk[r + _TD * L]
-                fout[l, kk, O_FMAX] = blk[r + _FMX * L]
-                fout[l, kk, O_FMIN] = blk[r + _FMN * L]
-                fout[l, kk, O_XMAX] = blk[r + _XMX * L]
-                fout[l, kk, O_XMIN] = blk[r + _XMN * L]
-                fout[l, kk, O_LYAP] = ly
-            ist[_DONE, l] += 1
-            ist[_STEPS, l] += N
+            if ist[_ST, l] == 0:
+                period_end(blk, ist, l, k, N, wz, nface, nback, fout)

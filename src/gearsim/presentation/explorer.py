@@ -22,8 +22,9 @@ more than :data:`POINTS_BUDGET` bytes of them); the coexisting attractors of eac
 (one line each) as JSON text inside the same block.
 
 Every quantity is dimensionless as in the catalogue (docs/model.md): x = X_n / b_c,
-x' = dx/dtau with tau = omega_n t; DC is a fraction of the mesh period; Kmax = F_n / F_m; the
-Lyapunov exponent is per unit dimensionless time.
+x' = dx/dtau with tau = omega_n t; DC is a fraction of the mesh period; Kmax is the catalogue's
+``kmax`` (:data:`gearsim.cell.motion.KMAX_DEFINITION`, named on the page); the Lyapunov exponent
+is per unit dimensionless time.
 """
 
 from __future__ import annotations
@@ -39,7 +40,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION
 from gearsim.presentation.figures import style
+from gearsim.presentation.orbit_plots import CURVE_STYLE
 
 #: Poincare points kept per cell (chaotic / unsettled cells); a periodic cell keeps its n points.
 MAX_POINTS = 16
@@ -348,7 +351,7 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
     n = _int_or(df["n"])
     periodic = np.where(df["motion"].fillna("").astype(str).to_numpy() == "periodic", n, 0)
     counts, px, pv = _poincare(df, rows, present, cap, periodic)
-    kmax_col = "kmax" if "kmax" in df.columns else "kmax_peak_mean"
+    kmax_col = "kmax" if "kmax" in df.columns else DEFAULT_KMAX
     kmax = grid(kmax_col)
     from gearsim.presentation.figures.planes import robust_max
 
@@ -390,7 +393,7 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
         "n": block.add(np.where(present, n[rows], -1), "<i2"),
         "layers": layers,
         "kmax_cap": float(robust_max(kmax)) if len(finite) else 1.0,
-        "kmax_reading": kmax_col,
+        "kmax_reading": KMAX_DEFINITION,
         "floquet_column": floquet,
         "verified": verified,
         "counts": block.add(np.clip(counts, 0, 255), "u1"),
@@ -443,7 +446,7 @@ def sweep_payload(name: str, df: pd.DataFrame, block: Block,
         "labels": [f"{lab} ({npq})" if npq else str(lab) for lab, npq in
                    zip(df["label"].fillna(""), df["label_npq"].fillna(""), strict=True)],
         "dc": df["dc"].astype(float).round(4).tolist(),
-        "kmax": (df["kmax"] if "kmax" in df.columns else df["kmax_peak_mean"]
+        "kmax": (df["kmax"] if "kmax" in df.columns else df[DEFAULT_KMAX]
                  ).astype(float).round(4).tolist(),
         "impacts": impacts,
         "impact_colours": {str(i): style.impact_colour(i) for i in impacts},
@@ -493,6 +496,7 @@ def render(planes: Sequence[PlaneData], sweeps: Mapping[str, pd.DataFrame], *,
         "scorecard": list(scorecard or []),
         "max_points": cap,
         "missing": MISSING,
+        "curve_colours": {kind: st[1] for kind, st in CURVE_STYLE.items()},
         "turbo": _colorscale("turbo"),
         "magma": _colorscale("magma"),
     }
@@ -500,6 +504,7 @@ def render(planes: Sequence[PlaneData], sweeps: Mapping[str, pd.DataFrame], *,
                       ).replace("</", "<\\/")
     page = _TEMPLATE.read_text()
     return (page.replace("%%TITLE%%", _html_escape(title))
+            .replace("%%KMAX%%", _html_escape(KMAX_DEFINITION))
             .replace("%%DATA%%", blob).replace("%%BLOCK%%", block.encoded()))
 
 

@@ -9,6 +9,8 @@ the nominal length ``b_c``, time ``tau = w_n t``, forces over ``Km b_c``. A unit
 
 from __future__ import annotations
 
+from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION, KMAX_READINGS
+
 #: Model parameters: (unit, meaning). The names of
 #: :class:`gearsim.dynamics.parameters.ModelParameters`.
 PARAMETERS: dict[str, tuple[str, str]] = {
@@ -59,11 +61,11 @@ RESULT: dict[str, tuple[str, str]] = {
     "label": ("", "pattern label I/nT, or chaos / quasi-periodic / unsettled / diverged"),
     "label_npq": ("", "n-p-q label ('' without a period)"),
     "dc": ("1", "fraction of time inside the backlash over the analysed window"),
-    "kmax": ("1", "dynamic load coefficient: the kmax_peak_static reading"),
-    "kmax_peak_mean": ("1", "peak mesh force over the motion / Fm"),
-    "kmax_peak_static": ("1", "peak mesh force over the motion / (Fm + Fe w^2)"),
-    "kmax_section_mean": ("1", "largest Poincare-section mesh force / Fm"),
-    "kmax_section_static": ("1", "largest Poincare-section mesh force / (Fm + Fe w^2)"),
+    # Kmax once (gearsim.cell.motion); the other readings under their own names
+    "kmax": ("1", f"Kmax, the maximum dynamic load coefficient: {KMAX_DEFINITION} "
+                  f"(the same number as {DEFAULT_KMAX})"),
+    **{k: ("1", f"{v} ({'the reading that is Kmax' if k == DEFAULT_KMAX else 'not Kmax'})")
+       for k, v in KMAX_READINGS.items()},
     "kmin_peak_mean": ("1", "smallest mesh force over the motion / Fm"),
     "lyapunov": ("1/tau", "largest Lyapunov exponent per unit dimensionless time"),
     "x_min": ("1 (X_n / b_c)", "smallest mesh displacement over the analysed window"),

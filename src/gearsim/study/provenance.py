@@ -17,6 +17,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from gearsim.numerics.device import current as current_device
 from gearsim.numerics.settings import TANGENT_SEED
 from gearsim.study.config import Study
 
@@ -194,6 +195,9 @@ def provenance(
         "subtree": subtree,
         "host": platform.node(),
     }
+    device = current_device().record()  # None on the default CPU run: its files are unchanged
+    if device is not None:
+        rec["device"] = device  # where the lanes ran: outside the configuration hash
     rec.update(extra)
     return rec
 

@@ -60,6 +60,29 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def add_device_argument(p: argparse.ArgumentParser) -> None:
+    """``--device``: where a simulating command's lanes run (over ``execution.device``)."""
+    from gearsim.numerics.device import DEVICES
+
+    p.add_argument(
+        "--device",
+        choices=DEVICES,
+        default=None,
+        help="where the lanes run: cpu (SIMD kernel), cuda (GPU; needs numba-cuda) or auto "
+        "(default: execution.device of the config)",
+    )
+
+
+def select_device(args: argparse.Namespace, study: Study):
+    """The command's device (``--device``, else ``execution.device``), made the process's
+    (:func:`gearsim.numerics.device.select`; cuda that cannot run is one line, exit 2)."""
+    from gearsim.numerics.device import select
+
+    if getattr(args, "device", None):
+        return select(args.device, "--device")
+    return select(study.config.get("execution", {}).get("device", "cpu"), "execution.device")
+
+
 #: physical options of every simulating command -> the gear-file name they set (docs/units.md)
 PHYSICAL_OPTIONS = {"rpm": "speed_rpm", "torque": "torque_Nm", "backlash": "half_backlash_um"}
 

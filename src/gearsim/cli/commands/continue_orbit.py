@@ -83,16 +83,20 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     sim = simulate_cell(params, settings=SEEDING)
     n = args.period if args.period is not None else max(sim.classification.n, 1)
+    if args.out is None:
+        out = Path(f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}"
+                   ".parquet")
+        fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
+    # where the tables go, before the minutes of continuation (the default is beside the
+    # pipeline's orbit tables, under a name of its own)
+    _log(f"continue {args.name}: writing {out} (+ its _points table) and "
+         f"{fig_path}" + ("" if args.out else "; --out to choose"))
     orbit = find_periodic_orbit(params, n, sim.final_state, st, grazing=False)
     cfg = Continuation(ds=args.ds, ds_max=args.ds_max, max_points=args.max_points,
                        switch_depth=args.switch_depth, settings=st, progress=_log,
                        deadline=deadline)
     df = continue_orbit(params, args.name, args.start, args.stop, orbit, config=cfg)
     elapsed = time.perf_counter() - t0
-    if args.out is None:
-        out = Path(f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}"
-                   ".parquet")
-        fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     df.attrs["parameters_source"] = source
     write_branches(df, out)
     from gearsim.analysis.exact_landmarks import bifurcation_points

@@ -9,11 +9,14 @@ from pathlib import Path
 
 from gearsim.cli.commands._common import (
     add_config_arguments,
+    add_device_argument,
     check_new_file,
     check_plane,
+    select_device,
     study_from_args,
 )
 from gearsim.cli.commands._progress import Progress
+from gearsim.errors import UsageError
 from gearsim.results import parquet
 from gearsim.study import provenance, tiles
 from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
@@ -28,6 +31,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
     add_config_arguments(p)
+    add_device_argument(p)
     p.add_argument(
         "--workers",
         type=int,
@@ -74,6 +78,10 @@ def run(args: argparse.Namespace) -> int:
             check_address(address)
         else:
             check_workers(args.workers)
+    device = select_device(args, study)
+    if device.kind == "cuda" and not in_process:
+        raise UsageError("--device cuda runs a tile's lanes in this process on the GPU: use "
+                         "--workers 1 and no scheduler address (or --no-cluster)")
     # every argument checked; before any simulation: the folder is writable and has room for
     # the tile and its temporary copy (~350 bytes per cell; 1 kB per cell leaves a margin)
     check_new_file(out, need=2 * 1024 * nx * len(rows) + (64 << 10))

@@ -50,7 +50,7 @@ X_LABEL = r"mesh displacement $x$ (= $X_n/b_c$)"
 V_LABEL = r"mesh velocity $\dot x$ (= $dx/d\tau$)"
 TAU_LABEL = r"dimensionless time $\tau$ (= $\omega_n t$)"
 DC_LABEL = "disengagement duty cycle DC"
-LOAD_LABEL = r"dynamic load coefficient $K = F_n/F_m$"
+LOAD_LABEL = r"mesh force over the mean load $F_n/F_m$"  # not Kmax (cell.motion.KMAX_DEFINITION)
 
 DPI = 200
 
@@ -64,14 +64,15 @@ def param_symbol(name: str) -> str:
 
 
 def kmax_label(reading: str | None = None) -> str:
-    """Axis label of Kmax naming the reading used (see
-    :data:`gearsim.cell.classify.KMAX_READINGS`)."""
+    """Axis label of Kmax with its definition, or of another reading under its own name (see
+    :data:`gearsim.cell.motion.KMAX_READINGS`)."""
     from gearsim.cell.motion import DEFAULT_KMAX
 
     reading = reading or DEFAULT_KMAX
     norm = r"F_m + F_e\omega^2" if reading.endswith("static") else "F_m"
     where = "peak" if "_peak_" in reading else "section"
-    return rf"$K_{{\max}}$ ({where} $F_n$ / $({norm})$)"
+    name = r"$K_{\max}$" if reading == DEFAULT_KMAX else reading.replace("_", r"\_")
+    return rf"{name} ({where} $F_n$ / $({norm})$)"
 
 
 def impact_colour(I: int) -> str:

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from gearsim.cell.motion import DEFAULT_KMAX
 from gearsim.presentation.figures import style
 
 #: section points drawn per swept value (the last ones: a periodic motion repeats them)
@@ -46,7 +47,7 @@ def figure_sweep_diagram(df: pd.DataFrame, *, name: str,
     fig, axes = plt.subplots(3, 1, figsize=(7.0, 7.2), sharex=True,
                              gridspec_kw={"height_ratios": [2.2, 1, 1]})
     ax_x, ax_dc, ax_k = axes
-    kcol = "kmax" if "kmax" in df.columns else "kmax_peak_mean"
+    kcol = "kmax" if "kmax" in df.columns else DEFAULT_KMAX
     dirs = list(dict.fromkeys(df["direction"])) if "direction" in df.columns else ["forward"]
     seen: set[int] = set()
     for d in dirs:

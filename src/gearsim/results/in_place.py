@@ -1,0 +1,161 @@
+"""The results in place: which configuration made a results folder, and the check that a run of
+another configuration does not replace them unasked.
+
+A run records, in ``results/.configuration.json``, the config files it was started with and a
+hash of what its outputs depend on (every plane's, sweep's and point set's subtree, the audit
+and the orbits). A later run compares itself with that record before any job starts:
+
+* the same content (whatever files gave it, e.g. a cluster file merged over the study): nothing
+  is replaced, it runs;
+* the same config files with a different content: the user edited the study and asked for it
+  (editing one plane re-runs only that plane), it runs;
+* other config files and a different content (``config/quick.yaml`` or a file of one's own
+  without ``study:`` over a finished default run): it stops in one line naming both grids and
+  the two ways on (a ``study:`` name, which runs in ``studies/<name>/``, or
+  ``--config replace_results=true``).
+
+Results written before such records existed are compared by their grids, read from the
+Parquet files' metadata (planes and sweeps).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+from gearsim.errors import UsageError
+from gearsim.study.config import Study
+from gearsim.study.provenance import config_hash, plane_subtree, point_subtree, sweep_subtree
+
+__all__ = ["RECORD", "REPLACE_KEY", "check_in_place", "run_record", "write_record"]
+
+#: The record of the configuration that made a results folder (relative to the run's directory).
+RECORD = Path("results/.configuration.json")
+#: The ``--config`` key with which a run replaces results of another configuration.
+REPLACE_KEY = "replace_results"
+
+
+def _grid(spec: Mapping) -> str:
+    """A plane's or sweep's grid in a few words: ``w 0.1..2.5 x b 0..1: 40 x 40``."""
+    if "x" in spec:
+        x, y = spec["x"], spec["y"]
+        return (f"{x['name']} {x['min']:g}..{x['max']:g} x {y['name']} {y['min']:g}..{y['max']:g}"
+                f": {x['n']} x {y['n']}")
+    return f"{spec['name']} {spec['min']:g}..{spec['max']:g}: {spec['n']} points"
+
+
+def _file_name(path: str | Path, root: Path) -> str:
+    p = Path(path).resolve()
+    try:
+        return p.relative_to(root.resolve()).as_posix()
+    except ValueError:
+        return p.as_posix()
+
+
+def run_record(study: Study, configfiles: Iterable[str | Path]) -> dict[str, Any]:
+    """What a run of ``study`` (started with ``configfiles``) records about itself: the files,
+    the hash of every output's subtree, and the grid of every plane and sweep."""
+    cfg = study.config
+    items: dict[str, str] = {}
+    grids: dict[str, str] = {}
+    for p in cfg["planes"]:
+        items[f"plane {p}"] = config_hash(plane_subtree(study, p))
+        grids[f"plane {p}"] = _grid(cfg["planes"][p])
+    for s in cfg["sweeps"]:
+        items[f"sweep {s}"] = config_hash(sweep_subtree(study, s))
+        grids[f"sweep {s}"] = _grid(cfg["sweeps"][s])
+    for f in cfg["points"]:
+        items[f"points {f}"] = config_hash(point_subtree(study, f))
+    items["audit"] = config_hash(cfg.get("audit"))
+    items["orbits"] = config_hash(cfg.get("orbits"))
+    return {"files": [_file_name(f, study.root) for f in configfiles],
+            "content": config_hash(items), "items": items, "grids": grids}
+
+
+def _legacy_grids(folder: Path) -> dict[str, str]:
+    """Grids of the planes and sweeps in ``folder`` (a results folder without a record), from the
+    Parquet metadata the pipeline writes (empty when there are none)."""
+    planes = sorted(folder.glob("*/cells.parquet"))
+    sweeps = sorted((folder / "sweeps").glob("*.parquet"))
+    if not planes and not sweeps:
+        return {}
+    from gearsim.results.parquet import PLANE_KEY, read_metadata
+
+    out = {}
+    for f in planes:
+        rec = read_metadata(f, PLANE_KEY)
+        if rec and "x" in rec:
+            out[f"plane {f.parent.name}"] = _grid(rec)
+    for f in sweeps:
+        rec = read_metadata(f) or {}
+        spec = (rec.get("subtree") or {}).get("sweep")
+        if spec and "name" in spec:
+            out[f"sweep {f.stem}"] = _grid(spec)
+    return out
+
+
+def _differences(before: Mapping[str, str], after: Mapping[str, str],
+                 changed: Iterable[str] = ()) -> list[str]:
+    """``name: grid in place -> this run's grid`` for each item whose grid or content differs."""
+    out = []
+    for name in sorted(set(before) & set(after)):
+        if before[name] != after[name]:
+            out.append(f"{name}: {before[name]} -> {after[name]}")
+    for name in sorted(set(changed) - {o.split(':')[0] for o in out}):
+        grid = after.get(name, "")
+        out.append(f"{name}: {grid}{' ' if grid else ''}(other settings)")
+    added = sorted(set(after) - set(before))
+    if added:
+        out.append("added " + ", ".join(added))
+    return out
+
+
+def _summary(lines: list[str], most: int = 3) -> str:
+    more = len(lines) - most
+    return "; ".join(lines[:most]) + (f"; and {more} more" if more > 0 else "")
+
+
+def check_in_place(record: Mapping[str, Any], folder: str | Path = "results", *,
+                   replace: bool = False) -> None:
+    """Raise :class:`UsageError` (one line) when the run described by ``record``
+    (:func:`run_record`) would replace results in ``folder`` that another configuration made
+    and the run did not ask to replace (``replace``)."""
+    folder = Path(folder)
+    if replace or not folder.is_dir():
+        return
+    path = folder / RECORD.name
+    files = " + ".join(record["files"])
+    ways = ("give the study a name (`study: NAME` in its file) to run it into studies/NAME/, "
+            f"or add --config {REPLACE_KEY}=true to replace them")
+    if path.is_file():
+        try:
+            before = json.loads(path.read_text())
+            before_files, before_content = before["files"], before["content"]
+        except (OSError, ValueError, KeyError, TypeError):
+            return  # an unreadable record protects nothing; the run rewrites it
+        if before_content == record["content"] or before_files == record["files"]:
+            return
+        changed = [k for k, v in record["items"].items()
+                   if k in before.get("items", {}) and before["items"][k] != v]
+        diff = _differences(before.get("grids", {}), record["grids"], changed)
+        raise UsageError(
+            f"{folder}/ holds the results of {' + '.join(before_files)}; this run of {files} "
+            f"would replace them ({_summary(diff) or 'other settings'}): {ways}")
+    before_grids = _legacy_grids(folder)
+    diff = [d for d in _differences(before_grids, record["grids"]) if "->" in d]
+    if diff:
+        raise UsageError(f"{folder}/ holds results of other grids; this run of {files} would "
+                         f"replace them ({_summary(diff)}): {ways}")
+
+
+def write_record(record: Mapping[str, Any], folder: str | Path = "results") -> Path:
+    """Record ``record`` as the configuration of ``folder`` (atomically)."""
+    path = Path(folder) / RECORD.name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
+    os.replace(tmp, path)
+    return path
