@@ -30,7 +30,7 @@ from gearsim.presentation.figures.context import (
 
 
 # ------------------------------------------------------------------------------ builders
-def _fig1(ctx: Context) -> list[Built]:
+def fig1(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.schematic import figure1
 
     return [Built(1, figure1(), "Schematic of the 6-DOF bending-torsional model: non-circular "
@@ -42,7 +42,7 @@ def _fig1(ctx: Context) -> list[Built]:
                    "4)."])]
 
 
-def _fig2(ctx: Context) -> list[Built]:
+def fig2(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.data import figure_data
     from gearsim.presentation.figures.phase import fig2_data, figure2
 
@@ -60,7 +60,7 @@ def _fig2(ctx: Context) -> list[Built]:
                   "trajectories of impact states I = 0, 1 and 2.", diffs, ["sweeps/b015"])]
 
 
-def _fig3(ctx: Context) -> list[Built]:
+def fig3(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.planes import figure3
 
     df = _plane(ctx, "wb")
@@ -87,7 +87,7 @@ def _landmark_diffs(df: pd.DataFrame) -> list[str]:
     return out
 
 
-def _fig4(ctx: Context) -> list[Built]:
+def fig4(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.bifurcation import figure4, landmarks_of, sequence_text
 
     df = _need(ctx.sweeps, "standard", "sweep")
@@ -140,7 +140,7 @@ def _label_diffs(pts, paper: dict[float, str]) -> list[str]:
     return out
 
 
-def _fig5(ctx: Context) -> list[Built]:
+def fig5(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.phase import figure5
 
     pts, inputs, how = _point_motions(ctx, "fig5")
@@ -152,7 +152,7 @@ def _fig5(ctx: Context) -> list[Built]:
                   "pattern and ours.", diffs, inputs)]
 
 
-def _fig6(ctx: Context) -> list[Built]:
+def fig6(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.spectra import figure6
 
     pts, inputs, how = _point_motions(ctx, "fig6")
@@ -162,7 +162,7 @@ def _fig6(ctx: Context) -> list[Built]:
                   f"ω and ω/2, ω/4, ω/8 marked; motions {how}.", diffs, inputs)]
 
 
-def _fig_pattern(number: int, plane: str):
+def fig_pattern(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.figures.planes import figure_pattern
 
@@ -179,7 +179,7 @@ def _fig_pattern(number: int, plane: str):
     return build
 
 
-def _fig_sweeps(number: int, names: tuple[str, ...]):
+def fig_sweeps(number: int, names: tuple[str, ...]):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.figures.bifurcation import figure_sweeps, sequence_text
 
@@ -201,7 +201,7 @@ def _fig_sweeps(number: int, names: tuple[str, ...]):
     return build
 
 
-def _fig_dc(number: int, plane: str):
+def fig_dc(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.figures.planes import figure_dc
 
@@ -216,7 +216,7 @@ def _fig_dc(number: int, plane: str):
     return build
 
 
-def _fig_kmax(number: int, plane: str):
+def fig_kmax(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
         from gearsim.presentation.figures.data import plane_grid
@@ -239,7 +239,7 @@ def _fig_kmax(number: int, plane: str):
     return build
 
 
-def _fig9_11(ctx: Context) -> list[Built]:
+def fig9_11(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.data import figure_data
     from gearsim.presentation.figures.phase import (
         choose_motion,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from gearsim.analysis.paper import COEXIST_POINT, PAPER_COEXIST
+from gearsim.analysis.paper import PAPER_COEXIST
 from gearsim.presentation.figures import style
 
 # distinct colours for attractor indices of one cell (basin pictures)
@@ -122,7 +122,7 @@ def figure_hysteresis(sweeps: pd.DataFrame, *, title: str | None = None):
 # ------------------------------------------------------------------------------ registry
 
 
-def _fig18(ctx):
+def fig18(ctx):
     from gearsim.presentation.figures.context import Built, _need
 
     df = _need(ctx.sweeps, "hysteresis", "sweep")
@@ -145,7 +145,7 @@ def _basins(ctx, name: str):
     return ctx.params.with_(**stated["params"]), int(stated["n"]), starts, att, stated
 
 
-def _fig19(ctx):
+def fig19(ctx):
     from gearsim.presentation.figures.context import Built
 
     p, n, starts, att, _ = _basins(ctx, "fig19")
@@ -165,7 +165,7 @@ def _fig19(ctx):
                   [])]
 
 
-def _fig20(ctx):
+def fig20(ctx):
     from gearsim.presentation.figures.context import Built
 
     p, n, starts, att, stated = _basins(ctx, "fig20")
@@ -179,26 +179,6 @@ def _fig20(ctx):
                   ["sweeps/hysteresis"])]
 
 
-def register_figures() -> None:
-    from gearsim.presentation.figures.registry import FIGURES, FigureSpec, Inputs, register
-
-    if 18 in FIGURES:
-        return
-    register(FigureSpec(18, "(Not in the paper.) Forward and backward sweeps of the standard set "
-                        "over the softening fold: bifurcation diagram and DC, hysteresis band.",
-                        Inputs(sweeps=("hysteresis",)), _fig18, in_paper=False,
-                        caption="Hysteresis: forward and backward sweeps over the fold."))
-    register(FigureSpec(19, "(Not in the paper.) Basins of attraction at b = "
-                        f"{COEXIST_POINT['b']}, w = {COEXIST_POINT['w']} (the point of Figs 9-11).",
-                        Inputs(figure_data=("fig19",)), _fig19, in_paper=False,
-                        caption="Basins of attraction at Figs 9-11's point."))
-    register(FigureSpec(20, "(Not in the paper.) Basins of attraction inside the fold's "
-                        "hysteresis band.", Inputs(figure_data=("fig20",)), _fig20,
-                        in_paper=False,
-                        caption="Basins of attraction inside the hysteresis band."))
-
-
-register_figures()
 
 
 # ------------------------------------------------------------------------------ plane maps
@@ -375,7 +355,7 @@ def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
     return fig
 
 
-def _map_floquet(df: pd.DataFrame):
+def map_floquet(df: pd.DataFrame):
     """The Floquet-margin map of a plane's cells table (:data:`maps.PLANE_MAPS` entry)."""
     from gearsim.presentation.figures.data import plane_axes
 
@@ -391,14 +371,4 @@ def _map_floquet(df: pd.DataFrame):
              "its accuracy against the flow's by w: docs/decisions.md, 'Floquet margin of "
              "every cell'). Light grey: periodic cells without a margin (a run with "
              "floquet: slow, variable-ratio or DP5 cells)."])
-
-
-def register_maps() -> None:
-    from gearsim.presentation.figures.maps import MapSpec, register_map
-
-    register_map(MapSpec("floquet", "Floquet margin of the periodic cells", _map_floquet,
-                         ("mu_max", "status", "motion")))
-
-
-register_maps()
 
