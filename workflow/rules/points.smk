@@ -24,20 +24,15 @@ rule points:
 
 
 POINT_FILES = expand(rules.points.output.table, fig=POINT_SETS)
-ALL_TARGETS += POINT_FILES
+TARGETS_POINTS = POINT_FILES
 
 
 # What the figures draw that is simulated (Fig 2's motions, Figs 9-11's attractor search, the
 # basins of Figs 19 and 20): one job per table, from the sweeps it starts from; the figure jobs
 # only read it (gearsim.study.figure_tables names the tables and what each reads).
-from gearsim.study.figure_tables import FIGURE_DATA, figure_data_tables
-
-FIGURE_DATA_TABLES = figure_data_tables(config)
-
-
 def figure_data_sweeps(wildcards):
     """The sweep tables the figure-data table ``wildcards.name`` starts from, by name."""
-    names = FIGURE_DATA[wildcards.name].sweeps
+    names = gfd.FIGURE_DATA[wildcards.name].sweeps
     return dict(zip(names, expand(rules.sweep.output.table, sweep=names)))
 
 
@@ -59,7 +54,7 @@ rule figure_data:
     threads: 1
     params:
         sweeps=lambda wildcards, input: " ".join(
-            f"--sweep {n}={input[n]}" for n in FIGURE_DATA[wildcards.name].sweeps
+            f"--sweep {n}={input[n]}" for n in gfd.FIGURE_DATA[wildcards.name].sweeps
         ),
         study=gprov.canonical_json(
             {
