@@ -220,3 +220,20 @@ def attractors_of_plane(wildcards):
         plane=wildcards.plane,
         tile=TILES[wildcards.plane],
     )
+
+
+def figure_data_sweeps(wildcards):
+    """The sweep tables the figure-data table ``wildcards.name`` starts from, by name."""
+    names = gfd.FIGURE_DATA[wildcards.name].sweeps
+    return dict(zip(names, expand(rules.sweep.output.table, sweep=names)))
+
+
+def table_files():
+    """The tables a figure can read: kind -> name -> the file its rule makes (figures.smk)."""
+    return {
+        "sweeps": dict(zip(SWEEPS, SWEEP_FILES)),
+        "planes": dict(zip(PLANES, CELL_FILES)),
+        "points": dict(zip(POINT_SETS, POINT_FILES)),
+        "orbits": ORBIT_FILES,
+        "figure_data": FIGURE_DATA_FILES,
+    }

@@ -7,7 +7,8 @@
 from gearsim.presentation.figures import rules as gfr
 
 FIGURE_PARAMS = gfr.figure_params(STUDY)
-# the tables a figure can read, by kind and name (what the figure groups are planned from) ...
+# the tables a figure can read, by kind and name (what the figure groups are planned from; the
+# files: table_files(), common.smk)
 TABLE_NAMES = {
     "sweeps": SWEEPS,
     "planes": PLANES,
@@ -16,18 +17,6 @@ TABLE_NAMES = {
     "figure_data": FIGURE_DATA_TABLES,
 }
 FIGURE_GROUPS = gfr.groups({kind: dict.fromkeys(names) for kind, names in TABLE_NAMES.items()})
-
-
-def table_files():
-    """... and kind -> name -> the file its rule makes (the other rule files' outputs)."""
-    return {
-        "sweeps": dict(zip(SWEEPS, SWEEP_FILES)),
-        "planes": dict(zip(PLANES, CELL_FILES)),
-        "points": dict(zip(POINT_SETS, POINT_FILES)),
-        "orbits": ORBIT_FILES,
-        "figure_data": FIGURE_DATA_FILES,
-    }
-
 
 
 for _spec in FIGURE_GROUPS:

@@ -30,12 +30,6 @@ TARGETS_POINTS = POINT_FILES
 # What the figures draw that is simulated (Fig 2's motions, Figs 9-11's attractor search, the
 # basins of Figs 19 and 20): one job per table, from the sweeps it starts from; the figure jobs
 # only read it (gearsim.study.figure_tables names the tables and what each reads).
-def figure_data_sweeps(wildcards):
-    """The sweep tables the figure-data table ``wildcards.name`` starts from, by name."""
-    names = gfd.FIGURE_DATA[wildcards.name].sweeps
-    return dict(zip(names, expand(rules.sweep.output.table, sweep=names)))
-
-
 rule figure_data:
     input:
         unpack(figure_data_sweeps),
