@@ -42,6 +42,7 @@ import pandas as pd
 
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION
 from gearsim.presentation.figures import style
+from gearsim.presentation.orbit_plots import CURVE_STYLE
 
 #: Poincare points kept per cell (chaotic / unsettled cells); a periodic cell keeps its n points.
 MAX_POINTS = 16
@@ -495,6 +496,7 @@ def render(planes: Sequence[PlaneData], sweeps: Mapping[str, pd.DataFrame], *,
         "scorecard": list(scorecard or []),
         "max_points": cap,
         "missing": MISSING,
+        "curve_colours": {kind: st[1] for kind, st in CURVE_STYLE.items()},
         "turbo": _colorscale("turbo"),
         "magma": _colorscale("magma"),
     }

@@ -229,7 +229,8 @@ def check_config(config: dict, root: str | Path) -> dict:
         if rows > int(plane["y"]["n"]):
             raise ConfigError(
                 f"config key 'tile_rows': {rows} is larger than the grid of plane '{pname}' "
-                f"({plane['y']['n']} rows)"
+                f"({plane['y']['n']} rows): set tile_rows (plane rows per job) to 1.."
+                f"{plane['y']['n']}"
             )
         cells = int(plane["x"]["n"]) * int(plane["y"]["n"])
         if cells > MAX_PLANE_CELLS:

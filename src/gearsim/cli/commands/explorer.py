@@ -25,10 +25,13 @@ HELP = ("write the interactive explorer page (one static HTML file: the scorecar
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--results", default="results",
-                   help="results directory (<plane>/cells.parquet, sweeps/<sweep>.parquet)")
+                   help="results directory (<plane>/cells.parquet, sweeps/<sweep>.parquet; "
+                   "default: %(default)s)")
     p.add_argument("--catalogue", default="results/catalogue.sqlite",
-                   help="SQLite catalogue (its attractors table is shown when present)")
-    p.add_argument("--out", "-o", default="results/explorer/index.html", help="the page (HTML)")
+                   help="SQLite catalogue (its attractors table is shown when present; "
+                   "default: %(default)s)")
+    p.add_argument("--out", "-o", default="results/explorer/index.html",
+                   help="the page, one HTML file to open in a browser (default: %(default)s)")
     p.add_argument("--plane", nargs="+", default=None, metavar="NAME",
                    help="only these planes of the config (default: every one)")
     p.add_argument("--sweep", nargs="+", default=None, metavar="NAME",

@@ -54,12 +54,12 @@ def _map_dc(df: pd.DataFrame):
 
 
 def _map_kmax(df: pd.DataFrame):
-    from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
+    from gearsim.cell.motion import KMAX_DEFINITION
     from gearsim.presentation.figures.planes import figure_kmax
 
     return (figure_kmax(df), f"Maximum dynamic load coefficient in the {axes_text(df)} plane: "
             "(a) surface; (b) filled contours.",
-            [_grid_note(df), f"Kmax reading: {DEFAULT_KMAX} ({KMAX_READINGS[DEFAULT_KMAX]})."])
+            [_grid_note(df), f"Kmax = {KMAX_DEFINITION} (the catalogue's kmax)."])
 
 
 register_map(MapSpec("pattern", "pattern I/nT", _map_pattern, ("I", "label", "poincare_x")))
