@@ -39,9 +39,13 @@ quick: venv  ## small grids for a fast look (config/quick.yaml)
 # first, as the workflow's `compile` rule does, so the workers load them instead of compiling the
 # same kernels side by side.
 TEST_WORKERS ?= 2
+# Then the CUDA lane kernel under Numba's CUDA simulator: its own pytest process, since
+# NUMBA_ENABLE_CUDASIM must be set before Numba is imported (skipped without numba-cuda, the
+# gpu extra that .ci/run installs).
 test: venv  ## the test suite (what CI runs)
 	. $(BIN)/activate && gearsim compile && \
 	  pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=30
+	. $(BIN)/activate && NUMBA_ENABLE_CUDASIM=1 pytest -q -p no:cacheprovider tests/unit/test_cuda_lanes.py
 
 # The unit tier only (tests/unit): seconds per file, under a minute on 2 cores with a warm cache.
 test-fast: venv

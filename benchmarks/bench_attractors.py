@@ -96,7 +96,7 @@ def copies(found) -> int:
     """Pairs of periodic attractors of one cell that look like one orbit counted once and k
     times (periods n and k n, k >= 1; same impact state, DC within ORBIT_DC, points within
     ORBIT_RTOL of the range both ways): what the least-period merge must leave none of."""
-    from gearsim.analysis.attractors.matching import ORBIT_DC, ORBIT_RTOL, _near_all, _tolerances
+    from gearsim.analysis.attractors.matching import ORBIT_DC, ORBIT_RTOL, _tolerances, near_all
 
     out = 0
     for ca in found:
@@ -112,7 +112,7 @@ def copies(found) -> int:
                     continue
                 tx, tv = _tolerances(a, b, ORBIT_RTOL)
                 pa, pb = a.points[-a.period:, :2], b.points[-b.period:, :2]
-                out += int(_near_all(pa, pb, tx, tv) and _near_all(pb, pa, tx, tv))
+                out += int(near_all(pa, pb, tx, tv) and near_all(pb, pa, tx, tv))
     return out
 
 

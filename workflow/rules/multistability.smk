@@ -22,6 +22,8 @@ rule attractor_tile:
     # job (~7 s of a tile job's wall on 2 idle cores; benchmarks/README.md (k)). With
     # cluster.scheduler_address set, each job still sends its tasks to that scheduler.
     threads: 1
+    resources:
+        gpu=GPU_JOBS,
     params:
         config=plane_params,
         code_version=CODE_VERSION["attractors"],

@@ -21,7 +21,7 @@ from gearsim.analysis.paper import (
     THRESHOLD_TOL,
     within,
 )
-from gearsim.cell.motion import KMAX_READINGS
+from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
 from gearsim.presentation.report_record import Report
 from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import plane_lines, point_lines, sweep_lines
@@ -166,10 +166,11 @@ def _jump_lines(rep: Report) -> list[str]:
         j = rep.jump
         out += [f"Jump between w = {j['w_lo']:.4f} and {j['w_hi']:.4f}. DC {j['dc_before']:.3f}"
                 f" -> {j['dc_after']:.3f} (paper: DC -> {PAPER_JUMP_DC}).", "",
-                "| Kmax reading | before | after | paper |", "|---|---|---|---|"]
+                "| reading | before | after | paper's Kmax |", "|---|---|---|---|"]
         for k, text in KMAX_READINGS.items():
             if k in j["kmax_after"]:
-                out.append(f"| {k}: {text} | {j['kmax_before'][k]:.3f} | "
+                name = f"**Kmax** ({k})" if k == DEFAULT_KMAX else f"{k} (not Kmax)"
+                out.append(f"| {name}: {text} | {j['kmax_before'][k]:.3f} | "
                            f"{j['kmax_after'][k]:.3f} | {PAPER_JUMP_KMAX} |")
         best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
                    default=None)

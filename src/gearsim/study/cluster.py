@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import getpass
+import logging
 import os
 import re
 import shutil
@@ -204,10 +205,23 @@ def open_client(workers: int = 1, scheduler_address: str | None = None) -> Itera
             client = Client(scheduler_address, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError, TypeError) as exc:
             raise UsageError(f"cannot reach dask scheduler {scheduler_address}: {exc}") from None
+        # the client's own log of a lost scheduler is a traceback per reconnection attempt; the
+        # one line below says what happened and what to run
+        log = logging.getLogger("distributed.client")
+        level = log.level
+        log.setLevel(logging.CRITICAL)
         try:
             yield client
+        except BaseException as exc:  # a cancelled future is an asyncio.CancelledError
+            if not _scheduler_lost(exc):
+                raise
+            raise UsageError(
+                f"lost dask scheduler {scheduler_address} mid-job; nothing was written: start "
+                "the scheduler again, then run the same command"
+            ) from None
         finally:
             client.close()
+            log.setLevel(level)
         return
     check_workers(workers)
     with (
@@ -221,6 +235,17 @@ def open_client(workers: int = 1, scheduler_address: str | None = None) -> Itera
         Client(cluster) as client,
     ):
         yield client
+
+
+def _scheduler_lost(exc: BaseException) -> bool:
+    """Whether ``exc`` is how a client learns that its scheduler went away: its futures are
+    cancelled for "scheduler-connection-lost", or a call finds the connection closed."""
+    from distributed.client import FutureCancelledError
+    from distributed.comm import CommClosedError
+
+    if isinstance(exc, FutureCancelledError):
+        return exc.reason == "scheduler-connection-lost"
+    return isinstance(exc, CommClosedError)
 
 
 def map_unordered(client, fn: Callable, items: Sequence[Any]) -> Iterator[Any]:

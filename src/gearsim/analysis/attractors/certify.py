@@ -202,8 +202,7 @@ def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, setting
     lanes.position[:k] = 0
     lanes.period[:k] = 0
     lanes.run(N, n, 0.0, float(getattr(settings, "divergence_bound", 1.0e6)), False)
-    fin = np.array([lanes.state(l, 10) for l in range(k)]).reshape(k, 10)
-    return (fin, lanes.status[:k].copy(), lanes.nface[:k, :n].copy(),
+    return (lanes.states(k, 10), lanes.status[:k].copy(), lanes.nface[:k, :n].copy(),
             lanes.nback[:k, :n].copy(), lanes.sec[:k, :n, :2].copy())  # fmt: skip
 
 

@@ -15,6 +15,7 @@ from gearsim.analysis.paper import (
     PAPER_JUMP_KMAX,
     PAPER_SEQUENCE_TEXT,
 )
+from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION
 from gearsim.presentation.figures.context import (
     _POINT_NOTE,
     Built,
@@ -100,9 +101,8 @@ def fig4(ctx: Context) -> list[Built]:
     diffs += _landmark_diffs(df)
     if len(jump):
         diffs.append(f"Largest DC {float(df['dc'].max()):.3f} (paper {PAPER_JUMP_DC} after the "
-                     f"jump); Kmax at the jump in the paper {PAPER_JUMP_KMAX}; our Kmax reading "
-                     "is the default "
-                     "catalogue column 'kmax'.")
+                     f"jump); Kmax at the jump in the paper {PAPER_JUMP_KMAX}; our Kmax = "
+                     f"{KMAX_DEFINITION} (the catalogue's kmax).")
     fig = figure4(df)
     inputs = ["sweeps/standard"]
     exact = ""
@@ -218,13 +218,12 @@ def fig_dc(number: int, plane: str):
 
 def fig_kmax(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
-        from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
         from gearsim.presentation.figures.data import plane_grid
         from gearsim.presentation.figures.planes import figure_kmax, robust_max
 
         df = _plane(ctx, plane)
         axis = axes_text(df)
-        diffs = [_grid_note(df), f"Kmax reading: {DEFAULT_KMAX} ({KMAX_READINGS[DEFAULT_KMAX]}); "
+        diffs = [_grid_note(df), f"Kmax = {KMAX_DEFINITION} (the catalogue's kmax); "
                  "the paper's normalisation is not stated (docs/model.md)."]
         col = "kmax" if "kmax" in df.columns else DEFAULT_KMAX
         Z = plane_grid(df, col)
