@@ -30,6 +30,8 @@ from typing import Any
 
 from gearsim.analysis.paper import (
     COEXIST_POINT,
+    PAPER_FIG5,
+    PAPER_FIG6,
     PAPER_FIG9_11,
 )
 from gearsim.errors import UsageError
@@ -135,6 +137,12 @@ def register(spec: FigureSpec) -> FigureSpec:
     return spec
 
 
+def _panels(table: dict[float, str]) -> str:
+    """The paper's panels of a figure of points: ``(a) ω = 0.48 1-0-0, (b) ...``."""
+    return ", ".join(f"({chr(97 + k)}) ω = {w:g} {label}" for k, (w, label) in
+                     enumerate(table.items()))
+
+
 register(FigureSpec(1, "Dynamic model of curve-face gear transmission system.", Inputs(),
                     builders.fig1,
                     caption="Schematic of the 6-DOF bending-torsional model (drawn)."))
@@ -151,14 +159,11 @@ register(FigureSpec(4, "(a) Bifurcation diagram of mesh displacement; (b) I: DC 
                     builders.fig4,
                     caption="Standard forward sweep in w: Poincare points, I:DC and Kmax."))
 register(FigureSpec(5, "Superpositions of the phase diagram and Poincaré mapping of the gear "
-                    "pair: (a) ω = 0.48 1-0-0, (b) ω = 0.569 grazing, (c) ω = 0.86 1-1-0, (d) "
-                    "ω = 1.02 2-2-0, (e) ω = 1.072 grazing, (f) ω = 1.25 2-1-0, (g) ω = 1.37 "
-                    "4-3-0, (h) ω = 1.384 8-6-0, (i) ω = 1.53 chaotic, (j) ω = 1.7 4-3-0, (k) "
-                    "ω = 1.81 2-2-0, (l) ω = 2.24 1-1-0.", Inputs(points=("fig5",)), builders.fig5,
+                    f"pair: {_panels(PAPER_FIG5)}.", Inputs(points=("fig5",)), builders.fig5,
                     caption="Phase trajectories with Poincare points at the paper's values of "
                     "w; every panel names the paper's pattern and ours."))
-register(FigureSpec(6, "FFT spectrum: (a) ω = 0.48 1-0-0, (b) ω = 1.02 2-2-0, (c) ω = 1.37 "
-                    "4-3-0, (d) ω = 1.53 chaotic.", Inputs(points=("fig6",)), builders.fig6,
+register(FigureSpec(6, f"FFT spectrum: {_panels(PAPER_FIG6)}.", Inputs(points=("fig6",)),
+                    builders.fig6,
                     caption="FFT amplitude spectra of x, w and its sub-harmonics marked."))
 register(FigureSpec(7, "Meshing motion law diagram of the system in the (ω, b) parameter plane: "
                     "(a) relative micro-displacement bifurcation diagram of gear pair, (b) "
