@@ -10,6 +10,7 @@ from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.results import in_place as gin
 from gearsim.study import provenance as gprov
+from gearsim.study import figure_tables as gfd
 
 SCHEMA = Path(workflow.basedir) / "workflow/schemas/config.schema.yaml"
 
@@ -170,8 +171,22 @@ wildcard_constraints:
 # Software of every gearsim rule (used with --sdm conda).
 GEARSIM_ENV = "../envs/gearsim.yaml"
 
-# Final products; each included .smk extends this list, and `rule all` asks for it.
-ALL_TARGETS = []
+# What the rule files make, by the names the config gives (each rule file names its own outputs;
+# a rule reads another file's outputs through an input function, evaluated once every file is
+# included, so the files include in any order; `rule all` asks for each file's TARGETS_*).
+MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
+ORBIT_TABLES = gcfg.orbit_tables(config)  # config `orbits: {continuation, curves}`
+ORBITS_STANDARD = "standard" in ORBIT_TABLES
+CURVE_PLANES = [plane for plane in PLANES if f"{plane}_curves" in ORBIT_TABLES]
+FIGURE_DATA_TABLES = gfd.figure_data_tables(config)
+# the compiled kernels' stamp (rule compile), named by the simulation code's version
+KERNEL_STAMP = f"results/.kernels/{CODE_VERSION['tiles']}"
+COMPILED = ancient(KERNEL_STAMP)
+
+
+def of_plane(rule_output):
+    """An input function: ``rule_output`` (another rule's output pattern) of the job's plane."""
+    return lambda wildcards: expand(rule_output(), plane=wildcards.plane)
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -210,3 +225,20 @@ def attractors_of_plane(wildcards):
         plane=wildcards.plane,
         tile=TILES[wildcards.plane],
     )
+
+
+def figure_data_sweeps(wildcards):
+    """The sweep tables the figure-data table ``wildcards.name`` starts from, by name."""
+    names = gfd.FIGURE_DATA[wildcards.name].sweeps
+    return dict(zip(names, expand(rules.sweep.output.table, sweep=names)))
+
+
+def table_files():
+    """The tables a figure can read: kind -> name -> the file its rule makes (figures.smk)."""
+    return {
+        "sweeps": dict(zip(SWEEPS, SWEEP_FILES)),
+        "planes": dict(zip(PLANES, CELL_FILES)),
+        "points": dict(zip(POINT_SETS, POINT_FILES)),
+        "orbits": ORBIT_FILES,
+        "figure_data": FIGURE_DATA_FILES,
+    }

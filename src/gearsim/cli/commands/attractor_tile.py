@@ -7,7 +7,13 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
+from gearsim.cli.commands._common import (
+    add_config_arguments,
+    add_device_argument,
+    check_plane,
+    select_device,
+    study_from_args,
+)
 from gearsim.cli.commands._progress import Progress
 
 NAME = "attractor-tile"
@@ -24,6 +30,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="the plane's simulated tile (forward-continuation states; default "
                    "results/<plane>/tiles/<tile>.parquet)")  # fmt: skip
     add_config_arguments(p)
+    add_device_argument(p)
     p.add_argument("--workers", type=int, default=1,
                    help="LocalCluster worker processes (1 without a scheduler address: in this "
                    "process, no dask)")  # fmt: skip
@@ -58,7 +65,9 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress(label, total)
     started, t0 = parquet.now_iso(), time.perf_counter()
     address = study.config["cluster"].get("scheduler_address")
-    if args.no_cluster or (args.workers == 1 and not address):
+    # on the GPU the finder's lane pools run in this process (no dask workers)
+    gpu = select_device(args, study).kind == "cuda"
+    if gpu or args.no_cluster or (args.workers == 1 and not address):
         workers = "in-process"
         df = at.run_attractor_tile(specs, progress=progress)
     else:
