@@ -1,6 +1,6 @@
 # gearsim workflow: config -> tiles -> cells (Parquet) -> catalogue (SQLite) -> figures, report.
 #   snakemake --cores 2                                    # full reproduction (config/config.yaml)
-#   snakemake --cores 2 --configfile config/quick.yaml     # a fast look
+#   snakemake --cores 2 --configfile config/quick.yaml     # a fast look, in studies/quick/
 # How to run, outputs and scale-out: docs/pipeline.md.
 #
 # Every rule names its outputs once; a rule of another file reads them as rules.<name>.output.<key>

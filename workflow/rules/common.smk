@@ -42,12 +42,15 @@ try:
 except gcfg.ConfigError as exc:
     raise WorkflowError(f"invalid configuration: {exc}") from None
 STUDY_NAME = _resolved["study"]
-if STUDY_NAME is not None and _resolved["standard_parameters"] is not None:
-    # a study runs in studies/<study>/ (below): its file paths stay those of this directory
+# the folder under studies/ the run works in: a study's, or the `folder` of a variant of the
+# paper's study (config/quick.yaml) that keeps its own results; None = this directory
+RUN_FOLDER = gcfg.run_folder(_resolved)
+if RUN_FOLDER is not None and _resolved["standard_parameters"] is not None:
+    # a run in studies/<folder>/ (below): its file paths stay those of this directory
     _resolved["standard_parameters"] = str(
         gcfg.standard_parameters_path(_resolved, STUDY_ROOT).resolve()
     )
-if STUDY_NAME is not None and _resolved.get("gear"):
+if RUN_FOLDER is not None and _resolved.get("gear"):
     _resolved["gear"] = str((STUDY_ROOT / _resolved["gear"]).resolve())
 config.clear()
 config.update(_resolved)
@@ -61,7 +64,7 @@ STUDY = gcfg.Study.of(config, STUDY_ROOT)
 #    under another file name re-runs nothing) and its time never matters (the params below
 #    decide what re-runs: editing one plane re-runs only that plane).
 CONFIG_JSON = (
-    STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY_NAME or "default") / "config.json"
+    STUDY_ROOT / ".snakemake" / "gearsim" / (RUN_FOLDER or "default") / "config.json"
 )
 _text = gprov.canonical_json(config)
 if not CONFIG_JSON.is_file() or CONFIG_JSON.read_text() != _text:
@@ -75,16 +78,18 @@ CONFIG = ancient(str(CONFIG_JSON))
 # configuration, this keeps relative paths of commands run inside studies/<study>/ right)
 os.environ[gcfg.STUDY_ROOT_ENV] = str(STUDY_ROOT)
 
-# A study of one's own keeps all its outputs (results/, logs/, Snakemake's records) in
-# studies/<study>/, so the paper's results/ is never touched (docs/pipeline.md, "Your own study").
-if STUDY_NAME is not None:
+# A study of one's own (or a `folder`) keeps all its outputs (results/, logs/, Snakemake's
+# records) in studies/<folder>/, so the paper's results/ is never touched (docs/pipeline.md,
+# "Your own study").
+if RUN_FOLDER is not None:
     if workflow.overwrite_workdir is not None:
+        _what = f"study '{STUDY_NAME}'" if STUDY_NAME else f"folder '{RUN_FOLDER}'"
         raise WorkflowError(
-            f"study '{STUDY_NAME}' runs in studies/{STUDY_NAME}/ of the project directory: run snakemake "
+            f"{_what} runs in studies/{RUN_FOLDER}/ of the project directory: run snakemake "
             "in the project directory without --directory/-d (it would override that folder)"
         )
 
-    workdir: f"studies/{STUDY_NAME}"
+    workdir: f"studies/{RUN_FOLDER}"
 
 
 # The catalogue's two files. Snakemake deletes a job's declared outputs before the job starts,
