@@ -31,6 +31,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import sqlite3
 import subprocess
 import sys
@@ -144,9 +145,9 @@ sys.stdout.write(r.stdout)
 sys.stderr.write(r.stderr)
 sys.exit(r.returncode)
 """
-#: How long the controller is away: longer than the plugin's first status intervals (5 s after
-#: a submission, then 10 s more per query while no job ends)
-OUTAGE = 40
+#: How long the controller is away: longer than the plugin's first two status intervals (the
+#: first query 5 s after a submission, the next 15 s later: 10 s more per query while no job ends)
+OUTAGE = 25
 CTLD_PID = Path(os.environ.get("GEARSIM_SLURM_DIR", "/tmp/gearsim-slurm")) / "slurmctld.pid"
 
 
@@ -252,7 +253,8 @@ def _run(cmd: list[str], wd: Path, env: dict, log: Path, deadline: float,
                 time.sleep(0.5)
         finally:
             if proc.poll() is None:
-                proc.terminate()  # the plugin cancels its jobs
+                # Ctrl-C: the plugin cancels its jobs (SIGTERM would wait for them to end)
+                proc.send_signal(signal.SIGINT)
                 proc.wait(timeout=120)
     return proc.returncode
 
