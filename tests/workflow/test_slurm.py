@@ -145,9 +145,10 @@ sys.stdout.write(r.stdout)
 sys.stderr.write(r.stderr)
 sys.exit(r.returncode)
 """
-#: How long the controller is away: longer than the plugin's first two status intervals (the
-#: first query 5 s after a submission, the next 15 s later: 10 s more per query while no job ends)
-OUTAGE = 25
+#: How long the controller is away: longer than the plugin's status intervals then (5 s after a
+#: submission, 10 s more per query while no job ends: the round after the first compile job's
+#: failure comes 15 s after it) and than a query that finds no controller (~10 s)
+OUTAGE = 40
 CTLD_PID = Path(os.environ.get("GEARSIM_SLURM_DIR", "/tmp/gearsim-slurm")) / "slurmctld.pid"
 
 
