@@ -34,7 +34,7 @@ def test_lane_kernel_compiles_to_ptx_for_cc90(monkeypatch):
 
     f1, i2, f3 = nt.float64[::1], nt.int64[:, ::1], nt.float64[:, :, ::1]
     sig = (f1, i2, nt.int64, nt.int64, f1, f1, f1, f1, f1, f1, nt.float64, nt.float64, f3, i2,
-           i2, f3, nt.boolean)
+           i2, f3, nt.boolean, nt.boolean)
     try:
         ptx, _ = cuda.compile_ptx(cuda_lanes.advance_kernel.py_func, sig, cc=(9, 0))
     except Exception as exc:  # libNVVM missing: the [cu13] extra did not install here

@@ -369,7 +369,12 @@ def test_cli_continue_writes_branches_points_and_figure(tmp_path, capsys):
     assert main(["continue", "--name", "w", "--from", "0.95", "--to", "1.05", "--period", "1",
                  "--set", "model=1dof", "--switch-depth", "0", "--out", str(out),
                  "--json"]) == 0
-    d = json.loads(capsys.readouterr().out)
+    printed = capsys.readouterr()
+    d = json.loads(printed.out)
+    # where the tables go is said before the continuation starts (its first progress line)
+    first = printed.err.splitlines()[0]
+    assert first.endswith(f"continue w: writing {out} (+ its _points table) and "
+                          f"{tmp_path / 'c.png'}"), first
     assert [e["event"] for e in d["events"]] == ["period_doubling"]
     assert abs(d["events"][0]["value"] - 0.9994041849) < 1e-8
     assert out.is_file() and (tmp_path / "c.png").is_file()

@@ -20,6 +20,8 @@ rule simulate_tile:
     # job (~7 s of a tile job's wall on 2 idle cores; benchmarks/README.md (k)). With
     # cluster.scheduler_address set, each job still sends its tasks to that scheduler.
     threads: 1
+    resources:
+        gpu=GPU_JOBS,
     params:
         config=plane_params,
         code_version=CODE_VERSION["tiles"],
@@ -70,4 +72,4 @@ rule audit:
 
 CELL_FILES = expand(rules.plane_cells.output.cells, plane=PLANES)
 AUDIT_FILES = expand(rules.audit.output.audit, plane=PLANES) if AUDIT else []
-ALL_TARGETS += CELL_FILES
+TARGETS_PLANES = CELL_FILES

@@ -116,6 +116,11 @@ class Lanes:
     def state(self, lane: int, n: int = 20) -> np.ndarray:
         return self.get_rows(lane, _Y, n)
 
+    def states(self, k: int, n: int = 20) -> np.ndarray:
+        """The first ``n`` state rows of lanes ``0 .. k-1`` as a ``(k, n)`` copy."""
+        idx = np.arange(k)
+        return self.view[idx // LANES, _Y : _Y + n, idx % LANES]
+
     def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True) -> None:
         """Advance the lanes with status 0 by ``m`` periods (the kernel :func:`advance`, or the
         CUDA lane kernel on the same arrays)."""

@@ -61,14 +61,16 @@ else:
 THREADS = 1 if SIMULATED else 128
 
 
-@cuda.jit
+@cuda.jit(cache=True)
 def advance_kernel(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout,
-                   tangent):
+                   tangent, events):
     """:func:`gearsim.numerics.kernel.advance` for lane ``cuda.grid(1)`` (same arguments).
 
     The lane's general step (bearing channels, model forms) is chosen per lane: a base lane
     gets the base step's numbers either way (the kernel's docstring). A lane that diverges
-    stops here, as the CPU kernel freezes it.
+    stops here, as the CPU kernel freezes it. ``events`` False measures the step alone
+    (benchmarks/bench_gpu.py: a flagged step is left as it was, not redone; no result of a
+    study runs so).
     """
     l = cuda.grid(1)
     if l >= ist.shape[1] or ist[_ST, l] != 0:
@@ -103,7 +105,7 @@ def advance_kernel(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, 
                        SV[i2 + 1], C[i2 + 2], S[i2 + 2], CV[i2 + 2], SV[i2 + 2], LAM[j], Q[i2],
                        Q[i2 + 1], Q[i2 + 2], bound, tangent, general, general)
             fq = blk[r + _FLAG * LANES]
-            if fq != 0.0:
+            if fq != 0.0 and events:
                 _redo_lane(blk, o, q, l, ist, j, N, LAM[j], bound, tangent, wk, fq == 2.0,
                            general, tabs)
                 if ist[_ST, l] != 0:
@@ -121,7 +123,8 @@ def _errors() -> tuple[type[BaseException], ...]:
                              getattr(error, "NvvmError", None), MemoryError) if e is not None)
 
 
-def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent):
+def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent,
+                   events=True):
     """Run :func:`advance_kernel` over every lane and copy the results into the host arrays.
 
     The arguments and their effect are those of :func:`gearsim.numerics.kernel.advance` (the
@@ -133,7 +136,7 @@ def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, t
     """
     try:
         return _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout,
-                               tangent)
+                               tangent, events)
     except _errors() as exc:
         dev = current()
         first = (str(exc).splitlines() or [type(exc).__name__])[0][:160]
@@ -143,7 +146,8 @@ def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, t
         ) from exc
 
 
-def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent):
+def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent,
+                    events):
     import time
 
     n = ist.shape[1]
@@ -163,7 +167,7 @@ def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, 
     grid = max(1, -(-n // THREADS))
     t0 = time.perf_counter()
     advance_kernel[grid, THREADS](d_blk, d_ist, int(N), int(m), *d_tab, float(nu), float(bound),
-                                  d_sec, d_nf, d_nb, d_out, bool(tangent))
+                                  d_sec, d_nf, d_nb, d_out, bool(tangent), bool(events))
     cuda.synchronize()
     wall = time.perf_counter() - t0
     d_blk.copy_to_host(blk)

@@ -16,11 +16,12 @@ from gearsim.analysis.paper import (
     PAPER_B_THRESHOLD,
     PAPER_JUMP_DC,
     PAPER_JUMP_KMAX,
+    PAPER_KMAX_FIG17,
     PAPER_XI_THRESHOLD,
     THRESHOLD_TOL,
     within,
 )
-from gearsim.cell.motion import KMAX_READINGS
+from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
 from gearsim.presentation.report_record import Report
 from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import plane_lines, point_lines, sweep_lines
@@ -165,16 +166,18 @@ def _jump_lines(rep: Report) -> list[str]:
         j = rep.jump
         out += [f"Jump between w = {j['w_lo']:.4f} and {j['w_hi']:.4f}. DC {j['dc_before']:.3f}"
                 f" -> {j['dc_after']:.3f} (paper: DC -> {PAPER_JUMP_DC}).", "",
-                "| Kmax reading | before | after | paper |", "|---|---|---|---|"]
+                "| reading | before | after | paper's Kmax |", "|---|---|---|---|"]
         for k, text in KMAX_READINGS.items():
             if k in j["kmax_after"]:
-                out.append(f"| {k}: {text} | {j['kmax_before'][k]:.3f} | "
+                name = f"**Kmax** ({k})" if k == DEFAULT_KMAX else f"{k} (not Kmax)"
+                out.append(f"| {name}: {text} | {j['kmax_before'][k]:.3f} | "
                            f"{j['kmax_after'][k]:.3f} | {PAPER_JUMP_KMAX} |")
         best = min(j["kmax_after"].items(), key=lambda kv: abs(kv[1] - PAPER_JUMP_KMAX),
                    default=None)
         if best:
             out += ["", f"Closest reading to the paper's {PAPER_JUMP_KMAX}: {best[0]} = "
-                    f"{best[1]:.3f}. (Paper Fig 17: Kmax 1.8-2.1 at the jump for small xi.)"]
+                    f"{best[1]:.3f}. (Paper Fig 17: Kmax "
+                    f"{PAPER_KMAX_FIG17[0]}-{PAPER_KMAX_FIG17[1]} at the jump for small xi.)"]
         out.append("")
     else:
         out += ["Not computed (no jump found or standard sweep missing).", ""]

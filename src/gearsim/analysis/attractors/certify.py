@@ -190,7 +190,7 @@ def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, setting
     """The ``n``-period images of the states ``rows`` (one SIMD lane each, without the tangent
     vector: the cells' one RK4 kernel, as a probing lane runs them), their status and the
     entries into face and back contact of every period."""
-    from gearsim.numerics.batch import _K, _POS, _ST, _Y, LANES, Lanes, steps_per_period
+    from gearsim.numerics.batch import Lanes, steps_per_period
 
     k = len(rows)
     N = steps_per_period(plist[0], settings)
@@ -198,15 +198,12 @@ def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, setting
     for l, (p, y) in enumerate(zip(plist, rows, strict=True)):
         lanes.load_params(l, p, N, packed[id(p)])
         lanes.load_state(l, y)
-    ist = lanes.ist
-    ist[_ST, :k] = 0
-    ist[_POS, :k] = 0
-    ist[_K, :k] = 0
+    lanes.status[:k] = 0
+    lanes.position[:k] = 0
+    lanes.period[:k] = 0
     lanes.run(N, n, 0.0, float(getattr(settings, "divergence_bound", 1.0e6)), False)
-    idx = np.arange(k)
-    fin = lanes.view[idx // LANES, _Y : _Y + 10, idx % LANES]
-    return (fin, ist[_ST, :k].copy(), lanes.nface[:k, :n].copy(), lanes.nback[:k, :n].copy(),
-            lanes.sec[:k, :n, :2].copy())  # fmt: skip
+    return (lanes.states(k, 10), lanes.status[:k].copy(), lanes.nface[:k, :n].copy(),
+            lanes.nback[:k, :n].copy(), lanes.sec[:k, :n, :2].copy())  # fmt: skip
 
 
 def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st

@@ -16,7 +16,6 @@ from gearsim.cli.commands._common import (
     study_from_args,
 )
 from gearsim.cli.commands._progress import Progress
-from gearsim.errors import UsageError
 from gearsim.results import parquet
 from gearsim.study import provenance, tiles
 from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
@@ -78,10 +77,11 @@ def run(args: argparse.Namespace) -> int:
             check_address(address)
         else:
             check_workers(args.workers)
-    device = select_device(args, study)
-    if device.kind == "cuda" and not in_process:
-        raise UsageError("--device cuda runs a tile's lanes in this process on the GPU: use "
-                         "--workers 1 and no scheduler address (or --no-cluster)")
+    if select_device(args, study).kind == "cuda" and not in_process:
+        # the GPU takes every row of the tile in one lanes object: no dask workers
+        print(f"{args.plane}/tile {args.tile}: on the GPU, in this process (--workers and the "
+              "scheduler address are not used)", file=sys.stderr, flush=True)
+        in_process = True
     # every argument checked; before any simulation: the folder is writable and has room for
     # the tile and its temporary copy (~350 bytes per cell; 1 kB per cell leaves a margin)
     check_new_file(out, need=2 * 1024 * nx * len(rows) + (64 << 10))
