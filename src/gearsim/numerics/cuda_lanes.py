@@ -162,10 +162,11 @@ def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, 
     d_ist = cuda.to_device(ist_d)
     d_tab = tuple(cuda.to_device(np.ascontiguousarray(t, dtype=np.float64)) for t in tables)
     cap = max(1, int(m))
-    d_sec = cuda.to_device(np.zeros((n, cap, N_STATE)))
-    d_nf = cuda.to_device(np.zeros((n, cap), dtype=np.int64))
-    d_nb = cuda.to_device(np.zeros((n, cap), dtype=np.int64))
-    d_out = cuda.to_device(np.zeros((n, cap, fout.shape[2])))
+    # uninitialised: only the entries the kernel wrote are copied back
+    d_sec = cuda.device_array((n, cap, N_STATE))
+    d_nf = cuda.device_array((n, cap), dtype=np.int64)
+    d_nb = cuda.device_array((n, cap), dtype=np.int64)
+    d_out = cuda.device_array((n, cap, fout.shape[2]))
     grid = max(1, -(-n // THREADS))
     t0 = time.perf_counter()
     kernel[grid, THREADS](d_blk, d_ist, int(N), int(m), *d_tab, float(nu), float(bound), d_sec,
