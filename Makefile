@@ -13,8 +13,8 @@ export NUMBA_NUM_THREADS := 1
 # was cut off is recomputed (tiles are written to a temporary name and renamed when complete).
 define unlock_stale
 	@for pid in $$(pgrep -f '[s]nakemake' || true); do \
-	  if [ "$$(readlink /proc/$$pid/cwd 2>/dev/null)" = "$(CURDIR)" ]; then exit 0; fi; \
-	done; . $(BIN)/activate && snakemake --unlock --cores 1 >/dev/null 2>&1 || true
+	  case "$$(readlink /proc/$$pid/cwd 2>/dev/null)" in "$(CURDIR)"|"$(CURDIR)"/studies/*) exit 0;; esac; \
+	done; . $(BIN)/activate && snakemake --unlock --cores 1 $(1) >/dev/null 2>&1 || true
 endef
 
 # The tested versions of requirements.lock (constraints), within pyproject.toml's ranges.
@@ -30,8 +30,8 @@ reproduce: venv  ## full reproduction of the study (config/config.yaml)
 	$(unlock_stale)
 	. $(BIN)/activate && snakemake --cores $(CORES) --rerun-incomplete
 
-quick: venv  ## small grids for a fast look (config/quick.yaml)
-	$(unlock_stale)
+quick: venv  ## small grids for a fast look (config/quick.yaml), in studies/quick/
+	$(call unlock_stale,--configfile config/quick.yaml)
 	. $(BIN)/activate && snakemake --cores $(CORES) --rerun-incomplete --configfile config/quick.yaml
 
 # The suite on TEST_WORKERS pytest-xdist workers, one test file per unit (tests/conftest.py: files

@@ -1,10 +1,11 @@
 # gearsim workflow: config -> tiles -> cells (Parquet) -> catalogue (SQLite) -> figures, report.
 #   snakemake --cores 2                                    # full reproduction (config/config.yaml)
-#   snakemake --cores 2 --configfile config/quick.yaml     # a fast look
+#   snakemake --cores 2 --configfile config/quick.yaml     # a fast look, in studies/quick/
 # How to run, outputs and scale-out: docs/pipeline.md.
 #
-# Every rule names its outputs once; a later rule reads them as rules.<name>.output.<key>, so the
-# files are included in the order the data flows (a rule is read after the rules it reads).
+# Every rule names its outputs once; a rule of another file reads them as rules.<name>.output.<key>
+# in an input function, so the files include in any order after common.smk (tests/workflow/
+# test_rule_order.py); each file names its final products TARGETS_<file>.
 from pathlib import Path
 
 from snakemake.utils import min_version
@@ -30,4 +31,11 @@ include: "workflow/rules/report.smk"
 rule all:
     default_target: True
     input:
-        ALL_TARGETS,
+        TARGETS_SWEEPS,
+        TARGETS_POINTS,
+        TARGETS_PLANES,
+        TARGETS_MULTISTABILITY,
+        TARGETS_ORBITS,
+        TARGETS_CATALOGUE,
+        TARGETS_FIGURES,
+        TARGETS_REPORT,

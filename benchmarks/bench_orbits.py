@@ -31,9 +31,10 @@ setup_env()
 
 import numpy as np  # noqa: E402
 
-from gearsim.analysis.bifcurves import bifurcation_points, follow_curves  # noqa: E402
+from gearsim.analysis.bifcurves import follow_curves  # noqa: E402
 from gearsim.analysis.continuation import continue_orbit  # noqa: E402
 from gearsim.analysis.continuation_options import Continuation  # noqa: E402
+from gearsim.analysis.exact_landmarks import bifurcation_points  # noqa: E402
 from gearsim.analysis.orbit_cells import refine_cell  # noqa: E402
 from gearsim.cell.simulate import IntegrationSettings, simulate_cell  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402

@@ -226,7 +226,7 @@ def test_forward_backward_sweeps_differ_only_inside_fold_band():
     sweep jumps down at a lower w, and the two sweeps differ exactly between the jumps."""
     from pathlib import Path
 
-    from gearsim.analysis.attractors import hysteresis
+    from gearsim.analysis.hysteresis import hysteresis
     from gearsim.study.config_io import load_standard_parameters
     from gearsim.study.sweeps import sweep_frame
 
@@ -273,7 +273,7 @@ def test_hysteresis_of_a_hand_built_fold_and_its_figure(tmp_path):
     import matplotlib
 
     matplotlib.use("Agg")
-    from gearsim.analysis.attractors import hysteresis
+    from gearsim.analysis.hysteresis import hysteresis
     from gearsim.presentation.figures.multistability import figure_hysteresis
     from gearsim.presentation.figures.registry import figures
 

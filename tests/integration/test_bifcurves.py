@@ -11,9 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gearsim.analysis.bifcurves import bifurcation_points, follow_curve, follow_curves
+from gearsim.analysis.bifcurves import follow_curve, follow_curves
 from gearsim.analysis.continuation import continue_orbit
 from gearsim.analysis.continuation_options import Continuation
+from gearsim.analysis.exact_landmarks import bifurcation_points
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.study.config_io import load_standard_parameters
 

@@ -23,12 +23,17 @@ from reference import reference_settings
 from sweep_tables import synthetic_sweep
 
 from gearsim.cell.classify import Classification  # noqa: E402
-from gearsim.cell.simulate import CellResult, Trajectory  # noqa: E402
 from gearsim.cli.main import main  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
 from gearsim.presentation.figures import bifurcation, phase, planes, schematic, spectra, style  # noqa: E402
 from gearsim.presentation.figures.context import Context, sweep_title  # noqa: E402
-from gearsim.presentation.figures.data import PointMotion, plane_axes, spectrum  # noqa: E402
+from gearsim.presentation.figures.data import (  # noqa: E402
+    PointMotion,
+    Recorded,
+    Track,
+    plane_axes,
+    spectrum,
+)
 from gearsim.presentation.figures.registry import FIGURES, build  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -63,15 +68,14 @@ def synthetic_point(w: float = 0.8, n: int = 2, I: int = 2, spp: int = 64,
     state = np.c_[x, v]
     sec = state[::spp][:-1]
     force = np.where(x > p.b, x - p.b, np.where(x < -p.b, x + p.b, 0.0)) + 0.1 * v
-    tr = Trajectory(tau, state, force, np.zeros(0), np.zeros(0, dtype=int), sec)
+    tr = Track(tau, state, force, sec)
     cls = Classification(
         motion="periodic", status="ok", I=I, n=n, p=n, q=1, label=f"{I}/{n}T",
         label_npq=f"{n}-{n}-1", dc=0.2, kmax_peak_mean=3.0, kmax_peak_static=1.5,
         kmax_section_mean=1.0, kmax_section_static=0.5, kmin_peak_mean=-1.0, lyapunov=-0.1,
         x_min=float(x.min()), x_max=float(x.max()), converged=True, window_periods=32,
     )
-    res = CellResult(cls, np.zeros(10), 0, sec, 100, 1000, p)
-    return PointMotion(p, res, tr, spp)
+    return PointMotion(p, Recorded(cls), tr, spp)
 
 
 # ------------------------------------------------------------------------------ checks
@@ -241,14 +245,32 @@ def test_choose_motion_reports_missing_targets():
     assert pm is not None and "NOT found" in note and "Shown instead" in note
 
 
-def test_simulated_points_tiny():
-    """The compute paths on real (tiny) simulations: Fig 5 points and the attractor search."""
+def test_simulated_points_tiny_read_back_as_simulated():
+    """The study-side simulations on real (tiny) runs: Fig 5 points and the attractor search;
+    the search written as its figure-data table reads back as the figures' search, motion for
+    motion (keys, hits, labels, trajectories, section points)."""
+    from gearsim.study import figure_data as fd
+
     p = ModelParameters()
-    pts = phase.compute_points(p, [0.3], settings=TINY, min_periods=4, samples_per_period=16)
+    pts = fd.compute_points(p, [0.3], settings=TINY, min_periods=4, samples_per_period=16)
     assert pts[0].traj.state.shape[0] >= 4 * 16
-    search = phase.search_attractors(p.with_(w=0.82, b=0.15), settings=TINY, grid=(2, 1),
-                                     min_periods=4, backward_from=0.02, backward_step=0.01)
+    search = fd.search_attractors(p.with_(w=0.82, b=0.15), settings=TINY, grid=(2, 1),
+                                  min_periods=4, backward_from=0.02, backward_step=0.01)
     assert search.tried == 5 and search.found
+    rows = [(k, "found", hits, m) for k, (m, hits) in search.found.items()]
+    df = fd._motion_rows(rows)
+    read = phase.search_from_table(df, {"params": search.params.to_dict(),
+                                        "tried": search.tried, "unconfirmed": {}}, p)
+    assert read.params == search.params and read.tried == search.tried
+    assert list(read.found) == list(search.found)
+    for k, (m, hits) in search.found.items():
+        a = read.found[k]
+        assert a.hits == hits and a.npq == k and a.label == m.result.classification.label
+        assert a.motion.samples_per_period == m.samples_per_period and a.motion.seed == m.seed
+        assert np.array_equal(a.motion.traj.state, m.traj.state[:, :2])
+        assert np.array_equal(a.motion.traj.section, m.traj.section[:, :2])
+        assert np.array_equal(a.motion.traj.mesh_force, m.traj.mesh_force)
+        assert a.motion.result.classification.n == m.result.classification.n
 
 
 def test_sweep_title():

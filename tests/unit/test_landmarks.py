@@ -7,12 +7,12 @@ import pytest
 from reference import reference_settings
 from sweep_tables import paper_like, row
 
+from gearsim.analysis.landmark_refinement import refine_landmarks
 from gearsim.analysis.landmarks import (
     find_landmarks,
     is_subsequence,
     match_paper,
     pattern_sequence,
-    refine_landmarks,
 )
 from gearsim.analysis.paper import PAPER_LANDMARKS
 

@@ -114,6 +114,8 @@ CONFIG_CASES = [
      ["sweeps"]),
     ("name-with-slash", {"points": {"../x": [0.5]}}, ["points"]),
     ("study-name", {"study": "my study;rm"}, ["study"]),
+    ("folder-name", {"folder": "../results"}, ["folder"]),
+    ("folder-not-the-study", {"study": "mine", "folder": "other"}, ["folder", "study"]),
     ("point-without-w", {"points": {"p1": {"b": 0.15}}}, ["points.p1.w", "missing"]),
     ("point-bad-value", {"points": {"p1": {"w": [0.5, -1.0]}}}, ["points.p1.w"]),
     ("missing-standard-parameters", {"standard_parameters": "config/standard_paramters.yaml"},

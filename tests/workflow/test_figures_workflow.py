@@ -27,23 +27,33 @@ def test_dry_run_plans_every_figure(tmp_path):
     assert jobs["figure_09_10_11"] == 1 and jobs["figures_index"] == 1
     assert jobs["plane_maps"] == 2  # wb and wxi
     assert "gearsim figures --fig 4 --sweep standard=results/sweeps/standard.parquet" in r.stdout
-    assert "--fig 9 10 11 --sweep b015=results/sweeps/b015.parquet" in r.stdout
+    # what a figure draws that is simulated is a figure-data job's table; the figure reads it
+    assert "--fig 9 10 11 --figure-data fig9_11=results/figure_data/fig9_11.parquet" in r.stdout
+    assert "--fig 2 --figure-data fig2=results/figure_data/fig2.parquet" in r.stdout
+    assert ("gearsim figure-data --name fig9_11 --sweep b015=results/sweeps/b015.parquet"
+            in r.stdout)
+    assert jobs["figure_data"] >= 2
     assert "--fig 5 --points fig5=results/points/fig5.parquet" in r.stdout
     assert "--fig 7 --plane wb=results/wb/cells.parquet" in r.stdout
     assert "gearsim figures --maps --plane wb=results/wb/cells.parquet" in r.stdout
 
 
-def _files(sweeps=(), planes=(), points=(), orbits=()):
+def _files(sweeps=(), planes=(), points=(), orbits=(), figure_data=()):
     """Table name -> path, as figures.smk gives them (stand-in paths that name the table)."""
     return {"sweeps": {s: f"s/{s}.pq" for s in sweeps}, "planes": {p: f"p/{p}.pq" for p in planes},
-            "points": {q: f"q/{q}.pq" for q in points}, "orbits": {o: f"o/{o}.pq" for o in orbits}}
+            "points": {q: f"q/{q}.pq" for q in points}, "orbits": {o: f"o/{o}.pq" for o in orbits},
+            "figure_data": {f: f"f/{f}.pq" for f in figure_data}}
 
 
 def test_one_table_drives_rules_cli_and_index():
     """The rules' inputs and CLI arguments are those of the figure table, for every figure."""
     files = _files(["standard", "b015", "b025", "b035", "xi005", "xi009", "xi015"],
-                   ["wb", "wxi"], ["fig5", "fig6", "fig9_11"], ["standard", "wb_curves"])
+                   ["wb", "wxi"], ["fig5", "fig6", "fig9_11"], ["standard", "wb_curves"],
+                   ["fig2", "fig9_11"])
     groups = gfr.groups(files)
+    # a figure of simulated motions is drawn where its figure-data table is made
+    assert {2, 9, 10, 11} <= set(gfr.built_figures(files))
+    assert 19 not in gfr.built_figures(files) and 20 not in gfr.built_figures(files)
     assert 21 in gfr.built_figures(files) and 22 not in gfr.built_figures(files)  # wxi_curves
     for spec in groups:
         paths = gfr.input_paths(spec, files)
@@ -58,6 +68,8 @@ def test_one_table_drives_rules_cli_and_index():
                                             for n in spec.members]
     # Figs 5 and 6 read their recorded points; Fig 4 the continuation when it is made
     assert gfr.input_paths(registry.FIGURES[5], files)["points"] == ["q/fig5.pq"]
+    assert gfr.input_paths(registry.FIGURES[9], files)["figure_data"] == ["f/fig9_11.pq"]
+    assert gfr.input_paths(registry.FIGURES[9], files)["sweeps"] == []
     assert gfr.input_paths(registry.FIGURES[4], files)["orbits"] == ["o/standard.pq"]
     assert gfr.input_paths(registry.FIGURES[4], _files(["standard"]))["orbits"] == []
 

@@ -121,14 +121,15 @@ def test_readme_point_output_is_what_point_prints(tmp_path):
 def test_readme_fast_look_and_own_study_say_where_they_write():
     text = (ROOT / "README.md").read_text()
     quick = next(ln for ln in _bash_lines(text) if "config/quick.yaml" in ln)
-    assert "into results/" in quick
+    assert "into studies/quick/" in quick
+    import yaml
+
+    assert yaml.safe_load((ROOT / "config/quick.yaml").read_text())["folder"] == "quick"
     for words in ("results/.configuration.json", "--config replace_results=true",
-                  "`studies/<name>/`", "make clean-results"):
+                  "`folder: NAME`", "`studies/quick/results/`", "make clean-results"):
         assert words in text, words
     # the README's own study: its tile_rows is explained, its torque sweep is the telling one
     study = re.search(r"```yaml\n(study: weps.*?)```", text, flags=re.S).group(1)
-    import yaml
-
     cfg = yaml.safe_load(study)
     assert cfg["sweeps"]["torque"]["fixed"] == {"speed_rpm": 12000}
     assert "tile_rows: 15       # plane rows per job" in study

@@ -5,11 +5,11 @@
 
 rule catalogue:
     input:
-        cells=CELL_FILES,
-        sweeps=SWEEP_FILES,
-        audits=AUDIT_FILES,
-        attractors=ATTRACTOR_FILES,
-        orbits=ORBIT_CATALOGUE_FILES,
+        cells=lambda wildcards: CELL_FILES,
+        sweeps=lambda wildcards: SWEEP_FILES,
+        audits=lambda wildcards: AUDIT_FILES,
+        attractors=lambda wildcards: ATTRACTOR_FILES,
+        orbits=lambda wildcards: ORBIT_CATALOGUE_FILES,
     output:
         build=CATALOGUE_BUILD,
     log:
@@ -42,4 +42,4 @@ rule published_catalogue:
         "gearsim catalogue publish --from {input} --to {output} > {log} 2>&1"
 
 
-ALL_TARGETS += [rules.catalogue.output.build]
+TARGETS_CATALOGUE = [rules.catalogue.output.build]

@@ -10,6 +10,7 @@ from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.results import in_place as gin
 from gearsim.study import provenance as gprov
+from gearsim.study import figure_tables as gfd
 
 SCHEMA = Path(workflow.basedir) / "workflow/schemas/config.schema.yaml"
 
@@ -41,12 +42,15 @@ try:
 except gcfg.ConfigError as exc:
     raise WorkflowError(f"invalid configuration: {exc}") from None
 STUDY_NAME = _resolved["study"]
-if STUDY_NAME is not None and _resolved["standard_parameters"] is not None:
-    # a study runs in studies/<study>/ (below): its file paths stay those of this directory
+# the folder under studies/ the run works in: a study's, or the `folder` of a variant of the
+# paper's study (config/quick.yaml) that keeps its own results; None = this directory
+RUN_FOLDER = gcfg.run_folder(_resolved)
+if RUN_FOLDER is not None and _resolved["standard_parameters"] is not None:
+    # a run in studies/<folder>/ (below): its file paths stay those of this directory
     _resolved["standard_parameters"] = str(
         gcfg.standard_parameters_path(_resolved, STUDY_ROOT).resolve()
     )
-if STUDY_NAME is not None and _resolved.get("gear"):
+if RUN_FOLDER is not None and _resolved.get("gear"):
     _resolved["gear"] = str((STUDY_ROOT / _resolved["gear"]).resolve())
 config.clear()
 config.update(_resolved)
@@ -60,7 +64,7 @@ STUDY = gcfg.Study.of(config, STUDY_ROOT)
 #    under another file name re-runs nothing) and its time never matters (the params below
 #    decide what re-runs: editing one plane re-runs only that plane).
 CONFIG_JSON = (
-    STUDY_ROOT / ".snakemake" / "gearsim" / (STUDY_NAME or "default") / "config.json"
+    STUDY_ROOT / ".snakemake" / "gearsim" / (RUN_FOLDER or "default") / "config.json"
 )
 _text = gprov.canonical_json(config)
 if not CONFIG_JSON.is_file() or CONFIG_JSON.read_text() != _text:
@@ -74,16 +78,18 @@ CONFIG = ancient(str(CONFIG_JSON))
 # configuration, this keeps relative paths of commands run inside studies/<study>/ right)
 os.environ[gcfg.STUDY_ROOT_ENV] = str(STUDY_ROOT)
 
-# A study of one's own keeps all its outputs (results/, logs/, Snakemake's records) in
-# studies/<study>/, so the paper's results/ is never touched (docs/pipeline.md, "Your own study").
-if STUDY_NAME is not None:
+# A study of one's own (or a `folder`) keeps all its outputs (results/, logs/, Snakemake's
+# records) in studies/<folder>/, so the paper's results/ is never touched (docs/pipeline.md,
+# "Your own study").
+if RUN_FOLDER is not None:
     if workflow.overwrite_workdir is not None:
+        _what = f"study '{STUDY_NAME}'" if STUDY_NAME else f"folder '{RUN_FOLDER}'"
         raise WorkflowError(
-            f"study '{STUDY_NAME}' runs in studies/{STUDY_NAME}/ of the project directory: run snakemake "
+            f"{_what} runs in studies/{RUN_FOLDER}/ of the project directory: run snakemake "
             "in the project directory without --directory/-d (it would override that folder)"
         )
 
-    workdir: f"studies/{STUDY_NAME}"
+    workdir: f"studies/{RUN_FOLDER}"
 
 
 # The catalogue's two files. Snakemake deletes a job's declared outputs before the job starts,
@@ -165,8 +171,22 @@ wildcard_constraints:
 # Software of every gearsim rule (used with --sdm conda).
 GEARSIM_ENV = "../envs/gearsim.yaml"
 
-# Final products; each included .smk extends this list, and `rule all` asks for it.
-ALL_TARGETS = []
+# What the rule files make, by the names the config gives (each rule file names its own outputs;
+# a rule reads another file's outputs through an input function, evaluated once every file is
+# included, so the files include in any order; `rule all` asks for each file's TARGETS_*).
+MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
+ORBIT_TABLES = gcfg.orbit_tables(config)  # config `orbits: {continuation, curves}`
+ORBITS_STANDARD = "standard" in ORBIT_TABLES
+CURVE_PLANES = [plane for plane in PLANES if f"{plane}_curves" in ORBIT_TABLES]
+FIGURE_DATA_TABLES = gfd.figure_data_tables(config)
+# the compiled kernels' stamp (rule compile), named by the simulation code's version
+KERNEL_STAMP = f"results/.kernels/{CODE_VERSION['tiles']}"
+COMPILED = ancient(KERNEL_STAMP)
+
+
+def of_plane(rule_output):
+    """An input function: ``rule_output`` (another rule's output pattern) of the job's plane."""
+    return lambda wildcards: expand(rule_output(), plane=wildcards.plane)
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -205,3 +225,20 @@ def attractors_of_plane(wildcards):
         plane=wildcards.plane,
         tile=TILES[wildcards.plane],
     )
+
+
+def figure_data_sweeps(wildcards):
+    """The sweep tables the figure-data table ``wildcards.name`` starts from, by name."""
+    names = gfd.FIGURE_DATA[wildcards.name].sweeps
+    return dict(zip(names, expand(rules.sweep.output.table, sweep=names)))
+
+
+def table_files():
+    """The tables a figure can read: kind -> name -> the file its rule makes (figures.smk)."""
+    return {
+        "sweeps": dict(zip(SWEEPS, SWEEP_FILES)),
+        "planes": dict(zip(PLANES, CELL_FILES)),
+        "points": dict(zip(POINT_SETS, POINT_FILES)),
+        "orbits": ORBIT_FILES,
+        "figure_data": FIGURE_DATA_FILES,
+    }

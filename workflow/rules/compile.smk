@@ -9,7 +9,7 @@
 
 rule compile:
     output:
-        stamp=f"results/.kernels/{CODE_VERSION['tiles']}",
+        stamp=KERNEL_STAMP,
     log:
         "logs/compile.log",
     priority: 10  # the planes wait for it
@@ -18,5 +18,3 @@ rule compile:
     shell:
         "gearsim compile --stamp {output.stamp} > {log} 2>&1"
 
-
-COMPILED = ancient(rules.compile.output.stamp)

@@ -7,14 +7,16 @@
 from gearsim.presentation.figures import rules as gfr
 
 FIGURE_PARAMS = gfr.figure_params(STUDY)
-# the tables a figure can read: kind -> name -> the file its rule makes
-TABLE_FILES = {
-    "sweeps": dict(zip(SWEEPS, SWEEP_FILES)),
-    "planes": dict(zip(PLANES, CELL_FILES)),
-    "points": dict(zip(POINT_SETS, POINT_FILES)),
-    "orbits": ORBIT_FILES,
+# the tables a figure can read, by kind and name (what the figure groups are planned from; the
+# files: table_files(), common.smk)
+TABLE_NAMES = {
+    "sweeps": SWEEPS,
+    "planes": PLANES,
+    "points": POINT_SETS,
+    "orbits": ORBIT_TABLES,
+    "figure_data": FIGURE_DATA_TABLES,
 }
-FIGURE_GROUPS = gfr.groups(TABLE_FILES)
+FIGURE_GROUPS = gfr.groups({kind: dict.fromkeys(names) for kind, names in TABLE_NAMES.items()})
 
 
 for _spec in FIGURE_GROUPS:
@@ -23,11 +25,8 @@ for _spec in FIGURE_GROUPS:
         name:
             gfr.rule_name(_spec)
         input:
-            **gfr.input_paths(_spec, TABLE_FILES),
+            unpack(lambda wildcards, spec=_spec: gfr.input_paths(spec, table_files())),
             config=CONFIG,
-            # a figure that simulates its own points waits for the compiled kernels (it would
-            # otherwise compile them again beside the compile job)
-            kernels=[] if _spec.tables_required else [COMPILED],
         output:
             *[
                 report(p, caption=f"../report/{c}", category="Figures")
@@ -40,7 +39,7 @@ for _spec in FIGURE_GROUPS:
             GEARSIM_ENV
         threads: 1
         params:
-            args=gfr.cli_args(_spec, TABLE_FILES),
+            args=lambda wildcards, spec=_spec: gfr.cli_args(spec, table_files()),
             caption=gfr.caption_params(_spec),
             figure=FIGURE_PARAMS,
             outdir=lambda wildcards, output: Path(output[0]).parent,
@@ -55,7 +54,7 @@ FIGURE_FILES = [f for g in FIGURE_GROUPS for fs in gfr.outputs(g).values() for f
 
 rule plane_maps:
     input:
-        cells=rules.plane_cells.output.cells,
+        cells=of_plane(lambda: rules.plane_cells.output.cells),
         config=CONFIG,
     output:
         [
@@ -85,7 +84,7 @@ MAP_FILES = expand(rules.plane_maps.output, plane=PLANES)
 # Every sweep of every study: its bifurcation diagram in the sweep's own units.
 rule sweep_diagram:
     input:
-        sweep=rules.sweep.output.table,
+        sweep=lambda wildcards: expand(rules.sweep.output.table, sweep=wildcards.sweep),
         config=CONFIG,
     output:
         gfr.sweep_diagram_outputs("{sweep}"),
@@ -122,16 +121,14 @@ rule figures_index:
         "gearsim figures --index --outdir {params.outdir} > {log} 2>&1"
 
 
-ALL_TARGETS += [f for f in FIGURE_FILES if not f.endswith(".json")]
-ALL_TARGETS += MAP_FILES + DIAGRAM_FILES + [rules.figures_index.output.index]
 
 
 # The explorer: one static page with every plane's maps and every sweep's diagram.
 rule explorer:
     input:
-        cells=CELL_FILES,
-        sweeps=SWEEP_FILES,
-        catalogue=rules.catalogue.output.build,
+        cells=lambda wildcards: CELL_FILES,
+        sweeps=lambda wildcards: SWEEP_FILES,
+        catalogue=lambda wildcards: rules.catalogue.output.build,
         config=CONFIG,
     output:
         page="results/explorer/index.html",
@@ -147,4 +144,9 @@ rule explorer:
         "--configfile {input.config} --out {output.page} > {log} 2>&1"
 
 
-ALL_TARGETS += [rules.explorer.output.page]
+TARGETS_FIGURES = (
+    [f for f in FIGURE_FILES if not f.endswith(".json")]
+    + MAP_FILES
+    + DIAGRAM_FILES
+    + [rules.figures_index.output.index, rules.explorer.output.page]
+)

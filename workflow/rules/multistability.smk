@@ -1,14 +1,15 @@
 # Coexisting attractors of the planes that set `multistability: {starts, seed}`
 # (docs/multistability.md): one job per tile, after the plane's simulated tile (its
 # forward-continuation states seed the finder), into the catalogue's `attractors` table.
-MULTISTABLE_PLANES = [p for p in PLANES if config["planes"][p].get("multistability")]
 
 
 rule attractor_tile:
     input:
         compiled=COMPILED,
         config=CONFIG,
-        tile=rules.simulate_tile.output.tile,
+        tile=lambda wildcards: expand(
+            rules.simulate_tile.output.tile, plane=wildcards.plane, tile=wildcards.tile
+        ),
     output:
         attractors="results/{plane}/attractors/{tile}.parquet",
     log:
@@ -39,7 +40,6 @@ ATTRACTOR_FILES = [
         rules.attractor_tile.output.attractors, plane=plane, tile=TILES[plane]
     )
 ]
-ALL_TARGETS += ATTRACTOR_FILES
 
 
 rule attractor_maps:
@@ -61,4 +61,6 @@ rule attractor_maps:
         "--configfile {input.config} --out-dir {params.out_dir} > {log} 2>&1"
 
 
-ALL_TARGETS += expand(rules.attractor_maps.output, plane=MULTISTABLE_PLANES)
+TARGETS_MULTISTABILITY = ATTRACTOR_FILES + expand(
+    rules.attractor_maps.output, plane=MULTISTABLE_PLANES
+)

@@ -11,13 +11,10 @@
 # On demand only (not in `all`: ~60 ms per periodic cell, hours on a 400 x 400 plane):
 #   snakemake --cores 2 results/wb/orbits.parquet
 
-ORBIT_TABLES = gcfg.orbit_tables(config)  # config `orbits: {continuation, curves}`
-ORBITS_STANDARD = "standard" in ORBIT_TABLES
-CURVE_PLANES = [plane for plane in PLANES if f"{plane}_curves" in ORBIT_TABLES]
 
 rule refine_orbits:
     input:
-        cells=rules.plane_cells.output.cells,
+        cells=of_plane(lambda: rules.plane_cells.output.cells),
         config=CONFIG,
     output:
         orbits="results/{plane}/orbits.parquet",
@@ -37,7 +34,7 @@ rule refine_orbits:
 # Exact landmarks of the standard sweep: continuation over the sweep's range from its start.
 rule standard_continuation:
     input:
-        sweep=expand(rules.sweep.output.table, sweep="standard"),
+        sweep=lambda wildcards: expand(rules.sweep.output.table, sweep="standard"),
         config=CONFIG,
     output:
         branches="results/orbits/standard.parquet",
@@ -63,7 +60,7 @@ rule standard_continuation:
 # Two-parameter bifurcation curves over a plane's pattern map.
 rule bifurcation_curves:
     input:
-        cells=rules.plane_cells.output.cells,
+        cells=of_plane(lambda: rules.plane_cells.output.cells),
         points=[rules.standard_continuation.output.points] if ORBITS_STANDARD else [],
         config=CONFIG,
     output:
@@ -118,4 +115,4 @@ ORBIT_CATALOGUE_FILES = [
 ORBIT_REPORT_INPUTS = (
     [rules.standard_continuation.output.points] if ORBITS_STANDARD else []
 ) + expand(rules.bifurcation_curves.output.curves, plane=CURVE_PLANES)
-ALL_TARGETS += ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS
+TARGETS_ORBITS = ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS

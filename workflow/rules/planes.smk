@@ -76,4 +76,4 @@ rule audit:
 
 CELL_FILES = expand(rules.plane_cells.output.cells, plane=PLANES)
 AUDIT_FILES = expand(rules.audit.output.audit, plane=PLANES) if AUDIT else []
-ALL_TARGETS += CELL_FILES
+TARGETS_PLANES = CELL_FILES

@@ -23,16 +23,16 @@ rule table1:
 
 rule report:
     input:
-        sweeps=SWEEP_FILES,
-        catalogue=rules.catalogue.output.build,
-        cells=CELL_FILES,
-        audits=AUDIT_FILES,
+        sweeps=lambda wildcards: SWEEP_FILES,
+        catalogue=lambda wildcards: rules.catalogue.output.build,
+        cells=lambda wildcards: CELL_FILES,
+        audits=lambda wildcards: AUDIT_FILES,
         calibration=[str(CALIBRATION)] if CALIBRATION.is_file() else [],
         table1=rules.table1.output.md,
         # the sweeps' bifurcation diagrams the report links
-        diagrams=[f for f in DIAGRAM_FILES if f.endswith(".png")],
-        points=POINT_FILES,
-        orbits=ORBIT_REPORT_INPUTS,
+        diagrams=lambda wildcards: [f for f in DIAGRAM_FILES if f.endswith(".png")],
+        points=lambda wildcards: POINT_FILES,
+        orbits=lambda wildcards: ORBIT_REPORT_INPUTS,
         config=CONFIG,
     output:
         report="results/report.md",
@@ -42,7 +42,7 @@ rule report:
         GEARSIM_ENV
     params:
         calibration=lambda wildcards, input: input.calibration or "",
-        sweep_dir=Path(rules.sweep.output.table).parent,
+        sweep_dir=lambda wildcards: Path(rules.sweep.output.table).parent,
         results=lambda wildcards, output: Path(output.report).parent,
         code_version=CODE_VERSION["presentation"],
     shell:
@@ -51,4 +51,4 @@ rule report:
         "--configfile {input.config} --out {output.report} > {log} 2>&1"
 
 
-ALL_TARGETS += [*rules.table1.output, rules.report.output.report]
+TARGETS_REPORT = [*rules.table1.output, rules.report.output.report]

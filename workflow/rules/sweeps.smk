@@ -23,4 +23,4 @@ rule sweep:
 
 
 SWEEP_FILES = expand(rules.sweep.output.table, sweep=SWEEPS)
-ALL_TARGETS += SWEEP_FILES
+TARGETS_SWEEPS = SWEEP_FILES

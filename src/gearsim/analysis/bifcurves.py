@@ -57,34 +57,6 @@ CURVE_COLUMNS = (
     "curve", "kind", "period", "boundary", "name", "value", "name2", "value2", "x", "v",
     "mu_max", "mu_re", "mu_im", "stable",
 )
-POINT_COLUMNS = (
-    "point", "kind", "period", "boundary", "name", "value", "x", "v", "mu_max", "mu_re",
-    "mu_im", "stable", "branch",
-)
-
-
-def bifurcation_points(branches: pd.DataFrame) -> pd.DataFrame:
-    """The located events of a continuation table (one row each, in branch order)."""
-    ev = branches[branches["event"] != ""].reset_index(drop=True)
-    out = pd.DataFrame({
-        "point": np.arange(len(ev)),
-        "kind": ev["event"],
-        "period": ev["period"],
-        "boundary": ev["boundary"],
-        "name": ev["name"],
-        "value": ev["value"],
-        "x": ev["x"],
-        "v": ev["v"],
-        "mu_max": ev["mu_max"],
-        "mu_re": ev["mu_re"],
-        "mu_im": ev["mu_im"],
-        "stable": ev["stable"],
-        "branch": ev["branch"],
-    }, columns=list(POINT_COLUMNS))
-    out.attrs.update(branches.attrs)
-    return out
-
-
 
 
 def _tracking_config(config: Continuation | None, kind: str, window: float) -> Continuation:

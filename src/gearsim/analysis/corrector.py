@@ -38,7 +38,7 @@ from gearsim.analysis.orbits import (
     KIND_NS,
     KIND_PD,
     OrbitError,
-    _check_params,
+    check_periodic_forcing,
     free_states,
     grazing_margin,
     multiplier_kind,
@@ -72,7 +72,7 @@ class BranchProblem:
                 f"continuation parameter 'name' = {name!r}; allowed: "
                 f"{', '.join(ModelParameters.names())}"
             )
-        _check_params(params)
+        check_periodic_forcing(params)
         self.base = params
         self.name = name
         self.n = n

@@ -21,6 +21,35 @@ import pandas as pd
 from gearsim.analysis.landmarks import find_landmarks, match_paper
 from gearsim.analysis.paper import PAPER_LANDMARKS
 
+#: columns of the located bifurcation points of a continuation table
+POINT_COLUMNS = (
+    "point", "kind", "period", "boundary", "name", "value", "x", "v", "mu_max", "mu_re",
+    "mu_im", "stable", "branch",
+)
+
+
+def bifurcation_points(branches: pd.DataFrame) -> pd.DataFrame:
+    """The located events of a continuation table (one row each, in branch order)."""
+    ev = branches[branches["event"] != ""].reset_index(drop=True)
+    out = pd.DataFrame({
+        "point": np.arange(len(ev)),
+        "kind": ev["event"],
+        "period": ev["period"],
+        "boundary": ev["boundary"],
+        "name": ev["name"],
+        "value": ev["value"],
+        "x": ev["x"],
+        "v": ev["v"],
+        "mu_max": ev["mu_max"],
+        "mu_re": ev["mu_re"],
+        "mu_im": ev["mu_im"],
+        "stable": ev["stable"],
+        "branch": ev["branch"],
+    }, columns=list(POINT_COLUMNS))
+    out.attrs.update(branches.attrs)
+    return out
+
+
 PAIRS = {
     "grazing": ("grazing",),
     "period_doubling": ("period_doubling",),

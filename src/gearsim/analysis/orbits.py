@@ -46,7 +46,7 @@ from gearsim.numerics.shooting import (  # noqa: F401  (the solver's public name
     SHOOTING,
     TANGENT_ERROR,
     OrbitError,
-    _check_params,
+    check_periodic_forcing,
     free_states,
     multiplier_kind,
     newton_orbit,
@@ -177,7 +177,7 @@ def find_periodic_orbit(
     """
     if not isinstance(n, (int, np.integer)) or n < 1:
         raise ParameterError(f"period 'n' = {n!r} must be an integer >= 1")
-    _check_params(params)
+    check_periodic_forcing(params)
     p = params.to_array()
     if guess is None:
         from gearsim.cell.simulate import simulate_cell

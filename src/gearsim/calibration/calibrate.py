@@ -282,7 +282,7 @@ def calibrate(
 def verify(params: ModelParameters, *, dw: float, model: str,
            log: Callable[[str], None] = print) -> dict[str, Any]:
     """Fine-grid verification of one parameter set (landmarks, thresholds, jump values)."""
-    from gearsim.analysis.landmarks import refine_landmarks
+    from gearsim.analysis.landmark_refinement import refine_landmarks
 
     params = params.with_(model=model)
     st = ObjectiveSettings(dw=dw, model=model, sim=replace(CALIBRATION_SIM, rtol=1e-9),

@@ -178,7 +178,8 @@ def kmax_lines(kmax: Mapping[str, Any]) -> list[str]:
     lines = [f"Kmax readings at the jump (w = {lo['w']:.3f} -> {hi['w']:.3f}, DC {lo['dc']:.3f} "
              f"-> {hi['dc']:.3f}); paper: {PAPER_JUMP_KMAX} at the jump (Sect 3.1), "
              f"{PAPER_KMAX_FIG17[0]}-{PAPER_KMAX_FIG17[1]} in Fig 17 at the jump for small xi.",
-             "", "| reading | before | after | after - 1.311 | in 1.8-2.1 |",
+             "", f"| reading | before | after | after - {PAPER_JUMP_KMAX} | in "
+             f"{PAPER_KMAX_FIG17[0]}-{PAPER_KMAX_FIG17[1]} |",
              "|---|---|---|---|---|"]
     for k, text in KMAX_READINGS_TEXT.items():
         if k not in hi:

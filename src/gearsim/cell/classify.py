@@ -52,12 +52,12 @@ Lyapunov exponent
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS, MOTIONS  # noqa: F401  (re-exported)
+from gearsim.cell.record import Classification
 from gearsim.numerics.integrate import PeriodSummaries
 
 #: a motion without a period whose largest peak-to-peak amplitude x_max - x_min rises from each
@@ -384,46 +384,6 @@ def amplitude_grows(xmax: np.ndarray, xmin: np.ndarray) -> bool:
     if not np.all(np.isfinite(top)):
         return True  # the amplitude left the floating-point range: it grew
     return bool(np.all(top[1:] >= GROWTH_STEP * top[:-1]) and top[3] >= GROWTH_MIN * top[0])
-
-
-@dataclass
-class Classification:
-    """The steady motion of one cell."""
-
-    motion: str  # one of MOTIONS
-    status: str  # ok | bifurcation | not_converged | diverged | budget
-    I: int
-    n: int  # 0 when no period <= n_max
-    p: int | None
-    q: int | None
-    label: str  # I/nT, or 'chaos' / 'quasi-periodic' / 'unsettled' / 'diverged'
-    label_npq: str  # n-p-q or ''
-    dc: float
-    kmax_peak_mean: float
-    kmax_peak_static: float
-    kmax_section_mean: float
-    kmax_section_static: float
-    kmin_peak_mean: float
-    lyapunov: float
-    x_min: float
-    x_max: float
-    converged: bool
-    window_periods: int
-    # Floquet margin: largest multiplier modulus of the Newton-refined orbit (per motion
-    # period), NaN where no orbit was refined
-    mu_max: float = float("nan")
-    critical: str = ""  # kind of that multiplier: fold | period_doubling | neimark_sacker
-    refined: bool = False  # the label is that of the Newton-refined orbit
-    settle: float = float("nan")  # settle distance of the window (relative to the x range)
-    # motions without a period (chaos, quasi-periodic): the linear limit's largest multiplier
-    # (gearsim.cell.growth) and, where it exceeds 1, the periods of the long run that showed the
-    # motion bounded (or, status diverged, growing); NaN where neither was needed
-    mu_lin: float = float("nan")
-    long_run: float = float("nan")
-
-    @property
-    def kmax(self) -> float:
-        return getattr(self, DEFAULT_KMAX)
 
 
 def classify_motion(

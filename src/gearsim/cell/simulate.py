@@ -24,18 +24,14 @@ the batched driver).
 from __future__ import annotations
 
 import functools
-import typing
 from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
-from gearsim.cell.classify import (
-    Classification,
-    estimate_period,
-    repeats_throughout,
-)
+from gearsim.cell.classify import estimate_period, repeats_throughout
 from gearsim.cell.growth import check_growth
+from gearsim.cell.record import CLASSIFICATION_FIELDS, Classification, result_columns
 from gearsim.cell.verify import (
     FLOQUET,
     REFINE_RTOL,
@@ -85,9 +81,6 @@ __all__ = [
     "trajectory",
 ]
 
-_CLASSIFICATION_FIELDS = tuple(f.name for f in fields(Classification))
-
-
 @dataclass
 class CellResult:
     """Outcome of :func:`simulate_cell`: the classification plus what continuation needs."""
@@ -104,30 +97,11 @@ class CellResult:
     def row(self) -> dict[str, Any]:
         """Flat record for tables (the catalogue's cell columns: :func:`result_columns`)."""
         cls = self.classification
-        c = {name: getattr(cls, name) for name in _CLASSIFICATION_FIELDS}  # flat: no deepcopy
+        c = {name: getattr(cls, name) for name in CLASSIFICATION_FIELDS}  # flat: no deepcopy
         c["kmax"] = self.classification.kmax
         c["periods"] = self.periods
         c["steps"] = self.steps
         return c
-
-
-def result_columns() -> dict[str, tuple[type, bool]]:
-    """Name -> (Python type, optional) of every column of :meth:`CellResult.row`, in order.
-
-    Derived from the fields of :class:`~gearsim.cell.classify.Classification` (a new field there is
-    a
-    new column in the tiles and the catalogue), plus ``kmax``, ``periods``, ``steps``. Floats are
-    optional (NaN is stored as NULL), as are the fields typed ``X | None`` (``p``, ``q``).
-    """
-    hints = typing.get_type_hints(Classification)
-    cols: dict[str, tuple[type, bool]] = {}
-    for f in fields(Classification):
-        t = hints[f.name]
-        args = [a for a in typing.get_args(t) if a is not type(None)]
-        base = args[0] if args else t
-        cols[f.name] = (base, bool(args) or base is float)
-    cols.update(kmax=(float, True), periods=(int, False), steps=(int, False))
-    return cols
 
 
 def initial_tangent(params: ModelParameters) -> np.ndarray:

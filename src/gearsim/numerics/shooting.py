@@ -52,7 +52,9 @@ def free_states(params: ModelParameters) -> np.ndarray:
     return np.arange(n_evolved(params.to_array()))
 
 
-def _check_params(params: ModelParameters) -> None:
+def check_periodic_forcing(params: ModelParameters) -> None:
+    """One line (a :class:`ParameterError`) unless the forcing is T-periodic (``var_ratio``
+    0): the mesh-period map has periodic orbits only then."""
     if params.var_ratio != 0.0:
         raise ParameterError(
             f"parameter 'var_ratio' = {params.var_ratio!r}: periodic orbits of the mesh-period "
@@ -135,7 +137,7 @@ def newton_orbit(
     Steps are capped by a trust radius and accepted by Armijo backtracking on ``|G|`` (see the
     module docstring: the 3/2-power grazing singularity).
     """
-    _check_params(params)
+    check_periodic_forcing(params)
     p = params.to_array() if parray is None else parray
     dims = free_states(params)
     y = np.asarray(guess, dtype=float)[:N_STATE].copy()

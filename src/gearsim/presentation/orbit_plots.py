@@ -153,7 +153,7 @@ def exact_marks(ctx, sweep: pd.DataFrame):
         br = ctx.orbits.get("standard")
         if br is None:
             return None
-        from gearsim.analysis.bifcurves import bifurcation_points
+        from gearsim.analysis.exact_landmarks import bifurcation_points
 
         pts = bifurcation_points(br)
     from gearsim.analysis.exact_landmarks import exact_landmarks

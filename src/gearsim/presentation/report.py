@@ -228,7 +228,7 @@ def _landmarks(rep: Report, std: pd.DataFrame | None, configured: bool) -> None:
 def _hysteresis(rep: Report, hyst: pd.DataFrame | None) -> None:
     """The fold's jump up and jump down, from the forward and backward sweeps."""
     if hyst is not None and len(hyst) and {"forward", "backward"} <= set(hyst["direction"]):
-        from gearsim.analysis.attractors import hysteresis
+        from gearsim.analysis.hysteresis import hysteresis
 
         h = hysteresis(hyst)
         rep.hysteresis = h.lines()

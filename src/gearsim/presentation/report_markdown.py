@@ -16,6 +16,7 @@ from gearsim.analysis.paper import (
     PAPER_B_THRESHOLD,
     PAPER_JUMP_DC,
     PAPER_JUMP_KMAX,
+    PAPER_KMAX_FIG17,
     PAPER_XI_THRESHOLD,
     THRESHOLD_TOL,
     within,
@@ -175,7 +176,8 @@ def _jump_lines(rep: Report) -> list[str]:
                    default=None)
         if best:
             out += ["", f"Closest reading to the paper's {PAPER_JUMP_KMAX}: {best[0]} = "
-                    f"{best[1]:.3f}. (Paper Fig 17: Kmax 1.8-2.1 at the jump for small xi.)"]
+                    f"{best[1]:.3f}. (Paper Fig 17: Kmax "
+                    f"{PAPER_KMAX_FIG17[0]}-{PAPER_KMAX_FIG17[1]} at the jump for small xi.)"]
         out.append("")
     else:
         out += ["Not computed (no jump found or standard sweep missing).", ""]

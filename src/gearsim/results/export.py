@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from gearsim.cell.simulate import result_columns
+from gearsim.cell.record import result_columns
 from gearsim.errors import CatalogueError
 from gearsim.results.columns import PARAMETERS, RESULT
 from gearsim.study.preflight import check_output, os_cause

@@ -9,10 +9,10 @@ and the orbits). A later run compares itself with that record before any job sta
   is replaced, it runs;
 * the same config files with a different content: the user edited the study and asked for it
   (editing one plane re-runs only that plane), it runs;
-* other config files and a different content (``config/quick.yaml`` or a file of one's own
-  without ``study:`` over a finished default run): it stops in one line naming both grids and
-  the two ways on (a ``study:`` name, which runs in ``studies/<name>/``, or
-  ``--config replace_results=true``).
+* other config files and a different content (a file of one's own without ``study:`` or
+  ``folder:`` over a finished default run): it stops in one line naming both grids and the ways
+  on (a ``folder:`` or ``study:`` name, which runs in ``studies/<name>/``, or
+  ``--config replace_results=true``). The fast look, ``config/quick.yaml``, has its folder.
 
 Results written before such records existed are compared by their grids, read from the
 Parquet files' metadata (planes and sweeps).
@@ -128,8 +128,9 @@ def check_in_place(record: Mapping[str, Any], folder: str | Path = "results", *,
         return
     path = folder / RECORD.name
     files = " + ".join(record["files"])
-    ways = ("give the study a name (`study: NAME` in its file) to run it into studies/NAME/, "
-            f"or add --config {REPLACE_KEY}=true to replace them")
+    ways = ("add `folder: NAME` to its file to run it into studies/NAME/ beside them (or "
+            "`study: NAME` to run only its own planes, sweeps and points there), or add "
+            f"--config {REPLACE_KEY}=true to replace them")
     if path.is_file():
         try:
             before = json.loads(path.read_text())

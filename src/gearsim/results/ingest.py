@@ -16,7 +16,7 @@ import pandas as pd
 from sqlalchemy import insert
 from sqlalchemy.orm import Session
 
-from gearsim.cell.simulate import result_columns
+from gearsim.cell.record import result_columns
 from gearsim.errors import CatalogueError, one_line
 from gearsim.results.parquet import (
     PLANE_KEY,

@@ -36,7 +36,7 @@ from sqlalchemy import (
 from sqlalchemy.exc import DBAPIError as SQLAlchemyDBAPIError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
-from gearsim.cell.simulate import result_columns
+from gearsim.cell.record import result_columns
 from gearsim.errors import CatalogueError, one_line
 from gearsim.results.parquet import _fault, _prepare_dir, _tmp_name
 from gearsim.results.views import create_views
@@ -141,7 +141,7 @@ _SQL_TYPES = {str: lambda: String(32), int: Integer, float: Float, bool: Boolean
 
 
 def _cell_columns() -> dict[str, Any]:
-    """SQL columns of ``CellResult.row()`` (:func:`gearsim.cell.simulate.result_columns`).
+    """SQL columns of ``CellResult.row()`` (:func:`gearsim.cell.record.result_columns`).
 
     ``I`` is stored as ``impact`` (SQL names are case-insensitive and ``i`` is the grid index).
     """

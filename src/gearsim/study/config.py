@@ -286,17 +286,24 @@ def settings_text(settings: IntegrationSettings) -> str:
     )
 
 
+def run_folder(config: Mapping) -> str | None:
+    """The folder under ``studies/`` a run works in: its ``study``, else its ``folder`` (a
+    variant of the paper's study that keeps its own results, e.g. config/quick.yaml); None for
+    the project directory itself."""
+    return config.get("study") or config.get("folder")
+
+
 def results_dir(config: Mapping) -> Path:
     """Where a study's results go: ``results`` for the default study, else
-    ``studies/<study>/results`` (logs beside it in ``studies/<study>/logs``)."""
-    study = config.get("study")
-    return Path("results") if study is None else Path("studies", study, "results")
+    ``studies/<folder>/results`` (:func:`run_folder`; logs beside it)."""
+    folder = run_folder(config)
+    return Path("results") if folder is None else Path("studies", folder, "results")
 
 
 def logs_dir(config: Mapping) -> Path:
-    """Where a study's logs go (``logs`` or ``studies/<study>/logs``)."""
-    study = config.get("study")
-    return Path("logs") if study is None else Path("studies", study, "logs")
+    """Where a study's logs go (``logs`` or ``studies/<folder>/logs``)."""
+    folder = run_folder(config)
+    return Path("logs") if folder is None else Path("studies", folder, "logs")
 
 
 def orbit_tables(config) -> list[str]:

@@ -205,6 +205,12 @@ def check_config(config: dict, root: str | Path) -> dict:
     study = config.get("study")
     if study is not None:
         _check_name(study, "study")
+    folder = config.get("folder")
+    if folder is not None:
+        _check_name(folder, "folder")
+        if study is not None and folder != study:
+            raise ConfigError(f"config key 'folder': {folder!r} differs from study {study!r} "
+                              "(a study runs in studies/<study>/; leave folder out)")
     _physical_units(config, Path(root))
     _check_names(config.get("parameters", {}), "parameters")
     rows = int(config["tile_rows"])

@@ -40,6 +40,23 @@ def point_list(spec) -> list[dict[str, float]]:
     return [dict(zip(keys, map(float, combo), strict=True)) for combo in itertools.product(*lists)]
 
 
+def motion_row(res, tr) -> dict[str, Any]:
+    """The record of a steady motion ``res`` (a :class:`~gearsim.cell.simulate.CellResult`)
+    with the trajectory ``tr`` recorded on it: its classification, section points and final
+    state, and the trajectory's ``tau, x, xdot, mesh_force, section_x, section_v``."""
+    row = dict(res.row())
+    row["poincare_x"] = res.poincare[:, 0].tolist()
+    row["poincare_v"] = res.poincare[:, 1].tolist()
+    row["tau"] = tr.tau.tolist()
+    row["x"] = tr.state[:, 0].tolist()
+    row["xdot"] = tr.state[:, 1].tolist()
+    row["mesh_force"] = tr.mesh_force.tolist()
+    row["section_x"] = tr.section[:, 0].tolist()
+    row["section_v"] = tr.section[:, 1].tolist()
+    row["final_state"] = res.final_state.tolist()
+    return row
+
+
 def points_frame(study: Study, fig: str, *, ramp_from: float, ramp_step: float, periods: int,
                  samples_per_period: int, progress=None) -> pd.DataFrame:
     """Each point twice: reached by a forward ramp in w from ``ramp_from`` in steps of
@@ -79,18 +96,8 @@ def points_frame(study: Study, fig: str, *, ramp_from: float, ramp_step: float, 
                     settings=settings,
                     start_period=res.final_period,
                 )
-                row = {"figure": fig, "point": k, "start": start, **pt}
-                row.update(res.row())
-                row["poincare_x"] = res.poincare[:, 0].tolist()
-                row["poincare_v"] = res.poincare[:, 1].tolist()
-                row["tau"] = tr.tau.tolist()
-                row["x"] = tr.state[:, 0].tolist()
-                row["xdot"] = tr.state[:, 1].tolist()
-                row["mesh_force"] = tr.mesh_force.tolist()
-                row["section_x"] = tr.section[:, 0].tolist()
-                row["section_v"] = tr.section[:, 1].tolist()
-                row["final_state"] = res.final_state.tolist()
-                rows.append(row)
+                rows.append({"figure": fig, "point": k, "start": start, **pt,
+                             **motion_row(res, tr)})
             done += 1
             if progress:
                 progress(done, len(points), time.perf_counter() - t0)

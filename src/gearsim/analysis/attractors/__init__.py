@@ -6,7 +6,7 @@ Modules (after Attractors.jl's ``src/mapping``): ``api`` (the entry point), ``op
 ``results`` (what it returns), ``matching`` (one attractor or two, recurrence onto a known one,
 the last step of every mapper), the finder's contract ``mapper``, the mappers ``pool`` (the
 lane pool on the batched kernel: the gear model) and ``recurrence`` (model-agnostic: the
-reference), the gear adapter ``gear``; ``hysteresis`` reads the fold of two-way sweeps.
+reference) and the gear adapter ``gear``.
 A plane tile's attractor job is :mod:`gearsim.study.attractor_tiles`.
 """
 
@@ -18,7 +18,6 @@ from gearsim.analysis.attractors.gear import (
     start_box,
     steady_from_row,
 )
-from gearsim.analysis.attractors.hysteresis import Hysteresis, hysteresis
 from gearsim.analysis.attractors.matching import least_periods, same_attractor
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.results import (
@@ -32,7 +31,7 @@ from gearsim.analysis.attractors.results import (
 
 __all__ = [
     "FOUND_BY", "Attractor", "CellAttractors", "FinderOptions", "GearCells",
-    "Hysteresis", "Steady", "find_attractors", "gear_steady", "grid_neighbours",
-    "hysteresis", "least_periods", "n_real", "same_attractor", "sobol_unit", "start_box",
+    "Steady", "find_attractors", "gear_steady", "grid_neighbours",
+    "least_periods", "n_real", "same_attractor", "sobol_unit", "start_box",
     "steady_from_row", "summary_lines",
 ]

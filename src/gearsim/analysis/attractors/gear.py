@@ -351,7 +351,7 @@ def steady_from_row(row: Mapping[str, Any], w: float) -> Steady | None:
     """The :class:`~gearsim.analysis.attractors.Steady` of a plane tile's cell row (its
     classification, Poincare points and final state; ``w`` the cell's frequency ratio), None
     without them."""
-    from gearsim.cell.simulate import result_columns
+    from gearsim.cell.record import result_columns
 
     if row.get("poincare_x") is None or row.get("n") is None:
         return None

@@ -67,9 +67,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gearsim.analysis.bifcurves import bifurcation_points, follow_curves
+    from gearsim.analysis.bifcurves import follow_curves
     from gearsim.analysis.continuation import continue_orbit, write_branches
     from gearsim.analysis.continuation_options import Continuation
+    from gearsim.analysis.exact_landmarks import bifurcation_points
     from gearsim.analysis.orbits import SEEDING, find_periodic_orbit
     from gearsim.results import parquet
     from gearsim.study import provenance as gprov
@@ -217,8 +218,9 @@ def _write_skipped(args, study, outputs, why: str, started: str, at: float, yn: 
     saying why: the catalogue and the report then state it, the workflow goes on."""
     import pandas as pd
 
-    from gearsim.analysis.bifcurves import CURVE_COLUMNS, POINT_COLUMNS
+    from gearsim.analysis.bifcurves import CURVE_COLUMNS
     from gearsim.analysis.continuation import COLUMNS, write_branches
+    from gearsim.analysis.exact_landmarks import POINT_COLUMNS
     from gearsim.presentation.figures.style import save_figure
     from gearsim.presentation.orbit_plots import figure_curves
     from gearsim.results import parquet

@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
     df.attrs["parameters_source"] = source
     write_branches(df, out)
-    from gearsim.analysis.bifcurves import bifurcation_points
+    from gearsim.analysis.exact_landmarks import bifurcation_points
     from gearsim.results import parquet
 
     points_path = out.with_name(out.stem + "_points.parquet")

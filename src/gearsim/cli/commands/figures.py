@@ -69,6 +69,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="a plane cells table (results/NAME/cells.parquet), repeatable")
     p.add_argument("--points", action="append", default=[], metavar="NAME=PATH",
                    help="a recorded point set (results/points/NAME.parquet), repeatable")
+    p.add_argument("--figure-data", action="append", default=[], metavar="NAME=PATH",
+                   help="a figure-data table (results/figure_data/NAME.parquet: the simulated "
+                   "motions, attractor search or basins a figure draws), repeatable")
     p.add_argument("--outdir", default="results/figures", help="output directory")
     p.add_argument("--orbits", action="append", default=[], metavar="NAME=PATH",
                    help="a continuation table (results/orbits/standard.parquet, "
@@ -90,6 +93,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _context(args, study):
     from gearsim.presentation.figures.context import Context
     from gearsim.presentation.figures.data import read_table
+    from gearsim.results.parquet import read_metadata
+    from gearsim.study.figure_tables import FIGURE_DATA_KEY
 
     config = study.config
     ctx = Context(
@@ -105,6 +110,10 @@ def _context(args, study):
         ctx.planes[name] = _read(read_table, path, f"--plane {name}")
     for name, path in _pairs(args.points, "--points").items():
         ctx.points[name] = _read(read_table, path, f"--points {name}")
+    for name, path in _pairs(args.figure_data, "--figure-data").items():
+        df = _read(read_table, path, f"--figure-data {name}")
+        df.attrs["figure_data"] = read_metadata(path, FIGURE_DATA_KEY) or {}
+        ctx.figure_data[name] = df
     for name, path in _pairs(args.orbits, "--orbits").items():
         ctx.orbits[name] = _read(read_table, path, f"--orbits {name}")
         pts = Path(path).with_name(Path(path).stem + "_points.parquet")
@@ -226,8 +235,8 @@ def run(args: argparse.Namespace) -> int:
                         "integration": ctx.settings.to_dict()})
                     print(f"plane {plane} map {spec.kind}: wrote {', '.join(files)}",
                           file=sys.stderr)
-        if args.all:  # keep the figures whose tables are present (or that simulate without)
-            numbers = [n for n in numbers if not table[n].tables_required or all(
+        if args.all:  # keep the figures whose tables are present
+            numbers = [n for n in numbers if all(
                 name in getattr(ctx, kind) for kind, names in table[n].inputs.tables().items()
                 for name in names)]
         bound = {} if args.all else _bind_single_plane(numbers, ctx, table)

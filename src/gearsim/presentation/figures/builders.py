@@ -8,7 +8,6 @@ import numpy as np
 import pandas as pd
 
 from gearsim.analysis.paper import (
-    COEXIST_POINT,
     PAPER_FIG5,
     PAPER_FIG6,
     PAPER_FIG9_11,
@@ -27,13 +26,12 @@ from gearsim.presentation.figures.context import (
     _sweep_note,
     axes_text,
     paper_comparison,
-    point_settings,
     sweep_title,
 )
 
 
 # ------------------------------------------------------------------------------ builders
-def _fig1(ctx: Context) -> list[Built]:
+def fig1(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.schematic import figure1
 
     return [Built(1, figure1(), "Schematic of the 6-DOF bending-torsional model: non-circular "
@@ -45,12 +43,13 @@ def _fig1(ctx: Context) -> list[Built]:
                    "4)."])]
 
 
-def _fig2(ctx: Context) -> list[Built]:
-    from gearsim.presentation.figures.phase import compute_fig2, figure2
+def fig2(ctx: Context) -> list[Built]:
+    from gearsim.presentation.figures.data import figure_data
+    from gearsim.presentation.figures.phase import fig2_data, figure2
 
-    sweep = ctx.sweeps.get("b015")
-    b = ctx.sweep_fixed.get("b015", {}).get("b", 0.15)
-    data = compute_fig2(ctx.params, settings=point_settings(ctx), sweep=sweep, b=b)
+    df, stated = figure_data(ctx, "fig2")
+    data = fig2_data(df, stated, ctx.params)
+    b = data.b
     ws = ", ".join(f"I = {I}: ω = {pm.params.w:.3f} ({pm.npq})" for I, pm in
                    data.motions.items())
     diffs = ["The paper's sketch is schematic; ours shows simulated steady trajectories of "
@@ -59,11 +58,10 @@ def _fig2(ctx: Context) -> list[Built]:
     diffs.append(_POINT_NOTE)
     return [Built(2, figure2(data), f"Phase plane split by x = +b and x = -b (b = {b:g}) into "
                   "tooth-face contact, separation and tooth-back contact, with simulated steady "
-                  "trajectories of impact states I = 0, 1 and 2.", diffs,
-                  ["sweeps/b015"] if sweep is not None else [])]
+                  "trajectories of impact states I = 0, 1 and 2.", diffs, ["sweeps/b015"])]
 
 
-def _fig3(ctx: Context) -> list[Built]:
+def fig3(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.planes import figure3
 
     df = _plane(ctx, "wb")
@@ -90,7 +88,7 @@ def _landmark_diffs(df: pd.DataFrame) -> list[str]:
     return out
 
 
-def _fig4(ctx: Context) -> list[Built]:
+def fig4(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.bifurcation import figure4, landmarks_of, sequence_text
 
     df = _need(ctx.sweeps, "standard", "sweep")
@@ -122,19 +120,11 @@ def _fig4(ctx: Context) -> list[Built]:
                   "I:DC band); (c) Kmax versus ω." + exact, diffs, inputs)]
 
 
-def _point_motions(ctx: Context, name: str, ws_default):
+def _point_motions(ctx: Context, name: str):
     from gearsim.presentation.figures.data import points_from_table
-    from gearsim.presentation.figures.phase import compute_points
 
-    if name in ctx.points:
-        pts = points_from_table(ctx.points[name], ctx.params)
-        return pts, [f"points/{name}"], "recorded by the pipeline (forward ramp in ω)"
-    ws = ctx.point_specs.get(name, ws_default)
-    sweep = ctx.sweeps.get("standard")
-    pts = compute_points(ctx.params, ws, settings=point_settings(ctx), sweep=sweep,
-                         min_periods=32 if name == "fig5" else 128,
-                         samples_per_period=128 if name == "fig5" else 64)
-    return pts, (["sweeps/standard"] if sweep is not None else []), pts[0].seed if pts else ""
+    pts = points_from_table(_need(ctx.points, name, "points"), ctx.params)
+    return pts, [f"points/{name}"], "recorded by the pipeline (forward ramp in ω)"
 
 
 def _label_diffs(pts, paper: dict[float, str]) -> list[str]:
@@ -150,13 +140,11 @@ def _label_diffs(pts, paper: dict[float, str]) -> list[str]:
     return out
 
 
-def _fig5(ctx: Context) -> list[Built]:
+def fig5(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.phase import figure5
 
-    pts, inputs, how = _point_motions(ctx, "fig5", list(PAPER_FIG5))
+    pts, inputs, how = _point_motions(ctx, "fig5")
     diffs = _label_diffs(pts, PAPER_FIG5) or ["every panel has the paper's pattern"]
-    if "points/fig5" not in inputs:
-        diffs.append(_POINT_NOTE)
     diffs.append("Paper panels (b) and (e) are the grazing points themselves; ours shows "
                  "whatever our model does at that ω (grazing of ours lies elsewhere, Fig 4).")
     return [Built(5, figure5(pts), "Phase trajectories (x, x') with the Poincaré points at "
@@ -164,19 +152,17 @@ def _fig5(ctx: Context) -> list[Built]:
                   "pattern and ours.", diffs, inputs)]
 
 
-def _fig6(ctx: Context) -> list[Built]:
+def fig6(ctx: Context) -> list[Built]:
     from gearsim.presentation.figures.spectra import figure6
 
-    pts, inputs, how = _point_motions(ctx, "fig6", list(PAPER_FIG6))
+    pts, inputs, how = _point_motions(ctx, "fig6")
     diffs = _label_diffs(pts, PAPER_FIG6) or ["every panel has the paper's pattern"]
-    if "points/fig6" not in inputs:
-        diffs.append(_POINT_NOTE)
     return [Built(6, figure6(pts), "One-sided FFT amplitude spectra of x(τ) on exactly "
                   "uniform samples over a whole number of motion periods (Hann window), with "
                   f"ω and ω/2, ω/4, ω/8 marked; motions {how}.", diffs, inputs)]
 
 
-def _fig_pattern(number: int, plane: str):
+def fig_pattern(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.figures.planes import figure_pattern
 
@@ -193,7 +179,7 @@ def _fig_pattern(number: int, plane: str):
     return build
 
 
-def _fig_sweeps(number: int, names: tuple[str, ...]):
+def fig_sweeps(number: int, names: tuple[str, ...]):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.figures.bifurcation import figure_sweeps, sequence_text
 
@@ -215,7 +201,7 @@ def _fig_sweeps(number: int, names: tuple[str, ...]):
     return build
 
 
-def _fig_dc(number: int, plane: str):
+def fig_dc(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.figures.planes import figure_dc
 
@@ -230,7 +216,7 @@ def _fig_dc(number: int, plane: str):
     return build
 
 
-def _fig_kmax(number: int, plane: str):
+def fig_kmax(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.figures.data import plane_grid
         from gearsim.presentation.figures.planes import figure_kmax, robust_max
@@ -252,18 +238,16 @@ def _fig_kmax(number: int, plane: str):
     return build
 
 
-def _fig9_11(ctx: Context) -> list[Built]:
+def fig9_11(ctx: Context) -> list[Built]:
+    from gearsim.presentation.figures.data import figure_data
     from gearsim.presentation.figures.phase import (
         choose_motion,
         figure_double_sided,
-        search_attractors,
+        search_from_table,
     )
 
-    spec = ctx.point_specs.get("fig9_11", COEXIST_POINT)
-    fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
-    p = ctx.params.with_(**fixed)
-    sweep = ctx.sweeps.get("b015")
-    search = search_attractors(p, settings=point_settings(ctx), sweep=sweep)
+    df, stated = figure_data(ctx, "fig9_11")
+    search = search_from_table(df, stated, ctx.params)
     out = []
     used: list[str] = []
     for number, target in PAPER_FIG9_11.items():
@@ -275,7 +259,5 @@ def _fig9_11(ctx: Context) -> list[Built]:
         out.append(Built(number, fig, f"Target {target}: (a) phase trajectory with Poincaré "
                          "points, (b) time history of x with the section samples, (c) dynamic "
                          f"load coefficient F_n/F_m; shown: {shown}.", [note, _POINT_NOTE],
-                         ["sweeps/b015"] if sweep is not None else []))
+                         ["sweeps/b015"]))
     return out
-
-

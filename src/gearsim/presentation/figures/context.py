@@ -19,6 +19,7 @@ from gearsim.cell.motion import double_sided
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.errors import UsageError
 from gearsim.study.config import IntegrationSettings  # the configuration's integration section
+from gearsim.study.figure_tables import POINT_TRANSIENT, POINT_TRANSIENT_CONTINUATION
 
 
 @dataclass
@@ -35,6 +36,9 @@ class Context:
     # continuation tables (docs/orbits.md): "standard" (branches of the standard sweep's set),
     # "standard_points", "<plane>_curves" (two-parameter bifurcation curves)
     orbits: dict[str, pd.DataFrame] = field(default_factory=dict)
+    # what the figures draw that is simulated (gearsim.study.figure_data): "fig2", "fig9_11",
+    # "fig19", "fig20"; what each table states beside its rows is its attrs["figure_data"]
+    figure_data: dict[str, pd.DataFrame] = field(default_factory=dict)
 
 
 @dataclass
@@ -57,23 +61,9 @@ def sweep_title(name: str, fixed: dict[str, float] | None = None) -> str:
     return name
 
 
-POINT_TRANSIENT = 300  # at least this many transient periods for the figures' own simulations
-POINT_TRANSIENT_CONTINUATION = 200
-
-
 _POINT_NOTE = (f"The figure's own simulations use at least {POINT_TRANSIENT} transient periods "
                f"({POINT_TRANSIENT_CONTINUATION} when continued), more than the plane cells, so "
                "slowly decaying transients are not drawn as long-period motions.")
-
-
-def point_settings(ctx: Context) -> IntegrationSettings:
-    """Settings of the figures' own point simulations (Figs 2, 5, 6 without recorded points,
-    9-11): the config's, with a transient of at least 300 periods (200 when continued), so a
-    slowly decaying transient is not drawn as a long-period motion. A few points only: cheap."""
-    st = ctx.settings
-    return st.with_(transient=max(st.transient, POINT_TRANSIENT),
-                    transient_continuation=max(st.transient_continuation,
-                                               POINT_TRANSIENT_CONTINUATION))
 
 
 def _need(table: dict[str, pd.DataFrame], name: str, kind: str) -> pd.DataFrame:

@@ -1,4 +1,6 @@
-"""Inputs of the figures: reading sweeps and planes, simulating the figures' single points.
+"""Inputs of the figures: reading sweeps, planes and the recorded motions of point sets and
+figure-data tables (the simulations themselves are study-side jobs: :mod:`gearsim.study.sweeps`,
+:mod:`gearsim.study.figure_data`).
 
 Tables: a sweep is the :func:`gearsim.cell.sweep.orbit_diagram` table (one row
 per parameter value, list columns ``poincare_x`` / ``poincare_v``); a plane is
@@ -8,22 +10,15 @@ per parameter value, list columns ``poincare_x`` / ``poincare_v``); a plane is
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from gearsim.dynamics.parameters import ModelParameters
-
-if TYPE_CHECKING:
-    from gearsim.cell.simulate import CellResult, IntegrationSettings, Trajectory
-
-# The simulating helpers below (seed states, point simulations, continuation, points of a point
-# table) import the integrators where they run: a figure job that only reads tables does not
-# load Numba and the kernels.
 
 # columns of a cells table that are not axis parameters
 _RESERVED = {"i", "j", "tile", "plane", "parameter", "value", "direction", "poincare_x",
@@ -107,12 +102,31 @@ def explode_poincare(df: pd.DataFrame, xcol: str = "value", max_points: int | No
 
 # ------------------------------------------------------------------------------------- points
 @dataclass
+class Track:
+    """A recorded trajectory: times ``tau``, ``state`` columns ``(x, x')``, the mesh force and
+    the section points ``(x, x')``."""
+
+    tau: np.ndarray
+    state: np.ndarray
+    mesh_force: np.ndarray
+    section: np.ndarray
+
+
+@dataclass
+class Recorded:
+    """What a table row says of a steady motion: its ``classification`` (the row's
+    classification columns as attributes: ``label``, ``label_npq``, ``I``, ``n``, ...)."""
+
+    classification: Any
+
+
+@dataclass
 class PointMotion:
-    """One simulated steady motion ready for phase / time / spectrum plots."""
+    """One recorded steady motion ready for phase / time / spectrum plots."""
 
     params: ModelParameters
-    result: CellResult
-    traj: Trajectory
+    result: Recorded
+    traj: Track
     samples_per_period: int
     seed: str = "static state"  # how the motion was reached
     notes: list[str] = field(default_factory=list)
@@ -126,135 +140,6 @@ class PointMotion:
     def npq(self) -> str:
         c = self.result.classification
         return c.label_npq or c.label
-
-
-def seed_state(params: ModelParameters, x: float, v: float) -> np.ndarray:
-    """A section state with mesh coordinates ``(x, v)`` and the bearings at their static state."""
-    from gearsim.dynamics.model import static_state
-
-    y = static_state(params.to_array())
-    y[0], y[1] = float(x), float(v)
-    return y
-
-
-def seed_from_sweep(sweep: pd.DataFrame | None, params: ModelParameters,
-                    name: str = "w") -> tuple[np.ndarray | None, str]:
-    """Initial state from the swept row nearest to ``params.<name>`` (continuation seed).
-
-    Uses the row's full ``final_state`` when the table has it (``gearsim sweep`` writes it);
-    otherwise only ``(x, x')`` of its last section point are known and the bearing coordinates
-    start from the static state.
-    """
-    from gearsim.dynamics.model import static_state
-
-    if sweep is None or len(sweep) == 0:
-        return None, "static state"
-    target = getattr(params, name)
-    k = int(np.argmin(np.abs(sweep["value"].to_numpy(dtype=float) - target)))
-    row = sweep.iloc[k]
-    if "final_state" in sweep.columns and row["final_state"] is not None:
-        fs = np.asarray(row["final_state"], dtype=float)
-        if fs.shape == (len(static_state(params.to_array())),) and np.all(np.isfinite(fs)):
-            return fs.copy(), f"sweep state at {name} = {row['value']:.4g}"
-    px, pv = np.asarray(row["poincare_x"]), np.asarray(row["poincare_v"])
-    if len(px) == 0:
-        return None, "static state"
-    return seed_state(params, px[-1], pv[-1]), f"sweep section point {name} = {row['value']:.4g}"
-
-
-def reach(params: ModelParameters, targets: Sequence[float], *, sweep: pd.DataFrame | None,
-          settings: IntegrationSettings | None = None) -> tuple[dict[float, CellResult], str]:
-    """Steady motions at ``targets`` (values of ``w``) on the branch the forward sweep followed.
-
-    With the sweep's full final states: one continuation step from the nearest swept value at
-    or below each target. Otherwise a forward continuation chain (:func:`continuation_to`).
-    """
-    from gearsim.cell.simulate import simulate_cell
-
-    if sweep is not None and len(sweep) and "final_state" in sweep.columns:
-        out = {}
-        vals = sweep["value"].to_numpy(dtype=float)
-        for t in targets:
-            below = np.where(vals <= float(t) + 1e-12)[0]
-            k = int(below[np.argmax(vals[below])]) if len(below) else int(np.argmin(vals))
-            fs = np.asarray(sweep["final_state"].iloc[k], dtype=float)
-            out[float(t)] = simulate_cell(params.with_(w=float(t)), fs, settings=settings)
-        return out, "continuation from the sweep state"
-    values = sweep["value"].to_numpy(dtype=float) if sweep is not None and len(sweep) else None
-    return (continuation_to(params, targets, settings=settings, values=values),
-            "forward continuation in w")
-
-
-def continuation_to(
-    params: ModelParameters,
-    targets: Sequence[float],
-    *,
-    name: str = "w",
-    settings: IntegrationSettings | None = None,
-    values: Sequence[float] | np.ndarray | None = None,
-    start: float | None = None,
-    step: float = 0.01,
-    min_step: float = 0.005,
-) -> dict[float, CellResult]:
-    """Steady motions at ``targets`` reached by forward continuation in ``name``.
-
-    The chain runs over ``values`` (e.g. the swept values of the matching sweep, so the figure
-    follows the branch of the bifurcation diagram) or a uniform grid of spacing ``step`` from
-    ``start`` (default 0.1 for ``w``), up to the largest target, with the targets inserted;
-    ``values`` closer than ``min_step`` are thinned out (cost).
-    Seeding a single point from a stored section state is not enough: the sweep tables keep only
-    ``(x, x')``, and with the bearings reset the motion can land on a coexisting attractor.
-    """
-    from gearsim.cell.sweep import continuation_chain
-
-    tg = sorted(float(t) for t in targets)
-    if not tg:
-        return {}
-    if values is None:
-        lo = (0.1 if name == "w" else tg[0]) if start is None else start
-        values = np.arange(lo, tg[-1], step) if tg[-1] > lo else np.zeros(0)
-    vals = np.sort(np.asarray(values, dtype=float))
-    vals = vals[vals < tg[-1]]
-    if min_step > 0 and len(vals) > 1:  # thin a fine sweep grid (cost), keep its first value
-        keep = [0]
-        for k in range(1, len(vals)):
-            if vals[k] - vals[keep[-1]] >= min_step:
-                keep.append(k)
-        vals = vals[keep]
-    chain = np.unique(np.concatenate([vals, tg]))
-    res = continuation_chain([params.with_(**{name: float(v)}) for v in chain],
-                             settings=settings)
-    by_value = dict(zip(chain.tolist(), res, strict=True))
-    return {t: by_value[t] for t in tg}
-
-
-def simulate_point(
-    params: ModelParameters,
-    *,
-    settings: IntegrationSettings | None = None,
-    u0: np.ndarray | None = None,
-    seed: str = "static state",
-    periods: int | None = None,
-    samples_per_period: int = 128,
-    min_periods: int = 32,
-    result: CellResult | None = None,
-) -> PointMotion:
-    """Settle the motion at ``params`` (from ``u0``) and record a trajectory on it.
-
-    ``periods`` defaults to a whole number of motion periods, at least ``min_periods``
-    (chaotic motion: ``4 * min_periods``).
-    """
-    from gearsim.cell.simulate import simulate_cell, trajectory
-
-    st = settings or IntegrationSettings()
-    res = result if result is not None else simulate_cell(params, u0, settings=st)
-    n = res.classification.n
-    if periods is None:
-        periods = max(min_periods, n * int(np.ceil(min_periods / n))) if n > 0 else 4 * min_periods
-    tr = trajectory(params, res.final_state, periods=periods,
-                    samples_per_period=samples_per_period, settings=st,
-                    start_period=res.final_period)
-    return PointMotion(params, res, tr, samples_per_period, seed)
 
 
 def spectrum(pm: PointMotion, periods: int | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -278,31 +163,59 @@ def spectrum(pm: PointMotion, periods: int | None = None) -> tuple[np.ndarray, n
 
 
 
+#: the list columns of a recorded motion's row (not classification)
+_TRACK = {"tau", "x", "xdot", "mesh_force", "section_x", "section_v", "poincare_x", "poincare_v",
+          "final_state"}
+
+
+def motion_of(r: pd.Series, params: ModelParameters, seed: str) -> PointMotion:
+    """The motion of one recorded row (``gearsim sweep --points``, ``gearsim figure-data``):
+    ``tau, x, xdot, mesh_force, section_x, section_v`` lists and the classification columns,
+    parameters ``params``; its samples per period from the row when it has them."""
+    cls = SimpleNamespace(**{k: (None if k in ("p", "q") and pd.isna(v) else v)
+                             for k, v in r.items() if k not in _TRACK})
+    tau = np.asarray(r["tau"], dtype=float)
+    state = np.c_[np.asarray(r["x"], dtype=float), np.asarray(r["xdot"], dtype=float)]
+    sec = np.c_[np.asarray(r["section_x"], dtype=float), np.asarray(r["section_v"], dtype=float)]
+    tr = Track(tau, state, np.asarray(r["mesh_force"], dtype=float), sec)
+    if "samples_per_period" in r.index:
+        spp = int(r["samples_per_period"])
+    else:
+        spp = int(round(params.mesh_period / (tau[1] - tau[0]))) if len(tau) > 1 else 1
+    return PointMotion(params, Recorded(cls), tr, spp, seed)
+
+
+def row_params(r: pd.Series, params: ModelParameters) -> ModelParameters:
+    """``params`` with the parameter values a row records."""
+    fixed = {k: float(r[k]) for k in ModelParameters.names() if k in r.index and
+             not isinstance(r[k], (list, np.ndarray)) and pd.notna(r[k])}
+    return params.with_(**fixed)
+
+
 def points_from_table(df: pd.DataFrame, params: ModelParameters, *,
                       start: str = "continuation") -> list[PointMotion]:
     """Motions recorded by the pipeline (``results/points/<set>.parquet``, ``gearsim sweep
-    --points``): rows with ``tau, x, xdot, mesh_force, section_x, section_v`` lists and the
-    classification columns; ``start`` picks the rows reached by continuation or from rest."""
-    from gearsim.cell.classify import Classification
-    from gearsim.cell.simulate import CellResult, Trajectory
-
-
+    --points``); ``start`` picks the rows reached by continuation or from rest."""
     rows = df[df["start"] == start] if "start" in df.columns else df
-    fields = Classification.__dataclass_fields__
-    out = []
-    for _, r in rows.sort_values("point" if "point" in rows.columns else "w").iterrows():
-        fixed = {k: float(r[k]) for k in ModelParameters.names() if k in r.index and
-                 not isinstance(r[k], (list, np.ndarray)) and pd.notna(r[k])}
-        p = params.with_(**fixed)
-        cls = Classification(**{f: (None if (f in ("p", "q") and pd.isna(r[f])) else r[f])
-                                for f in fields})
-        tau = np.asarray(r["tau"], dtype=float)
-        state = np.c_[np.asarray(r["x"], dtype=float), np.asarray(r["xdot"], dtype=float)]
-        sec = np.c_[np.asarray(r["section_x"], dtype=float),
-                    np.asarray(r["section_v"], dtype=float)]
-        tr = Trajectory(tau, state, np.asarray(r["mesh_force"], dtype=float), np.zeros(0),
-                        np.zeros(0, dtype=int), sec)
-        spp = int(round(p.mesh_period / (tau[1] - tau[0]))) if len(tau) > 1 else 1
-        res = CellResult(cls, np.zeros(0), 0, sec, 0, 0, p)
-        out.append(PointMotion(p, res, tr, spp, f"pipeline points ({start})"))
-    return out
+    return [motion_of(r, row_params(r, params), f"pipeline points ({start})")
+            for _, r in rows.sort_values("point" if "point" in rows.columns else "w").iterrows()]
+
+
+def motions_from_table(df: pd.DataFrame, params: ModelParameters) -> list[tuple[str, str, int,
+                                                                                PointMotion]]:
+    """``(key, role, hits, motion)`` of every row of a figure-data table
+    (:mod:`gearsim.study.figure_data`), in the table's order."""
+    return [(str(r["key"]), str(r["role"]), int(r["hits"]),
+             motion_of(r, row_params(r, params), str(r["seed"]))) for _, r in df.iterrows()]
+
+
+def figure_data(ctx, name: str) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """The figure-data table ``name`` of ``ctx`` and what it states beside its rows; one line
+    naming it when the figure job was not given it."""
+    from gearsim.errors import UsageError
+
+    if name not in ctx.figure_data:
+        raise UsageError(f"this figure reads the figure-data table '{name}' (gearsim "
+                         f"figure-data --name {name}): give it as --figure-data {name}=PATH")
+    df = ctx.figure_data[name]
+    return df, dict(df.attrs.get("figure_data") or {})

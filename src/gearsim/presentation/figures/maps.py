@@ -11,6 +11,7 @@ import pandas as pd
 
 from gearsim.errors import UsageError
 from gearsim.presentation.figures.context import _grid_note, axes_text, paper_comparison
+from gearsim.presentation.figures.multistability import map_floquet
 
 
 @dataclass(frozen=True)
@@ -65,15 +66,14 @@ def _map_kmax(df: pd.DataFrame):
 register_map(MapSpec("pattern", "pattern I/nT", _map_pattern, ("I", "label", "poincare_x")))
 register_map(MapSpec("dc", "disengagement duty cycle", _map_dc, ("I", "dc")))
 register_map(MapSpec("kmax", "maximum dynamic load coefficient", _map_kmax, ("kmax",)))
+register_map(MapSpec("floquet", "Floquet margin of the periodic cells", map_floquet,
+                     ("mu_max", "status", "motion")))
 
 
 def build_maps(plane: str, df: pd.DataFrame, kinds: Sequence[str] | None = None
                ) -> list[tuple[MapSpec, Any, str, list[str]]]:
     """Draw the maps ``kinds`` (default: every registered one) of one plane of any axes:
     ``(spec, figure, caption, notes)`` each; a map whose columns the table lacks is left out."""
-    from gearsim.presentation.figures.registry import figures
-
-    figures()  # extensions register their maps on import
     out = []
     for kind in kinds or list(PLANE_MAPS):
         if kind not in PLANE_MAPS:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from gearsim.analysis.paper import COEXIST_POINT, PAPER_COEXIST
+from gearsim.analysis.paper import PAPER_COEXIST
 from gearsim.presentation.figures import style
 
 # distinct colours for attractor indices of one cell (basin pictures)
@@ -82,7 +82,7 @@ def figure_hysteresis(sweeps: pd.DataFrame, *, title: str | None = None):
     """Forward and backward sweeps side by side: (a) Poincare x, (b) DC; the band shaded."""
     import matplotlib.pyplot as plt
 
-    from gearsim.analysis.attractors import hysteresis
+    from gearsim.analysis.hysteresis import hysteresis
 
     h = hysteresis(sweeps)
     fig, axes = plt.subplots(2, 1, figsize=(7.5, 6.4), sharex=True)
@@ -122,31 +122,7 @@ def figure_hysteresis(sweeps: pd.DataFrame, *, title: str | None = None):
 # ------------------------------------------------------------------------------ registry
 
 
-def basin_box(params, settings, starts: int = 32) -> tuple[float, float, float, float]:
-    """The finder's start box, widened (15 % margin) to hold the section points of the
-    attractors that ``starts`` seeded starts reach (so every attractor is inside the picture)."""
-    from gearsim.analysis.attractors import FinderOptions, find_attractors, start_box
-
-    x0, hx, v0, hv = start_box(params)
-    lo = np.array([x0 - hx, v0 - hv])
-    hi = np.array([x0 + hx, v0 + hv])
-    ca = find_attractors(params, FinderOptions(starts=starts), settings=settings)
-    for a in ca.attractors:
-        p = a.points[:, :2]
-        lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
-    pad = 0.15 * (hi - lo)
-    return (float(lo[0] - pad[0]), float(hi[0] + pad[0]), float(lo[1] - pad[1]),
-            float(hi[1] + pad[1]))  # fmt: skip
-
-
-def _basins_at(ctx, params, n: int):
-    from gearsim.analysis.basins import basin_grid
-
-    st = ctx.settings.with_(method="rk4")
-    return basin_grid(params, n=n, settings=st, box=basin_box(params, st))
-
-
-def _fig18(ctx):
+def fig18(ctx):
     from gearsim.presentation.figures.context import Built, _need
 
     df = _need(ctx.sweeps, "hysteresis", "sweep")
@@ -160,16 +136,20 @@ def _fig18(ctx):
                   ["sweeps/hysteresis"])]
 
 
-def _fig19(ctx):
+def _basins(ctx, name: str):
+    """``(params, n, starts, attractors, stated)`` of a basin picture's figure-data table."""
+    from gearsim.presentation.figures.data import figure_data
+
+    starts, stated = figure_data(ctx, name)
+    att = pd.DataFrame.from_records(stated["attractors"])
+    return ctx.params.with_(**stated["params"]), int(stated["n"]), starts, att, stated
+
+
+def fig19(ctx):
     from gearsim.presentation.figures.context import Built
 
-    spec = ctx.point_specs.get("fig9_11", COEXIST_POINT)
-    fixed = {k: float(v[0] if isinstance(v, list) else v) for k, v in spec.items()}
-    p = ctx.params.with_(**fixed)
-    n = basin_n(ctx)
-    g = _basins_at(ctx, p, n)
-    att = g.attractor_table()
-    fig = figure_basins(g.frame(), att, title=f"Basins of attraction at w = {p.w:g}, "
+    p, n, starts, att, _ = _basins(ctx, "fig19")
+    fig = figure_basins(starts, att, title=f"Basins of attraction at w = {p.w:g}, "
                         f"b = {p.b:g} (Figs 9-11's point)")  # fmt: skip
     found = {r["label_npq"]: r["basin_fraction"] for _, r in att.iterrows()}
     which = "; ".join(
@@ -185,61 +165,20 @@ def _fig19(ctx):
                   [])]
 
 
-def _fig20(ctx):
-    from gearsim.analysis.attractors import hysteresis
-    from gearsim.presentation.figures.context import Built, _need
+def fig20(ctx):
+    from gearsim.presentation.figures.context import Built
 
-    h = hysteresis(_need(ctx.sweeps, "hysteresis", "sweep"))
-    if h.band is None:
-        w = 0.62
-        note = "no hysteresis band found in the sweep; drawn at w = 0.62"
-    else:
-        w = round(0.5 * (h.band[0] + h.band[1]), 4)
-        note = f"hysteresis band {h.band[0]:.4f} <= w <= {h.band[1]:.4f}; drawn at its middle"
-    p = ctx.params.with_(w=w)
-    n = basin_n(ctx)
-    g = _basins_at(ctx, p, n)
-    att = g.attractor_table()
-    fig = figure_basins(g.frame(), att, title=f"Basins of attraction at w = {w:g}, "
+    p, n, starts, att, stated = _basins(ctx, "fig20")
+    w = stated["w"]
+    fig = figure_basins(starts, att, title=f"Basins of attraction at w = {w:g}, "
                         f"b = {p.b:g} (inside the fold's hysteresis band)")  # fmt: skip
     parts = ", ".join(f"{_pattern_text(r)} {r['basin_fraction']:.3f}" for _, r in att.iterrows())
     return [Built(20, fig, f"Basins of attraction inside the hysteresis band of the fold (w = "
                   f"{w:g}, standard parameters): {n} x {n} starts; basin "
-                  f"fractions: {parts}.", [note, "Not in the paper."], ["sweeps/hysteresis"])]
+                  f"fractions: {parts}.", [stated["note"], "Not in the paper."],
+                  ["sweeps/hysteresis"])]
 
 
-#: grid points per axis of the basin pictures (Figs 19, 20) ...
-BASIN_N = 200
-#: ... and in the short test configurations (transient below 100 periods: tiny.yaml)
-BASIN_N_SHORT = 48
-
-
-def basin_n(ctx) -> int:
-    """Grid points per axis of a basin picture for the settings of ``ctx``."""
-    return BASIN_N if ctx.settings.transient >= 100 else BASIN_N_SHORT
-
-
-def register_figures() -> None:
-    from gearsim.presentation.figures.registry import FIGURES, FigureSpec, Inputs, register
-
-    if 18 in FIGURES:
-        return
-    register(FigureSpec(18, "(Not in the paper.) Forward and backward sweeps of the standard set "
-                        "over the softening fold: bifurcation diagram and DC, hysteresis band.",
-                        Inputs(sweeps=("hysteresis",)), _fig18, in_paper=False,
-                        caption="Hysteresis: forward and backward sweeps over the fold."))
-    register(FigureSpec(19, "(Not in the paper.) Basins of attraction at b = "
-                        f"{COEXIST_POINT['b']}, w = {COEXIST_POINT['w']} (the point of Figs 9-11).",
-                        Inputs(config_points=("fig9_11",)),
-                        _fig19, tables_required=False, in_paper=False,
-                        caption="Basins of attraction at Figs 9-11's point."))
-    register(FigureSpec(20, "(Not in the paper.) Basins of attraction inside the fold's "
-                        "hysteresis band.", Inputs(sweeps=("hysteresis",)), _fig20,
-                        in_paper=False,
-                        caption="Basins of attraction inside the hysteresis band."))
-
-
-register_figures()
 
 
 # ------------------------------------------------------------------------------ plane maps
@@ -416,7 +355,7 @@ def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
     return fig
 
 
-def _map_floquet(df: pd.DataFrame):
+def map_floquet(df: pd.DataFrame):
     """The Floquet-margin map of a plane's cells table (:data:`maps.PLANE_MAPS` entry)."""
     from gearsim.presentation.figures.data import plane_axes
 
@@ -432,14 +371,4 @@ def _map_floquet(df: pd.DataFrame):
              "its accuracy against the flow's by w: docs/decisions.md, 'Floquet margin of "
              "every cell'). Light grey: periodic cells without a margin (a run with "
              "floquet: slow, variable-ratio or DP5 cells)."])
-
-
-def register_maps() -> None:
-    from gearsim.presentation.figures.maps import MapSpec, register_map
-
-    register_map(MapSpec("floquet", "Floquet margin of the periodic cells", _map_floquet,
-                         ("mu_max", "status", "motion")))
-
-
-register_maps()
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import pandas as pd
 
 from gearsim.presentation.figures.context import Built, Context, _need, _plane, axes_text
-from gearsim.presentation.figures.registry import FigureSpec, Inputs, register
 
 
 def _curve_notes(curves: pd.DataFrame) -> list[str]:
@@ -34,7 +33,7 @@ def _curve_notes(curves: pd.DataFrame) -> list[str]:
     return out
 
 
-def _fig_curves(number: int, plane: str):
+def fig_curves(number: int, plane: str):
     def build(ctx: Context) -> list[Built]:
         from gearsim.presentation.orbit_plots import figure_curves
 
@@ -55,7 +54,7 @@ def _fig_curves(number: int, plane: str):
     return build
 
 
-def _fig23(ctx: Context) -> list[Built]:
+def fig23(ctx: Context) -> list[Built]:
     from gearsim.presentation.orbit_plots import figure_branches
 
     br = _need(ctx.orbits, "standard", "orbits")
@@ -73,20 +72,3 @@ def _fig23(ctx: Context) -> list[Built]:
                   "x (stable solid, unstable dashed; colour by period) with folds, period "
                   "doublings and grazings marked; below, the largest Floquet multiplier modulus.",
                   diffs, ["orbits/standard"])]
-
-
-register(FigureSpec(21, "(Not in the paper.) Bifurcation curves in the (ω, b) plane over the "
-                    "pattern map of Fig 7b.", Inputs(planes=("wb",), orbits=("wb_curves",)),
-                    _fig_curves(21, "wb"), in_paper=False,
-                    caption="Period-doubling, fold and grazing curves (Newton-Floquet) over the "
-                    "(w, b) pattern map."))
-register(FigureSpec(22, "(Not in the paper.) Bifurcation curves in the (ω, ξ) plane over the "
-                    "pattern map of Fig 14b.", Inputs(planes=("wxi",), orbits=("wxi_curves",)),
-                    _fig_curves(22, "wxi"), in_paper=False,
-                    caption="Period-doubling, fold and grazing curves (Newton-Floquet) over the "
-                    "(w, xi) pattern map."))
-register(FigureSpec(23, "(Not in the paper.) Periodic branches of the standard set along ω "
-                    "with their stability and located bifurcations.",
-                    Inputs(orbits=("standard",)), _fig23, in_paper=False,
-                    caption="Continuation of the standard set in w: stable and unstable "
-                    "periodic branches, folds, period doublings, grazings."))

@@ -1,9 +1,8 @@
 """Phase portraits with Poincare points, time histories and dynamic load (Figs 2, 5, 9-11).
 
-Everything drawn here is simulated (:func:`gearsim.presentation.figures.data.simulate_point`); the
-functions
-``compute_*`` do the simulation and the ``figure*`` functions only draw, so tests can feed
-tiny inputs.
+Everything drawn here was simulated by a study-side job (:mod:`gearsim.study.figure_data`,
+the point sets of :mod:`gearsim.study.sweeps`); the readers here turn its tables into what the
+``figure*`` functions draw, so tests can feed tiny inputs.
 """
 
 from __future__ import annotations
@@ -17,18 +16,10 @@ import pandas as pd
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from gearsim.analysis.paper import PAPER_COEXIST, PAPER_FIG5
-from gearsim.cell.simulate import IntegrationSettings, simulate_cell
+from gearsim.analysis.paper import PAPER_FIG5
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.presentation.figures import style
-from gearsim.presentation.figures.data import (
-    PointMotion,
-    continuation_to,
-    reach,
-    seed_from_sweep,
-    seed_state,
-    simulate_point,
-)
+from gearsim.presentation.figures.data import PointMotion, motions_from_table
 
 
 def _paper_label(w: float, table: dict[float, str]) -> str:
@@ -80,58 +71,10 @@ class Fig2Data:
     notes: list[str] = field(default_factory=list)
 
 
-def _middle_of_longest_run(sweep: pd.DataFrame, I: int, n: int) -> float:
-    """Value in the middle of the longest run of consecutive swept cells that are periodic with
-    impact state ``I`` and period ``n`` (far from the run's bifurcations)."""
-    d = sweep.sort_values("value").reset_index(drop=True)
-    ok = ((d["I"] == I) & (d["motion"] == "periodic") & (d["n"] == n)).to_numpy()
-    best, start = (0, 0), None
-    for k, flag in enumerate(list(ok) + [False]):
-        if flag and start is None:
-            start = k
-        elif not flag and start is not None:
-            if k - start > best[1] - best[0]:
-                best = (start, k)
-            start = None
-    return float(d["value"].iloc[(best[0] + best[1] - 1) // 2])
-
-
-def compute_fig2(params: ModelParameters, *, settings: IntegrationSettings | None = None,
-                 sweep: pd.DataFrame | None = None, b: float = 0.15,
-                 candidates: Sequence[float] | None = None) -> Fig2Data:
-    """One real trajectory each of I = 0, 1 and 2 at the same backlash ``b``.
-
-    The mesh frequency of each is taken from ``sweep`` (a sweep at this ``b``: the periodic
-    cell of that impact state with the smallest period, middle of its run), or else from a
-    forward continuation over ``candidates``; the motion is then reached on the sweep's branch
-    (:func:`gearsim.presentation.figures.data.reach`).
-    """
-    base = params.with_(b=b)
-    chosen: dict[int, float] = {}
-    if sweep is not None and len(sweep):
-        for I in (0, 1, 2):
-            sub = sweep[(sweep["I"] == I) & (sweep["motion"] == "periodic")]
-            if len(sub):
-                chosen[I] = _middle_of_longest_run(sweep, I, int(sub["n"].min()))
-    notes = []
-    missing = [I for I in (0, 1, 2) if I not in chosen]
-    if missing:
-        cand = list(candidates) if candidates is not None else list(np.linspace(0.2, 2.4, 23))
-        for w, r in continuation_to(base, cand, settings=settings, values=cand).items():
-            I = r.classification.I
-            if I in missing and r.classification.motion == "periodic":
-                chosen[I] = float(w)
-                missing.remove(I)
-    reached, how = reach(base, list(chosen.values()), sweep=sweep, settings=settings)
-    motions = {}
-    for I, w in sorted(chosen.items()):
-        pm = simulate_point(base.with_(w=w), settings=settings, result=reached[w], seed=how)
-        motions[I] = pm
-        if pm.result.classification.I != I:
-            notes.append(f"I = {I} expected at w = {w:.3f}, got {pm.result.classification.I}")
-    for I in missing:
-        notes.append(f"no I = {I} motion found at b = {b:g}")
-    return Fig2Data(b, motions, notes)
+def fig2_data(df: pd.DataFrame, stated: dict, params: ModelParameters) -> Fig2Data:
+    """Fig 2's motions from its figure-data table (one row per impact state)."""
+    motions = {int(key): pm for key, _, _, pm in motions_from_table(df, params)}
+    return Fig2Data(float(stated["b"]), motions, list(stated.get("notes") or []))
 
 
 def figure2(data: Fig2Data):
@@ -181,18 +124,6 @@ def figure2(data: Fig2Data):
 
 
 # ------------------------------------------------------------------------------ Fig 5
-def compute_points(params: ModelParameters, ws: Sequence[float], *,
-                   settings: IntegrationSettings | None = None,
-                   sweep: pd.DataFrame | None = None, min_periods: int = 32,
-                   samples_per_period: int = 128) -> list[PointMotion]:
-    """Motions at each ``w`` reached by forward continuation (over the sweep's values if given,
-    so the panels follow the branch of the bifurcation diagram)."""
-    reached, how = reach(params, ws, sweep=sweep, settings=settings)
-    return [simulate_point(params.with_(w=float(w)), settings=settings, result=reached[float(w)],
-                           seed=how, min_periods=min_periods,
-                           samples_per_period=samples_per_period) for w in ws]
-
-
 def figure5(points: Sequence[PointMotion], *, paper: dict[float, str] | None = None,
             ncols: int = 4):
     """Fig 5: phase diagrams with Poincare points, one panel per ``w``."""
@@ -244,85 +175,19 @@ class AttractorSearch:
         return ", ".join(parts) if parts else "nothing"
 
 
-def initial_conditions(params: ModelParameters, scale: tuple[float, float, float, float],
-                       nx: int = 6, nv: int = 5) -> list[np.ndarray]:
-    """A grid of section states ``(x, x')`` over ``[xlo, xhi] x [vlo, vhi]``; bearings static."""
-    xlo, xhi, vlo, vhi = scale
-    return [seed_state(params, x, v) for x in np.linspace(xlo, xhi, nx)
-            for v in np.linspace(vlo, vhi, nv)]
-
-
-def search_attractors(params: ModelParameters, *, settings: IntegrationSettings | None = None,
-                      sweep: pd.DataFrame | None = None, grid: tuple[int, int] = (6, 5),
-                      targets: Sequence[str] = PAPER_COEXIST,
-                      min_periods: int = 16, backward_from: float = 0.5,
-                      backward_step: float = 0.01, max_retries: int = 4) -> AttractorSearch:
-    """Steady motions reached from several initial conditions at one parameter point.
-
-    Initial conditions: the static state, the state reached by forward continuation in ``w``
-    (over the sweep's values when given), the state reached by backward continuation from
-    ``w + backward_from``, the nearest stored point of ``sweep`` and a ``grid``
-    of ``(x, x')`` over twice the range of the first motion found. Targets not reached here are
-    looked for along ``sweep`` (same fixed parameters, other ``w``) and, when present there,
-    reached by continuation at the nearest such ``w`` so the figure can show them (clearly
-    labelled with that ``w``).
-    """
-    st = settings or IntegrationSettings()
-    cont = reach(params, [params.w], sweep=sweep, settings=st)[0][params.w]
-    seeds: list[tuple[np.ndarray | None, str]] = [(None, "static state"),
-                                                  (cont.final_state, "forward continuation")]
-    u, how = seed_from_sweep(sweep, params)
-    if u is not None:
-        seeds.append((u, how))
-    # backward continuation from above (coexisting branches often show up only that way)
-    back = [params.with_(w=float(w)) for w in np.arange(params.w + backward_from, params.w,
-                                                         -backward_step)]
-    if back:
-        from gearsim.cell.sweep import continuation_chain
-
-        res = continuation_chain(back, settings=st)
-        seeds.append((res[-1].final_state, "backward continuation"))
-    first = simulate_cell(params, settings=st)
-    c = first.classification
-    amp = max(c.x_max - c.x_min, 2 * params.b, 1e-3) if np.isfinite(c.x_max) else 1.0
-    mid = 0.5 * (c.x_max + c.x_min) if np.isfinite(c.x_max) else params.b
-    vamp = amp * params.w
-    scale = (mid - amp, mid + amp, -vamp, vamp)
-    seeds += [(s, "grid") for s in initial_conditions(params, scale, *grid)]
-    found: dict[str, Attractor] = {}
-    for k, (u0, how) in enumerate(seeds):
-        r = first if k == 0 else simulate_cell(params, u0, settings=st)
-        cl = r.classification
-        if cl.status == "diverged":
-            continue
-        key = cl.label_npq or cl.motion
-        if key in found:
-            found[key].hits += 1
-            continue
-        pm = simulate_point(params, settings=st, result=r, seed=how, min_periods=min_periods)
-        found[key] = Attractor(key, cl.label, pm, 1)
-    search = AttractorSearch(params, len(seeds), found)
-    if sweep is not None and len(sweep):
-        for t in targets:
-            if t in found:
-                continue
-            rows = sweep[sweep["label_npq"] == t]
-            if not len(rows):
-                continue
-            # nearest swept values first; the sweep's label must persist when re-simulated
-            order = np.argsort(np.abs(rows["value"].to_numpy(dtype=float) - params.w))
-            tried = []
-            for k in order[:max_retries]:
-                w = float(rows["value"].iloc[int(k)])
-                r, how = reach(params, [w], sweep=sweep, settings=st)
-                pm = simulate_point(params.with_(w=w), settings=st, result=r[w], seed=how,
-                                    min_periods=min_periods)
-                tried.append(f"{w:.4g} -> {pm.npq}")
-                if pm.npq == t:
-                    search.elsewhere[t] = pm
-                    break
-            else:
-                search.unconfirmed[t] = tried
+def search_from_table(df: pd.DataFrame, stated: dict, params: ModelParameters
+                      ) -> AttractorSearch:
+    """Figs 9-11's attractor search from its figure-data table (rows ``found`` with the
+    initial conditions that reached each motion, and ``elsewhere``)."""
+    p = params.with_(**stated["params"])
+    search = AttractorSearch(p, int(stated["tried"]), {},
+                             unconfirmed={k: list(v) for k, v in
+                                          (stated.get("unconfirmed") or {}).items()})
+    for key, role, hits, pm in motions_from_table(df, params):
+        if role == "found":
+            search.found[key] = Attractor(key, pm.result.classification.label, pm, hits)
+        else:
+            search.elsewhere[key] = pm
     return search
 
 

@@ -4,17 +4,17 @@ it). The CLI (``gearsim figures``), the Snakemake figure rules
 (:mod:`gearsim.presentation.figures.rules`) and
 the index (:mod:`gearsim.presentation.figures.index`) all read this table and nothing else.
 
-Adding a figure (e.g. Fig 18 of a new analysis) is one call in the module that draws it::
+Adding a figure (e.g. Fig 24 of a new analysis) is a public builder in the module that draws
+it (``fig24(ctx)`` returns a list of :class:`Built`) and one entry here::
 
-    from gearsim.presentation.figures.registry import FigureSpec, Inputs, register
+    register(FigureSpec(24, "Basins of attraction in the (w, b) plane.",
+                        Inputs(planes=("wb",)), mymodule.fig24))
 
-    register(FigureSpec(18, "Basins of attraction in the (w, b) plane.",
-                        Inputs(planes=("wb",)), build_fig18))
-
-(and the module listed in :data:`EXTENSIONS` so it is imported). ``build_fig18(ctx)`` returns a
-list of :class:`Built`. Maps drawn for *every* plane of a study (pattern, DC, Kmax, ...) are
-:class:`~.maps.MapSpec` entries of :data:`~.maps.PLANE_MAPS` (:func:`~.maps.register_map`).
-The builders of Figs 1-17 are in :mod:`~.builders`, what they read in :mod:`~.context`.
+The table names every builder here, so importing a figure module registers nothing. The
+builders of Figs 1-17 are in :mod:`~.builders`, of Figs 18-20 in :mod:`~.multistability`, of
+Figs 21-23 in :mod:`~.orbits`; what they read in :mod:`~.context`. Maps drawn for *every*
+plane of a study (pattern, DC, Kmax, ...) are the :class:`~.maps.MapSpec` entries of
+:data:`~.maps.PLANE_MAPS`.
 
 :func:`build` turns a :class:`Context` (tables read by the CLI, the parameters and integration
 settings of the pipeline config) into matplotlib figures plus a record (our caption, where we
@@ -33,7 +33,7 @@ from gearsim.analysis.paper import (
     PAPER_FIG9_11,
 )
 from gearsim.errors import UsageError
-from gearsim.presentation.figures import builders as _b
+from gearsim.presentation.figures import builders, multistability, orbits
 from gearsim.presentation.figures.context import Built, Context
 
 
@@ -59,11 +59,15 @@ class Inputs:
     # them (config ``orbits:``), the figure is drawn without them otherwise
     orbits: tuple[str, ...] = ()
     optional_orbits: tuple[str, ...] = ()
+    # what the figure draws that is simulated: figure-data tables
+    # ``results/figure_data/NAME.parquet`` (gearsim.study.figure_tables.FIGURE_DATA)
+    figure_data: tuple[str, ...] = ()
 
     def tables(self) -> dict[str, tuple[str, ...]]:
-        """``{"sweeps": names, "planes": names, "points": names, "orbits": names}``."""
+        """``{"sweeps": names, "planes": names, "points": names, "orbits": names,
+        "figure_data": names}``."""
         return {"sweeps": self.sweeps, "planes": self.planes, "points": self.points,
-                "orbits": self.orbits}
+                "orbits": self.orbits, "figure_data": self.figure_data}
 
 
 def orbit_available(name: str, sweeps, planes, orbits=None) -> bool:
@@ -85,8 +89,7 @@ class FigureSpec:
     paper's caption, or for a figure of ours that the paper does not have, what it shows;
     ``inputs``: what the pipeline gives it; ``builder(ctx) -> list[Built]``; ``group``: every
     figure drawn by the same builder call (e.g. (9, 10, 11)), the first is the lead;
-    ``tables_required``: False when the builder draws without its tables (it then simulates
-    the few points it needs itself, Figs 2, 5, 6, 9-11); ``report_caption``: the caption file
+    ``report_caption``: the caption file
     of Snakemake's HTML report (``workflow/report/``), ``figure.rst`` renders ``caption``.
     """
 
@@ -95,7 +98,6 @@ class FigureSpec:
     inputs: Inputs
     builder: Callable[[Context], list[Built]]
     group: tuple[int, ...] = ()
-    tables_required: bool = True
     caption: str = ""  # one line for Snakemake's HTML report
     report_caption: str = "figure.rst"
     in_paper: bool = True
@@ -108,13 +110,15 @@ class FigureSpec:
     def lead(self) -> int:
         return self.members[0]
 
-    def available(self, sweeps, planes, points, orbits=None) -> bool:
+    def available(self, sweeps, planes, points, orbits=None, figure_data=()) -> bool:
         """True when every input is configured (names of the config's sweeps, planes, points;
-        ``orbits``: the continuation tables the pipeline makes)."""
+        ``orbits``: the continuation tables the pipeline makes; ``figure_data``: the
+        figure-data tables it makes)."""
         i = self.inputs
         return (all(s in sweeps for s in i.sweeps) and all(p in planes for p in i.planes)
                 and all(q in points for q in (*i.points, *i.config_points))
-                and all(orbit_available(o, sweeps, planes, orbits) for o in i.orbits))
+                and all(orbit_available(o, sweeps, planes, orbits) for o in i.orbits)
+                and all(f in figure_data for f in i.figure_data))
 
 
 FIGURES: dict[int, FigureSpec] = {}
@@ -131,41 +135,40 @@ def register(spec: FigureSpec) -> FigureSpec:
     return spec
 
 
-register(FigureSpec(1, "Dynamic model of curve-face gear transmission system.", Inputs(), _b._fig1,
+register(FigureSpec(1, "Dynamic model of curve-face gear transmission system.", Inputs(),
+                    builders.fig1,
                     caption="Schematic of the 6-DOF bending-torsional model (drawn)."))
 register(FigureSpec(2, "Distribution of the system's phase trajectories on the plane.",
-                    Inputs(sweeps=("b015",)), _b._fig2, tables_required=False,
+                    Inputs(figure_data=("fig2",)), builders.fig2,
                     caption="Phase plane split by x = +b and x = -b, with simulated steady "
                     "trajectories of impact states I = 0, 1 and 2."))
 register(FigureSpec(3, "(Caption lost in our copy; the text: schematic diagram of two-parameter "
                     "co-simulation, the (u, v) plane divided into grids with the cell centres "
-                    "a(i, j).)", Inputs(planes=("wb",)), _b._fig3,
+                    "a(i, j).)", Inputs(planes=("wb",)), builders.fig3,
                     caption="The co-simulation grid: a coarse view of the (w, b) plane."))
 register(FigureSpec(4, "(a) Bifurcation diagram of mesh displacement; (b) I: DC diagram; (c) "
                     "Kmax diagram.", Inputs(sweeps=("standard",), optional_orbits=("standard",)),
-                    _b._fig4,
+                    builders.fig4,
                     caption="Standard forward sweep in w: Poincare points, I:DC and Kmax."))
 register(FigureSpec(5, "Superpositions of the phase diagram and Poincaré mapping of the gear "
                     "pair: (a) ω = 0.48 1-0-0, (b) ω = 0.569 grazing, (c) ω = 0.86 1-1-0, (d) "
                     "ω = 1.02 2-2-0, (e) ω = 1.072 grazing, (f) ω = 1.25 2-1-0, (g) ω = 1.37 "
                     "4-3-0, (h) ω = 1.384 8-6-0, (i) ω = 1.53 chaotic, (j) ω = 1.7 4-3-0, (k) "
-                    "ω = 1.81 2-2-0, (l) ω = 2.24 1-1-0.", Inputs(points=("fig5",)), _b._fig5,
-                    tables_required=False,
+                    "ω = 1.81 2-2-0, (l) ω = 2.24 1-1-0.", Inputs(points=("fig5",)), builders.fig5,
                     caption="Phase trajectories with Poincare points at the paper's values of "
                     "w; every panel names the paper's pattern and ours."))
 register(FigureSpec(6, "FFT spectrum: (a) ω = 0.48 1-0-0, (b) ω = 1.02 2-2-0, (c) ω = 1.37 "
-                    "4-3-0, (d) ω = 1.53 chaotic.", Inputs(points=("fig6",)), _b._fig6,
-                    tables_required=False,
+                    "4-3-0, (d) ω = 1.53 chaotic.", Inputs(points=("fig6",)), builders.fig6,
                     caption="FFT amplitude spectra of x, w and its sub-harmonics marked."))
 register(FigureSpec(7, "Meshing motion law diagram of the system in the (ω, b) parameter plane: "
                     "(a) relative micro-displacement bifurcation diagram of gear pair, (b) "
                     "pattern types and distribution regions of periodic motions.",
-                    Inputs(planes=("wb",)), _b._fig_pattern(7, "wb"),
+                    Inputs(planes=("wb",)), builders.fig_pattern(7, "wb"),
                     caption="(w, b) plane: 3-D bifurcation diagram and pattern map."))
 register(FigureSpec(8, "Single-parameter bifurcation diagrams of mesh displacement under "
                     "different dimensionless backlash b: (a) b = 0.15, (b) b = 0.25, (c) b = "
                     "0.35.", Inputs(sweeps=("b015", "b025", "b035")),
-                    _b._fig_sweeps(8, ("b015", "b025", "b035")),
+                    builders.fig_sweeps(8, ("b015", "b025", "b035")),
                     caption="Bifurcation diagrams at b = 0.15, 0.25 and 0.35."))
 _DOUBLE_SIDED = {
     n: f"{npq} double-sided impact motion, when b = {COEXIST_POINT['b']}, ω = "
@@ -173,51 +176,67 @@ _DOUBLE_SIDED = {
        "history diagram, (c) dynamic load coefficient diagram."
     for n, npq in PAPER_FIG9_11.items()}
 for _n in PAPER_FIG9_11:
-    register(FigureSpec(_n, _DOUBLE_SIDED[_n], Inputs(sweeps=("b015",),
-                        config_points=("fig9_11",)), _b._fig9_11, group=(9, 10, 11),
-                        tables_required=False, report_caption=f"fig{_n:02d}.rst"))
+    register(FigureSpec(_n, _DOUBLE_SIDED[_n], Inputs(figure_data=("fig9_11",)), builders.fig9_11,
+                        group=(9, 10, 11), report_caption=f"fig{_n:02d}.rst"))
 register(FigureSpec(12, "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, b) "
                     "parameter plane: (a) DC cloud diagram, (b) I: DC plane distribution "
-                    "diagram.", Inputs(planes=("wb",)), _b._fig_dc(12, "wb"),
+                    "diagram.", Inputs(planes=("wb",)), builders.fig_dc(12, "wb"),
                     caption="(w, b) plane: DC surface and I:DC map."))
 register(FigureSpec(13, "Maximum dynamic load coefficient in the (ω, b) parameter plane: (a) "
                     "cloud diagram, (b) plane distribution diagram.", Inputs(planes=("wb",)),
-                    _b._fig_kmax(13, "wb"), caption="(w, b) plane: Kmax surface and contours."))
+                    builders.fig_kmax(13, "wb"),
+                    caption="(w, b) plane: Kmax surface and contours."))
 register(FigureSpec(14, "Meshing motion law diagram of the system in the (ω, ξ) parameter "
                     "plane: (a) relative micro-displacement bifurcation diagram of gear pair, "
                     "(b) pattern types and distribution regions of periodic motions.",
-                    Inputs(planes=("wxi",)), _b._fig_pattern(14, "wxi"),
+                    Inputs(planes=("wxi",)), builders.fig_pattern(14, "wxi"),
                     caption="(w, xi) plane: 3-D bifurcation diagram and pattern map."))
 register(FigureSpec(15, "Single-parameter bifurcation diagrams of mesh displacement under "
                     "different meshing damping ratios ξ: (a) ξ = 0.05, (b) ξ = 0.09, (c) ξ = "
                     "0.15.", Inputs(sweeps=("xi005", "xi009", "xi015")),
-                    _b._fig_sweeps(15, ("xi005", "xi009", "xi015")),
+                    builders.fig_sweeps(15, ("xi005", "xi009", "xi015")),
                     caption="Bifurcation diagrams at xi = 0.05, 0.09 and 0.15."))
 register(FigureSpec(16, "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, ξ) "
                     "parameter plane: (a) DC cloud diagram, (b) I: DC plane distribution "
-                    "diagram.", Inputs(planes=("wxi",)), _b._fig_dc(16, "wxi"),
+                    "diagram.", Inputs(planes=("wxi",)), builders.fig_dc(16, "wxi"),
                     caption="(w, xi) plane: DC surface and I:DC map."))
 register(FigureSpec(17, "Maximum dynamic load coefficient in the (ω, ξ) parameter plane: (a) "
                     "cloud diagram, (b) plane distribution diagram.", Inputs(planes=("wxi",)),
-                    _b._fig_kmax(17, "wxi"), caption="(w, xi) plane: Kmax surface and contours."))
+                    builders.fig_kmax(17, "wxi"),
+                    caption="(w, xi) plane: Kmax surface and contours."))
 
-#: modules that register figures numbered after 17 or plane maps (imported by :func:`figures`;
-#: a module missing from this checkout is skipped)
-EXTENSIONS: tuple[str, ...] = ("gearsim.presentation.figures.maps",
-                               "gearsim.presentation.figures.multistability",
-"gearsim.presentation.figures.orbits")
+# ------------------------------------------------------------------ our own figures (18 and up)
+register(FigureSpec(18, "(Not in the paper.) Forward and backward sweeps of the standard set "
+                    "over the softening fold: bifurcation diagram and DC, hysteresis band.",
+                    Inputs(sweeps=("hysteresis",)), multistability.fig18, in_paper=False,
+                    caption="Hysteresis: forward and backward sweeps over the fold."))
+register(FigureSpec(19, "(Not in the paper.) Basins of attraction at b = "
+                    f"{COEXIST_POINT['b']}, w = {COEXIST_POINT['w']} (the point of Figs 9-11).",
+                    Inputs(figure_data=("fig19",)), multistability.fig19, in_paper=False,
+                    caption="Basins of attraction at Figs 9-11's point."))
+register(FigureSpec(20, "(Not in the paper.) Basins of attraction inside the fold's "
+                    "hysteresis band.", Inputs(figure_data=("fig20",)), multistability.fig20,
+                    in_paper=False,
+                    caption="Basins of attraction inside the hysteresis band."))
+register(FigureSpec(21, "(Not in the paper.) Bifurcation curves in the (ω, b) plane over the "
+                    "pattern map of Fig 7b.", Inputs(planes=("wb",), orbits=("wb_curves",)),
+                    orbits.fig_curves(21, "wb"), in_paper=False,
+                    caption="Period-doubling, fold and grazing curves (Newton-Floquet) over the "
+                    "(w, b) pattern map."))
+register(FigureSpec(22, "(Not in the paper.) Bifurcation curves in the (ω, ξ) plane over the "
+                    "pattern map of Fig 14b.", Inputs(planes=("wxi",), orbits=("wxi_curves",)),
+                    orbits.fig_curves(22, "wxi"), in_paper=False,
+                    caption="Period-doubling, fold and grazing curves (Newton-Floquet) over the "
+                    "(w, xi) pattern map."))
+register(FigureSpec(23, "(Not in the paper.) Periodic branches of the standard set along ω "
+                    "with their stability and located bifurcations.",
+                    Inputs(orbits=("standard",)), orbits.fig23, in_paper=False,
+                    caption="Continuation of the standard set in w: stable and unstable "
+                    "periodic branches, folds, period doublings, grazings."))
 
 
 def figures() -> dict[int, FigureSpec]:
-    """Every registered figure, by number (the extensions imported first)."""
-    import importlib
-
-    for mod in EXTENSIONS:
-        try:
-            importlib.import_module(mod)
-        except ModuleNotFoundError as exc:
-            if exc.name != mod:
-                raise
+    """Every registered figure, by number."""
     return dict(sorted(FIGURES.items()))
 
 

@@ -21,7 +21,8 @@ FIGURE_DIR = "results/figures"
 
 def groups(files: Mapping[str, Mapping[str, str]]) -> list[registry.FigureSpec]:
     """The lead spec of every figure group whose inputs are all configured (one job each).
-    ``files``: kind (``sweeps``, ``planes``, ``points``, ``orbits``) -> table name -> path, the
+    ``files``: kind (``sweeps``, ``planes``, ``points``, ``orbits``, ``figure_data``) -> table
+    name -> path, the
     tables the pipeline makes."""
     names = {kind: list(files.get(kind, {})) for kind in KINDS}
     out, seen = [], set()
@@ -30,7 +31,8 @@ def groups(files: Mapping[str, Mapping[str, str]]) -> list[registry.FigureSpec]:
             continue
         seen.add(spec.lead)
         lead = registry.FIGURES[spec.lead]
-        if lead.available(names["sweeps"], names["planes"], names["points"], names["orbits"]):
+        if lead.available(names["sweeps"], names["planes"], names["points"], names["orbits"],
+                          names["figure_data"]):
             out.append(lead)
     return out
 
@@ -41,7 +43,8 @@ def built_figures(files: Mapping[str, Mapping[str, str]]) -> list[int]:
 
 
 #: the kinds of table a figure reads, as ``Inputs`` fields and CLI options
-KINDS = {"sweeps": "sweep", "planes": "plane", "points": "points", "orbits": "orbits"}
+KINDS = {"sweeps": "sweep", "planes": "plane", "points": "points", "orbits": "orbits",
+         "figure_data": "figure-data"}
 
 
 def _names(spec: registry.FigureSpec, kind: str, files: Mapping[str, Mapping[str, str]]
@@ -62,7 +65,8 @@ def input_paths(spec: registry.FigureSpec, files: Mapping[str, Mapping[str, str]
 
 def cli_args(spec: registry.FigureSpec, files: Mapping[str, Mapping[str, str]]) -> str:
     """``--fig N [M ...] --sweep NAME=PATH --plane NAME=PATH --points NAME=PATH``
-    (``--orbits NAME=PATH``), the paths those of :func:`input_paths`."""
+    (``--orbits NAME=PATH``, ``--figure-data NAME=PATH``), the paths those of
+    :func:`input_paths`."""
     paths = input_paths(spec, files)
     args = ["--fig", *(str(n) for n in spec.members)]
     for kind, option in KINDS.items():
@@ -105,7 +109,8 @@ def sweep_diagram_outputs(sweep: str) -> list[str]:
 
 
 def figure_params(study: Study) -> str:
-    """What the simulated figures (2, 5, 6, 9-11) depend on besides their tables (JSON)."""
+    """What the figures of simulated motions (2, 5, 6, 9-11, 19, 20) state besides their
+    tables (JSON)."""
     from gearsim.study import provenance as gprov
 
     config = study.config

@@ -1,0 +1,90 @@
+"""Rooms meet through public names, and the figures only read.
+
+* No module of ``src/gearsim`` imports another subpackage's underscore name
+  (``from gearsim.X.m import _y`` where X is not the importer's own subpackage).
+* No figure of the figure table reaches the integrators: the modules its builder's module
+  imports, directly or through others (function-level imports included), hold none of them.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[2] / "src"
+PACKAGE = SRC / "gearsim"
+
+
+def _module(path: Path) -> str:
+    parts = list(path.relative_to(SRC).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _room(module: str) -> str:
+    """The subpackage a module belongs to (``gearsim.results``); the root's own modules are
+    the room ``gearsim``."""
+    parts = module.split(".")
+    return ".".join(parts[:2]) if len(parts) > 2 or (PACKAGE / parts[-1]).is_dir() else "gearsim"
+
+
+def _private_imports(text: str, importer: str) -> list[str]:
+    """``importer:line imports module.name`` for every underscore name that ``text`` (the
+    source of the module ``importer``) imports from another room."""
+    out = []
+    for node in ast.walk(ast.parse(text)):
+        if not isinstance(node, ast.ImportFrom) or node.level or not node.module:
+            continue
+        if not node.module.startswith("gearsim"):
+            continue
+        for alias in node.names:
+            private = alias.name.startswith("_") and not alias.name.startswith("__")
+            if private and _room(node.module) != _room(importer):
+                out.append(f"{importer}:{node.lineno} imports {node.module}.{alias.name}")
+    return out
+
+
+def test_room_finds_subpackages():
+    assert _room("gearsim.results.parquet") == "gearsim.results"
+    assert _room("gearsim.analysis.attractors.pool") == "gearsim.analysis"
+    assert _room("gearsim.errors") == "gearsim"
+
+
+def test_the_check_sees_a_private_import():
+    text = ("from gearsim.results.parquet import _tmp_name\n"
+            "from gearsim.presentation.context import _need, Built\n"
+            "from gearsim.dynamics import model as _m\n")
+    assert _private_imports(text, "gearsim.presentation.report") == [
+        "gearsim.presentation.report:1 imports gearsim.results.parquet._tmp_name"]
+
+
+def test_no_module_imports_another_rooms_underscore_name():
+    found = [hit for path in sorted(PACKAGE.rglob("*.py"))
+             for hit in _private_imports(path.read_text(encoding="utf-8"), _module(path))]
+    assert not found, "\n".join(found)
+
+
+#: what a figure job must never load: the integrators, one cell's and one sweep's simulation,
+#: the finder, the basins and the figure-data simulations
+INTEGRATORS = ("gearsim.numerics.integrate", "gearsim.numerics.kernel", "gearsim.numerics.batch",
+               "gearsim.numerics.steps", "gearsim.numerics.events", "gearsim.numerics.variational",
+               "gearsim.cell.simulate", "gearsim.cell.sweep", "gearsim.cell.chains",
+               "gearsim.analysis.attractors", "gearsim.analysis.basins",
+               "gearsim.study.figure_data")
+
+
+def test_no_figure_job_reaches_the_integrators():
+    grimp = pytest.importorskip("grimp")
+    from gearsim.presentation.figures import registry
+
+    graph = grimp.build_graph("gearsim")
+    modules = {spec.builder.__module__ for spec in registry.figures().values()}
+    assert {"gearsim.presentation.figures.builders", "gearsim.presentation.figures.multistability",
+            "gearsim.presentation.figures.orbits"} <= modules
+    for module in sorted(modules):
+        reached = graph.find_upstream_modules(module)
+        bad = sorted(m for m in reached if m.startswith(INTEGRATORS))
+        assert not bad, f"{module} reaches {bad}"
+    # the check can fail: the figure-data job does reach them
+    assert "gearsim.cell.simulate" in graph.find_upstream_modules("gearsim.study.figure_data")
