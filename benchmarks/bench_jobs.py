@@ -88,8 +88,8 @@ def make_results(wd: Path) -> None:
         shutil.copy(f, wd / "config" / f.name)
     print("computing the tiny configuration's tables ...", flush=True)
     subprocess.run([sys.executable, "-m", "snakemake", "-s", str(ROOT / "Snakefile"), "-d",
-                    str(wd), "--configfile", "config/tiny.yaml", "--cores", "2", "-q",
-                    "results/sweeps/standard.parquet", "results/wb/cells.parquet"],
+                    str(wd), "--configfile", "config/tiny.yaml", "--cores", "2",
+                    "results/sweeps/standard.parquet", "results/wb/cells.parquet", "-q"],
                    env=env_for(ROOT, ROOT / ".numba_cache"), cwd=wd, check=True)
 
 

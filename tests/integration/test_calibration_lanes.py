@@ -8,6 +8,10 @@ import numpy as np
 from gearsim.analysis.paper import PAPER_B_THRESHOLD
 from gearsim.calibration.fidelity import FidelitySettings, measure_many
 from gearsim.calibration.forms import FORMS
+from gearsim.study.config import Study
+
+#: the study the measurements are given (its standard set and RK4 settings)
+STUDY = Study.load()
 
 #: the test set: the start of the single-DOF form and two sets of its box away from it. The
 #: second one is where the two paths once parted: above w = 2.34 the RK4 chain's 1T transient
@@ -25,8 +29,8 @@ def test_lane_landmarks_equal_scalar_dp5_to_the_grid_spacing():
     form = FORMS["single_dof"]
     xs = [form.start if c is None else [c[f.name] for f in form.free] for c in CANDIDATES]
     # gate below 0: every set stops after the standard sweep (its landmarks, DC and scale)
-    lanes = FidelitySettings(lanes=True, gate=-1.0)
-    dp5 = FidelitySettings(gate=-1.0)
+    lanes = FidelitySettings(lanes=True, gate=-1.0).with_study(STUDY)
+    dp5 = FidelitySettings(gate=-1.0).with_study(STUDY)
     assert lanes.integration().method == "rk4" and dp5.integration().method == "dp5"
     got = measure_many([form.params(x, lanes) for x in xs], lanes)
     ref = [measure_many([form.params(x, dp5)], dp5)[0] for x in xs]
@@ -46,7 +50,7 @@ def test_coexist_scan_at_the_paper_point_is_the_measurement_s_reading():
     from gearsim.calibration.fidelity import coexist_scan
 
     form = FORMS["single_dof"]
-    st = FidelitySettings(lanes=True, gate=1e9)  # every target measured
+    st = FidelitySettings(lanes=True, gate=1e9).with_study(STUDY)  # every target measured
     p = form.params(form.start, st)
     m = measure_many([p], st)[0]
     rows = coexist_scan([p], [0.82, 0.9], [0.15], st, starts=st.attractor_starts)
@@ -57,11 +61,10 @@ def test_coexist_scan_at_the_paper_point_is_the_measurement_s_reading():
 
 def test_sweep_records_many_is_sweep_records_chain_by_chain():
     from gearsim.cell.sweep import sweep_records, sweep_records_many
-    from gearsim.study.config import Study
 
-    st = Study.load().settings
+    st = STUDY.settings
     form = FORMS["single_dof"]
-    base = FidelitySettings(lanes=True)
+    base = FidelitySettings(lanes=True).with_study(STUDY)
     specs = [(form.params(form.start, base), np.linspace(0.5, 1.1, 13)),
              (form.params(form.start, base).with_(xi=0.09), np.linspace(1.2, 1.9, 8)),
              (form.params([c for c in CANDIDATES[1].values()], base), np.linspace(0.6, 0.7, 5))]
@@ -112,3 +115,29 @@ def test_a_lane_fit_leaves_its_state_after_every_generation(tmp_path):
     assert more["nfev"] == len(lines2) > rec["nfev"]
     assert more["curve"][:len(rec["curve"])] == rec["curve"]
     assert more["J_lanes"] == min(json.loads(x)["J"] for x in lines2)
+
+
+def test_the_settings_carry_the_study_they_were_given():
+    """A fit's study is passed in, not looked up: the lanes' integration and a form's base are
+    those of the study the settings were given; settings without one refuse to guess."""
+    import pytest
+
+    form = FORMS["single_dof"]
+    cfg = STUDY.config_dict()
+    cfg["integration"] = {**(cfg.get("integration") or {}), "transient": 117}
+    other = Study(cfg, STUDY.root)
+    st = FidelitySettings(lanes=True)
+    with pytest.raises(ValueError, match="without a study"):
+        st.integration()
+    assert st.with_study(other).integration().transient == 117 != STUDY.settings.transient
+    assert st.with_study(STUDY).integration() == STUDY.settings
+    assert "study" not in st.with_study(other).to_dict()
+    assert st.with_study(other).to_dict()["sim"]["transient"] == 117
+    # a form's base is the given study's standard set: a value the form does not search
+    # (the pinion bearing's damping ratio xi_py) follows the study
+    cfg = STUDY.config_dict()
+    cfg["parameters"] = {**(cfg.get("parameters") or {}), "xi_py": 0.0123}
+    stiff = Study(cfg, STUDY.root)
+    assert STUDY.parameters().model.xi_py != 0.0123
+    assert form.params(form.start, st.with_study(stiff)).xi_py == 0.0123
+    assert form.params(form.start, st.with_study(STUDY)).xi_py == STUDY.parameters().model.xi_py

@@ -315,3 +315,43 @@ def test_worker_lost_and_replaced_mid_tile_gives_the_same_cells(tmp_path, long_t
     assert code == 0, err
     assert "256/256 cells" in err
     _same(pd.read_parquet(tmp_path / "tile.parquet"), inproc)
+
+
+def test_jobs_of_an_earlier_run_in_this_folder_stop_a_run_in_one_line(tmp_path, monkeypatch):
+    """A `squeue` on PATH that lists jobs: those of a Snakemake run in this folder (the plugin's
+    rule_ comment, this working directory) stop the run in one line naming them and what to
+    run; other folders' jobs, other jobs, and a job step's own Snakemake (SLURM_JOB_ID) pass."""
+    from gearsim.errors import UsageError
+    from gearsim.study import cluster
+
+    here, other = tmp_path / "run", tmp_path / "other"
+    here.mkdir()
+    other.mkdir()
+    rows = [f"11|RUNNING|rule_tiles_attractor_tile_simulate_tile|{here}",
+            f"12|PENDING|rule_tables_audit_plane_cells|{here}",
+            f"13|RUNNING|rule_tiles_attractor_tile_simulate_tile|{other}",
+            f"14|RUNNING||{here}"]
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    (bin_dir / "squeue").write_text("#!/bin/sh\nprintf '%s\\n' " +
+                                    " ".join(f"'{r}'" for r in rows) + "\n")
+    (bin_dir / "squeue").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_dir}:{os.environ['PATH']}")
+    monkeypatch.delenv("SLURM_JOB_ID", raising=False)
+    cluster._earlier_run_jobs.cache_clear()
+    monkeypatch.chdir(other)
+    with pytest.raises(UsageError) as err:
+        cluster.earlier_run_jobs()
+    assert str(err.value) == (
+        f"SLURM job 13 (rule_tiles_attractor_tile_simulate_tile) of an earlier run in {other} "
+        "is RUNNING: wait until `squeue --me` no longer lists them or cancel them (scancel 13), "
+        "then run the same command again")
+    monkeypatch.chdir(here)
+    with pytest.raises(UsageError,
+                       match=r"SLURM job 11 .* is RUNNING and 1 more: .*scancel 11 12\)"):
+        cluster.earlier_run_jobs()
+    monkeypatch.setenv("SLURM_JOB_ID", "11")  # the job step's Snakemake of job 11 itself
+    assert cluster.earlier_run_jobs() == 0
+    monkeypatch.delenv("SLURM_JOB_ID")
+    monkeypatch.chdir(tmp_path)
+    assert cluster.earlier_run_jobs() == 0

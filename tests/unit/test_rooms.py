@@ -88,3 +88,13 @@ def test_no_figure_job_reaches_the_integrators():
         assert not bad, f"{module} reaches {bad}"
     # the check can fail: the figure-data job does reach them
     assert "gearsim.cell.simulate" in graph.find_upstream_modules("gearsim.study.figure_data")
+
+
+def test_the_attractor_tile_command_is_as_thin_as_the_tile_command():
+    """The attractor tile's job lives in study/attractor_tiles.py beside study/tiles.py; the
+    command parses, calls it and writes (at most 80 lines)."""
+    commands = PACKAGE / "cli" / "commands"
+    lines = len((commands / "attractor_tile.py").read_text(encoding="utf-8").splitlines())
+    assert lines <= 80, lines
+    text = (commands / "attractor_tile.py").read_text(encoding="utf-8")
+    assert "run_tile_job" in text and "task_specs" in text and "map_unordered" not in text

@@ -47,7 +47,7 @@ def _reordered(tmp: Path) -> Path:
 
 def test_the_rule_files_include_in_any_order(tmp_path):
     wd = make_workdir(tmp_path / "work")
-    args = ("-n", "-p", "--configfile", "config/quick.yaml")
+    args = ("-n", "-p", "--configfile", "config/tiny.yaml")
     ours = smk(wd, *args)
     theirs = smk(wd, "-s", str(_reordered(tmp_path)), *args)
     plan = _plan(ours.stdout)

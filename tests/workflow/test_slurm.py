@@ -1,17 +1,24 @@
-"""The workflow through profiles/slurm on a real one-node SLURM cluster.
+"""The workflow through profiles/slurm on a real one-node SLURM cluster, with the faults of a
+cluster injected into its run.
 
 `.ci/slurm-cluster up` installs what is missing (slurm-wlm daemons, munge, slurmdbd, MariaDB),
 writes a slurm.conf for this machine and starts the daemons; `down` stops them afterwards. The
 whole tiny configuration (config/tiny.yaml, the default target: tables, catalogue, figures,
 diagrams, report, explorer) runs through the profile as a user would (partition and account from
-SBATCH_PARTITION and SBATCH_ACCOUNT), and one tile's SLURM job (the tile and its attractor tile)
-is cancelled with ``scancel`` while it runs. Checked:
+SBATCH_PARTITION and SBATCH_ACCOUNT). Into that one run the test injects, one after the other
+(:class:`Faults`, :data:`SBATCH`; docs/pipeline.md "When a cluster job fails"): a job that exits
+1 on its node, the controller stopped and started again, a tile job cancelled, one timed out,
+one requeued mid-run, and the Snakemake process killed with its jobs still queued; the same
+command run again at once stops in one line, and run once those jobs are gone, it finishes.
+Checked:
 
 * every job of the run but the target rule ``all`` ran in a SLURM job, its own or its group's;
-  every SLURM job of the run is in ``sacct`` under the given account, COMPLETED, but the
-  cancelled one, CANCELLED, which Snakemake submitted again and which then COMPLETED;
+  every SLURM job of the run is in ``sacct`` under the given account; each faulted job has its
+  state (FAILED, CANCELLED, TIMEOUT, REQUEUED then COMPLETED) and every Snakemake job's last
+  SLURM job COMPLETED; the timed-out job's retry asked for twice its runtime;
 * the catalogue equals the one of the session's local run (``tiny_run``, conftest.py: the same
-  configuration on ``--cores 2``) value for value (ids and provenance aside);
+  configuration on ``--cores 2``) value for value (ids and provenance aside); no temporary file
+  is left, no job of the run is left in the queue;
 * a tile run as a 2-CPU job step has a 2-worker LocalCluster (one worker per CPU SLURM gave);
 * the profile's grouping: one SLURM job of one CPU per tile (the tile and its attractor tile),
   the small jobs in three group jobs of one CPU each;
@@ -20,11 +27,14 @@ is cancelled with ``scancel`` while it runs. Checked:
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
+import signal
 import sqlite3
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -40,7 +50,7 @@ PROFILE = ROOT / "profiles/slurm"
 ACCOUNT = "gearsim-ci"  # created by .ci/slurm-cluster
 CI = os.environ.get("CI") == "1"
 CATALOGUE = "results/catalogue.d/build.sqlite"
-# a hang guard only: the run took 407-519 s on 2 cores at load average 1-15
+# a hang guard only: the run took 407-519 s on 2 cores at load average 1-15 (without faults)
 TIMEOUT = 1800
 #: the profile's group jobs of small jobs (profiles/slurm/config.yaml, groups) and their CPUs
 GROUPS = {"curves": 1, "tables": 1, "report": 1}
@@ -74,21 +84,26 @@ def cluster():
             assert d.returncode == 0, d.stdout + d.stderr
 
 
-def _squeue_running(prefix: str) -> list[tuple[str, str]]:
-    out = subprocess.run(["squeue", "--noheader", "--states=RUNNING", "--format=%i|%j|%k"],
+def _squeue(prefix: str) -> dict[str, tuple[str, str, str]]:
+    """This run's jobs in the queue: SLURM id -> (state, comment, time limit)."""
+    out = subprocess.run(["squeue", "--noheader", "--format=%i|%j|%T|%k|%l"],
                          capture_output=True, text=True, check=True).stdout
-    rows = [line.split("|", 2) for line in out.splitlines() if line.strip()]
-    return [(job, comment) for job, name, comment in rows if name.startswith(prefix)]
+    rows = [line.split("|", 4) for line in out.splitlines() if line.strip()]
+    return {job: (state, comment, limit) for job, name, state, comment, limit in rows
+            if name.startswith(prefix)}
 
 
-def _sacct(prefix: str, since: str) -> pd.DataFrame:
-    """This run's SLURM jobs (allocations, not steps) as sacct lists them."""
+def _sacct(prefix: str, since: str, duplicates: bool = False) -> pd.DataFrame:
+    """This run's SLURM jobs (allocations, not steps) as sacct lists them; with ``duplicates``,
+    each run of a requeued job too."""
     out = subprocess.run(
         ["sacct", "--allocations", "--parsable2", "--noheader", "--starttime", since,
-         "--format=JobIDRaw,JobName%200,State,Account,AllocCPUS,Comment%200"],
+         *(["--duplicates"] if duplicates else []),
+         "--format=JobIDRaw,JobName%200,State,Account,AllocCPUS,Timelimit,Comment%200"],
         capture_output=True, text=True, check=True).stdout
     rows = [line.split("|") for line in out.splitlines() if line.strip()]
-    df = pd.DataFrame(rows, columns=["job", "name", "state", "account", "cpus", "comment"])
+    df = pd.DataFrame(rows, columns=["job", "name", "state", "account", "cpus", "limit",
+                                     "comment"])
     return df[df["name"].str.startswith(prefix)].astype({"job": int, "cpus": int})
 
 
@@ -103,13 +118,164 @@ def _sacct_settled(prefix: str, since: str, jobs: set[int], timeout: float = 60)
         time.sleep(1)
 
 
+#: The test's sbatch, first on the PATH of the run: it records every submission (kind of job,
+#: runtime asked, SLURM id) and injects the faults that must happen inside a job: the first
+#: compile job exits 1 on its node; the second tile job sleeps first, so that the time limit the
+#: test then sets runs out before the tile starts.
+SBATCH = """#!{python}
+import fcntl, json, subprocess, sys
+args = sys.argv[1:]
+comment = args[args.index("--comment") + 1] if "--comment" in args else ""
+kind = next((k for k in ("compile", "tiles", "curves", "tables", "report")
+             if comment.startswith("rule_" + k)), "other")
+with open({log!r}, "a+") as log:
+    fcntl.flock(log, fcntl.LOCK_EX)
+    log.seek(0)
+    seen = [json.loads(line)["kind"] for line in log if line.strip()].count(kind)
+    fault = {{("compile", 0): "exit", ("tiles", 1): "sleep"}}.get((kind, seen), "")
+    wrap = next(i for i, a in enumerate(args) if a.startswith("--wrap="))
+    if fault == "exit":
+        args[wrap] = "--wrap=exit 1"
+    elif fault == "sleep":
+        args[wrap] = "--wrap=sleep 120; " + args[wrap][len("--wrap="):]
+    r = subprocess.run([{sbatch!r}, *args], capture_output=True, text=True)
+    log.write(json.dumps({{"kind": kind, "fault": fault, "runtime": args[args.index("-t") + 1],
+                          "job": r.stdout.strip().split(";")[0]}}) + "\\n")
+sys.stdout.write(r.stdout)
+sys.stderr.write(r.stderr)
+sys.exit(r.returncode)
+"""
+#: How long the controller is away: longer than the plugin's status intervals then (5 s after a
+#: submission, 10 s more per query while no job ends: the round after the first compile job's
+#: failure comes 15 s after it) and than a query that finds no controller (~10 s)
+OUTAGE = 40
+CTLD_PID = Path(os.environ.get("GEARSIM_SLURM_DIR", "/tmp/gearsim-slurm")) / "slurmctld.pid"
+
+
+def _root(*cmd: str) -> list[str]:
+    return list(cmd) if os.geteuid() == 0 else ["sudo", "-n", *cmd]
+
+
+def _controller_away(seconds: float) -> None:
+    """slurmctld stopped (SIGTERM, as an administrator's restart) for ``seconds``, then started
+    again as .ci/slurm-cluster starts it (its state, jobs included, in StateSaveLocation)."""
+    pid = int(CTLD_PID.read_text())
+    subprocess.run(_root("kill", str(pid)), check=True)
+    deadline = time.monotonic() + 30
+    while Path(f"/proc/{pid}").exists() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    time.sleep(seconds)
+    subprocess.run(_root("slurmctld"), check=True)
+
+
+class Faults:
+    """The faults the test injects into the running workflow, one at a time (`step` is called
+    every 0.5 s), each once the one before is over, so that none hides another:
+
+    1. the controller away for OUTAGE s while the second compile job is queued or running (the
+       first exited 1, see SBATCH): every other job waits for it, so nothing is submitted and
+       no job step starts meanwhile, and the status queries fail;
+    2. a running tile job cancelled (``scancel``);
+    3. the sleeping tile job's time limit set to run out now (``scontrol update EndTime=now``:
+       TIMEOUT within SLURM's 30 s check, during its sleep);
+    4. another tile job requeued mid-run (``scontrol requeue``, as a preemption does) and let
+       start again at once;
+    5. once those jobs have left the queue and the plane tables' job runs, the Snakemake process
+       killed (SIGKILL): its jobs (tables, curves) stay in the queue.
+    """
+
+    def __init__(self, prefix: str, submissions: Path):
+        self.prefix, self.submissions = prefix, submissions
+        self.cancelled = self.timed_out = self.requeued = None
+        self.limit = ""  # the timed-out job's time limit before the test shortened it
+        self.requeue_seen = self.back = self.killed = None
+        self.requeue_back = False
+
+    def sbatch(self) -> list[dict]:
+        if not self.submissions.exists():
+            return []
+        return [json.loads(line) for line in self.submissions.read_text().splitlines()]
+
+    def step(self, proc: subprocess.Popen) -> None:
+        queue, now = _squeue(self.prefix), time.monotonic()
+        sbatch = self.sbatch()
+        if self.back is None:
+            compiles = [e["job"] for e in sbatch if e["kind"] == "compile" and not e["fault"]]
+            if compiles and compiles[0] in queue:
+                _controller_away(OUTAGE)
+                self.back = time.monotonic()
+            return
+        faulted = {e["job"] for e in sbatch if e["fault"]}
+        tiles = [j for j, (state, comment, _) in queue.items()
+                 if state == "RUNNING" and comment.startswith("rule_tiles_")]
+        plain = [j for j in tiles if j not in faulted and j not in (self.cancelled,)]
+        if self.cancelled is None and plain:
+            self.cancelled = plain[0]
+            subprocess.run(["scancel", self.cancelled], check=True)
+            return
+        sleeping = [j for j in tiles if j in faulted]
+        if self.timed_out is None and sleeping:
+            self.timed_out, self.limit = sleeping[0], queue[sleeping[0]][2]
+            subprocess.run(_root("scontrol", "update", f"JobId={self.timed_out}", "EndTime=now"),
+                           check=True)
+            return
+        if self.requeued is None and self.cancelled is not None and plain:
+            self.requeue_seen = self.requeue_seen or (plain[0], now)
+            if now - self.requeue_seen[1] > 3:  # mid-run: its tile has started
+                self.requeued = self.requeue_seen[0]
+                subprocess.run(_root("scontrol", "requeue", self.requeued), check=True)
+            return
+        requeued = queue.get(self.requeued, ("",))[0] if self.requeued else ""
+        if requeued == "PENDING" and not self.requeue_back:
+            # SLURM holds a requeued job ~2 min (BeginTime); a preempted job's wait is the
+            # site's: let it start now
+            subprocess.run(_root("scontrol", "update", f"JobId={self.requeued}",
+                                 "StartTime=now"), check=True)
+        self.requeue_back = self.requeue_back or requeued == "RUNNING"
+        gone = not {self.cancelled, self.timed_out, self.requeued} & set(queue)
+        over = self.requeue_back and gone
+        tables = any(state == "RUNNING" and comment.startswith("rule_tables_")
+                     for state, comment, _ in queue.values())
+        if self.killed is None and over and tables:
+            proc.kill()
+            self.killed = sorted(queue)
+
+
+def _run(cmd: list[str], wd: Path, env: dict, log: Path, deadline: float,
+         faults: Faults | None = None) -> int:
+    with log.open("w") as out:
+        proc = subprocess.Popen(cmd, cwd=wd, env=env, stdout=out, stderr=subprocess.STDOUT)
+        try:
+            while proc.poll() is None:
+                if time.monotonic() > deadline:
+                    raise AssertionError(f"no end after {TIMEOUT} s:\n{log.read_text()[-3000:]}")
+                if faults is not None:
+                    faults.step(proc)
+                time.sleep(0.5)
+        finally:
+            if proc.poll() is None:
+                # Ctrl-C: the plugin cancels its jobs (SIGTERM would wait for them to end)
+                proc.send_signal(signal.SIGINT)
+                proc.wait(timeout=120)
+    return proc.returncode
+
+
 @pytest.fixture(scope="module")
 def slurm_run(cluster, tmp_path_factory):
-    """The tiny configuration's default target through profiles/slurm; the first tile job seen
-    running is cancelled."""
+    """The tiny configuration's default target through profiles/slurm with the faults of
+    :class:`Faults` and of the test's sbatch; the Snakemake process is killed mid-run, and the
+    same command, run again at once, must stop in one line; run once the earlier run's jobs have
+    left the queue, it must finish."""
     wd = make_workdir(tmp_path_factory.mktemp("slurm"))
     prefix = f"gearsim_test_{os.getpid()}"
-    env = {**_env(), "SBATCH_PARTITION": cluster, "SBATCH_ACCOUNT": ACCOUNT}
+    bin_dir = wd / "test-bin"
+    bin_dir.mkdir()
+    submissions = wd / "submissions.jsonl"
+    (bin_dir / "sbatch").write_text(SBATCH.format(
+        python=sys.executable, log=str(submissions), sbatch=shutil.which("sbatch")))
+    (bin_dir / "sbatch").chmod(0o755)
+    env = {**_env(), "SBATCH_PARTITION": cluster, "SBATCH_ACCOUNT": ACCOUNT,
+           "PATH": f"{bin_dir}:{os.environ['PATH']}"}
     # one CPU per tile job, as in the local run: on a 2-CPU node a 2-CPU tile job (the profile's
     # fit_threads(8) here) waits for the whole node, i.e. for every small job to end first
     # (measured: 529 s against 181 s locally, load ~10); the dask path under SLURM is checked by
@@ -118,53 +284,117 @@ def slurm_run(cluster, tmp_path_factory):
            str(PROFILE), "--configfile", "config/tiny.yaml", "--slurm-jobname-prefix", prefix,
            "--set-threads", "simulate_tile=1", "attractor_tile=1"]
     since = time.strftime("%Y-%m-%dT%H:%M:%S")
-    log = wd / "snakemake.log"
     t0 = time.monotonic()
-    with log.open("w") as out:
-        proc = subprocess.Popen(cmd, cwd=wd, env=env, stdout=out, stderr=subprocess.STDOUT)
-        killed = None
-        try:
-            while proc.poll() is None:
-                if time.monotonic() - t0 > TIMEOUT:
-                    raise AssertionError(f"no end after {TIMEOUT} s:\n{log.read_text()[-3000:]}")
-                if killed is None:
-                    tiles = [j for j in _squeue_running(prefix) if "simulate_tile" in j[1]]
-                    if tiles:
-                        killed = tiles[0]
-                        subprocess.run(["scancel", killed[0]], check=True)
-                time.sleep(0.5)
-        finally:
-            if proc.poll() is None:
-                proc.terminate()  # the plugin cancels its jobs
-                proc.wait(timeout=120)
+    deadline = t0 + TIMEOUT
+    faults = Faults(prefix, submissions)
+    code = _run(cmd, wd, env, wd / "killed.log", deadline, faults)
+    assert faults.killed, (code, (wd / "killed.log").read_text()[-3000:])
+    # the documented resume after a hard kill: clear Snakemake's lock, then the same command
+    subprocess.run([str(SNAKEMAKE), "-s", str(ROOT / "Snakefile"), "-d", str(wd), "--unlock",
+                    "--configfile", "config/tiny.yaml"], cwd=wd, env=env, check=True,
+                   capture_output=True)
+    refused = subprocess.run(cmd, cwd=wd, env=env, capture_output=True, text=True, timeout=300)
+    left = set(_squeue(prefix))
+    while _squeue(prefix):  # the earlier run's jobs end on their own
+        assert time.monotonic() < deadline, _squeue(prefix)
+        time.sleep(2)
+    code = _run(cmd, wd, env, wd / "snakemake.log", deadline)
     wall = time.monotonic() - t0
-    text = log.read_text()
-    assert proc.returncode == 0, text[-5000:]
-    submitted = {int(j) for j in re.findall(r"submitted with SLURM jobid (\d+)", text)}
+    logs = (wd / "killed.log").read_text() + (wd / "snakemake.log").read_text()
+    assert code == 0, (wd / "snakemake.log").read_text()[-5000:]
+    submitted = {int(j) for j in re.findall(r"submitted with SLURM jobid (\d+)", logs)}
     jobs = _sacct_settled(prefix, since, submitted)
-    print(f"SLURM run: {wall:.0f} s wall, {len(submitted)} SLURM jobs")
-    return {"wd": wd, "jobs": jobs, "submitted": submitted, "killed": killed, "log": text,
+    print(f"SLURM run with faults: {wall:.0f} s wall, {len(submitted)} SLURM jobs")
+    return {"wd": wd, "jobs": jobs, "submitted": submitted, "faults": faults, "log": logs,
+            "final_log": (wd / "snakemake.log").read_text(), "refused": refused, "left": left,
+            "sbatch": faults.sbatch(),
+            "all_runs": _sacct(prefix, since, duplicates=True),
             "local": lambda: tiny_run_once(tmp_path_factory)[0]}
 
 
-def test_every_job_went_through_slurm_and_completed(slurm_run):
-    jobs, killed = slurm_run["jobs"], slurm_run["killed"]
-    assert killed is not None, "no tile job was seen running"
+def test_every_job_went_through_slurm_and_every_fault_was_survived(slurm_run):
+    """Every SLURM job of the run is in sacct under the given account; a job that did not
+    complete (the injected faults) was submitted again by Snakemake and its last submission
+    COMPLETED; the requeued job ran twice under its SLURM id and Snakemake did not submit it
+    again."""
+    jobs, faults, log = slurm_run["jobs"], slurm_run["faults"], slurm_run["log"]
     assert set(jobs["job"]) == slurm_run["submitted"], (jobs, slurm_run["submitted"])
     assert (jobs["account"] == ACCOUNT).all(), jobs
-    cancelled = jobs[jobs["job"] == int(killed[0])]
-    assert cancelled["state"].str.startswith("CANCELLED").all() and len(cancelled) == 1, jobs
-    rest = jobs[jobs["job"] != int(killed[0])]
-    assert (rest["state"] == "COMPLETED").all(), jobs
-    # the cancelled job was submitted again (Snakemake's job id, SLURM's new one) and completed
+    state = dict(zip(jobs["job"], jobs["state"], strict=True))
+    assert state[int(faults.cancelled)].startswith("CANCELLED"), jobs
+    assert state[int(faults.timed_out)] == "TIMEOUT", jobs
+    exits = [int(e["job"]) for e in slurm_run["sbatch"] if e["fault"] == "exit"]
+    assert len(exits) == 1 and state[exits[0]] == "FAILED", (exits, jobs)
+    runs = slurm_run["all_runs"]
+    requeued = runs[runs["job"] == int(faults.requeued)]["state"].tolist()
+    assert requeued == ["REQUEUED", "COMPLETED"], runs
+    # each Snakemake job's SLURM jobs, in submission order: the last one COMPLETED
+    by_job: dict[str, list[int]] = {}
+    for job, slurm in re.findall(r"Job (\S+) has been submitted with SLURM jobid (\d+)", log):
+        by_job.setdefault(job, []).append(int(slurm))
+    for job, ids in by_job.items():
+        assert state[ids[-1]] == "COMPLETED" or ids[-1] in slurm_run["left"], (job, ids, jobs)
+        assert all(state[i] != "COMPLETED" for i in ids[:-1]), (job, ids, jobs)
+    mine = [ids for ids in by_job.values() if int(faults.requeued) in ids]
+    assert len(mine) == 1 and mine[0][-1] == int(faults.requeued), (mine, log[-3000:])
+
+
+def test_the_controller_away_mid_run(slurm_run):
+    """slurmctld stopped for OUTAGE s and started again while the compile job was queued: the
+    plugin's status rounds meanwhile found no controller (it then asks sacct: slurmdbd still
+    answers), and the job, not forgotten, completed and was not submitted again."""
+    faults, jobs = slurm_run["faults"], slurm_run["jobs"]
+    assert faults.back is not None
+    assert "Falling back to 'sacct' for status queries (MinJobAge=None" in slurm_run["log"]
+    compiles = [int(e["job"]) for e in slurm_run["sbatch"] if e["kind"] == "compile"]
+    states = [jobs.loc[jobs["job"] == j, "state"].item() for j in compiles]
+    assert states == ["FAILED", "COMPLETED"], (compiles, jobs)
+
+
+def test_a_timed_out_job_is_submitted_again_with_twice_its_runtime(slurm_run):
+    """The profile's runtime grows with the attempt: the retry of the timed-out tile job asks
+    for twice the first attempt's minutes."""
+    faults, sbatch = slurm_run["faults"], slurm_run["sbatch"]
+    first = next(e for e in sbatch if e["job"] == faults.timed_out)
     log = slurm_run["log"]
-    submitted = dict(re.findall(r"Job (\S+) has been submitted with SLURM jobid (\d+)", log))
-    by_slurm = {int(s): j for j, s in re.findall(
-        r"Job (\S+) has been submitted with SLURM jobid (\d+)", log)}
-    job = by_slurm[int(killed[0])]
-    assert f"Trying to restart job {job}." in log, log[-3000:]
-    again = int(submitted[job])  # the last submission of that job
-    assert again > int(killed[0]) and again in set(rest["job"]), (again, jobs)
+    job = dict((s, j) for j, s in re.findall(
+        r"Job (\S+) has been submitted with SLURM jobid (\d+)", log))[faults.timed_out]
+    again = [s for j, s in re.findall(r"Job (\S+) has been submitted with SLURM jobid (\d+)", log)
+             if j == job and s != faults.timed_out]
+    assert again, log[-3000:]
+    retry = next(e for e in sbatch if e["job"] == again[0])
+    assert int(retry["runtime"]) == 2 * int(first["runtime"]), (first, retry)
+    # squeue showed the first attempt's limit (minutes) before the test cut it short
+    assert faults.limit == f"{int(first['runtime'])}:00", faults.limit
+
+
+def test_a_rerun_while_the_killed_runs_jobs_are_queued_stops_in_one_line(slurm_run):
+    """The same command run again (after `snakemake --unlock`) while the killed run's jobs are
+    still in the queue submits nothing and says, in one line, which jobs, their states and what
+    to run."""
+    refused, wd = slurm_run["refused"], slurm_run["wd"]
+    text = refused.stdout + refused.stderr
+    assert refused.returncode != 0, text[-3000:]
+    assert "submitted with SLURM jobid" not in text
+    said = {ln[ln.index("SLURM job "):] for ln in text.splitlines() if "of an earlier run in" in ln}
+    assert len(said) == 1, text[-3000:]
+    line = said.pop()
+    match = re.fullmatch(
+        rf"SLURM job (\d+) \(rule_\w+\) of an earlier run in {re.escape(str(wd))} is "
+        r"(RUNNING|PENDING|COMPLETING)( and \d+ more)?: wait until `squeue --me` no longer lists "
+        r"them or cancel them \(scancel ([\d ]+)\), then run the same command again", line)
+    assert match, line
+    # the jobs still queued right after it are among those it named
+    assert set(match.group(4).split()) >= slurm_run["left"], (line, slurm_run["left"])
+
+
+def test_nothing_is_left_in_the_queue_and_no_partial_file(slurm_run):
+    wd = slurm_run["wd"]
+    prefix = f"gearsim_test_{os.getpid()}"
+    assert _squeue(prefix) == {}
+    assert not list((wd / "results").rglob(".*.tmp-*")), list((wd / "results").rglob(".*"))
+    for f in (wd / "results").rglob("*.parquet"):
+        pd.read_parquet(f)
 
 
 def _tables(db: Path) -> dict[str, pd.DataFrame]:
@@ -222,39 +452,36 @@ def test_tile_cluster_has_the_cpus_srun_gave(cluster, tmp_path):
 
 
 def test_tile_jobs_got_what_they_asked_for(slurm_run):
-    """One SLURM job of one CPU per tile, its attractor tile in it; the cancelled one twice."""
+    """One SLURM job of one CPU per tile, its attractor tile in it; a tile whose job did not
+    complete has one more."""
     jobs, log = slurm_run["jobs"], slurm_run["log"]
     tiles = jobs[jobs["comment"].str.startswith("rule_tiles_")]
-    assert len(tiles) == TILES + 1 and (tiles["cpus"] == 1).all(), tiles
-    assert len(re.findall(r"\] Group job tiles ", log)) == TILES + 1, log[-3000:]
+    assert (tiles["cpus"] == 1).all(), tiles
+    assert (tiles["state"] == "COMPLETED").sum() == TILES, tiles
+    assert len(re.findall(r"\] Group job tiles ", log)) >= len(tiles), log[-3000:]
 
 
 def test_every_rule_job_ran_in_slurm(slurm_run):
     """Snakemake's log names every job it ran: a job run by the main process is a `localrule`,
     a job in a SLURM job (its own or a group's) a `rule`."""
-    log = slurm_run["log"]
+    log, final = slurm_run["log"], slurm_run["final_log"]
     jobs = re.findall(r"^\s*(localrule|rule) (\w+):$", log, re.M)
     local = [name for kind, name in jobs if kind == "localrule"]
-    total = int(re.search(r"^total\s+(\d+)", log, re.M).group(1))
     assert local == ["all"], local
-    # 60 jobs in the tiny configuration; the cancelled SLURM job's two (a tile and its attractor
-    # tile) twice more: in the group's error report and on its resubmission
-    assert (total, len(jobs)) == (60, 64), (total, len(jobs))
     ran = {name for _, name in jobs}
     assert {"catalogue", "report", "explorer", "figures_index", "plane_maps", "attractor_maps",
             "sweep_diagram", "table1", "figure_01", "figure_20"} <= ran, ran
-    assert re.search(r"^60 of 60 steps \(100%\) done$", log, re.M), log[-3000:]
+    total = int(re.search(r"^total\s+(\d+)", final, re.M).group(1))
+    assert re.search(rf"^{total} of {total} steps \(100%\) done$", final, re.M), final[-3000:]
 
 
 def test_small_jobs_went_in_three_group_jobs_of_one_cpu(slurm_run):
     jobs, log = slurm_run["jobs"], slurm_run["log"]
-    groups = [g for g in re.findall(r"\] Group job (\w+) ", log) if g != "tiles"]
-    assert sorted(groups) == sorted(GROUPS), groups
+    groups = {g for g in re.findall(r"\] Group job (\w+) ", log) if g != "tiles"}
+    assert groups == set(GROUPS), groups
     for group, cpus in GROUPS.items():
         mine = jobs[jobs["comment"].str.startswith(f"rule_{group}_")]
-        assert len(mine) == 1 and (mine["cpus"] == cpus).all(), jobs
-    # compile, 4 tile jobs (one twice: the cancelled and its second submission), the 3 groups
-    assert len(jobs) == 1 + TILES + 1 + len(GROUPS), jobs
+        assert len(mine) >= 1 and (mine["cpus"] == cpus).all(), jobs
 
 
 def test_profile_names_only_rules_of_the_workflow(tmp_path):

@@ -1,9 +1,5 @@
 # Planes: tiles (one job each, rows mapped over dask) -> cells.parquet per plane -> audit.
 
-# jobs that simulate hold one GPU when execution.device is cuda or auto (README, "On a GPU"):
-# `--resources gpu=1` runs one at a time; on SLURM the executor asks for it (--gpus=1)
-GPU_JOBS = int(config.get("execution", {}).get("device", "cpu") != "cpu")
-
 
 rule simulate_tile:
     input:

@@ -350,7 +350,7 @@ def kmax_at_jump(params: ModelParameters, df: pd.DataFrame, st: FidelitySettings
 
 
 def coexist_scan(params_list: Sequence[ModelParameters], w_values: Sequence[float],
-                 b_values: Sequence[float], st: FidelitySettings = FidelitySettings(lanes=True),
+                 b_values: Sequence[float], st: FidelitySettings,
                  *, starts: int = 64, continuation: bool = True,
                  w_factors: Sequence[float] | None = None) -> list[dict[str, Any]]:
     """The Figs 9-11 search around the paper's point: for every set (its scale from its

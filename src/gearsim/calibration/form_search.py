@@ -23,6 +23,7 @@ from gearsim.calibration.forms import FINAL, FORMS, Form, final_measure, form_ob
 from gearsim.calibration.search import search
 from gearsim.calibration.sweeps import w_sweep
 from gearsim.calibration.tables import evidence_lines
+from gearsim.study.config import Study
 
 POPULATION = 16
 
@@ -32,13 +33,15 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
              coarse: FidelitySettings | None = None,
              exact: FidelitySettings | None = None, final: FidelitySettings | None = None,
              log_dir: str | None = None,
-             time_budget: float | None = None, log: Callable[[str], None] = print
-             ) -> dict[str, Any]:
-    """Search, refine and measure one form; a JSON-able record with provenance."""
+             time_budget: float | None = None, log: Callable[[str], None] = print,
+             study: Study | None = None) -> dict[str, Any]:
+    """Search, refine and measure one form; a JSON-able record with provenance. ``study``:
+    whose standard set is the forms' base (default :meth:`Study.load`)."""
     from gearsim.study.provenance import code_version
 
-    coarse = coarse or FidelitySettings()
-    exact = exact or FidelitySettings(exact=True)
+    study = study if study is not None else Study.load()
+    coarse = (coarse or FidelitySettings()).with_study(study)
+    exact = (exact or FidelitySettings(exact=True)).with_study(study)
     if not form.available():
         return {"form": form.name, "skipped": f"needs parameters {form.requires}"}
     run = Run()
@@ -58,7 +61,7 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
         f"{de['wall_s']:.0f} s")
     # final measurement: the backlash threshold by bisection of whole sweeps (the scale), the
     # xi threshold to ~0.001, exact landmarks
-    final = final or FINAL
+    final = (final or FINAL).with_study(study)
     J, m, terms, b_star = final_measure(form, res["x"], final)
     J_start, m_start, terms_start, b_star0 = final_measure(form, x0, final)
     names = [f.name for f in form.free]
@@ -87,12 +90,13 @@ def fit_form(form: Form, *, seed: int, generations: int, population: int = POPUL
 
 
 def evaluate_unsearched(form: Form, points: dict[str, Sequence[float]],
-                        final: FidelitySettings | None = None) -> dict[str, Any]:
+                        final: FidelitySettings | None = None, study: Study | None = None
+                        ) -> dict[str, Any]:
     """A form measured (the fit's final measurement) at given points without a search, e.g. the
     standard shape and another form's best; the best point's values are the row."""
     from gearsim.study.provenance import code_version
 
-    final = final or FINAL
+    final = (final or FINAL).with_study(study if study is not None else Study.load())
     run = Run()
     rec: dict[str, Any] = {"form": form.name, "text": form.text, "fixed": form.fixed,
                            "continuation": form.continuation, "searched": False,
@@ -114,13 +118,15 @@ def evaluate_unsearched(form: Form, points: dict[str, Sequence[float]],
 
 def run_forms(names: Sequence[str], forms_dir: str | Path, *, search_forms: bool = True,
               seed: int, generations: int, population: int, refine_fev: int, workers: int = 1,
-              time_budget: float | None = None, log: Callable[[str], None] = print) -> None:
+              time_budget: float | None = None, log: Callable[[str], None] = print,
+              study: Study | None = None) -> None:
     """``<forms_dir>/<form>.json`` for each form of ``names``: its fit (:func:`fit_form`,
     evaluations logged to ``<forms_dir>/logs``) or, without ``search_forms``, its measurement
     at the standard shape and at the ``single_dof`` form's best of an earlier fit
     (``<forms_dir>/single_dof.json``, if there) (:func:`evaluate_unsearched`)."""
     d = Path(forms_dir)
     d.mkdir(parents=True, exist_ok=True)
+    study = study if study is not None else Study.load()
     for name in names:
         form = FORMS[name]
         if not search_forms:
@@ -129,13 +135,13 @@ def run_forms(names: Sequence[str], forms_dir: str | Path, *, search_forms: bool
             if tb.is_file():
                 best = json.loads(tb.read_text()).get("best", {})
                 pts["single_dof_best"] = [best.get(f.name, f.start) for f in form.free]
-            rec = evaluate_unsearched(form, pts)
+            rec = evaluate_unsearched(form, pts, study=study)
             (d / f"{name}.json").write_text(json.dumps(rec, indent=1, default=float))
             log(f"{name}: J = {rec['J']:.4f} at {rec['best_point']} (not searched)")
             continue
         rec = fit_form(form, seed=seed, generations=generations, population=population,
                        refine_fev=refine_fev, workers=workers, log_dir=str(d / "logs"),
-                       time_budget=time_budget, log=log)
+                       time_budget=time_budget, log=log, study=study)
         (d / f"{name}.json").write_text(json.dumps(rec, indent=1, default=float))
         log(f"wrote {d / (name + '.json')}")
 
@@ -199,11 +205,13 @@ def stream_runs(forms_dir: str | Path) -> dict[str, dict[str, Any]]:
 
 
 def kmax_for(form: Form, x: Sequence[float], st: FidelitySettings | None = None, *,
-             w_lo: float = 0.3, w_hi: float = 1.0, dw: float = 0.002) -> dict[str, Any]:
+             w_lo: float = 0.3, w_hi: float = 1.0, dw: float = 0.002,
+             study: Study | None = None) -> dict[str, Any]:
     """Kmax readings on both sides of the jump of ``form`` at ``x``, the jump resolved on a
     fine forward sweep (``dw``) with the form's sweep method (the readings are ratios: the
     scale does not enter)."""
-    st = st or FidelitySettings(exact=True)
+    st = (st or FidelitySettings(exact=True)).with_study(
+        study if study is not None else Study.load())
     p = form.params(x, st)
     grid = np.arange(w_lo, w_hi + 1e-12, dw)
     df = w_sweep(p, grid, st.integration(), continuation=form.continuation,
@@ -226,7 +234,7 @@ def compact_record(rec: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def collect_forms(names: Sequence[str], forms_dir: str | Path, *, adopt: str | None = None,
-                  decision: str = "") -> dict[str, Any]:
+                  decision: str = "", study: Study | None = None) -> dict[str, Any]:
     """docs/calibration.json's ``forms`` entry from ``<forms_dir>``: each form's record
     (:func:`compact_record`; an unfinished fit: :func:`partial_record`), the run of records
     made before they carried their own (:func:`stream_runs`), the Kmax readings of the adopted
@@ -254,10 +262,11 @@ def collect_forms(names: Sequence[str], forms_dir: str | Path, *, adopt: str | N
     if best and kform in FORMS:
         form = FORMS[kform]
         # the kept standard shape (the search's start) and the form's own best set
-        kmax = kmax_for(form, form.start)
+        study = study if study is not None else Study.load()
+        kmax = kmax_for(form, form.start, study=study)
         kmax.update(form=kform, x={f.name: f.start for f in form.free},
                     at="standard (the search's start)")
-        kb = kmax_for(form, [best[f.name] for f in form.free])
+        kb = kmax_for(form, [best[f.name] for f in form.free], study=study)
         kmax["best"] = {**kb, "x": best}
     evidence = best_per_target(d / "logs") if (d / "logs").is_dir() else {}
     return {"records": recs, "adopted": adopt, "decision": decision, "kmax_form": kform,

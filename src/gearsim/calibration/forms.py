@@ -26,7 +26,7 @@ import numpy as np
 
 from gearsim.calibration.fidelity import FidelitySettings, measure
 from gearsim.calibration.search import FreeParameter, LoggedObjective, params_from_vector
-from gearsim.calibration.sweeps import PLANE_W_GRID, backlash_threshold, current_study
+from gearsim.calibration.sweeps import PLANE_W_GRID, backlash_threshold
 from gearsim.calibration.targets import Measured, score
 from gearsim.dynamics.parameters import ModelParameters
 
@@ -75,10 +75,10 @@ class Form:
         return all(r in names for r in self.requires)
 
     def params(self, x: Sequence[float], st: FidelitySettings) -> ModelParameters:
-        """The search-scale parameters at vector ``x``: the base is the study's standard set
-        (:meth:`gearsim.study.config.Study.parameters`) with the form's fixed changes,
-        ``Fm = st.Fm``, ``b = st.b0``."""
-        return params_from_vector(x, self.free, current_study().parameters().model, Fm=st.Fm,
+        """The search-scale parameters at vector ``x``: the base is the standard set of the
+        study ``st`` was given (:meth:`gearsim.study.config.Study.parameters`) with the form's
+        fixed changes, ``Fm = st.Fm``, ``b = st.b0``."""
+        return params_from_vector(x, self.free, st.the_study().parameters().model, Fm=st.Fm,
                                   b=st.b0, **self.fixed)
 
     def w_factor(self, params: ModelParameters) -> float:

@@ -18,6 +18,7 @@ from gearsim.calibration.fidelity import FidelitySettings, measure_many
 from gearsim.calibration.fit_record import Run, utc_now
 from gearsim.calibration.forms import FINAL, FORMS, Form, final_measure
 from gearsim.calibration.targets import score
+from gearsim.study.config import Study
 
 
 def state_path(log_dir: str | Path, form: str, seed: int) -> Path:
@@ -77,14 +78,16 @@ def checkpoint_path(log_dir: str | Path, form: str, seed: int) -> Path:
 
 def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int = 3000,
                    min_evals: int = 0, flat_evals: int = 600, time_budget: float | None = None,
-                   final: bool = True, log: Callable[[str], None] = print) -> dict[str, Any]:
+                   final: bool = True, log: Callable[[str], None] = print,
+                   study: Study | None = None) -> dict[str, Any]:
     """CMA-ES with restarts (:func:`gearsim.calibration.search.run_cmaes`) of one form from its
     start, every population measured in lanes (:data:`LANES`); then, with ``final``, the best
     set and the start measured exactly (DP5, :func:`final_measure`) beside the best set's lane
     measurement. A JSON-able record with its run (wall, CPU, load), the best-J curve and why
     the search stopped. A fit with a checkpoint (:func:`checkpoint_path`) resumes from it:
     its evaluation log is kept (cut to the checkpoint's evaluations) and the search continues
-    exactly where it stopped."""
+    exactly where it stopped. ``study``: whose standard set and RK4 settings (default
+    :meth:`Study.load`)."""
     from gearsim.calibration.search import (
         checkpoint_evaluations,
         compress_log,
@@ -113,7 +116,9 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
         Path(logp).write_text("".join(line + "\n" for line in lines[:done]))
         gz.unlink(missing_ok=True)
         log(f"[{form.name} s{seed}] resuming from {ckp} after {done} evaluations")
-    batch = FormBatch(form, LANES, logp)
+    study = study if study is not None else Study.load()
+    lanes = LANES.with_study(study)
+    batch = FormBatch(form, lanes, logp)
     bounds = [(f.lower, f.upper) for f in form.free]
     names = [f.name for f in form.free]
     every = {"n": 0}
@@ -141,7 +146,7 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
         "form": form.name, "text": form.text, "fixed": form.fixed,
         "continuation": form.continuation, "free": [asdict(f) for f in form.free],
         "seed": seed, "search": "cma-es, IPOP restarts",
-        "lanes": LANES.to_dict(),
+        "lanes": lanes.to_dict(),
         "budget": {"max_evals": max_evals, "min_evals": min_evals, "flat_evals": flat_evals,
                    "time_budget_s": time_budget},
         "nfev": res["nfev"], "stopped_by": res["stopped_by"], "runs": res["runs"],
@@ -153,7 +158,7 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
     log(f"[{form.name} s{seed}] search: J (lanes) {res['J']:.4f} after {res['nfev']} "
         f"evaluations ({res['stopped_by']}), {res['wall_s']:.0f} s")
     if final:
-        J, m, terms, b = final_measure(form, res["x"], FINAL)
+        J, m, terms, b = final_measure(form, res["x"], FINAL.with_study(study))
         rec.update(J=J, terms=terms, measured=m.to_dict() if m else None, b_star_bisection=b)
         log(f"[{form.name} s{seed}] exact (DP5) J = {J:.4f}")
     rec["run"] = run.record()
@@ -164,17 +169,18 @@ def fit_form_cmaes(form: Form, *, seed: int, log_dir: str | Path, max_evals: int
 def run_forms_cmaes(names: Sequence[str], forms_dir: str | Path, *, seeds: Sequence[int],
                     max_evals: int, min_evals: int = 0, flat_evals: int = 600,
                     time_budget: float | None = None, final: bool = True,
-                    log: Callable[[str], None] = print) -> None:
+                    log: Callable[[str], None] = print, study: Study | None = None) -> None:
     """``<forms_dir>/<form>.s<seed>.json`` for each form and seed (:func:`fit_form_cmaes`;
     evaluations logged to ``<forms_dir>/logs``), each written as soon as it is done."""
     d = Path(forms_dir)
     d.mkdir(parents=True, exist_ok=True)
+    study = study if study is not None else Study.load()
     for name in names:
         for seed in seeds:
             rec = fit_form_cmaes(FORMS[name], seed=seed, log_dir=d / "logs",
                                  max_evals=max_evals, min_evals=min_evals,
                                  flat_evals=flat_evals, time_budget=time_budget, final=final,
-                                 log=log)
+                                 log=log, study=study)
             (d / f"{name}.s{seed}.json").write_text(json.dumps(rec, indent=1, default=float))
             log(f"wrote {d / f'{name}.s{seed}.json'}")
 
@@ -204,7 +210,8 @@ def seed_bests(forms_dir: str | Path, name: str) -> dict[str, tuple[dict, bool]]
     return dict(sorted(out.items()))
 
 
-def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
+def collect_fit(names: Sequence[str], forms_dir: str | Path, study: Study | None = None
+                ) -> dict[str, Any]:
     """docs/calibration.json's ``fit`` entry from ``<forms_dir>/<form>.s<seed>.json``: per form
     its seeds' records (evaluations, why each stopped, best J in lanes and exact, the best-J
     curve, wall and CPU seconds, the run), the total evaluations, the seeds' best J and their
@@ -256,7 +263,8 @@ def collect_fit(names: Sequence[str], forms_dir: str | Path) -> dict[str, Any]:
                      "cpu_s": float(sum(v["cpu_s_search"] for v in seeds.values())),
                      "wall_s": float(sum(v["wall_s_search"] for v in seeds.values()))}
     logs = d / "logs"
-    return {"forms": out, "lanes": LANES.to_dict(),
+    study = study if study is not None else Study.load()
+    return {"forms": out, "lanes": LANES.with_study(study).to_dict(),
             "pareto": pareto_record(logs) if logs.is_dir() else {},
             "coexist": coexist_tally(logs) if logs.is_dir() else {},
             "evidence": best_per_target(logs) if logs.is_dir() else {}}

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -19,7 +19,7 @@ from gearsim.cell.motion import double_sided
 from gearsim.cell.sweep import sweep_records, sweep_records_many
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.settings import IntegrationSettings
-from gearsim.study.config import Study, study_root
+from gearsim.study.config import Study
 
 #: the integration of every calibration sweep: DP5 at rtol 1e-7 and 40 periods of transient on
 #: continuation (16 flips 1T/2T next to a period doubling). Every field that decides a result is
@@ -53,6 +53,8 @@ class SweepSettings:
     #: sweeps as continuation chains in the batched kernel's lanes with the study's RK4
     #: settings (:attr:`gearsim.study.config.Study.settings`) instead of ``sim``
     lanes: bool = False
+    #: the study whose standard parameters and RK4 settings a fit uses (:meth:`with_study`)
+    study: Study | None = field(default=None, repr=False, compare=False)
 
     def grid(self, dw: float | None = None, lo: float | None = None, hi: float | None = None
              ) -> np.ndarray:
@@ -63,32 +65,29 @@ class SweepSettings:
         n = int(round((hi - lo) / dw))
         return lo + (np.arange(n) + 0.5) * (hi - lo) / n
 
+    def with_study(self, study: Study) -> SweepSettings:
+        """These settings for ``study``: its standard parameters are a form's base
+        (:meth:`gearsim.calibration.forms.Form.params`), its RK4 settings the lanes'."""
+        return replace(self, study=study)
+
+    def the_study(self) -> Study:
+        """The study these settings were given (:meth:`with_study`)."""
+        if self.study is None:
+            raise ValueError("calibration settings without a study: give it with .with_study()")
+        return self.study
+
     def integration(self) -> IntegrationSettings:
         if self.lanes:
-            return current_study().settings
+            return self.the_study().settings
         return self.sim
 
     def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
+        """The settings as recorded with a result (the study by its integration only)."""
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "study"}
+        d = {k: asdict(v) if is_dataclass(v) else v for k, v in d.items()}
         if self.lanes:
             d["sim"] = asdict(self.integration())
         return d
-
-
-_STUDIES: dict[tuple, Study] = {}
-
-
-def current_study() -> Study:
-    """``Study.load()``, loaded once per study root and version of its configuration files: a fit
-    asks for it for every candidate, and a load parses and checks the whole configuration (~1 s,
-    a tenth of a population's evaluation)."""
-    root = study_root().resolve()
-    key = (str(root),) + tuple(sorted((str(p), p.stat().st_mtime_ns)
-                                      for p in (root / "config").glob("*.yaml")))
-    if key not in _STUDIES:
-        _STUDIES.clear()
-        _STUDIES[key] = Study.load()
-    return _STUDIES[key]
 
 
 def w_sweep(params: ModelParameters, grid: np.ndarray, settings: IntegrationSettings | None = None,

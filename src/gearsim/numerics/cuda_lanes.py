@@ -124,7 +124,7 @@ def _errors() -> tuple[type[BaseException], ...]:
 
 
 def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent,
-                   events=True):
+                   events=True, kernel=None):
     """Run :func:`advance_kernel` over every lane and copy the results into the host arrays.
 
     The arguments and their effect are those of :func:`gearsim.numerics.kernel.advance` (the
@@ -133,10 +133,12 @@ def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, t
     the whole record buffers. Returns the kernel's wall time in seconds (launch to finish).
     A failed allocation, copy or launch is one :class:`~gearsim.numerics.device.DeviceError`
     line naming the GPU, the lanes asked and the setting; the host arrays are then unchanged.
+    ``kernel``: another compile of :func:`advance_kernel` (benchmarks/bench_gpu.py compares
+    register limits); by default the kernel itself.
     """
     try:
         return _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout,
-                               tangent, events)
+                               tangent, events, kernel or advance_kernel)
     except _errors() as exc:
         dev = current()
         first = (str(exc).splitlines() or [type(exc).__name__])[0][:160]
@@ -147,7 +149,7 @@ def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, t
 
 
 def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent,
-                    events):
+                    events, kernel):
     import time
 
     n = ist.shape[1]
@@ -160,14 +162,15 @@ def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, 
     d_ist = cuda.to_device(ist_d)
     d_tab = tuple(cuda.to_device(np.ascontiguousarray(t, dtype=np.float64)) for t in tables)
     cap = max(1, int(m))
-    d_sec = cuda.to_device(np.zeros((n, cap, N_STATE)))
-    d_nf = cuda.to_device(np.zeros((n, cap), dtype=np.int64))
-    d_nb = cuda.to_device(np.zeros((n, cap), dtype=np.int64))
-    d_out = cuda.to_device(np.zeros((n, cap, fout.shape[2])))
+    # uninitialised: only the entries the kernel wrote are copied back
+    d_sec = cuda.device_array((n, cap, N_STATE))
+    d_nf = cuda.device_array((n, cap), dtype=np.int64)
+    d_nb = cuda.device_array((n, cap), dtype=np.int64)
+    d_out = cuda.device_array((n, cap, fout.shape[2]))
     grid = max(1, -(-n // THREADS))
     t0 = time.perf_counter()
-    advance_kernel[grid, THREADS](d_blk, d_ist, int(N), int(m), *d_tab, float(nu), float(bound),
-                                  d_sec, d_nf, d_nb, d_out, bool(tangent), bool(events))
+    kernel[grid, THREADS](d_blk, d_ist, int(N), int(m), *d_tab, float(nu), float(bound), d_sec,
+                          d_nf, d_nb, d_out, bool(tangent), bool(events))
     cuda.synchronize()
     wall = time.perf_counter() - t0
     d_blk.copy_to_host(blk)

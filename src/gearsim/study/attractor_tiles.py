@@ -24,8 +24,10 @@ from gearsim.analysis.attractors.results import CellAttractors, n_real
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.errors import UsageError
-from gearsim.study.cluster import map_unordered
+from gearsim.study.cluster import describe, map_unordered, open_client
 from gearsim.study.config import Study
+from gearsim.study.grid import tile_rows
+from gearsim.study.provenance import plane_subtree, provenance
 from gearsim.study.tiles import row_specs
 
 #: Columns of a plane's attractor tile (results/<plane>/attractors/<tile>.parquet).
@@ -166,3 +168,27 @@ def run_attractor_tile(
         if progress:
             progress(done, total, time.perf_counter() - t0)
     return records_to_frame(records)
+
+
+def run_tile_job(specs: Sequence[Mapping[str, Any]], *, in_process: bool, workers: int = 1,
+                 address: str | None = None,
+                 progress: Callable[[int, int, float], None] | None = None
+                 ) -> tuple[pd.DataFrame, str]:
+    """:func:`run_attractor_tile` in this process or on a dask cluster (``workers`` local
+    processes, or the scheduler at ``address``); also where it ran, in words."""
+    if in_process:
+        return run_attractor_tile(specs, progress=progress), "in-process"
+    with open_client(workers, address) as client:
+        return run_attractor_tile(specs, client=client, progress=progress), describe(client)
+
+
+def tile_provenance(study: Study, plane: str, tile: int, *, cells: int, forward_states: bool,
+                    **run: Any) -> dict[str, Any]:
+    """The provenance of an attractor tile: the plane's subtree, the tile's rows, the plane's
+    ``multistability`` settings, and ``run`` (workers, start, end, wall)."""
+    ms = multistability(study, plane)
+    rows = tile_rows(study.config, plane, tile)
+    return provenance(plane_subtree(study, plane), kind="attractors", name=plane,
+                      scope="analysis", study=study, tile=tile, rows=[rows.start, rows.stop],
+                      cells=cells, starts=int(ms["starts"]), seed=int(ms.get("seed", 0)),
+                      every=int(ms.get("every", 1)), forward_states=forward_states, **run)

@@ -182,6 +182,44 @@ def slurm_account(account: str | None = None) -> str:
     return account
 
 
+def earlier_run_jobs() -> int:
+    """0 where no SLURM job of an earlier Snakemake run in this folder is still in the queue;
+    else a one-line UsageError naming them, their states and what to run.
+
+    The profile evaluates it with every job's resources (once per process, before the first
+    submission). A Snakemake killed without cancelling its jobs (SIGKILL, a lost login session)
+    leaves them running; the same command run again would submit their jobs a second time, two
+    SLURM jobs writing the same files. Inside a SLURM job (a job step's Snakemake) it is 0.
+    """
+    if os.environ.get("SLURM_JOB_ID") or shutil.which("squeue") is None:
+        return 0
+    return _earlier_run_jobs(os.path.realpath(os.getcwd()))
+
+
+@functools.lru_cache(maxsize=8)
+def _earlier_run_jobs(workdir: str) -> int:
+    # %k: the comment the executor plugin gives each job (rule_<rule or group>...), %Z: its
+    # working directory (sbatch -D, the folder Snakemake ran in)
+    cmd = ["squeue", "--me", "--noheader", "--format=%i|%T|%k|%Z"]
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=30, check=True).stdout
+    except (subprocess.CalledProcessError, subprocess.TimeoutExpired):
+        return 0  # no controller answers: sbatch will say so
+    jobs = []
+    for line in out.splitlines():
+        job, state, comment, folder = (line.split("|", 3) + ["", "", ""])[:4]
+        if comment.startswith("rule_") and os.path.realpath(folder) == workdir:
+            jobs.append((job, state, comment))
+    if not jobs:
+        return 0
+    job, state, comment = jobs[0]
+    more = f" and {len(jobs) - 1} more" if len(jobs) > 1 else ""
+    raise UsageError(
+        f"SLURM job {job} ({comment[:48]}) of an earlier run in {workdir} is {state}{more}: "
+        f"wait until `squeue --me` no longer lists them or cancel them (scancel "
+        f"{' '.join(j for j, _, _ in jobs)}), then run the same command again")
+
+
 @contextlib.contextmanager
 def open_client(workers: int = 1, scheduler_address: str | None = None) -> Iterator[Any]:
     """A ``distributed.Client``: connected to ``scheduler_address``, or to a new LocalCluster.

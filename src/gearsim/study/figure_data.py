@@ -2,14 +2,14 @@
 of Figs 9-11 and the basins of Figs 19 and 20, each computed by one job (``gearsim
 figure-data``) into a table that the figure job reads (presentation never simulates).
 
-A table holds one row per motion in the point sets' format (:func:`gearsim.study.sweeps.
-motion_row`: classification, section points, a recorded trajectory) with the motion's
-``key``, ``role``, ``hits``, ``seed`` (how it was reached) and ``samples_per_period``, or
-for a basin picture one row per start; what the figure states beside (the backlash of Fig 2,
-the number of initial conditions tried, the basin point) is the table's
-:data:`FIGURE_DATA_KEY` metadata. Every motion is settled with :func:`point_settings` (a longer
-transient than the plane cells). The light names the figure table and the rules read are in
-:mod:`gearsim.study.figure_tables`.
+A table holds one row per motion in the point sets' format
+(:func:`gearsim.study.sweeps.motion_row`: classification, section points, a recorded
+trajectory) with the motion's ``key``, ``role``, ``hits``, ``seed`` (how it was reached) and
+``samples_per_period``, or for a basin picture one row per start; what the figure states
+beside them (the backlash of Fig 2, the initial conditions tried, the basin point and its
+attractors) is the table's ``FIGURE_DATA_KEY`` metadata. Every motion is settled with
+``point_settings`` (a longer transient than the plane cells). Those light names, and which
+tables there are and what each reads, are in :mod:`gearsim.study.figure_tables`.
 """
 
 from __future__ import annotations

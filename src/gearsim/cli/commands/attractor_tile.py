@@ -44,15 +44,11 @@ def run(args: argparse.Namespace) -> int:
 
     from gearsim.results import parquet
     from gearsim.study import attractor_tiles as at
-    from gearsim.study import provenance as gprov
-    from gearsim.study.cluster import describe, open_client
-    from gearsim.study.grid import tile_rows
     from gearsim.study.preflight import check_output
 
     study = study_from_args(args)
     check_plane(study, args.plane)
-    ms = at.multistability(study, args.plane)
-    rows = tile_rows(study.config, args.plane, args.tile)
+    at.multistability(study, args.plane)  # one line when the plane has none
     tile_file = Path(args.tile_file or f"results/{args.plane}/tiles/{args.tile}.parquet")
     tile_df = pd.read_parquet(tile_file) if tile_file.exists() else None
     if tile_df is None:
@@ -67,22 +63,14 @@ def run(args: argparse.Namespace) -> int:
     address = study.config["cluster"].get("scheduler_address")
     # on the GPU the finder's lane pools run in this process (no dask workers)
     gpu = select_device(args, study).kind == "cuda"
-    if gpu or args.no_cluster or (args.workers == 1 and not address):
-        workers = "in-process"
-        df = at.run_attractor_tile(specs, progress=progress)
-    else:
-        with open_client(args.workers, address) as client:
-            workers = describe(client)
-            df = at.run_attractor_tile(specs, client=client, progress=progress)
+    df, workers = at.run_tile_job(specs, progress=progress, workers=args.workers,
+                                  address=address, in_process=gpu or args.no_cluster
+                                  or (args.workers == 1 and not address))  # fmt: skip
     progress.close()
     wall = time.perf_counter() - t0
-    prov = gprov.provenance(
-        gprov.plane_subtree(study, args.plane), kind="attractors", name=args.plane,
-        scope="analysis", study=study, tile=args.tile, rows=[rows.start, rows.stop],
-        workers=workers, started=started, finished=parquet.now_iso(), wall_s=wall,
-        cells=total, starts=int(ms["starts"]), seed=int(ms.get("seed", 0)),
-        every=int(ms.get("every", 1)), forward_states=tile_df is not None,
-    )  # fmt: skip
+    prov = at.tile_provenance(study, args.plane, args.tile, cells=total,
+                              forward_states=tile_df is not None, workers=workers,
+                              started=started, finished=parquet.now_iso(), wall_s=wall)
     parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
     print(f"{label}: wrote {out} ({total} cells, {len(df)} attractor rows in {wall:.1f} s)",
           file=sys.stderr, flush=True)  # fmt: skip

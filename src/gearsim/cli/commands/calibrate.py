@@ -185,8 +185,9 @@ def _coexist(args) -> int:
     from gearsim.calibration.fidelity import FidelitySettings, coexist_scan
     from gearsim.calibration.forms import FORMS
     from gearsim.calibration.lane_fit import seed_bests
+    from gearsim.study.config import Study
 
-    st = FidelitySettings(lanes=True)
+    st = FidelitySettings(lanes=True).with_study(Study.load())
     ws = np.round(np.arange(0.76, 0.8801, 0.02), 4).tolist()
     bs = [0.11, 0.13, 0.15, 0.17, 0.19]
     out = Path(args.out)

@@ -30,6 +30,8 @@ from typing import Any
 
 from gearsim.analysis.paper import (
     COEXIST_POINT,
+    PAPER_FIG5,
+    PAPER_FIG6,
     PAPER_FIG9_11,
 )
 from gearsim.errors import UsageError
@@ -135,6 +137,12 @@ def register(spec: FigureSpec) -> FigureSpec:
     return spec
 
 
+def _panels(table: dict[float, str]) -> str:
+    """The paper's panels of a figure of points: ``(a) ω = 0.48 1-0-0, (b) ...``."""
+    return ", ".join(f"({chr(97 + k)}) ω = {w:g} {label}" for k, (w, label) in
+                     enumerate(table.items()))
+
+
 register(FigureSpec(1, "Dynamic model of curve-face gear transmission system.", Inputs(),
                     builders.fig1,
                     caption="Schematic of the 6-DOF bending-torsional model (drawn)."))
@@ -151,20 +159,12 @@ register(FigureSpec(4, "(a) Bifurcation diagram of mesh displacement; (b) I: DC 
                     builders.fig4,
                     caption="Standard forward sweep in w: Poincare points, I:DC and Kmax."))
 register(FigureSpec(5, "Superpositions of the phase diagram and Poincaré mapping of the gear "
-                    "pair: (a) ω = 0.48 1-0-0, (b) ω = 0.569 grazing, (c) ω = 0.86 1-1-0, (d) "
-                    "ω = 1.02 2-2-0, (e) ω = 1.072 grazing, (f) ω = 1.25 2-1-0, (g) ω = 1.37 "
-                    "4-3-0, (h) ω = 1.384 8-6-0, (i) ω = 1.53 chaotic, (j) ω = 1.7 4-3-0, (k) "
-                    "ω = 1.81 2-2-0, (l) ω = 2.24 1-1-0.", Inputs(points=("fig5",)), builders.fig5,
+                    f"pair: {_panels(PAPER_FIG5)}.", Inputs(points=("fig5",)), builders.fig5,
                     caption="Phase trajectories with Poincare points at the paper's values of "
                     "w; every panel names the paper's pattern and ours."))
-register(FigureSpec(6, "FFT spectrum: (a) ω = 0.48 1-0-0, (b) ω = 1.02 2-2-0, (c) ω = 1.37 "
-                    "4-3-0, (d) ω = 1.53 chaotic.", Inputs(points=("fig6",)), builders.fig6,
+register(FigureSpec(6, f"FFT spectrum: {_panels(PAPER_FIG6)}.", Inputs(points=("fig6",)),
+                    builders.fig6,
                     caption="FFT amplitude spectra of x, w and its sub-harmonics marked."))
-register(FigureSpec(7, "Meshing motion law diagram of the system in the (ω, b) parameter plane: "
-                    "(a) relative micro-displacement bifurcation diagram of gear pair, (b) "
-                    "pattern types and distribution regions of periodic motions.",
-                    Inputs(planes=("wb",)), builders.fig_pattern(7, "wb"),
-                    caption="(w, b) plane: 3-D bifurcation diagram and pattern map."))
 register(FigureSpec(8, "Single-parameter bifurcation diagrams of mesh displacement under "
                     "different dimensionless backlash b: (a) b = 0.15, (b) b = 0.25, (c) b = "
                     "0.35.", Inputs(sweeps=("b015", "b025", "b035")),
@@ -178,32 +178,34 @@ _DOUBLE_SIDED = {
 for _n in PAPER_FIG9_11:
     register(FigureSpec(_n, _DOUBLE_SIDED[_n], Inputs(figure_data=("fig9_11",)), builders.fig9_11,
                         group=(9, 10, 11), report_caption=f"fig{_n:02d}.rst"))
-register(FigureSpec(12, "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, b) "
-                    "parameter plane: (a) DC cloud diagram, (b) I: DC plane distribution "
-                    "diagram.", Inputs(planes=("wb",)), builders.fig_dc(12, "wb"),
-                    caption="(w, b) plane: DC surface and I:DC map."))
-register(FigureSpec(13, "Maximum dynamic load coefficient in the (ω, b) parameter plane: (a) "
-                    "cloud diagram, (b) plane distribution diagram.", Inputs(planes=("wb",)),
-                    builders.fig_kmax(13, "wb"),
-                    caption="(w, b) plane: Kmax surface and contours."))
-register(FigureSpec(14, "Meshing motion law diagram of the system in the (ω, ξ) parameter "
-                    "plane: (a) relative micro-displacement bifurcation diagram of gear pair, "
-                    "(b) pattern types and distribution regions of periodic motions.",
-                    Inputs(planes=("wxi",)), builders.fig_pattern(14, "wxi"),
-                    caption="(w, xi) plane: 3-D bifurcation diagram and pattern map."))
 register(FigureSpec(15, "Single-parameter bifurcation diagrams of mesh displacement under "
                     "different meshing damping ratios ξ: (a) ξ = 0.05, (b) ξ = 0.09, (c) ξ = "
                     "0.15.", Inputs(sweeps=("xi005", "xi009", "xi015")),
                     builders.fig_sweeps(15, ("xi005", "xi009", "xi015")),
                     caption="Bifurcation diagrams at xi = 0.05, 0.09 and 0.15."))
-register(FigureSpec(16, "Impact states: disengagement duty cycle (I: DC) diagram in the (ω, ξ) "
-                    "parameter plane: (a) DC cloud diagram, (b) I: DC plane distribution "
-                    "diagram.", Inputs(planes=("wxi",)), builders.fig_dc(16, "wxi"),
-                    caption="(w, xi) plane: DC surface and I:DC map."))
-register(FigureSpec(17, "Maximum dynamic load coefficient in the (ω, ξ) parameter plane: (a) "
-                    "cloud diagram, (b) plane distribution diagram.", Inputs(planes=("wxi",)),
-                    builders.fig_kmax(17, "wxi"),
-                    caption="(w, xi) plane: Kmax surface and contours."))
+
+
+def _plane_figures(plane: str, symbol: str, name: str, pattern: int, dc: int, kmax: int) -> None:
+    """The paper's three figures of one plane ``(ω, symbol)``: pattern (Figs 7, 14), I:DC
+    (Figs 12, 16) and Kmax (Figs 13, 17); ``name`` the second axis in ASCII."""
+    axes = f"(ω, {symbol}) parameter plane"
+    register(FigureSpec(pattern, f"Meshing motion law diagram of the system in the {axes}: (a) "
+                        "relative micro-displacement bifurcation diagram of gear pair, (b) pattern "
+                        "types and distribution regions of periodic motions.",
+                        Inputs(planes=(plane,)), builders.fig_pattern(pattern, plane),
+                        caption=f"(w, {name}) plane: 3-D bifurcation diagram and pattern map."))
+    register(FigureSpec(dc, f"Impact states: disengagement duty cycle (I: DC) diagram in the "
+                        f"{axes}: (a) DC cloud diagram, (b) I: DC plane distribution diagram.",
+                        Inputs(planes=(plane,)), builders.fig_dc(dc, plane),
+                        caption=f"(w, {name}) plane: DC surface and I:DC map."))
+    register(FigureSpec(kmax, f"Maximum dynamic load coefficient in the {axes}: (a) cloud "
+                        "diagram, (b) plane distribution diagram.", Inputs(planes=(plane,)),
+                        builders.fig_kmax(kmax, plane),
+                        caption=f"(w, {name}) plane: Kmax surface and contours."))
+
+
+_plane_figures("wb", "b", "b", 7, 12, 13)
+_plane_figures("wxi", "ξ", "xi", 14, 16, 17)
 
 # ------------------------------------------------------------------ our own figures (18 and up)
 register(FigureSpec(18, "(Not in the paper.) Forward and backward sweeps of the standard set "
