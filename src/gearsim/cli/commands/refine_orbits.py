@@ -45,12 +45,12 @@ def partial_path(out: Path) -> Path:
 
 def _inputs_key(cells, plane_subtree: dict, settings: dict, limit: int | None) -> str:
     """What a partial table must have been computed from to be resumed: the plane's
-    configuration, the shooting settings, the limit, and the cells' states."""
+    configuration, the shooting settings, the limit, the cells' states and the code."""
     import hashlib
 
     import numpy as np
 
-    from gearsim.study.provenance import config_hash
+    from gearsim.study.provenance import code_version, config_hash
 
     h = hashlib.sha256()
     for col in ("i", "j", "n"):
@@ -59,7 +59,7 @@ def _inputs_key(cells, plane_subtree: dict, settings: dict, limit: int | None) -
                                             for v in cells["final_state"]])).tobytes()
              if len(cells) else b"")
     return config_hash({"plane": plane_subtree, "settings": settings, "limit": limit,
-                        "cells": h.hexdigest()})
+                        "cells": h.hexdigest(), "code": code_version("analysis")})
 
 
 def run(args: argparse.Namespace) -> int:
