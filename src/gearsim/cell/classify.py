@@ -111,6 +111,21 @@ def estimate_period(section_x, section_v, scale, w, n_max=64, period_rtol=1e-5, 
 
 
 @njit(cache=True, nogil=True)
+def window_period(section_x, section_v, xmax, xmin, w, n_max, period_rtol):
+    """:func:`estimate_period` of a window of recorded periods, its tolerances relative to the
+    window's x range (``max(xmax) - min(xmin)``, NaN if any is NaN): the period test of a
+    measuring chunk, on the host and inside a CUDA thread (no allocation)."""
+    hi = xmax[0]
+    lo = xmin[0]
+    for i in range(1, len(xmax)):
+        if xmax[i] > hi or xmax[i] != xmax[i]:
+            hi = xmax[i]
+        if xmin[i] < lo or xmin[i] != xmin[i]:
+            lo = xmin[i]
+    return estimate_period(section_x, section_v, hi - lo, w, n_max, period_rtol, 16)
+
+
+@njit(cache=True, nogil=True)
 def repeats_after(section_x, section_v, n, first, tol_x, tol_v):
     """Whether every section point from index ``first`` on repeats the one ``n`` samples
     earlier to ``tol_x`` in ``x`` and ``tol_v`` in ``x'`` (NaN fails): the one repeat
@@ -232,34 +247,39 @@ def _converges_geometrically(section_x, section_v, m, n, scale, tol_x, min_confi
     s4 = _tail_spread(section_x, j0 + 4 * w4, 2 * n, n)
     if not (s0 > 0.0 and s4 <= (1.0 - resolved) * s0 and s4 <= near * scale * 2 * n):
         return False  # no resolved decay, not near the limit, or NaN
-    S = np.empty(5)
-    S[0] = s0
-    S[4] = s4
-    for k in range(1, 4):
-        S[k] = _tail_spread(section_x, j0 + k * w4, 2 * n, n)
-    if not np.all(np.isfinite(S)):
+    # five scalars, no array: the test also runs inside a CUDA thread (gearsim.cell.device_chains)
+    s1 = _tail_spread(section_x, j0 + w4, 2 * n, n)
+    s2 = _tail_spread(section_x, j0 + 2 * w4, 2 * n, n)
+    s3 = _tail_spread(section_x, j0 + 3 * w4, 2 * n, n)
+    if not (math.isfinite(s0) and math.isfinite(s1) and math.isfinite(s2)
+            and math.isfinite(s3) and math.isfinite(s4)):
         return False
-    rsum = 0.0
-    rmin = 2.0
-    rmax = -1.0
-    for k in range(4):
-        r = S[k + 1] / S[k] if S[k] > 0.0 else 2.0
-        rsum += r
-        rmin = min(rmin, r)
-        rmax = max(rmax, r)
+    r0 = _ratio(s1, s0)
+    r1 = _ratio(s2, s1)
+    r2 = _ratio(s3, s2)
+    r3 = _ratio(s4, s3)
+    rsum = ((r0 + r1) + r2) + r3
+    rmin = min(min(min(r0, r1), r2), r3)
+    rmax = max(max(max(r0, r1), r2), r3)
     rate = 1.0 - rsum / 4.0
     if not (rmax < 1.0 and rmax - rmin <= steady * rate):
         return False
-    d1 = S[4] - S[2]
-    d0 = S[2] - S[0]
+    d1 = s4 - s2
+    d0 = s2 - s0
     if d1 - d0 == 0.0:
         return False
-    limit = S[4] - d1 * d1 / (d1 - d0)
-    if abs(limit) > max(2 * n * tol_x, limit_rtol * S[4]):
+    limit = s4 - d1 * d1 / (d1 - d0)
+    if abs(limit) > max(2 * n * tol_x, limit_rtol * s4):
         return False
     v_early = _tail_spread(section_v, j0, 2 * n, n)
     v_late = _tail_spread(section_v, m - 1, 2 * n, n)
     return v_late <= v_early
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _ratio(b, a):
+    """``b / a`` of two successive spreads, 2 (no decay) where ``a`` is not positive."""
+    return b / a if a > 0.0 else 2.0
 
 
 @njit(cache=True, nogil=True)

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from gearsim.cell.classify import estimate_period, repeats_throughout
+from gearsim.cell.classify import repeats_throughout, window_period
 from gearsim.cell.growth import check_growth
 from gearsim.cell.record import CLASSIFICATION_FIELDS, Classification, result_columns
 from gearsim.cell.verify import (
@@ -169,14 +169,13 @@ def seeds_continuation(res: CellResult) -> bool:
 
 
 def period_of(s: PeriodSummaries, params: ModelParameters, st: IntegrationSettings) -> int:
-    """The period test on recorded periods ``s`` (:func:`~gearsim.cell.classify.estimate_period`,
+    """The period test on recorded periods ``s`` (:func:`~gearsim.cell.classify.window_period`,
     tolerances relative to the orbit's x range): the motion's period ``n``, 0 if none.
     The one call of the scalar and the batched driver, for measuring chunks and the probe."""
-    scale = float(s.xmax.max() - s.xmin.min())
     # every argument given: a call that leaves a default out misses Numba's fast dispatch
     # (~0.4 ms of argument typing per call)
-    return estimate_period(s.section[:, 0], s.section[:, 1], scale, params.w, st.n_max,
-                           st.period_rtol, 16)
+    return window_period(s.section[:, 0], s.section[:, 1], s.xmax, s.xmin, params.w, st.n_max,
+                         st.period_rtol)
 
 
 #: the adaptive transient ends when, besides the period test, every section point of the window
