@@ -21,7 +21,7 @@ pytestmark = pytest.mark.skipif(
 )
 
 
-def test_lane_kernel_compiles_to_ptx_for_cc90(monkeypatch):
+def test_lane_kernels_compile_to_ptx_for_cc90(monkeypatch):
     from numba import cuda
     from numba import types as nt
     from numba.cuda import dispatcher
@@ -34,7 +34,8 @@ def test_lane_kernel_compiles_to_ptx_for_cc90(monkeypatch):
 
     f1, i2, f3 = nt.float64[::1], nt.int64[:, ::1], nt.float64[:, :, ::1]
     sig = (f1, i2, nt.int64, nt.int64, f1, f1, f1, f1, f1, f1, nt.float64, nt.float64, f3, i2,
-           i2, f3, nt.boolean, nt.boolean)
+           i2, f3, nt.boolean, nt.boolean, i2, nt.int64, nt.int64, nt.int64, nt.float64,
+           nt.int64)
     try:
         ptx, _ = cuda.compile_ptx(cuda_lanes.advance_kernel.py_func, sig, cc=(9, 0))
     except Exception as exc:  # libNVVM missing: the [cu13] extra did not install here
@@ -45,3 +46,14 @@ def test_lane_kernel_compiles_to_ptx_for_cc90(monkeypatch):
     assert ".entry" in ptx
     # the RK4 step's arithmetic is there as fused multiply-adds (~1 800 with the event layer)
     assert ptx.count("fma.rn.f64") > 500
+
+    # the chain kernel: the same lanes with the chain driver's verdict (the period test of
+    # cell/classify and the driver's rule) compiled into the thread, no allocation in it
+    from gearsim.cell import device_chains
+
+    chain, _ = cuda.compile_ptx(device_chains.chain_kernel.py_func, sig, cc=(9, 0))
+    assert ".target sm_90" in chain
+    assert chain.count("fma.rn.f64") >= ptx.count("fma.rn.f64")
+    # the period test's comparisons and divisions are in it, and no call into the allocator
+    assert chain.count("div.rn.f64") > ptx.count("div.rn.f64")
+    assert "NRT_MemInfo" not in chain and "malloc" not in chain

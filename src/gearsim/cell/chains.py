@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from gearsim.cell import simulate
 from gearsim.cell.classify import repeats_throughout
@@ -39,6 +40,15 @@ from gearsim.numerics.batch import (
     steps_per_period,
 )
 from gearsim.numerics.integrate import steps_lower_bound
+from gearsim.numerics.kernel import (
+    PLAN_LEFT,
+    PLAN_MEASURED,
+    PLAN_N,
+    PLAN_NEXT,
+    PLAN_ROWS,
+    PLAN_STEPS,
+    PLAN_TEST,
+)
 
 # ============================================================================ the driver
 _TRANSIENT = 0
@@ -237,7 +247,16 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
         lanes.set_steps(hcol)
         # the tangent vector is only needed while some lane measures (else: the transient)
         tangent = any(c.phase != _TRANSIENT for c in part)
-        lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
+        plan = None
+        if lanes.device == "cuda":
+            m, plan = _device_plan(part, lanes, st)
+            from gearsim.cell.device_chains import chain_kernel
+
+            lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent, kernel=chain_kernel,
+                      plan=plan, test=(st.chunk, st.max_periods, st.n_max, st.period_rtol,
+                                       st.max_steps))
+        else:
+            lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         for c in part:
             l = c.lane
             done = int(lanes.done[l])
@@ -246,6 +265,13 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             c.steps += int(lanes.steps[l])
             if c.phase in _RECORDED:
                 c.measured += done
+            if plan is not None and plan[PLAN_TEST, l] and lanes.status[l] == 0:
+                if plan[PLAN_N, l] >= 0:  # the device's verdict stopped the lane
+                    _decide(c, lanes, st, continuation, on_cell, floquet, orbits,
+                            n=int(plan[PLAN_N, l]))
+                else:  # the launch ended before the verdict: the lane's chunk goes on
+                    c.left = int(plan[PLAN_NEXT, l])
+                continue
             if lanes.status[l] != 0:
                 # diverged (during the transient or a chunk): simulate_cell's diverged record
                 _finish(c, diverged_result(c.cells[c.i], c.k, c.steps), lanes, st,
@@ -265,6 +291,24 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
                 else:
                     _decide(c, lanes, st, continuation, on_cell, floquet, orbits)
         active = [ch for ch in chains if not ch.finished]
+
+
+def _device_plan(part: list[_Chain], lanes: Lanes, st: IntegrationSettings):
+    """``(m, plan)`` of a GPU launch: a measuring lane goes on from chunk to chunk on the device
+    (its verdict there, :mod:`gearsim.cell.device_chains`), so only the other lanes' next
+    decisions end the launch (all measuring: the longest measurement left)."""
+    others = [c.left for c in part if c.phase != _MEASURE]
+    m = min(others) if others else max(st.max_periods - c.measured for c in part)
+    plan = np.zeros((PLAN_ROWS, lanes.size), dtype=np.int64)
+    for c in part:
+        l = c.lane
+        plan[PLAN_LEFT, l] = m
+        plan[PLAN_STEPS, l] = c.steps
+        if c.phase == _MEASURE:
+            plan[PLAN_TEST, l] = 1
+            plan[PLAN_NEXT, l] = c.left
+            plan[PLAN_MEASURED, l] = c.measured
+    return m, plan
 
 
 def _compact(lanes: Lanes, chains: list[_Chain]) -> Lanes:
@@ -412,21 +456,41 @@ def _begin_measure(ch: _Chain, lanes: Lanes, st: IntegrationSettings) -> None:
 
 
 def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_cell,
-            floquet: str = "slow", orbits: OrbitCache | None = None) -> None:
-    """After a measuring chunk: the period test of simulate_cell, then finish or go on."""
+            floquet: str = "slow", orbits: OrbitCache | None = None,
+            n: int | None = None) -> None:
+    """After a measuring chunk: the period test of simulate_cell (``n``: its result where the
+    GPU took it), then finish or go on (:func:`measure_verdict`)."""
     params = ch.cells[ch.i]
     s = lanes.summaries(ch.lane, ch.measured, copy=False)  # read before the lane moves on
-    n = period_of(s, params, st)
-    if n > 0 or ch.measured >= st.max_periods:
+    if n is None:
+        n = period_of(s, params, st)
+    verdict = measure_verdict(n, ch.measured, st.max_periods, ch.steps, st.max_steps)
+    if verdict == _DONE:
         y = lanes.state(ch.lane, N_STATE)
         res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps, floquet, orbits)
         _finish(ch, res, lanes, st, continuation, on_cell)
-    elif ch.steps > st.max_steps:
+    elif verdict == _OVER_BUDGET:
         res = diverged_result(params, ch.k, ch.steps, status="budget")
         _finish(ch, res, lanes, st, continuation, on_cell)
     else:
         lanes.reset_modes(ch.lane)
         ch.left = min(st.chunk, st.max_periods - ch.measured)
+
+
+_GO_ON, _DONE, _OVER_BUDGET = 0, 1, 2  # measure_verdict's answers
+
+
+@njit(cache=True, nogil=True)
+def measure_verdict(n, measured, max_periods, steps, max_steps):
+    """After a measuring chunk of period test ``n`` (0: none) with ``measured`` periods and
+    ``steps`` RK4 steps in the cell: 1 the cell is done (a period, or the most periods
+    measured), 2 over its step budget, 0 measure on. The host's :func:`_decide` and a CUDA
+    thread (:mod:`gearsim.cell.device_chains`) decide by this one rule."""
+    if n > 0 or measured >= max_periods:
+        return 1
+    if steps > max_steps:
+        return 2
+    return 0
 
 
 def _finish(ch: _Chain, res: CellResult, lanes: Lanes, st, continuation, on_cell) -> None:

@@ -17,7 +17,6 @@ import numpy as np
 from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.device import current as current_device
-from gearsim.numerics.events import channels
 from gearsim.numerics.integrate import IntegrationSettings, PeriodSummaries
 from gearsim.numerics.kernel import (
     _DONE,
@@ -25,10 +24,6 @@ from gearsim.numerics.kernel import (
     _K,
     _PAR,
     _POS,
-    _R0,
-    _RB,
-    _S0,
-    _SB,
     _ST,
     _STEPS,
     _Y,
@@ -43,6 +38,7 @@ from gearsim.numerics.kernel import (
     O_XMAX,
     O_XMIN,
     advance,
+    lane_reset_modes,
 )
 from gearsim.numerics.steps import phase_tables, rk4_steps_per_period
 
@@ -104,14 +100,8 @@ class Lanes:
 
     def reset_modes(self, lane: int) -> None:
         """Regions from the state (what ``integrate_periods`` does at the start of every call)."""
-        v = self._lane(lane)
-        mode = np.zeros(N_MODE, dtype=np.int64)
-        channels(v[_PAR : _PAR + N_PARAMS].copy(), mode, v[_Y : _Y + N_STATE].copy(),
-                 np.zeros(N_SWITCH), np.zeros(N_SWITCH, dtype=np.bool_), True)
-        v[_R0] = mode[0]
-        v[_S0] = abs(mode[0])
-        v[_RB : _RB + 4] = mode[1:5]
-        v[_SB : _SB + 4] = np.abs(mode[1:5])
+        lane_reset_modes(self.blk, lane, np.empty(N_PARAMS), np.empty(N_MODE, dtype=np.int64),
+                         np.empty(N_STATE), np.empty(N_SWITCH), np.empty(N_SWITCH, dtype=np.bool_))
 
     def state(self, lane: int, n: int = 20) -> np.ndarray:
         return self.get_rows(lane, _Y, n)
@@ -121,17 +111,22 @@ class Lanes:
         idx = np.arange(k)
         return self.view[idx // LANES, _Y : _Y + n, idx % LANES]
 
-    def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True) -> None:
+    def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True, *,
+            kernel=None, plan: np.ndarray | None = None, test: tuple = (1, 1, 1, 0.0, 0)) -> None:
         """Advance the lanes with status 0 by ``m`` periods (the kernel :func:`advance`, or the
-        CUDA lane kernel on the same arrays)."""
+        CUDA lane kernel on the same arrays). On cuda only: ``kernel``, ``plan`` and ``test``
+        of :func:`gearsim.numerics.cuda_lanes.advance_device` (a lane kernel with a verdict
+        on the device, each lane's periods)."""
         C, S, LAM, CV, SV, Q = phase_tables(N, nu)
         if self.device == "cuda":
             from gearsim.numerics.cuda_lanes import advance_device
 
             advance_device(self.blk, self.ist, int(N), int(m), (C, S, LAM, CV, SV, Q), float(nu),
                            float(bound), self.sec, self.nface, self.nback, self.fout,
-                           bool(tangent))
+                           bool(tangent), kernel=kernel, plan=plan, test=test)
             return
+        if plan is not None:
+            raise ValueError("Lanes.run: a per-lane plan runs on cuda only")
         advance(self.blk, self.ist, int(N), int(m), C, S, LAM, CV, SV, Q, float(nu), float(bound),
                 self.sec, self.nface, self.nback, self.fout, bool(tangent))
 

@@ -26,19 +26,30 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda, float64, int64
 
-from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH
+from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH, P_W
 from gearsim.numerics.device import DeviceError, current
 from gearsim.numerics.events import N_ACC, N_CNT
 from gearsim.numerics.kernel import (
     _DONE,
     _FLAG,
+    _PAR,
     _POS,
     _ST,
+    _STEPS,
     BLOCK,
     LANES,
+    NI,
+    PLAN_LEFT,
+    PLAN_MEASURED,
+    PLAN_N,
+    PLAN_NEXT,
+    PLAN_ROWS,
+    PLAN_STEPS,
+    PLAN_TEST,
     _lane_step,
     _redo_lane,
     lane_general,
+    lane_reset_modes,
     period_end,
     period_start,
 )
@@ -61,43 +72,16 @@ else:
 THREADS = 1 if SIMULATED else 128
 
 
-@cuda.jit(cache=True)
-def advance_kernel(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout,
-                   tangent, events):
-    """:func:`gearsim.numerics.kernel.advance` for lane ``cuda.grid(1)`` (same arguments).
-
-    The lane's general step (bearing channels, model forms) is chosen per lane: a base lane
-    gets the base step's numbers either way (the kernel's docstring). A lane that diverges
-    stops here, as the CPU kernel freezes it. ``events`` False measures the step alone
-    (benchmarks/bench_gpu.py: a flagged step is left as it was, not redone; no result of a
-    study runs so).
-    """
-    l = cuda.grid(1)
-    if l >= ist.shape[1] or ist[_ST, l] != 0:
-        return
-    blk = _raw(blk)
-    ist = _raw(ist)
-    sec = _raw(sec)
-    nface = _raw(nface)
-    nback = _raw(nback)
-    fout = _raw(fout)
+@cuda.jit(device=True)
+def lane_periods(blk, ist, l, k0, k1, N, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback,
+                 fout, tangent, events, general, wk, wz):
+    """Periods ``k0 .. k1-1`` of lane ``l`` (the arrays raw); True when the lane diverged (it
+    stops there, as the CPU kernel freezes it)."""
     q = l % LANES
     o = (l // LANES) * BLOCK
     r = o + q
-    general = lane_general(blk, r)
-    wk = (
-        cuda.local.array(20, float64), cuda.local.array(N_PARAMS, float64),
-        cuda.local.array(N_MODE, int64), cuda.local.array(N_SWITCH, float64),
-        cuda.local.array(N_SWITCH, np.bool_), cuda.local.array(N_ACC, float64),
-        cuda.local.array(N_CNT, int64), cuda.local.array((7, 20), float64),
-        cuda.local.array(20, float64), cuda.local.array(20, float64),
-        cuda.local.array(20, float64), cuda.local.array(1, float64),
-        cuda.local.array(1, int64),
-    )  # fmt: skip  (a local array has a length >= 1: a one-entry event log nobody reads)
-    wz = cuda.local.array(N_STATE, float64)
-    C, S, LAM, CV, SV, Q = _raw(C), _raw(S), _raw(LAM), _raw(CV), _raw(SV), _raw(Q)
     tabs = (C, S, LAM, CV, SV, Q)
-    for k in range(m):
+    for k in range(k0, k1):
         period_start(blk, ist, l, k, nu, sec)
         for j in range(N):
             i2 = 2 * j
@@ -109,8 +93,96 @@ def advance_kernel(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, 
                 _redo_lane(blk, o, q, l, ist, j, N, LAM[j], bound, tangent, wk, fq == 2.0,
                            general, tabs)
                 if ist[_ST, l] != 0:
-                    return
+                    return True
         period_end(blk, ist, l, k, N, wz, nface, nback, fout)
+    return False
+
+
+@cuda.jit(device=True)
+def _never(sec, fout, l, k, w, steps, n_max, rtol, max_periods, max_steps):
+    """No verdict on the device: a lane runs its periods (no launch of this kernel tests)."""
+    return -1
+
+
+def lane_kernel(verdict):
+    """The lane kernel whose measuring lanes take ``verdict`` on the device after every chunk.
+
+    ``verdict(sec, fout, l, k, w, steps, n_max, rtol, max_periods, max_steps)`` is a device
+    function of the layer that owns the decision (the chain driver's,
+    :mod:`gearsim.cell.device_chains`): the period ``n >= 0`` the lane stops with after its
+    first ``k`` measured periods (records from position 0), or -1 to measure on. A lane marked
+    ``PLAN_TEST`` runs to the end of its chunk (``PLAN_NEXT`` periods), takes the verdict, and
+    goes on with the next chunk (``min(chunk, max_periods - measured)``) until the verdict stops
+    it or the launch's periods (``PLAN_LEFT``) are used; between two chunks its regions are set
+    from its state, as the CPU driver does between two calls
+    (:func:`~gearsim.numerics.kernel.lane_reset_modes`). Another lane runs its ``PLAN_LEFT``
+    periods.
+    """
+
+    @cuda.jit(cache=True)
+    def kernel(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout, tangent,
+               events, plan, chunk, max_periods, n_max, rtol, max_steps):
+        l = cuda.grid(1)
+        if l >= ist.shape[1] or ist[_ST, l] != 0:
+            return
+        blk = _raw(blk)
+        ist = _raw(ist)
+        sec = _raw(sec)
+        nface = _raw(nface)
+        nback = _raw(nback)
+        fout = _raw(fout)
+        plan = _raw(plan)
+        r = (l // LANES) * BLOCK + l % LANES
+        general = lane_general(blk, r)
+        wk = (
+            cuda.local.array(20, float64), cuda.local.array(N_PARAMS, float64),
+            cuda.local.array(N_MODE, int64), cuda.local.array(N_SWITCH, float64),
+            cuda.local.array(N_SWITCH, np.bool_), cuda.local.array(N_ACC, float64),
+            cuda.local.array(N_CNT, int64), cuda.local.array((7, 20), float64),
+            cuda.local.array(20, float64), cuda.local.array(20, float64),
+            cuda.local.array(20, float64), cuda.local.array(1, float64),
+            cuda.local.array(1, int64),
+        )  # fmt: skip  (a local array has a length >= 1: a one-entry event log nobody reads)
+        wz = cuda.local.array(N_STATE, float64)
+        # local memory starts undefined; the CPU kernel's scratch starts at zero, and the event
+        # counter (CNT_EV, the index of the log's next entry) carries from one redo to the next
+        for i in range(N_ACC):
+            wk[5][i] = 0.0
+        for i in range(N_CNT):
+            wk[6][i] = 0
+        C, S, LAM, CV, SV, Q = _raw(C), _raw(S), _raw(LAM), _raw(CV), _raw(SV), _raw(Q)
+        left = min(plan[PLAN_LEFT, l], m)
+        if plan[PLAN_TEST, l] == 0:
+            lane_periods(blk, ist, l, 0, left, N, C, S, LAM, CV, SV, Q, nu, bound, sec, nface,
+                         nback, fout, tangent, events, general, wk, wz)
+            return
+        w = blk[r + (_PAR + P_W) * LANES]
+        nxt = plan[PLAN_NEXT, l]
+        k = 0
+        while k < left:
+            k1 = min(k + nxt, left)
+            if lane_periods(blk, ist, l, k, k1, N, C, S, LAM, CV, SV, Q, nu, bound, sec, nface,
+                            nback, fout, tangent, events, general, wk, wz):
+                return
+            nxt -= k1 - k
+            k = k1
+            if nxt > 0:
+                break  # the launch ends inside the chunk
+            measured = plan[PLAN_MEASURED, l] + k
+            n = verdict(sec, fout, l, measured, w, plan[PLAN_STEPS, l] + ist[_STEPS, l], n_max,
+                        rtol, max_periods, max_steps)
+            if n >= 0:
+                plan[PLAN_N, l] = n
+                return
+            lane_reset_modes(blk, l, wk[1], wk[2], wk[0], wk[3], wk[4])
+            nxt = min(chunk, max_periods - measured)
+        plan[PLAN_NEXT, l] = nxt
+
+    return kernel
+
+
+#: the kernel of :func:`gearsim.numerics.kernel.advance` (every lane runs its periods)
+advance_kernel = lane_kernel(_never)
 
 
 def _errors() -> tuple[type[BaseException], ...]:
@@ -124,60 +196,113 @@ def _errors() -> tuple[type[BaseException], ...]:
 
 
 def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent,
-                   events=True, kernel=None):
-    """Run :func:`advance_kernel` over every lane and copy the results into the host arrays.
+                   events=True, kernel=None, plan=None, test=(1, 1, 1, 0.0, 0)):
+    """Run a lane kernel over every lane and copy the results into the host arrays.
 
     The arguments and their effect are those of :func:`gearsim.numerics.kernel.advance` (the
     phase tables ``tables`` as one tuple). The device holds the lane rows and ``m`` periods of
     records per lane (written from position 0, then placed at each lane's record position), not
     the whole record buffers. Returns the kernel's wall time in seconds (launch to finish).
-    A failed allocation, copy or launch is one :class:`~gearsim.numerics.device.DeviceError`
-    line naming the GPU, the lanes asked and the setting; the host arrays are then unchanged.
-    ``kernel``: another compile of :func:`advance_kernel` (benchmarks/bench_gpu.py compares
-    register limits); by default the kernel itself.
+    ``plan``: the per-lane plan (``PLAN_*`` rows; copied back, its ``PLAN_N`` row filled) of a
+    kernel made by :func:`lane_kernel`, with ``test`` = ``(chunk, max_periods, n_max,
+    period_rtol, max_steps)`` for its verdict; by default every lane runs ``m`` periods.
+    A failed allocation, copy or launch, or lanes whose arrays exceed the GPU's free memory
+    (checked before anything is allocated), is one
+    :class:`~gearsim.numerics.device.DeviceError` line naming the GPU, the lanes asked and the
+    setting; the host arrays are then unchanged.
+    ``kernel``: by default :data:`advance_kernel` (benchmarks/bench_gpu.py compiles it with
+    register limits).
     """
+    n = ist.shape[1]
+    need = launch_bytes(n, m if plan is None else sec.shape[1], N, fout.shape[2])
+    free = free_bytes()
+    dev = current()
+    where = (f"execution.device: cuda ({dev.name or 'GPU'}): {n} lanes x {m} periods of {N} "
+             "steps")
+    if free is not None and need > free:
+        raise DeviceError(f"{where} need {need / 2**30:.2f} GiB of GPU memory, "
+                          f"{free / 2**30:.2f} GiB free; use fewer lanes per job "
+                          "(execution.lanes, tile_rows) or execution.device: cpu")
     try:
         return _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout,
-                               tangent, events, kernel or advance_kernel)
+                               tangent, events, kernel or advance_kernel, plan, test)
     except _errors() as exc:
-        dev = current()
         first = (str(exc).splitlines() or [type(exc).__name__])[0][:160]
         raise DeviceError(
-            f"execution.device: cuda ({dev.name or 'GPU'}): {first} running {ist.shape[1]} "
-            f"lanes x {m} periods of {N} steps; use fewer lanes per job or execution.device: cpu"
+            f"{where}: {first}; use fewer lanes per job (execution.lanes, tile_rows) or "
+            "execution.device: cpu"
         ) from exc
 
 
+def launch_bytes(n: int, m: int, N: int, n_out: int = 6) -> int:
+    """GPU memory a launch of ``n`` lanes over ``m`` periods of ``N`` steps allocates: the lane
+    rows, counters, plan, phase tables and ``m`` periods of records per lane."""
+    blocks = -(-n // LANES)
+    rows = blocks * BLOCK * 8 + n * 8 * (NI + PLAN_ROWS)
+    tables = 8 * (5 * (2 * N + 1) + N)
+    records = n * max(1, m) * 8 * (N_STATE + 2 + n_out)
+    return rows + tables + records
+
+
+def free_bytes() -> int | None:
+    """Free memory of the current GPU in bytes, or None where it cannot be read (the
+    simulator)."""
+    try:
+        free, _total = cuda.current_context().get_memory_info()
+    except Exception:  # no context to ask (the launch then reports its own failure)
+        return None
+    return int(free) if np.isfinite(free) else None  # the simulator: unbounded
+
+
 def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent,
-                    events, kernel):
+                    events, kernel, plan, test):
     import time
 
     n = ist.shape[1]
     before = ist.copy()
     taking = before[_ST] == 0
     recorded = taking & (before[_POS] >= 0)
+    whole = plan is not None  # the records travel whole: a verdict reads a lane's earlier ones
+    if plan is None:
+        plan = np.zeros((PLAN_ROWS, n), dtype=np.int64)
+        plan[PLAN_LEFT] = m
+    plan_h = np.ascontiguousarray(plan, dtype=np.int64).copy()
+    plan_h[PLAN_N] = -1
     ist_d = before.copy()
-    ist_d[_POS, recorded] = 0
+    if not whole:
+        ist_d[_POS, recorded] = 0
     d_blk = cuda.to_device(blk)
     d_ist = cuda.to_device(ist_d)
+    d_plan = cuda.to_device(plan_h)
     d_tab = tuple(cuda.to_device(np.ascontiguousarray(t, dtype=np.float64)) for t in tables)
     cap = max(1, int(m))
-    # uninitialised: only the entries the kernel wrote are copied back
-    d_sec = cuda.device_array((n, cap, N_STATE))
-    d_nf = cuda.device_array((n, cap), dtype=np.int64)
-    d_nb = cuda.device_array((n, cap), dtype=np.int64)
-    d_out = cuda.device_array((n, cap, fout.shape[2]))
+    if whole:
+        d_sec, d_nf, d_nb, d_out = (cuda.to_device(a) for a in (sec, nface, nback, fout))
+    else:  # uninitialised: only the entries the kernel wrote are copied back
+        d_sec = cuda.device_array((n, cap, N_STATE))
+        d_nf = cuda.device_array((n, cap), dtype=np.int64)
+        d_nb = cuda.device_array((n, cap), dtype=np.int64)
+        d_out = cuda.device_array((n, cap, fout.shape[2]))
     grid = max(1, -(-n // THREADS))
+    chunk, max_periods, n_max, rtol, max_steps = test
     t0 = time.perf_counter()
     kernel[grid, THREADS](d_blk, d_ist, int(N), int(m), *d_tab, float(nu), float(bound), d_sec,
-                          d_nf, d_nb, d_out, bool(tangent), bool(events))
+                          d_nf, d_nb, d_out, bool(tangent), bool(events), d_plan,
+                          max(1, int(chunk)), int(max_periods), int(n_max), float(rtol),
+                          int(max_steps))
     cuda.synchronize()
     wall = time.perf_counter() - t0
+    plan_out = d_plan.copy_to_host()
     d_blk.copy_to_host(blk)
     after = d_ist.copy_to_host()
     after[_POS] = before[_POS]
     ist[:] = after
-    if recorded.any():
+    plan[PLAN_N] = plan_out[PLAN_N]
+    plan[PLAN_NEXT] = plan_out[PLAN_NEXT]
+    if whole:
+        for d, a in ((d_sec, sec), (d_nf, nface), (d_nb, nback), (d_out, fout)):
+            d.copy_to_host(a)
+    elif recorded.any():
         lanes = np.flatnonzero(recorded)
         done = after[_DONE, lanes] - before[_DONE, lanes]  # periods completed in this call
         # a lane that diverged wrote the section point of the period it stopped in

@@ -115,6 +115,17 @@ _NF = 5  # face entries in the current period
 _NB = 6  # back entries in the current period
 NI = 7
 
+# ---- rows of a GPU launch's per-lane plan (int64 ``[PLAN_ROWS, n_lanes]``; the CUDA lane
+# kernel of gearsim.numerics.cuda_lanes and the chain driver read them) ----------------------
+PLAN_LEFT = 0  # periods the lane runs at most in this launch
+PLAN_TEST = 1  # 1: a measuring lane, its verdict taken on the device at the end of each chunk
+PLAN_STEPS = 2  # the lane's cell's RK4 steps before this launch (the budget's count)
+PLAN_N = 3  # out: the period the verdict stopped the lane with (-1: not stopped by a verdict)
+PLAN_NEXT = 4  # in and out: periods to the end of the lane's current measuring chunk
+PLAN_MEASURED = 5  # periods the lane measured before this launch (its record position)
+PLAN_ROWS = 6
+
+
 # ---- columns of the float per-period output ----
 O_TDIS, O_FMAX, O_FMIN, O_XMAX, O_XMIN, O_LYAP = range(6)
 
@@ -342,6 +353,28 @@ def lane_general(blk, r):
             or blk[r + (_PAR + P_GAM1) * L] != 0.0):
         g = True
     return g
+
+
+@njit(cache=True, nogil=True)
+def lane_reset_modes(blk, l, p, mode, y, gaps, active):
+    """The regions of lane ``l`` from its state (what ``integrate_periods`` does at the start of
+    every call): the host's :meth:`gearsim.numerics.batch.Lanes.reset_modes` and a CUDA thread
+    between two measuring chunks call this one function. ``p``, ``mode``, ``y``, ``gaps``,
+    ``active``: scratch of N_PARAMS, N_MODE, N_STATE, N_SWITCH floats and N_SWITCH bools."""
+    L = LANES
+    r = (l // L) * BLOCK + (l % L)
+    for i in range(N_PARAMS):
+        p[i] = blk[r + (_PAR + i) * L]
+    for i in range(N_STATE):
+        y[i] = blk[r + (_Y + i) * L]
+    for i in range(N_MODE):
+        mode[i] = 0
+    channels(p, mode, y, gaps, active, True)
+    blk[r + _R0 * L] = float(mode[0])
+    blk[r + _S0 * L] = float(abs(mode[0]))
+    for c in range(1, 5):
+        blk[r + (_RB + c - 1) * L] = float(mode[c])
+        blk[r + (_SB + c - 1) * L] = float(abs(mode[c]))
 
 
 @njit(cache=True, nogil=True, inline="always")
