@@ -45,7 +45,8 @@ TEST_WORKERS ?= 2
 test: venv  ## the test suite (what CI runs)
 	. $(BIN)/activate && gearsim compile && \
 	  pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=30
-	. $(BIN)/activate && NUMBA_ENABLE_CUDASIM=1 pytest -q -p no:cacheprovider tests/unit/test_cuda_lanes.py
+	. $(BIN)/activate && NUMBA_ENABLE_CUDASIM=1 pytest -q -p no:cacheprovider tests/unit/test_cuda_lanes.py \
+	  tests/unit/test_cuda_chains.py
 
 # The unit tier only (tests/unit): seconds per file, under a minute on 2 cores with a warm cache.
 test-fast: venv
