@@ -41,6 +41,14 @@ from gearsim.errors import CatalogueError, one_line
 from gearsim.results.parquet import _fault, _prepare_dir, _tmp_name
 from gearsim.results.views import create_views
 
+#: What the catalogue facade (:mod:`gearsim.results.catalogue`) passes on.
+__all__ = [
+    "APPLICATION_ID", "MIGRATIONS", "OLDEST_MIGRATABLE", "REBUILD", "REQUIRED", "REQUIRED_2",
+    "ROW_COLUMNS", "SCHEMA_VERSION", "Audit", "Base", "BifurcationCurve", "BifurcationPoint",
+    "CatalogueInfo", "Cell", "CellAttractor", "CellOrbit", "ColumnDoc", "Plane", "Run", "Sweep",
+    "SweepPoint", "catalogue_problem", "make_engine", "migrate_catalogue", "open_catalogue",
+]
+
 #: ``PRAGMA user_version`` of the catalogue this code writes and reads. It rises with every
 #: change of the schema, and :data:`MIGRATIONS` brings an older catalogue up to it.
 #: 1: runs, planes, cells, sweeps, sweep_points, audits;
