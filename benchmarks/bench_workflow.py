@@ -182,11 +182,15 @@ def cmd_rules(args) -> None:
     # <plane>/tile_<k>, <plane>/attractors_<k>, <plane>/audit, <plane>/orbits
     by_path = {"sweeps": "sweep", "points": "points", "standard": "standard_continuation",
                "curves": "bifurcation_curves", "tile": "simulate_tile",
-               "attractors": "attractor_tile", "audit": "audit", "orbits": "refine_orbits"}
+               "attractors": "attractor_tile", "audit": "audit", "orbits": "refine_orbits",
+               "figure_data": "figure_data"}
     for k, v in job_table(d).items():
         parent, stem = Path(k).parent.name, Path(k).stem
-        name = by_path.get(parent) or by_path.get(stem.rsplit("_", 1)[-1]) or by_path.get(
-            stem.split("_", 1)[0], stem)
+        if parent == "orbits":  # orbits/standard (the continuation), orbits/<plane>_curves
+            name = by_path.get(stem) or by_path.get(stem.rsplit("_", 1)[-1], stem)
+        else:
+            name = by_path.get(parent) or by_path.get(stem.rsplit("_", 1)[-1]) or by_path.get(
+                stem.split("_", 1)[0], stem)
         cpu[name] = cpu.get(name, 0.0) + (v["cpu_time_s"] if v["cpu_time_s"] == v["cpu_time_s"]
                                           else 0.0)  # fmt: skip
     print(f"{'rule':24s} {'jobs':>5s} {'job wall s':>11s} {'first start':>12s} {'last end':>9s}"
