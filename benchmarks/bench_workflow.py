@@ -68,6 +68,8 @@ def cmd_collect(args) -> None:
     t0 = float((d / "t_start").read_text())
     t1 = float((d / "t_end").read_text())
     jobs = job_table(d)
+    if not jobs and (d / "studies").is_dir():  # a configuration with a folder ran in studies/NAME/
+        jobs = next((t for s in sorted((d / "studies").iterdir()) if (t := job_table(s))), {})
     record(
         {
             "name": args.name,
@@ -113,6 +115,8 @@ def cmd_run(args) -> None:
     t1 = time.time()
     (d / "t_end").write_text(repr(t1))
     jobs = job_table(d)
+    if not jobs and (d / "studies").is_dir():  # a configuration with a folder ran in studies/NAME/
+        jobs = next((t for s in sorted((d / "studies").iterdir()) if (t := job_table(s))), {})
     record(
         {
             "name": args.name,
