@@ -60,11 +60,6 @@ def add_config_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_plane_argument(p: argparse.ArgumentParser) -> None:
-    """``--plane``: the name of a configured plane (checked by :func:`check_plane`)."""
-    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
-
-
 def add_device_argument(p: argparse.ArgumentParser) -> None:
     """``--device``: where a simulating command's lanes run (over ``execution.device``)."""
     from gearsim.numerics.device import DEVICES

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from gearsim.cli.commands._common import add_config_arguments, add_plane_argument, study_from_args
+from gearsim.cli.commands._common import add_config_arguments, study_from_args
 from gearsim.errors import UsageError
 
 NAME = "attractor-maps"
@@ -17,7 +17,7 @@ HELP = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_plane_argument(p)
+    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     p.add_argument("--attractors", nargs="+", required=True, metavar="PARQUET",
                    help="the plane's attractor tiles (gearsim attractor-tile)")
     add_config_arguments(p)

@@ -10,7 +10,6 @@ from pathlib import Path
 from gearsim.cli.commands._common import (
     add_config_arguments,
     add_device_argument,
-    add_plane_argument,
     check_plane,
     select_device,
     study_from_args,
@@ -25,7 +24,7 @@ HELP = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_plane_argument(p)
+    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
     p.add_argument("--tile-file", metavar="PARQUET", default=None,
                    help="the plane's simulated tile (forward-continuation states; default "

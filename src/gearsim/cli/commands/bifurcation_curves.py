@@ -8,12 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import (
-    add_config_arguments,
-    add_plane_argument,
-    check_plane,
-    study_from_args,
-)
+from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
 from gearsim.errors import UsageError
 from gearsim.study.preflight import check_outputs
 
@@ -31,7 +26,7 @@ HELP = (
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_plane_argument(p)
+    p.add_argument("--plane", required=True, help="plane name in the config (e.g. wb, wxi)")
     add_config_arguments(p)
     p.add_argument("--cells", default=None,
                    help="the plane's cells.parquet: the curves are drawn over its pattern map")

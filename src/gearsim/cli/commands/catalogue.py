@@ -20,12 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.cli.commands._common import (
-    add_config_arguments,
-    add_plane_argument,
-    check_plane,
-    study_from_args,
-)
+from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
 from gearsim.errors import UsageError
 from gearsim.study.audit import audit_frame, audit_settings
 from gearsim.study.provenance import plane_record
@@ -37,12 +32,12 @@ HELP = "combine a plane's tiles, audit it, or build results/catalogue.sqlite"
 def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="action", required=True, parser_class=type(p))
     c = sub.add_parser("cells", help="combine a plane's tile files into cells.parquet")
-    add_plane_argument(c)
+    c.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     c.add_argument("--tiles", nargs="+", required=True, help="the plane's tile Parquet files")
     c.add_argument("--out", "-o", required=True, help="the plane's cells.parquet to write")
     add_config_arguments(c)
     a = sub.add_parser("audit", help="re-simulate a sample of cells at tightened tolerance")
-    add_plane_argument(a)
+    a.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     a.add_argument("--cells", required=True, help="the plane's cells.parquet")
     a.add_argument("--out", "-o", required=True, help="the plane's audit.parquet to write")
     add_config_arguments(a)

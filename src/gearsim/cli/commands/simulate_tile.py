@@ -10,7 +10,6 @@ from pathlib import Path
 from gearsim.cli.commands._common import (
     add_config_arguments,
     add_device_argument,
-    add_plane_argument,
     check_new_file,
     check_plane,
     select_device,
@@ -28,7 +27,7 @@ HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and writ
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    add_plane_argument(p)
+    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
     p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
     add_config_arguments(p)
     add_device_argument(p)
