@@ -56,5 +56,7 @@ test-fast: venv
 lint: venv
 	. $(BIN)/activate && lint-imports && ruff check src tests benchmarks && snakemake --lint
 
+# Every run's outputs: the paper's study (results/), the fast look's and every study's folder
+# (studies/), Snakemake's records and the jobs' configuration files (.snakemake/).
 clean-results:
-	rm -rf results .snakemake
+	rm -rf results studies .snakemake

@@ -68,6 +68,8 @@ def cmd_collect(args) -> None:
     t0 = float((d / "t_start").read_text())
     t1 = float((d / "t_end").read_text())
     jobs = job_table(d)
+    if not jobs and (d / "studies").is_dir():  # a configuration with a folder ran in studies/NAME/
+        jobs = next((t for s in sorted((d / "studies").iterdir()) if (t := job_table(s))), {})
     record(
         {
             "name": args.name,
@@ -113,6 +115,8 @@ def cmd_run(args) -> None:
     t1 = time.time()
     (d / "t_end").write_text(repr(t1))
     jobs = job_table(d)
+    if not jobs and (d / "studies").is_dir():  # a configuration with a folder ran in studies/NAME/
+        jobs = next((t for s in sorted((d / "studies").iterdir()) if (t := job_table(s))), {})
     record(
         {
             "name": args.name,
@@ -178,11 +182,15 @@ def cmd_rules(args) -> None:
     # <plane>/tile_<k>, <plane>/attractors_<k>, <plane>/audit, <plane>/orbits
     by_path = {"sweeps": "sweep", "points": "points", "standard": "standard_continuation",
                "curves": "bifurcation_curves", "tile": "simulate_tile",
-               "attractors": "attractor_tile", "audit": "audit", "orbits": "refine_orbits"}
+               "attractors": "attractor_tile", "audit": "audit", "orbits": "refine_orbits",
+               "figure_data": "figure_data"}
     for k, v in job_table(d).items():
         parent, stem = Path(k).parent.name, Path(k).stem
-        name = by_path.get(parent) or by_path.get(stem.rsplit("_", 1)[-1]) or by_path.get(
-            stem.split("_", 1)[0], stem)
+        if parent == "orbits":  # orbits/standard (the continuation), orbits/<plane>_curves
+            name = by_path.get(stem) or by_path.get(stem.rsplit("_", 1)[-1], stem)
+        else:
+            name = by_path.get(parent) or by_path.get(stem.rsplit("_", 1)[-1]) or by_path.get(
+                stem.split("_", 1)[0], stem)
         cpu[name] = cpu.get(name, 0.0) + (v["cpu_time_s"] if v["cpu_time_s"] == v["cpu_time_s"]
                                           else 0.0)  # fmt: skip
     print(f"{'rule':24s} {'jobs':>5s} {'job wall s':>11s} {'first start':>12s} {'last end':>9s}"

@@ -8,7 +8,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from gearsim.analysis.orbits import SHOOTING
+from gearsim.analysis.orbits import SHOOTING, SUBSTEPS
 from gearsim.numerics.settings import IntegrationSettings
 
 
@@ -26,7 +26,7 @@ class Continuation:
     switch_depth: int = 2
     locate_xtol: float = 1e-12
     grazing: bool = True
-    substeps: int = 512
+    substeps: int = SUBSTEPS
     settings: IntegrationSettings = field(default_factory=lambda: SHOOTING)
     progress: Any = None  # optional callable(str): a line every 10 branch points
     #: ``time.monotonic()`` value at which the job's wall-clock budget ends (None: no budget;

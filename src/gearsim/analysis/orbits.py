@@ -56,6 +56,9 @@ from gearsim.numerics.shooting import (  # noqa: F401  (the solver's public name
 
 #: The simulation whose final section state seeds Newton: adaptive DP5 at its default tolerances.
 SEEDING = IntegrationSettings(method="dp5")
+#: Dense samples per period with which :func:`turning_points` (and the grazing margins built
+#: on them) bracket each sign change of a watched rate.
+SUBSTEPS = 512
 
 #: channel names of the contact boundaries (mesh, then bearing clearances)
 _CHANNEL = ("x", "u_py", "u_pz", "u_gy", "u_gz")
@@ -250,7 +253,7 @@ def turning_points(
     n: int,
     settings: IntegrationSettings = SHOOTING,
     *,
-    substeps: int = 512,
+    substeps: int = SUBSTEPS,
     parray: np.ndarray | None = None,
 ) -> tuple[dict[int, np.ndarray], int, np.ndarray]:
     """Local extrema of every watched coordinate over ``n`` periods from ``y``.
@@ -303,7 +306,7 @@ def grazing_margin(
     n: int,
     settings: IntegrationSettings = SHOOTING,
     *,
-    substeps: int = 512,
+    substeps: int = SUBSTEPS,
     parray: np.ndarray | None = None,
     return_section: bool = False,
 ):

@@ -75,38 +75,40 @@ def in_interval(v: float, spec: tuple) -> bool:
     return math.isfinite(v) and (v >= lo if lo_in else v > lo) and (v <= hi if hi_in else v < hi)
 
 
-def _range_text(name: str) -> str:
-    return interval_text(_RANGES[name])
+def check_number(name: str, value: Any, spec: tuple, kind: str = "parameter") -> float:
+    """Return ``value`` as a float if it is a finite, normal (or zero) number inside ``spec``.
 
-
-def check_value(name: str, value: Any) -> float:
-    """Return ``value`` as a float if it is a finite number inside the range of ``name``.
+    ``spec = (lower, upper, lower inclusive, upper inclusive, meaning)``; ``kind`` names the
+    family in the message (``parameter``, ``gear parameter``).
 
     Raises
     ------
     ParameterError
-        One line naming the parameter, the bad value and the allowed range.
+        One line naming the field, its meaning, the bad value and the allowed range.
     """
+    rng, meaning = interval_text(spec), spec[4]
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"{kind} '{name}' ({meaning}) must be a number in {rng}, "
+                             f"got {value!r}")
+    v = float(value)
+    if v != 0.0 and abs(v) < sys.float_info.min:
+        raise ParameterError(
+            f"{kind} '{name}' ({meaning}) = {value!r} is subnormal; allowed range "
+            f"{rng} with |value| >= {sys.float_info.min:g} or 0"
+        )
+    if not in_interval(v, spec):
+        raise ParameterError(f"{kind} '{name}' ({meaning}) = {value!r} is outside the allowed "
+                             f"range {rng}")
+    return v
+
+
+def check_value(name: str, value: Any) -> float:
+    """Return ``value`` as a float if it is a number inside the range of parameter ``name``
+    (:func:`check_number`); an unknown name raises :class:`ParameterError` too."""
     if name not in _RANGES:
         allowed = ", ".join(sorted(_RANGES))
         raise ParameterError(f"unknown parameter '{name}'; allowed: {allowed}")
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ParameterError(
-            f"parameter '{name}' must be a number in {_range_text(name)}, got {value!r}"
-        )
-    v = float(value)
-    meaning = _RANGES[name][4]
-    if v != 0.0 and abs(v) < sys.float_info.min:
-        raise ParameterError(
-            f"parameter '{name}' ({meaning}) = {value!r} is subnormal; allowed range "
-            f"{_range_text(name)} with |value| >= {sys.float_info.min:g} or 0"
-        )
-    if not in_interval(v, _RANGES[name]):
-        raise ParameterError(
-            f"parameter '{name}' ({meaning}) = {value!r} is outside the allowed range "
-            f"{_range_text(name)}"
-        )
-    return v
+    return check_number(name, value, _RANGES[name])
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,7 @@ from typing import Any
 from gearsim.dynamics.parameters import (
     ModelParameters,
     ParameterError,
-    in_interval,
+    check_number,
     interval_text,
 )
 from gearsim.errors import reject_unknown
@@ -124,16 +124,7 @@ def meaning(name: str) -> str:
 
 
 def _check(name: str, value: Any) -> float:
-    what = _RANGES[name][4]
-    rng = range_text(name)
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ParameterError(f"gear parameter '{name}' ({what}) must be a number in {rng},"
-                             f" got {value!r}")
-    v = float(value)
-    if not in_interval(v, _RANGES[name]):
-        raise ParameterError(f"gear parameter '{name}' ({what}) = {value!r} is outside the"
-                             f" allowed range {rng}")
-    return v
+    return check_number(name, value, _RANGES[name], "gear parameter")
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ Files (see docs/pipeline.md)
 from __future__ import annotations
 
 from gearsim.errors import CatalogueError
+from gearsim.results import schema
 from gearsim.results.ingest import build_catalogue
 from gearsim.results.parquet import (
     PLANE_KEY,
@@ -38,40 +39,10 @@ from gearsim.results.parquet import (
     write_parquet,
 )
 from gearsim.results.publish import publish, set_aside_damaged
-from gearsim.results.schema import (
-    APPLICATION_ID,
-    MIGRATIONS,
-    OLDEST_MIGRATABLE,
-    REBUILD,
-    REQUIRED,
-    REQUIRED_2,
-    ROW_COLUMNS,
-    SCHEMA_VERSION,
-    Audit,
-    Base,
-    BifurcationCurve,
-    BifurcationPoint,
-    CatalogueInfo,
-    Cell,
-    CellAttractor,
-    CellOrbit,
-    ColumnDoc,
-    Plane,
-    Run,
-    Sweep,
-    SweepPoint,
-    catalogue_problem,
-    make_engine,
-    migrate_catalogue,
-    open_catalogue,
-)
+from gearsim.results.schema import *  # noqa: F403 (the names of schema.__all__)
 
 __all__ = [
-    "APPLICATION_ID", "MIGRATIONS", "OLDEST_MIGRATABLE", "PLANE_KEY", "PROVENANCE_KEY", "REBUILD",
-    "REQUIRED", "REQUIRED_2", "ROW_COLUMNS", "SCHEMA_VERSION", "TILES_KEY", "Audit", "Base",
-    "BifurcationCurve", "BifurcationPoint", "CatalogueError", "CatalogueInfo", "Cell",
-    "CellAttractor", "CellOrbit", "ColumnDoc", "Plane", "Run", "Sweep", "SweepPoint",
-    "build_catalogue", "catalogue_problem", "combine_tiles", "make_engine",
-    "migrate_catalogue", "now_iso", "open_catalogue", "publish", "read_metadata",
+    *schema.__all__, "CatalogueError", "PLANE_KEY", "PROVENANCE_KEY", "TILES_KEY",
+    "build_catalogue", "combine_tiles", "now_iso", "publish", "read_metadata",
     "set_aside_damaged", "write_parquet",
 ]

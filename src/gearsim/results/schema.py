@@ -41,6 +41,14 @@ from gearsim.errors import CatalogueError, one_line
 from gearsim.results.parquet import _fault, _prepare_dir, _tmp_name
 from gearsim.results.views import create_views
 
+#: What the catalogue facade (:mod:`gearsim.results.catalogue`) passes on.
+__all__ = [
+    "APPLICATION_ID", "MIGRATIONS", "OLDEST_MIGRATABLE", "REBUILD", "REQUIRED", "REQUIRED_2",
+    "ROW_COLUMNS", "SCHEMA_VERSION", "Audit", "Base", "BifurcationCurve", "BifurcationPoint",
+    "CatalogueInfo", "Cell", "CellAttractor", "CellOrbit", "ColumnDoc", "Plane", "Run", "Sweep",
+    "SweepPoint", "catalogue_problem", "make_engine", "migrate_catalogue", "open_catalogue",
+]
+
 #: ``PRAGMA user_version`` of the catalogue this code writes and reads. It rises with every
 #: change of the schema, and :data:`MIGRATIONS` brings an older catalogue up to it.
 #: 1: runs, planes, cells, sweeps, sweep_points, audits;
@@ -118,7 +126,17 @@ class Run(Base):
     status: Mapped[str | None] = mapped_column(String(16))
 
 
-class Plane(Base):
+class _StudyInputs:
+    """What a plane or a sweep was computed from (meanings: results/columns.py). Mixin columns
+    follow a table's own; ``sort_order`` puts ``integration`` after ``planes.code_version``."""
+
+    fixed: Mapped[dict] = mapped_column(JSON)
+    parameters: Mapped[dict] = mapped_column(JSON)
+    config_hash: Mapped[str] = mapped_column(String(64))
+    integration: Mapped[dict] = mapped_column(JSON, sort_order=2)
+
+
+class Plane(_StudyInputs, Base):
     __tablename__ = "planes"
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(64), unique=True)
@@ -130,11 +148,7 @@ class Plane(Base):
     y_min: Mapped[float] = mapped_column(Float)
     y_max: Mapped[float] = mapped_column(Float)
     y_n: Mapped[int] = mapped_column(Integer)
-    fixed: Mapped[dict] = mapped_column(JSON)  # the plane's `fixed` overrides
-    parameters: Mapped[dict] = mapped_column(JSON)  # every fixed parameter value of the plane
-    config_hash: Mapped[str] = mapped_column(String(64))
-    code_version: Mapped[str] = mapped_column(String(64))
-    integration: Mapped[dict] = mapped_column(JSON)  # IntegrationSettings fields
+    code_version: Mapped[str] = mapped_column(String(64), sort_order=1)
 
 
 _SQL_TYPES = {str: lambda: String(32), int: Integer, float: Float, bool: Boolean}
@@ -181,7 +195,7 @@ class Cell(_CellColumns, Base):
     )
 
 
-class Sweep(Base):
+class Sweep(_StudyInputs, Base):
     __tablename__ = "sweeps"
     id: Mapped[int] = mapped_column(primary_key=True)
     name: Mapped[str] = mapped_column(String(64), unique=True)
@@ -191,10 +205,6 @@ class Sweep(Base):
     max: Mapped[float] = mapped_column(Float)
     n: Mapped[int] = mapped_column(Integer)
     direction: Mapped[str] = mapped_column(String(16))
-    fixed: Mapped[dict] = mapped_column(JSON)
-    parameters: Mapped[dict] = mapped_column(JSON)  # values held fixed (swept one omitted)
-    config_hash: Mapped[str] = mapped_column(String(64))
-    integration: Mapped[dict] = mapped_column(JSON)
 
 
 class SweepPoint(_CellColumns, Base):

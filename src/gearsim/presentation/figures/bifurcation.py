@@ -215,9 +215,7 @@ def figure4(df: pd.DataFrame, *, title: str | None = None):
     for ax in axes[:2]:
         ax.set_xlabel("")
         ax.tick_params(labelbottom=False)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    style.finish(fig, title)
     return fig
 
 
@@ -232,9 +230,7 @@ def figure_sweeps(sweeps: Mapping[str, pd.DataFrame], *, title: str | None = Non
                 fontweight="bold", va="top", ha="left")
         if notes and notes.get(label):
             style.note_box(ax, notes[label], loc="lower right", fontsize=6)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    style.finish(fig, title)
     return fig
 
 

@@ -113,9 +113,7 @@ def figure_hysteresis(sweeps: pd.DataFrame, *, title: str | None = None):
     axes[1].legend(fontsize=7.5, loc="best")
     axes[0].set_title("(a) bifurcation diagram, both sweep directions", fontsize=9, loc="left")
     axes[1].set_title("(b) disengagement duty cycle", fontsize=9, loc="left")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    style.finish(fig, title)
     return fig, h
 
 
@@ -259,11 +257,8 @@ def figure_coexistence(att: pd.DataFrame, x_name: str, y_name: str, *, title: st
                        title_fontsize=7)  # fmt: skip
     axes[1].set_title("(b) dominant pattern, hatched where multistable", fontsize=9, loc="left")
     for ax in axes:
-        ax.set_xlabel(style.param_label(x_name))
-        ax.set_ylabel(style.param_label(y_name))
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+        style.plane_axes(ax, x_name, y_name)
+    style.finish(fig, title)
     return fig
 
 
@@ -284,14 +279,11 @@ def figure_forward_basin(att: pd.DataFrame, x_name: str, y_name: str, *,
                       vmin=0, vmax=1, shading="flat", rasterized=True)  # fmt: skip
     cb = fig.colorbar(m, ax=ax)
     cb.set_label("basin fraction of the forward-continuation attractor")
-    ax.set_xlabel(style.param_label(x_name))
-    ax.set_ylabel(style.param_label(y_name))
+    style.plane_axes(ax, x_name, y_name)
     low = float(np.nanmean(B < 0.1)) if np.isfinite(B).any() else float("nan")
     ax.set_title(f"share of cells below 0.1: {low:.3f} (grey: no continuation state)",
                  fontsize=8, loc="left")  # fmt: skip
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    style.finish(fig, title)
     return fig
 
 
@@ -347,11 +339,8 @@ def figure_floquet_margin(cells: pd.DataFrame, x_name: str, y_name: str, *,
     which += f" ({n_ref} refined by Newton)" if n_ref is not None else ""
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.13), ncol=3,
               fontsize=7, frameon=False, title=which, title_fontsize=7)  # fmt: skip
-    ax.set_xlabel(style.param_label(x_name))
-    ax.set_ylabel(style.param_label(y_name))
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.94))  # the top strip: the figure title
+    style.plane_axes(ax, x_name, y_name)
+    style.finish(fig, title, rect=(0.0, 0.0, 1.0, 0.94))  # the top strip: the figure title
     return fig
 
 

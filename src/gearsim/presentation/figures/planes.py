@@ -41,8 +41,7 @@ def draw_pattern_map(ax, df: pd.DataFrame, *, legend: bool = True, legend_kw=Non
     ax.pcolormesh(cell_edges(xs), cell_edges(ys), masked, cmap=cmap, norm=norm,
                   shading="flat", rasterized=True)
     _boundaries(ax, xs, ys, grid)
-    ax.set_xlabel(style.param_label(xname))
-    ax.set_ylabel(style.param_label(yname))
+    style.plane_axes(ax, xname, yname)
     if legend:
         counts = pd.Series(style.pattern_categories(df)).value_counts()
         handles = [Patch(facecolor=style.PATTERN_COLOURS[k], edgecolor="#555555", lw=0.4,
@@ -223,8 +222,7 @@ def draw_dc_map(ax, df: pd.DataFrame, *, legend: bool = True):
     ax.pcolormesh(cell_edges(xs), cell_edges(ys), np.ma.masked_less(grid, 0), cmap=cmap,
                   norm=norm, shading="flat", rasterized=True)
     _boundaries(ax, xs, ys, grid)
-    ax.set_xlabel(style.param_label(xname))
-    ax.set_ylabel(style.param_label(yname))
+    style.plane_axes(ax, xname, yname)
     if legend:
         handles = [Patch(facecolor=c, edgecolor="#555555", lw=0.4, label=k)
                    for k, c in zip(present, colours, strict=True)]
@@ -276,8 +274,7 @@ def figure_kmax(df: pd.DataFrame, *, column: str | None = None, title: str | Non
     if n_over:
         style.note_box(ax2, f"{n_over} cell(s) above {cap:.2f} (max {np.nanmax(Zall):.2f}) "
                        "drawn at the top colour", loc="upper right", fontsize=6.5)
-    ax2.set_xlabel(style.param_label(xname))
-    ax2.set_ylabel(style.param_label(yname))
+    style.plane_axes(ax2, xname, yname)
     ax2.set_title(r"(b) $K_{\max}$ plane distribution", fontsize=9, loc="left")
     if title:
         fig.suptitle(title, fontsize=10)
@@ -350,7 +347,5 @@ def figure3(df: pd.DataFrame, *, nx: int = 12, ny: int = 8, title: str | None = 
               frameon=False, title="state of the cell", title_fontsize=7)
     ax.set_title(f"{nxc} x {nyc} cells shown (one per block of the computed "
                  f"{NX} x {NY} plane; the study uses 400 x 400)", fontsize=8)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    style.finish(fig, title)
     return fig

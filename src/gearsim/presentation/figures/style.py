@@ -179,6 +179,20 @@ def save_figure(fig, out: str | Path) -> list[Path]:
     return [png, pdf]
 
 
+def plane_axes(ax, x_name: str, y_name: str) -> None:
+    """Label the axes of a parameter plane with the parameters' symbols."""
+    ax.set_xlabel(param_label(x_name))
+    ax.set_ylabel(param_label(y_name))
+
+
+def finish(fig, title: str | None, *, rect: tuple[float, float, float, float] | None = None
+           ) -> None:
+    """The figure's title (when given) and its tight layout (``rect``: the area of the axes)."""
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout(rect=rect)
+
+
 def note_box(ax, text: str, loc: str = "upper left", fontsize: float = 7.5) -> None:
     """A small boxed note inside an axes (used to flag where our figure differs)."""
     xy = {"upper left": (0.02, 0.98, "left", "top"), "upper right": (0.98, 0.98, "right", "top"),
