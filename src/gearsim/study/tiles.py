@@ -82,11 +82,13 @@ def cell_records(spec: Mapping[str, Any], xs, results, stamps, t0: float) -> lis
     return rows
 
 
-def simulate_rows_batched(specs: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+def simulate_rows_batched(specs: Sequence[Mapping[str, Any]],
+                          on_cell: Callable[[], None] | None = None) -> list[dict[str, Any]]:
     """Simulate several plane rows at once with the batched RK4 kernel (gearsim.numerics.batch).
 
     Same records as :func:`simulate_row` for every spec (one lane per row; the rows advance
     together, 8 per SIMD block). The integration is fixed-step RK4 at ``steps_per_period``.
+    The specs may come from several planes (:func:`run_tiles`). ``on_cell()``: after each cell.
     """
     settings = IntegrationSettings(**specs[0]["settings"])
     chains = []
@@ -98,9 +100,12 @@ def simulate_rows_batched(specs: Sequence[Mapping[str, Any]]) -> list[dict[str, 
         )
     stamps: list[list[float]] = [[] for _ in specs]
     t0 = time.perf_counter()
-    results = simulate_rows(
-        chains, settings=settings, on_cell=lambda r, i, res: stamps[r].append(time.perf_counter())
-    )
+    def done(r, i, res):
+        stamps[r].append(time.perf_counter())
+        if on_cell is not None:
+            on_cell()
+
+    results = simulate_rows(chains, settings=settings, on_cell=done)
     # the Floquet margins of the periodic cells, their monodromies in shared kernel calls
     fill_margins([r for row in results for r in row], settings)
     rows = []
@@ -207,3 +212,39 @@ def run_tile(
                 progress(done, total, time.perf_counter() - t0)
     df = records_to_frame(records)
     return df.sort_values(["j", "i"], kind="stable").reset_index(drop=True)
+
+
+def run_tiles(
+    study: Study,
+    jobs: Sequence[tuple[str, int]],
+    *,
+    progress: Callable[[int, int, float], None] | None = None,
+) -> list[pd.DataFrame]:
+    """The tiles ``jobs`` (``(plane, tile)`` pairs) in one call of the chain driver: every row
+    of every tile a chain of one lanes object (on a GPU, one launch holds both planes' chains:
+    a plane's 400 rows alone leave it nearly idle). Each frame is :func:`run_tile`'s for its
+    tile (the chains are independent lanes). Another method than fixed-step RK4 runs the
+    tiles one after the other (:func:`run_tile`, in this process).
+    ``progress(done_cells, total_cells, elapsed_s)`` after each cell."""
+    groups = [row_specs(study, plane, tile) for plane, tile in jobs]
+    specs = [s for g in groups for s in g]
+    if specs and specs[0]["settings"].get("method") != "rk4":  # the scalar path: tile by tile
+        return [run_tile(study, plane, tile, progress=progress) for plane, tile in jobs]
+    total = sum(len(s["x_values"]) for s in specs)
+    t0 = time.perf_counter()
+    count = [0]
+
+    def on_cell() -> None:
+        count[0] += 1
+        if progress and (count[0] % 1000 == 0 or count[0] == total):
+            progress(count[0], total, time.perf_counter() - t0)
+
+    records = simulate_rows_batched(specs, on_cell) if specs else []
+    frames = []
+    k = 0
+    for g in groups:
+        n = sum(len(s["x_values"]) for s in g)
+        df = records_to_frame(records[k : k + n])
+        k += n
+        frames.append(df.sort_values(["j", "i"], kind="stable").reset_index(drop=True))
+    return frames

@@ -16,6 +16,7 @@ from gearsim.cli.commands._common import (
     study_from_args,
 )
 from gearsim.cli.commands._progress import Progress
+from gearsim.errors import UsageError
 from gearsim.results import parquet
 from gearsim.study import provenance, tiles
 from gearsim.study.cluster import MAX_WORKERS, check_address, check_workers, describe, open_client
@@ -27,7 +28,10 @@ HELP = "simulate one tile (tile_rows rows of a plane) on a dask cluster and writ
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
+    p.add_argument("--plane", required=True, action="append",
+                   help="plane name (a key of `planes:`); given again, the same tile index of "
+                   "each plane in one call of the chain driver (on a GPU, both planes' chains in "
+                   "one launch), one file per plane")
     p.add_argument("--tile", type=int, required=True, help="tile index (0-based)")
     add_config_arguments(p)
     add_device_argument(p)
@@ -54,11 +58,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--out",
         "-o",
         default=None,
-        help="output Parquet file (default <results>/<plane>/tiles/<tile>.parquet)",
+        action="append",
+        help="output Parquet file (default <results>/<plane>/tiles/<tile>.parquet); one per "
+        "--plane, in their order",
     )
 
 
 def run(args: argparse.Namespace) -> int:
+    if len(args.plane) > 1:
+        return _run_planes(args)
+    args.plane = args.plane[0]
+    if args.out is not None and len(args.out) != 1:
+        raise UsageError("--out: one file per --plane")
+    args.out = args.out[0] if args.out else None
     study = study_from_args(args)
     config = study.config
     check_plane(study, args.plane)
@@ -119,4 +131,50 @@ def run(args: argparse.Namespace) -> int:
         file=sys.stderr,
         flush=True,
     )
+    return 0
+
+
+def _run_planes(args: argparse.Namespace) -> int:
+    """Tile ``--tile`` of every ``--plane`` in one call of the chain driver, in this process;
+    the files are written once every cell is done (one per plane, each with its provenance)."""
+    study = study_from_args(args)
+    config = study.config
+    planes = list(args.plane)
+    if len(set(planes)) != len(planes):
+        raise UsageError(f"--plane: {', '.join(planes)} names a plane twice")
+    for plane in planes:
+        check_plane(study, plane)
+    if args.out is not None and len(args.out) != len(planes):
+        raise UsageError(f"--out: one file per --plane ({len(planes)}), got {len(args.out)}")
+    outs = [Path(o) for o in args.out] if args.out else [
+        results_dir(config) / plane / "tiles" / f"{args.tile}.parquet" for plane in planes]
+    rows = {}
+    for plane, out in zip(planes, outs, strict=True):
+        rows[plane] = tile_rows(config, plane, args.tile)
+        nx = int(config["planes"][plane]["x"]["n"])
+        check_new_file(out, need=2 * 1024 * nx * len(rows[plane]) + (64 << 10))
+    dev = select_device(args, study)
+    label = f"{'+'.join(planes)}/tile {args.tile}"
+    total = sum(int(config["planes"][p]["x"]["n"]) * len(rows[p]) for p in planes)
+    progress = Progress(label, total)
+    print(f"{label}: {total} cells of {len(planes)} planes in one call, in-process "
+          f"({dev.kind})", file=sys.stderr, flush=True)
+    started = parquet.now_iso()
+    t0 = time.perf_counter()
+    frames = tiles.run_tiles(study, [(p, args.tile) for p in planes], progress=progress)
+    progress.close()
+    wall = time.perf_counter() - t0
+    finished = parquet.now_iso()
+    for plane, out, df in zip(planes, outs, frames, strict=True):
+        prov = provenance.provenance(
+            provenance.plane_subtree(study, plane), kind="tile", name=plane, study=study,
+            tile=args.tile, rows=[rows[plane].start, rows[plane].stop],
+            workers=f"in-process, one call with {label}", started=started, finished=finished,
+            wall_s=wall, cells=len(df),
+        )
+        parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
+        print(f"{plane}/tile {args.tile}: wrote {out} ({len(df)} cells)", file=sys.stderr,
+              flush=True)
+    print(f"{label}: {total} cells in {wall:.1f} s, {total / wall:.2f} cells/s",
+          file=sys.stderr, flush=True)
     return 0
