@@ -73,3 +73,44 @@ rule audit:
 CELL_FILES = expand(rules.plane_cells.output.cells, plane=PLANES)
 AUDIT_FILES = expand(rules.audit.output.audit, plane=PLANES) if AUDIT else []
 TARGETS_PLANES = CELL_FILES
+
+
+# On a GPU (execution.device cuda or auto) the same tile of every plane is one job: one call of
+# the chain driver, both planes' chains in one launch (a plane's 400 chains alone leave the GPU
+# nearly idle; README, "On a GPU"). Each plane's tile file is the one rule simulate_tile writes.
+TOGETHER = GPU_JOBS and len(PLANES) > 1 and len({len(TILES[p]) for p in PLANES}) == 1
+
+
+def planes_params(wildcards):
+    """Every plane's config subtree (rule simulate_tiles_together's rerun trigger)."""
+    return "".join(gprov.canonical_json(gprov.plane_subtree(STUDY, p)) for p in PLANES)
+
+
+if TOGETHER:
+
+    ruleorder: simulate_tiles_together > simulate_tile
+
+    rule simulate_tiles_together:
+        input:
+            compiled=COMPILED,
+            config=CONFIG,
+        output:
+            tiles=expand("results/{plane}/tiles/{{tile}}.parquet", plane=PLANES),
+        log:
+            "logs/tiles_together_{tile}.log",
+        benchmark:
+            "logs/benchmarks/tiles_together_{tile}.tsv"
+        priority: 10
+        conda:
+            GEARSIM_ENV
+        threads: 1
+        resources:
+            gpu=GPU_JOBS,
+        params:
+            config=planes_params,
+            code_version=CODE_VERSION["tiles"],
+            planes=" ".join(f"--plane {p}" for p in PLANES),
+            outs=lambda wildcards, output: " ".join(f"--out {o}" for o in output.tiles),
+        shell:
+            "gearsim simulate-tile {params.planes} --tile {wildcards.tile} "
+            "--configfile {input.config} {params.outs} > {log} 2>&1"
