@@ -146,3 +146,39 @@ def test_a_fault_inside_a_launch_is_one_line_and_leaves_the_host_arrays(monkeypa
     assert "\n" not in msg and "illegal memory access" in msg and "execution.device: cuda" in msg
     np.testing.assert_array_equal(lanes.blk, blk)
     np.testing.assert_array_equal(lanes.sec, sec)
+
+
+def test_the_finder_on_the_gpu_fills_it_and_keeps_its_labels(monkeypatch):
+    """The lane pool on cuda is as wide as the GPU holds (multiprocessors x
+    POOL_LANES_PER_SM) and finds the CPU's attractors with the same labels and periods."""
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+    from gearsim.cell import pool
+
+    widths = []
+    real = pool._Pool.__init__
+
+    def init(self, capacity, records, history=0):
+        widths.append(capacity)
+        real(self, capacity, records, history)
+
+    monkeypatch.setattr(pool._Pool, "__init__", init)
+    cell = ModelParameters(w=1.0, b=0.1)
+    opts = FinderOptions(starts=4, seed=0, lanes=2)
+    found = {}
+    try:
+        for kind in ("cpu", "cuda"):
+            dev = device.select(kind)
+            widths.clear()
+            found[kind] = find_attractors(cell, opts, settings=ST)
+            probe_width = widths[1] if len(widths) > 1 else None  # the measuring pool is first
+            want = 2 if kind == "cpu" else max(2, dev.multiprocessors * device.POOL_LANES_PER_SM)
+            assert probe_width == want
+    finally:
+        device.select("cpu")
+    cpu, gpu = found["cpu"], found["cuda"]
+    labels = [a.steady.label for a in cpu.attractors]
+    assert [a.steady.label for a in gpu.attractors] == labels
+    assert [a.steady.period for a in gpu.attractors] == [a.steady.period for a in cpu.attractors]
+    assert [a.n_starts for a in gpu.attractors] == [a.n_starts for a in cpu.attractors]
+    np.testing.assert_array_equal(gpu.start_labels, cpu.start_labels)
+    assert labels  # not vacuous

@@ -34,6 +34,7 @@ from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import LANES, Lanes
+from gearsim.numerics.device import pool_lanes
 from gearsim.numerics.integrate import steps_lower_bound
 
 #: what a pool's judge answers for a probing job after each chunk of its transient
@@ -243,6 +244,7 @@ def run_pool(
     (tangent on) are a second, smaller pool, so the probes never integrate a tangent vector.
     """
     st = settings
+    lanes = pool_lanes(lanes)  # a GPU's width: the starts fill it (the CPU's is ``lanes``)
     if recurrence_probe(st, True, st.transient):
         raise ParameterError("the lane pool needs integration.transient_recurrence = 0")
     bound = float(getattr(st, "divergence_bound", 1.0e6))
