@@ -473,7 +473,7 @@ def test_tangent_lanes_equal_one_scalar_run_per_column(params, n):
 
     y = run_periods(params, np.full(10, 0.1), 50, RK4).state[:10]
     Z = np.eye(10)
-    y_end, image, status = batch.tangent_lanes(params, y, n, RK4, Z, start_period=7)
+    y_end, image, status = batch.tangent_lanes_many([params], [y], n, RK4, [Z], [7])[0]
     ref = np.zeros((10, 10))
     for i in range(10):
         r = run_periods(params, np.concatenate([y, Z[:, i]]), n, RK4, start_period=7,
@@ -486,4 +486,4 @@ def test_tangent_lanes_equal_one_scalar_run_per_column(params, n):
     many = monodromies([params, other], [y, y], n, RK4)
     d = many[0][1].shape[0]
     for p, (_, M, _) in zip((params, other), many, strict=True):
-        assert np.array_equal(M, batch.tangent_lanes(p, y, n, RK4, Z)[1][:d, :d])
+        assert np.array_equal(M, batch.tangent_lanes_many([p], [y], n, RK4, [Z])[0][1][:d, :d])

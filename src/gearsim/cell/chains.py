@@ -34,21 +34,13 @@ from gearsim.cell.simulate import (
 from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, static_state
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics import kernel as plan_rows  # the PLAN_* rows of a GPU launch
 from gearsim.numerics.batch import (
     LANES,
     Lanes,
     steps_per_period,
 )
 from gearsim.numerics.integrate import steps_lower_bound
-from gearsim.numerics.kernel import (
-    PLAN_LEFT,
-    PLAN_MEASURED,
-    PLAN_N,
-    PLAN_NEXT,
-    PLAN_ROWS,
-    PLAN_STEPS,
-    PLAN_TEST,
-)
 
 # ============================================================================ the driver
 _TRANSIENT = 0
@@ -265,12 +257,12 @@ def _run_chains(chains: list[_Chain], st: IntegrationSettings, bound: float, con
             c.steps += int(lanes.steps[l])
             if c.phase in _RECORDED:
                 c.measured += done
-            if plan is not None and plan[PLAN_TEST, l] and lanes.status[l] == 0:
-                if plan[PLAN_N, l] >= 0:  # the device's verdict stopped the lane
+            if plan is not None and plan[plan_rows.PLAN_TEST, l] and lanes.status[l] == 0:
+                if plan[plan_rows.PLAN_N, l] >= 0:  # the device's verdict stopped the lane
                     _decide(c, lanes, st, continuation, on_cell, floquet, orbits,
-                            n=int(plan[PLAN_N, l]))
+                            n=int(plan[plan_rows.PLAN_N, l]))
                 else:  # the launch ended before the verdict: the lane's chunk goes on
-                    c.left = int(plan[PLAN_NEXT, l])
+                    c.left = int(plan[plan_rows.PLAN_NEXT, l])
                 continue
             if lanes.status[l] != 0:
                 # diverged (during the transient or a chunk): simulate_cell's diverged record
@@ -299,15 +291,15 @@ def _device_plan(part: list[_Chain], lanes: Lanes, st: IntegrationSettings):
     decisions end the launch (all measuring: the longest measurement left)."""
     others = [c.left for c in part if c.phase != _MEASURE]
     m = min(others) if others else max(st.max_periods - c.measured for c in part)
-    plan = np.zeros((PLAN_ROWS, lanes.size), dtype=np.int64)
+    plan = np.zeros((plan_rows.PLAN_ROWS, lanes.size), dtype=np.int64)
     for c in part:
         l = c.lane
-        plan[PLAN_LEFT, l] = m
-        plan[PLAN_STEPS, l] = c.steps
+        plan[plan_rows.PLAN_LEFT, l] = m
+        plan[plan_rows.PLAN_STEPS, l] = c.steps
         if c.phase == _MEASURE:
-            plan[PLAN_TEST, l] = 1
-            plan[PLAN_NEXT, l] = c.left
-            plan[PLAN_MEASURED, l] = c.measured
+            plan[plan_rows.PLAN_TEST, l] = 1
+            plan[plan_rows.PLAN_NEXT, l] = c.left
+            plan[plan_rows.PLAN_MEASURED, l] = c.measured
     return m, plan
 
 

@@ -194,7 +194,7 @@ def floquet_margin(params: ModelParameters, n: int, guess: np.ndarray,
                    st: IntegrationSettings) -> tuple[float, str] | None:
     """``(|mu|max, kind of the critical multiplier)`` of the period-``n`` orbit through the
     settled section state ``guess``: the monodromy of the cell's own map there (RK4: the
-    tangent columns as SIMD lanes, :func:`gearsim.numerics.batch.tangent_lanes`), after Newton
+    tangent columns as SIMD lanes, :func:`gearsim.numerics.batch.tangent_lanes_many`), after Newton
     steps of the one orbit solver while the state is farther than :data:`MARGIN_TOL` from a
     fixed point; None without a T-periodic map or when Newton fails."""
     if params.var_ratio != 0.0:

@@ -44,6 +44,11 @@ from gearsim.numerics.steps import phase_tables, rk4_steps_per_period
 
 
 # ============================================================================ lanes
+def _counter(row: int, doc: str) -> property:
+    """A lane counter: row ``row`` of ``ist`` (one entry per lane), a writable view."""
+    return property(lambda self: self.ist[row], doc=doc)
+
+
 class Lanes:
     """Storage of ``n`` lanes in blocks of :data:`LANES` (padding lanes are frozen).
 
@@ -131,30 +136,14 @@ class Lanes:
                 self.sec, self.nface, self.nback, self.fout, bool(tangent))
 
     # ---- the lane counters (rows of ``ist``, one entry per lane; writable views)
-    @property
-    def status(self) -> np.ndarray:
-        """0 running, 1 diverged, -1 not taking part in the next call."""
-        return self.ist[_ST]
-
-    @property
-    def done(self) -> np.ndarray:
-        """Periods completed in the last call."""
-        return self.ist[_DONE]
-
-    @property
-    def position(self) -> np.ndarray:
-        """Record position of the next call's first period (-1: not recorded)."""
-        return self.ist[_POS]
-
-    @property
-    def period(self) -> np.ndarray:
-        """Absolute period index at the start of the next call (the variable-ratio phase)."""
-        return self.ist[_K]
-
-    @property
-    def steps(self) -> np.ndarray:
-        """RK4 steps taken in the last call (the event layer's trial steps included)."""
-        return self.ist[_STEPS]
+    status = _counter(_ST, "0 running, 1 diverged, -1 not taking part in the next call.")
+    done = _counter(_DONE, "Periods completed in the last call.")
+    position = _counter(_POS, "Record position of the next call's first period (-1: not "
+                        "recorded).")
+    period = _counter(_K, "Absolute period index at the start of the next call (the "
+                      "variable-ratio phase).")
+    steps = _counter(_STEPS, "RK4 steps taken in the last call (the event layer's trial steps "
+                     "included).")
 
     def begin_call(self) -> None:
         """No lane takes part and the per-call counters are zero (callers then enrol lanes)."""
@@ -265,26 +254,6 @@ def run_periods_batched(
 
 
 
-def tangent_lanes(
-    params: ModelParameters,
-    y0: np.ndarray,
-    n_periods: int,
-    settings: IntegrationSettings,
-    Z: np.ndarray,
-    *,
-    start_period: int = 0,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """:func:`gearsim.numerics.variational.tangent_map` for RK4, one SIMD lane per tangent column.
-
-    Every lane carries the same state and parameters and one column of ``Z``: the state's
-    steps, and so every event redo, are those of the scalar RK4 path, and each column's image is
-    the product of the same per-step tangent maps (bit-identical to the scalar call,
-    tests/unit/test_batch.py), computed in one kernel call instead of one run per column.
-    Returns ``(y_end, DPhi Z, status)``.
-    """
-    return tangent_lanes_many([params], [y0], n_periods, settings, [Z], [start_period])[0]
-
-
 def tangent_lanes_many(
     params_list: Sequence[ModelParameters],
     y0s: Sequence[np.ndarray],
@@ -294,10 +263,15 @@ def tangent_lanes_many(
     start_periods: Sequence[int] | None = None,
     packed: Sequence[np.ndarray] | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray, int]]:
-    """:func:`tangent_lanes` of many cells in one kernel call (one lane per cell and column,
-    the blocks full): the cells must share the step grid (steps per period, variable-ratio
-    order); lanes are independent, so each cell's result is that of its own call. ``packed``:
-    the cells' packed parameters if the caller has them."""
+    """:func:`gearsim.numerics.variational.tangent_map` for RK4 of many cells in one kernel
+    call, one SIMD lane per cell and tangent column (the blocks full). Every lane of a cell
+    carries its state and parameters and one column of its ``Z``: the state's steps, and so
+    every event redo, are those of the scalar RK4 path, and each column's image is the product
+    of the same per-step tangent maps (bit-identical to one scalar run per column,
+    tests/unit/test_batch.py). The cells must share the step grid (steps per period,
+    variable-ratio order); lanes are independent, so each cell's result is that of its own
+    call. ``packed``: the cells' packed parameters if the caller has them. Returns one
+    ``(y_end, DPhi Z, status)`` per cell."""
     N = steps_per_period(params_list[0], settings)
     p0 = params_list[0]
     nu = p0.var_ratio_order if p0.var_ratio != 0.0 else 0.0

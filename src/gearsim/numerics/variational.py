@@ -21,7 +21,7 @@ import numpy as np
 
 from gearsim.dynamics.model import N_STATE, n_evolved, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
-from gearsim.numerics.batch import steps_per_period, tangent_lanes, tangent_lanes_many
+from gearsim.numerics.batch import steps_per_period, tangent_lanes_many
 from gearsim.numerics.integrate import IntegrationSettings, run_periods
 
 
@@ -39,7 +39,7 @@ def tangent_map(
 
     ``tangent_error``: DP5 controls the tangent's error too (see :func:`run_periods`).
     RK4: the columns run as SIMD lanes of the batched kernel
-    (:func:`gearsim.numerics.batch.tangent_lanes`, the same steps: bit-identical).
+    (:func:`gearsim.numerics.batch.tangent_lanes_many`, the same steps: bit-identical).
 
     Returns ``(y_end, DPhi Z, status)``: the final state (10 entries), the image of every column
     of ``Z`` (shape ``(10, k)``) under the derivative of the ``n_periods``-period map, and the
@@ -48,7 +48,7 @@ def tangent_map(
     """
     if settings.method == "rk4":
         # the same RK4 steps with the columns as SIMD lanes: one kernel call, same numbers
-        return tangent_lanes(params, y0, n_periods, settings, Z, start_period=start_period)
+        return tangent_lanes_many([params], [y0], n_periods, settings, [Z], [start_period])[0]
     y0 = np.asarray(y0, dtype=float)[:N_STATE]
     Z = np.asarray(Z, dtype=float).reshape(N_STATE, -1)
     out = np.zeros_like(Z)
