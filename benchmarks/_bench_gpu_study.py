@@ -108,6 +108,24 @@ def _plane_specs(cols: int | None, rows_per_plane: int | None = None):
     return [dict(s, settings=settings) for s in specs]
 
 
+def _count_launches() -> dict:
+    """Count the GPU launches (and their kernel seconds) from now on."""
+    from gearsim.numerics import cuda_lanes
+
+    seen = {"n": 0, "kernel_s": 0.0}
+    real = getattr(cuda_lanes.advance_device, "__wrapped__", cuda_lanes.advance_device)
+
+    def counted(*a, **kw):
+        t = real(*a, **kw)
+        seen["n"] += 1
+        seen["kernel_s"] += t
+        return t
+
+    counted.__wrapped__ = real
+    cuda_lanes.advance_device = counted
+    return seen
+
+
 def _cpu_rows(specs):
     """A CPU worker: a group of plane rows on the CPU path; its records and CPU seconds."""
     from gearsim.numerics import device
@@ -147,12 +165,16 @@ def stage_planes(args) -> dict:
     per_col = t_first / k0
     k = int(min(nx, max(k0, args.plane_budget / max(per_col, 1e-9))))
     out["first_pass"] = {"cols": k0, "wall_s": round(t_first, 3)}
+    launches = _count_launches()
     t0 = time.perf_counter()
     recs = simulate_rows_batched([dict(s, x_values=s["x_values"][:k]) for s in full])
     wall = time.perf_counter() - t0
     gpu = {_plane_key(r)[:3]: _plane_key(r)[3:] for r in recs}
+    # both planes' chains in one lanes object, the period test's verdict inside the launch:
+    # the host sees a chain at its phase changes only (launches), not every measuring chunk
     out["gpu"] = {"cols": k, "cells": len(recs), "wall_s": round(wall, 3),
-                  "cells_per_s": len(recs) / wall,
+                  "cells_per_s": len(recs) / wall, "launches": launches["n"],
+                  "kernel_s": round(launches["kernel_s"], 3),
                   "projected_full_s": round(wall * nx / k, 1)}  # fmt: skip
     Report.current.data["stages"]["planes"] = dict(out, partial=True)
     Report.current.save()
@@ -244,13 +266,19 @@ def stage_coexistence(args) -> dict:
     order = _cell_order()
     total = len(order)
     chunk = 4 if args.smoke else args.finder_cells
-    out = {"cells_full": total, "starts_per_cell": 16, "chunks": []}
+    from gearsim.numerics import device
+
+    device.select("cuda")
+    out = {"cells_full": total, "starts_per_cell": 16, "chunks": [],
+           "pool_lanes": device.pool_lanes(4 if args.smoke else args.gpu_lanes or 256)}
     gpu_labels: dict = {}
     t_all = 0.0
     for k in range(0, total, chunk):
         cells = _cell_params(order[k : k + chunk])
         t0 = time.perf_counter()
-        labels, _ = _find(cells, 4 if args.smoke else args.gpu_lanes, "cuda")
+        # the probing pool: --gpu-lanes, else the device's width (gearsim.numerics.device.
+        # pool_lanes: multiprocessors x POOL_LANES_PER_SM)
+        labels, _ = _find(cells, 4 if args.smoke else args.gpu_lanes or 256, "cuda")
         wall = time.perf_counter() - t0
         t_all += wall
         gpu_labels.update(labels)

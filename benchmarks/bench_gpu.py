@@ -18,14 +18,16 @@ what it measured:
    kernel at 131 k lanes compiled with 168, 128, 96 and 64 registers a thread beside the
    default (ptxas gives it 255 and spills at sm_90): which limit the kernel should carry.
 5. ``planes``: both 400 x 400 planes' continuation chains (800 rows) in one lanes object on the
-   GPU (``gearsim.study.tiles.simulate_rows_batched``, the tile's own path: chains, the period
-   test, the classification on the host, the Floquet lanes); the first ``K`` cells of every
-   row where the whole rows would not fit the stage's budget (a first pass of 16 cells sizes
-   ``K``; a chain's first ``K`` cells do not depend on the rest), projected to 400. The CPU
+   GPU (``gearsim.study.tiles.simulate_rows_batched``, the tile's own path, as rule
+   simulate_tiles_together runs it: chains, the period test's verdict inside the launch, the
+   classification on the host, the Floquet lanes; the launches counted); the first ``K`` cells
+   of every row where the whole rows would not fit the stage's budget (a first pass of 16 cells
+   sizes ``K``; a chain's first ``K`` cells do not depend on the rest), projected to 400. The CPU
    path on a sample of whole rows on every core (processes): cells per second on 1 core and
    on all, the labels compared on the cells both ran.
 6. ``coexistence``: every cell's coexisting attractors, 16 starts per cell (the finder,
-   :func:`gearsim.analysis.attractors.find_attractors`, its probing pool ``--gpu-lanes`` wide)
+   :func:`gearsim.analysis.attractors.find_attractors`, its probing pool as wide as the GPU
+   holds, :func:`gearsim.numerics.device.pool_lanes`, or ``--gpu-lanes``)
    on the GPU in chunks of cells until the stage's budget, projected to both planes' 320 000
    cells; the CPU finder on a sample of at least 100 000 starts on every core; each cell's
    attractor labels compared on the cells both ran.
@@ -328,8 +330,9 @@ def main() -> None:
                     help="seconds for the coexistence's GPU chunks (default 150)")
     ap.add_argument("--finder-cells", type=int, default=8_000,
                     help="cells per GPU finder chunk (16 starts each; default 8000)")
-    ap.add_argument("--gpu-lanes", type=int, default=131_072,
-                    help="lanes of the finder's probing pool on the GPU (default 131072)")
+    ap.add_argument("--gpu-lanes", type=int, default=0,
+                    help="lanes of the finder's probing pool on the GPU (default 0: the "
+                    "device's, multiprocessors x 1024, an H200's 135 168)")
     ap.add_argument("--cpu-finder-cells", type=int, default=6_250,
                     help="cells of the CPU finder's sample (default 6250: 100 000 starts)")
     ap.add_argument("--skip", nargs="*", default=[], help="stages to leave out")
