@@ -52,6 +52,7 @@ from gearsim.numerics.kernel import (
     lane_reset_modes,
     period_end,
     period_start,
+    step_entries,
 )
 
 SIMULATED = bool(cuda.core.config.ENABLE_CUDASIM)  # Numba's CUDA simulator (NUMBA_ENABLE_CUDASIM=1)
@@ -85,9 +86,10 @@ def lane_periods(blk, ist, l, k0, k1, N, C, S, LAM, CV, SV, Q, nu, bound, sec, n
         period_start(blk, ist, l, k, nu, sec)
         for j in range(N):
             i2 = 2 * j
-            _lane_step(blk, o, q, C[i2], S[i2], CV[i2], SV[i2], C[i2 + 1], S[i2 + 1], CV[i2 + 1],
-                       SV[i2 + 1], C[i2 + 2], S[i2 + 2], CV[i2 + 2], SV[i2 + 2], LAM[j], Q[i2],
-                       Q[i2 + 1], Q[i2 + 2], bound, tangent, general, general)
+            cA, sA, cM, sM, cB, sB = step_entries(C, S, i2)
+            cvA, svA, cvM, svM, cvB, svB = step_entries(CV, SV, i2)
+            _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, LAM[j],
+                       Q[i2], Q[i2 + 1], Q[i2 + 2], bound, tangent, general, general)
             fq = blk[r + _FLAG * LANES]
             if fq != 0.0 and events:
                 _redo_lane(blk, o, q, l, ist, j, N, LAM[j], bound, tangent, wk, fq == 2.0,

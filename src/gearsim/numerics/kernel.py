@@ -153,6 +153,13 @@ def _lane_modes(blk, o, q):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def step_entries(A, B, i2):
+    """The entries of two phase tables at grid step ``i2 / 2``'s start, middle and end,
+    interleaved: ``A[i2], B[i2], A[i2 + 1], B[i2 + 1], A[i2 + 2], B[i2 + 2]``."""
+    return A[i2], B[i2], A[i2 + 1], B[i2 + 1], A[i2 + 2], B[i2 + 2]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _fmax(a, b):
     return a if a >= b else b
 
@@ -474,18 +481,8 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
         # ---- the N grid steps of the period
         for j in range(N):
             i2 = 2 * j
-            cA = C[i2]
-            sA = S[i2]
-            cM = C[i2 + 1]
-            sM = S[i2 + 1]
-            cB = C[i2 + 2]
-            sB = S[i2 + 2]
-            cvA = CV[i2]
-            svA = SV[i2]
-            cvM = CV[i2 + 1]
-            svM = SV[i2 + 1]
-            cvB = CV[i2 + 2]
-            svB = SV[i2 + 2]
+            cA, sA, cM, sM, cB, sB = step_entries(C, S, i2)
+            cvA, svA, cvM, svM, cvB, svB = step_entries(CV, SV, i2)
             lam = LAM[j]
             qA = Q[i2]
             qM = Q[i2 + 1]
