@@ -34,5 +34,6 @@ def chunk_verdict(sec, fout, l, k, w, steps, n_max, rtol, max_periods, max_steps
     return n
 
 
-#: the lane kernel whose measuring lanes stop on the chain driver's verdict
-chain_kernel = lane_kernel(chunk_verdict)
+#: the lane kernel whose measuring lanes stop on the chain driver's verdict (compiled in each
+#: process: its cache key would not be stable, :func:`~gearsim.numerics.cuda_lanes.lane_kernel`)
+chain_kernel = lane_kernel(chunk_verdict, cache=False)

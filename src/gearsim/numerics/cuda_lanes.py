@@ -106,7 +106,7 @@ def _never(sec, fout, l, k, w, steps, n_max, rtol, max_periods, max_steps):
     return -1
 
 
-def lane_kernel(verdict):
+def lane_kernel(verdict, cache: bool = True):
     """The lane kernel whose measuring lanes take ``verdict`` on the device after every chunk.
 
     ``verdict(sec, fout, l, k, w, steps, n_max, rtol, max_periods, max_steps)`` is a device
@@ -118,10 +118,13 @@ def lane_kernel(verdict):
     it or the launch's periods (``PLAN_LEFT``) are used; between two chunks its regions are set
     from its state, as the CPU driver does between two calls
     (:func:`~gearsim.numerics.kernel.lane_reset_modes`). Another lane runs its ``PLAN_LEFT``
-    periods.
+    periods. ``cache``: keep the compiled kernel in ``NUMBA_CACHE_DIR``. numba-cuda keys a
+    closure's cache entry by its pickled cell (the verdict): stable for :func:`_never`, not for
+    a verdict that calls CPU ``@njit`` functions (their pickles carry a per-process id), whose
+    kernel then compiles in every process (``cache=False``: no entry that no process reads).
     """
 
-    @cuda.jit(cache=True)
+    @cuda.jit(cache=cache)
     def kernel(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout, tangent,
                events, plan, chunk, max_periods, n_max, rtol, max_steps):
         l = cuda.grid(1)
@@ -178,6 +181,8 @@ def lane_kernel(verdict):
                 return
             lane_reset_modes(blk, l, wk[1], wk[2], wk[0], wk[3], wk[4])
             nxt = min(chunk, max_periods - measured)
+            if nxt <= 0:
+                break  # a verdict that never stops a lane ends at the most periods measured
         plan[PLAN_NEXT, l] = nxt
 
     return kernel
