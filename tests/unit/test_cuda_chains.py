@@ -39,6 +39,9 @@ ATOL = 1e-9  # test_cuda_lanes' SUMMARY_ATOL: the CPU kernel's against the scala
 ST = IntegrationSettings(method="rk4", transient=24, transient_continuation=8, chunk=8,
                          max_periods=32, n_max=8, tangent_lead=4, steps_per_period=64)
 ROWS = [[ModelParameters(w=w, b=b) for w in (0.9, 1.0, 1.1)] for b in (0.1, 0.6)]
+#: a chaotic cell: measured to max_periods, the verdict's other stop (its records part from the
+#: CPU's at the chaos' rate: its label, period and status compared, not its numbers)
+CHAOS = [ModelParameters(w=1.45, b=1.0)]
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +65,7 @@ def both():
     try:
         for kind in ("cpu", "cuda"):
             device.select(kind)
-            out[kind] = simulate_rows(ROWS, settings=ST)
+            out[kind] = simulate_rows(ROWS + [CHAOS], settings=ST)
     finally:
         device.select("cpu")
         mp.undo()
@@ -72,7 +75,12 @@ def both():
 def test_chains_on_the_gpu_match_the_cpu_driver(both):
     out, _ = both
     labels = set()
-    for cpu_row, gpu_row in zip(out["cpu"], out["cuda"], strict=True):
+    (c,), (g,) = out["cpu"][-1], out["cuda"][-1]
+    assert c.classification.n == 0 and c.final_period == ST.transient + ST.max_periods
+    assert (g.classification.label, g.classification.n, g.classification.status,
+            g.final_period) == (c.classification.label, 0, c.classification.status,
+                                c.final_period)
+    for cpu_row, gpu_row in zip(out["cpu"][:-1], out["cuda"][:-1], strict=True):
         for c, g in zip(cpu_row, gpu_row, strict=True):
             assert g.classification.label == c.classification.label
             assert g.classification.n == c.classification.n
@@ -84,7 +92,7 @@ def test_chains_on_the_gpu_match_the_cpu_driver(both):
     # not vacuous: both periods, and cells measured over more than one chunk (the device went
     # on from a chunk whose verdict was "measure on")
     assert {"1/1T", "1/2T"} <= labels
-    assert max(r.periods - ST.transient_continuation for row in out["cpu"] for r in row[1:]) \
+    assert max(r.periods - ST.transient_continuation for row in out["cpu"][:-1] for r in row[1:]) \
         > ST.chunk + ST.tangent_lead
 
 
