@@ -158,7 +158,8 @@ def test_a_fault_inside_a_launch_is_one_line_and_leaves_the_host_arrays(monkeypa
 
 def test_the_finder_on_the_gpu_fills_it_and_keeps_its_labels(monkeypatch):
     """The lane pool on cuda is as wide as the GPU holds (multiprocessors x
-    POOL_LANES_PER_SM) and finds the CPU's attractors with the same labels and periods."""
+    POOL_LANES_PER_SM), its measuring lanes take the verdict on the device, and it finds the
+    CPU's attractors with the same labels and periods."""
     from gearsim.analysis.attractors import FinderOptions, find_attractors
     from gearsim.cell import pool
 
@@ -170,6 +171,16 @@ def test_the_finder_on_the_gpu_fills_it_and_keeps_its_labels(monkeypatch):
         real(self, capacity, records, history)
 
     monkeypatch.setattr(pool._Pool, "__init__", init)
+    from gearsim.numerics import cuda_lanes
+
+    planned = []
+    launch = cuda_lanes.advance_device
+
+    def counted(*a, **kw):
+        planned.append(kw.get("plan") is not None)
+        return launch(*a, **kw)
+
+    monkeypatch.setattr(cuda_lanes, "advance_device", counted)
     cell = ModelParameters(w=1.0, b=0.1)
     opts = FinderOptions(starts=4, seed=0, lanes=2)
     found = {}
@@ -183,6 +194,9 @@ def test_the_finder_on_the_gpu_fills_it_and_keeps_its_labels(monkeypatch):
             assert probe_width == want
     finally:
         device.select("cpu")
+    # the probing pool's chunks go back to the judge; the measuring lanes take the verdict on
+    # the GPU (the chain driver's plan)
+    assert any(planned) and not all(planned)
     cpu, gpu = found["cpu"], found["cuda"]
     labels = [a.steady.label for a in cpu.attractors]
     assert [a.steady.label for a in gpu.attractors] == labels

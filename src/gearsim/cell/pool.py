@@ -22,6 +22,7 @@ from gearsim.cell.chains import (
     _begin_measure,
     _Chain,
     _decide,
+    _device_plan,
 )
 from gearsim.cell.simulate import (
     CellResult,
@@ -33,6 +34,7 @@ from gearsim.cell.simulate import (
 from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics import kernel as plan_rows  # the PLAN_* rows of a GPU launch
 from gearsim.numerics.batch import LANES, Lanes
 from gearsim.numerics.device import pool_lanes
 from gearsim.numerics.integrate import steps_lower_bound
@@ -187,8 +189,11 @@ class _Pool:
             self.jobs[j.ch.lane] = j
 
     def run(self, jobs: list[PoolJob], m: int, N: int, nu, bound: float, tangent: bool,
-            record_transient: bool, stats: PoolStats) -> None:
-        """Advance the lanes of ``jobs`` (all occupied lanes) ``m`` periods."""
+            record_transient: bool, stats: PoolStats, st: IntegrationSettings | None = None
+            ) -> np.ndarray | None:
+        """Advance the lanes of ``jobs`` (all occupied lanes) ``m`` periods. With ``st`` on a
+        GPU, the measuring lanes take the chain driver's verdict inside the launch (its plan,
+        :func:`gearsim.cell.chains._device_plan`, returned; ``m`` is then the plan's)."""
         lanes = self.lanes
         lanes.begin_call()
         idx = np.array([j.ch.lane for j in jobs], dtype=np.int64)
@@ -197,7 +202,16 @@ class _Pool:
                                else 0 if record_transient else -1 for j in jobs]  # fmt: skip
         lanes.period[idx] = [j.ch.k for j in jobs]
         t0 = time.process_time()
-        self.lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
+        plan = None
+        if st is not None and lanes.device == "cuda":
+            from gearsim.cell.device_chains import chain_kernel
+
+            m, plan = _device_plan([j.ch for j in jobs], lanes, st)
+            lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent, kernel=chain_kernel,
+                      plan=plan, test=(st.chunk, st.max_periods, st.n_max, st.period_rtol,
+                                       st.max_steps))
+        else:
+            lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         stats.kernel_cpu_s += time.process_time() - t0
         computed = self.lanes.n_blocks * LANES * m  # the kernel steps every block
         stats.computed += computed
@@ -217,6 +231,7 @@ class _Pool:
             h, k = self.hist, min(m, self.history)
             h[:, : self.history - k] = h[:, k:]
             h[:, -k:] = self.lanes.sec[:, m - k : m]
+        return plan
 
 
 def run_pool(
@@ -391,7 +406,7 @@ def run_pool(
             meas.pack()
             jobs = meas.occupied()
             m = min(j.ch.left for j in jobs)
-            meas.run(jobs, m, N, nu, bound, True, False, stats)
+            plan = meas.run(jobs, m, N, nu, bound, True, False, stats, st)
             status = meas.lanes.status
             done = meas.lanes.done
             for j in jobs:
@@ -401,6 +416,14 @@ def run_pool(
                     c.measured += int(done[l])
                 if status[l] != 0:
                     end(meas, j, diverged_result(j.params, c.k, c.steps))
+                elif plan is not None and plan[plan_rows.PLAN_TEST, l]:
+                    if plan[plan_rows.PLAN_N, l] >= 0:  # the GPU's verdict stopped the lane
+                        _decide(c, meas.lanes, st, False, None, floquet, orbits,
+                                n=int(plan[plan_rows.PLAN_N, l]))
+                        if c.results:
+                            end(meas, j, c.results[0])
+                    else:  # the launch ended before the verdict: the chunk goes on
+                        c.left = int(plan[plan_rows.PLAN_NEXT, l])
                 elif c.left == 0:
                     if c.phase == _TRANSIENT:
                         _begin_lead(c, meas.lanes, st)
