@@ -198,6 +198,11 @@ def plane_params(wildcards):
     return gprov.canonical_json(gprov.plane_subtree(STUDY, wildcards.plane))
 
 
+def planes_params(wildcards):
+    """Every plane's config subtree (rule simulate_tiles_together's rerun trigger)."""
+    return "".join(gprov.canonical_json(gprov.plane_subtree(STUDY, p)) for p in PLANES)
+
+
 def audit_params(wildcards):
     return gprov.canonical_json(
         {**gprov.plane_subtree(STUDY, wildcards.plane), "audit": config["audit"]}

@@ -81,11 +81,6 @@ TARGETS_PLANES = CELL_FILES
 TOGETHER = GPU_JOBS and len(PLANES) > 1 and len({len(TILES[p]) for p in PLANES}) == 1
 
 
-def planes_params(wildcards):
-    """Every plane's config subtree (rule simulate_tiles_together's rerun trigger)."""
-    return "".join(gprov.canonical_json(gprov.plane_subtree(STUDY, p)) for p in PLANES)
-
-
 if TOGETHER:
 
     ruleorder: simulate_tiles_together > simulate_tile
