@@ -30,6 +30,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shlex
 import shutil
 import signal
 import sqlite3
@@ -120,8 +121,12 @@ def _sacct_settled(prefix: str, since: str, jobs: set[int], timeout: float = 60)
 
 #: The test's sbatch, first on the PATH of the run: it records every submission (kind of job,
 #: runtime asked, SLURM id) and injects the faults that must happen inside a job: the first
-#: compile job exits 1 on its node; the second tile job sleeps first, so that the time limit the
-#: test then sets runs out before the tile starts.
+#: compile job exits 1 on its node; the second one, once its work is done, marks it (``{mark}``)
+#: and holds its node HOLD s before it exits with its work's status, so that the controller goes
+#: away while a job runs and no job step starts (a step that starts while the controller is away
+#: fails, "Unable to confirm allocation", and its job is submitted again: a race the test must
+#: not depend on); the second tile job sleeps first, so that the time limit the test then sets
+#: runs out before the tile starts.
 SBATCH = """#!{python}
 import fcntl, json, subprocess, sys
 args = sys.argv[1:]
@@ -132,10 +137,13 @@ with open({log!r}, "a+") as log:
     fcntl.flock(log, fcntl.LOCK_EX)
     log.seek(0)
     seen = [json.loads(line)["kind"] for line in log if line.strip()].count(kind)
-    fault = {{("compile", 0): "exit", ("tiles", 1): "sleep"}}.get((kind, seen), "")
+    fault = {{("compile", 0): "exit", ("compile", 1): "outage",
+              ("tiles", 1): "sleep"}}.get((kind, seen), "")
     wrap = next(i for i, a in enumerate(args) if a.startswith("--wrap="))
     if fault == "exit":
         args[wrap] = "--wrap=exit 1"
+    elif fault == "outage":
+        args[wrap] += "; rc=$?; touch {mark}; sleep {hold}; exit $rc"
     elif fault == "sleep":
         args[wrap] = "--wrap=sleep 120; " + args[wrap][len("--wrap="):]
     r = subprocess.run([{sbatch!r}, *args], capture_output=True, text=True)
@@ -149,6 +157,9 @@ sys.exit(r.returncode)
 #: submission, 10 s more per query while no job ends: the round after the first compile job's
 #: failure comes 15 s after it) and than a query that finds no controller (~10 s)
 OUTAGE = 40
+#: How long the second compile job holds its node after its work: the outage and the
+#: controller's start within it
+HOLD = OUTAGE + 15
 CTLD_PID = Path(os.environ.get("GEARSIM_SLURM_DIR", "/tmp/gearsim-slurm")) / "slurmctld.pid"
 
 
@@ -172,7 +183,7 @@ class Faults:
     """The faults the test injects into the running workflow, one at a time (`step` is called
     every 0.5 s), each once the one before is over, so that none hides another:
 
-    1. the controller away for OUTAGE s while the second compile job is queued or running (the
+    1. the controller away for OUTAGE s while the second compile job runs, its work done (the
        first exited 1, see SBATCH): every other job waits for it, so nothing is submitted and
        no job step starts meanwhile, and the status queries fail;
     2. a running tile job cancelled (``scancel``);
@@ -184,8 +195,8 @@ class Faults:
        killed (SIGKILL): its jobs (tables, curves) stay in the queue.
     """
 
-    def __init__(self, prefix: str, submissions: Path):
-        self.prefix, self.submissions = prefix, submissions
+    def __init__(self, prefix: str, submissions: Path, mark: Path):
+        self.prefix, self.submissions, self.mark = prefix, submissions, mark
         self.cancelled = self.timed_out = self.requeued = None
         self.limit = ""  # the timed-out job's time limit before the test shortened it
         self.requeue_seen = self.back = self.killed = None
@@ -200,8 +211,8 @@ class Faults:
         queue, now = _squeue(self.prefix), time.monotonic()
         sbatch = self.sbatch()
         if self.back is None:
-            compiles = [e["job"] for e in sbatch if e["kind"] == "compile" and not e["fault"]]
-            if compiles and compiles[0] in queue:
+            compiles = [e["job"] for e in sbatch if e["fault"] == "outage"]
+            if compiles and compiles[0] in queue and self.mark.exists():
                 _controller_away(OUTAGE)
                 self.back = time.monotonic()
             return
@@ -270,9 +281,10 @@ def slurm_run(cluster, tmp_path_factory):
     prefix = f"gearsim_test_{os.getpid()}"
     bin_dir = wd / "test-bin"
     bin_dir.mkdir()
-    submissions = wd / "submissions.jsonl"
+    submissions, mark = wd / "submissions.jsonl", wd / "compile-done"
     (bin_dir / "sbatch").write_text(SBATCH.format(
-        python=sys.executable, log=str(submissions), sbatch=shutil.which("sbatch")))
+        python=sys.executable, log=str(submissions), sbatch=shutil.which("sbatch"),
+        mark=shlex.quote(str(mark)), hold=HOLD))
     (bin_dir / "sbatch").chmod(0o755)
     env = {**_env(), "SBATCH_PARTITION": cluster, "SBATCH_ACCOUNT": ACCOUNT,
            "PATH": f"{bin_dir}:{os.environ['PATH']}"}
@@ -286,7 +298,7 @@ def slurm_run(cluster, tmp_path_factory):
     since = time.strftime("%Y-%m-%dT%H:%M:%S")
     t0 = time.monotonic()
     deadline = t0 + TIMEOUT
-    faults = Faults(prefix, submissions)
+    faults = Faults(prefix, submissions, mark)
     code = _run(cmd, wd, env, wd / "killed.log", deadline, faults)
     assert faults.killed, (code, (wd / "killed.log").read_text()[-3000:])
     # the documented resume after a hard kill: clear Snakemake's lock, then the same command
