@@ -5,8 +5,9 @@ config/quick.yaml``) in two clones, one before the change and one after, then co
 ``results`` folders: every table and view of ``catalogue.sqlite`` (row by row, column by column,
 and the views' definitions), every Parquet file below ``results`` and every PNG figure and its
 JSON record byte for byte. Provenance and time columns are set aside: a job's code version,
-host, workers, start, finish and wall time, a cell's elapsed time, the run's input path, the
-package versions, and the catalogue's build time, git commit and code versions.
+host, workers, start, finish and wall time, a cell's elapsed time, the run's input paths (its
+file and its parameters' source), the package versions, and the catalogue's build time, git
+commit and code versions.
 
 Usage: python benchmarks/catalogue_identity.py BEFORE/results AFTER/results
 Prints one line per table, file group and figure set, then IDENTICAL (exit 0) or NOT IDENTICAL
@@ -25,7 +26,7 @@ import pandas as pd
 
 #: provenance and time columns (every table and Parquet file)
 ASIDE = {"started", "finished", "wall_s", "elapsed_s", "host", "code_version", "workers",
-         "package_versions", "file"}
+         "package_versions", "file", "parameters_source"}
 #: catalogue_info keys that are provenance
 INFO_ASIDE = {"built", "git_commit", "git_dirty", "code_versions"}
 
