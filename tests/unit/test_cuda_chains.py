@@ -4,7 +4,7 @@ the CPU driver, and the device faults a launch reports in one line.
 Runs under Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1`` before Numba is imported: ``make
 test``'s own pytest step) or on a GPU; skipped elsewhere. The simulator runs the thread's own
 code: the chunks, the verdict (:func:`gearsim.cell.classify.window_period` and
-:func:`gearsim.cell.chains.measure_verdict`, the host's functions), the regions' reset between
+:func:`gearsim.cell.verdict.measure_verdict`, the host's functions), the regions' reset between
 chunks and the records read by the verdict, so a wrong chunk boundary or record shows as a
 label, a period or a step count that differs from the CPU path's.
 

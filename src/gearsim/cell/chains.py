@@ -14,7 +14,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from gearsim.cell import simulate
 from gearsim.cell.classify import repeats_throughout
@@ -31,6 +30,7 @@ from gearsim.cell.simulate import (
     seeds_continuation,
     settled_period,
 )
+from gearsim.cell.verdict import DONE, OVER_BUDGET, measure_verdict
 from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, static_state
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
@@ -457,32 +457,16 @@ def _decide(ch: _Chain, lanes: Lanes, st: IntegrationSettings, continuation, on_
     if n is None:
         n = period_of(s, params, st)
     verdict = measure_verdict(n, ch.measured, st.max_periods, ch.steps, st.max_steps)
-    if verdict == _DONE:
+    if verdict == DONE:
         y = lanes.state(ch.lane, N_STATE)
         res = finish_cell(params, s, n, st, y, ch.k, ch.period, ch.steps, floquet, orbits)
         _finish(ch, res, lanes, st, continuation, on_cell)
-    elif verdict == _OVER_BUDGET:
+    elif verdict == OVER_BUDGET:
         res = diverged_result(params, ch.k, ch.steps, status="budget")
         _finish(ch, res, lanes, st, continuation, on_cell)
     else:
         lanes.reset_modes(ch.lane)
         ch.left = min(st.chunk, st.max_periods - ch.measured)
-
-
-_GO_ON, _DONE, _OVER_BUDGET = 0, 1, 2  # measure_verdict's answers
-
-
-@njit(cache=True, nogil=True)
-def measure_verdict(n, measured, max_periods, steps, max_steps):
-    """After a measuring chunk of period test ``n`` (0: none) with ``measured`` periods and
-    ``steps`` RK4 steps in the cell: 1 the cell is done (a period, or the most periods
-    measured), 2 over its step budget, 0 measure on. The host's :func:`_decide` and a CUDA
-    thread (:mod:`gearsim.cell.device_chains`) decide by this one rule."""
-    if n > 0 or measured >= max_periods:
-        return 1
-    if steps > max_steps:
-        return 2
-    return 0
 
 
 def _finish(ch: _Chain, res: CellResult, lanes: Lanes, st, continuation, on_cell) -> None:
