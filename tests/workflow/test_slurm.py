@@ -352,7 +352,7 @@ def test_every_job_went_through_slurm_and_every_fault_was_survived(slurm_run):
 
 
 def test_the_controller_away_mid_run(slurm_run):
-    """slurmctld stopped for OUTAGE s and started again while the compile job was queued: the
+    """slurmctld stopped for OUTAGE s and started again while the compile job ran: the
     plugin's status rounds meanwhile found no controller (it then asks sacct: slurmdbd still
     answers), and the job, not forgotten, completed and was not submitted again."""
     faults, jobs = slurm_run["faults"], slurm_run["jobs"]
