@@ -160,6 +160,9 @@ OUTAGE = 40
 #: How long the second compile job holds its node after its work: the outage and the
 #: controller's start within it
 HOLD = OUTAGE + 15
+#: How far ahead of now the test sets the sleeping tile job's end: a second's race between
+#: scontrol's clock and the controller's is otherwise refused, and its 120 s sleep leaves room
+END_AHEAD = 5
 CTLD_PID = Path(os.environ.get("GEARSIM_SLURM_DIR", "/tmp/gearsim-slurm")) / "slurmctld.pid"
 
 
@@ -187,8 +190,8 @@ class Faults:
        first exited 1, see SBATCH): every other job waits for it, so nothing is submitted and
        no job step starts meanwhile, and the status queries fail;
     2. a running tile job cancelled (``scancel``);
-    3. the sleeping tile job's time limit set to run out now (``scontrol update EndTime=now``:
-       TIMEOUT within SLURM's 30 s check, during its sleep);
+    3. the sleeping tile job's time limit set to run out now (``scontrol update
+       EndTime=now+END_AHEAD``: TIMEOUT within SLURM's 30 s check, during its sleep);
     4. another tile job requeued mid-run (``scontrol requeue``, as a preemption does) and let
        start again at once;
     5. once those jobs have left the queue and the plane tables' job runs, the Snakemake process
@@ -227,8 +230,10 @@ class Faults:
         sleeping = [j for j in tiles if j in faulted]
         if self.timed_out is None and sleeping:
             self.timed_out, self.limit = sleeping[0], queue[sleeping[0]][2]
-            subprocess.run(_root("scontrol", "update", f"JobId={self.timed_out}", "EndTime=now"),
-                           check=True)
+            # a few seconds ahead: scontrol reads "now" on its clock's second and slurmctld
+            # refuses an end in the past ("Invalid time specified") if its second has ticked on
+            subprocess.run(_root("scontrol", "update", f"JobId={self.timed_out}",
+                                 f"EndTime=now+{END_AHEAD}"), check=True)
             return
         if self.requeued is None and self.cancelled is not None and plain:
             self.requeue_seen = self.requeue_seen or (plain[0], now)
