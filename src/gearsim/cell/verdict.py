@@ -13,8 +13,8 @@ GO_ON, DONE, OVER_BUDGET = 0, 1, 2  # measure_verdict's answers
 @njit(cache=True, nogil=True)
 def measure_verdict(n, measured, max_periods, steps, max_steps):
     """After a measuring chunk of period test ``n`` (0: none) with ``measured`` periods and
-    ``steps`` RK4 steps in the cell: 1 the cell is done (a period, or the most periods
-    measured), 2 over its step budget, 0 measure on."""
+    ``steps`` RK4 steps in the cell: DONE (a period, or the most periods measured), OVER_BUDGET
+    (past its step budget) or GO_ON (measure on)."""
     if n > 0 or measured >= max_periods:
         return DONE
     if steps > max_steps:
