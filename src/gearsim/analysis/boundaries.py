@@ -6,8 +6,8 @@ axis) whose labels (``I/nT``, or ``chaos`` / ``quasi-periodic`` / ``unsettled`` 
 
 * ``I changes``: both cells periodic, the impact state ``I`` differs;
 * ``I the same``: both periodic, same ``I`` (so the period ``n`` differs);
-* ``chaos``: one cell chaotic;
-* ``other``: any other pair (quasi-periodic, unsettled or diverged on a side).
+* ``chaos``: one cell chaotic or quasi-periodic (a bounded settled motion without a period);
+* ``other``: any other pair (unsettled or diverged on a side).
 
 and explained by one **mechanism**, the first that applies of:
 
@@ -28,11 +28,12 @@ and explained by one **mechanism**, the first that applies of:
     a later one of the cascade) within :data:`NEAR_CELLS`: the rest of the cascade
     accumulates inside the cell gap (the onset, or the exit of an inverse cascade);
 ``crisis``
-    any other edge of a chaotic cell: the chaotic band ends abruptly, as read from the grid
-    (a crisis; not located by a test function);
+    any other edge between a chaotic and a periodic cell: the chaotic band ends abruptly, as
+    read from the grid (a crisis; not located by a test function);
 ``near_curve``
-    an edge of the ``other`` group within :data:`NEAR_CELLS` of any curve (a cell that did not
-    settle next to a bifurcation);
+    a quasi-periodic, unsettled or diverged cell's edge within :data:`NEAR_CELLS` of any curve
+    (next to a doubling a cell's transient decays too slowly to settle in its window:
+    docs/orbits.md);
 ``unexplained``
     none of these: a missed curve or a wrong label; listed with its cells.
 
@@ -93,8 +94,10 @@ def plane_grid(cells: pd.DataFrame) -> Grid:
 
 def _group(m0, m1, i0, i1) -> np.ndarray:
     per0, per1 = m0 == "periodic", m1 == "periodic"
+    aperiodic = ("chaos", "quasi-periodic")
     return np.where(per0 & per1, np.where(i0 != i1, GROUPS[0], GROUPS[1]),
-                    np.where((m0 == "chaos") | (m1 == "chaos"), GROUPS[2], GROUPS[3]))
+                    np.where(np.isin(m0, aperiodic) | np.isin(m1, aperiodic), GROUPS[2],
+                             GROUPS[3]))
 
 
 def boundary_edges(cells: pd.DataFrame, plane: str = "") -> pd.DataFrame:
@@ -308,7 +311,8 @@ def classify_edges(cells: pd.DataFrame, curves: pd.DataFrame | None, plane: str 
                     break
             if found is None and _in_band(row, bands_of, g.dx, g.dy):
                 found = "fold_band"
-        elif row.group == "chaos":
+        elif row.group == "chaos" and "chaos" in (row.motion0, row.motion1) and "periodic" in (
+                row.motion0, row.motion1):
             n = int(row.n1 if row.motion0 == "chaos" else row.n0)
             for c in order:
                 if not near[k, c]:

@@ -44,7 +44,7 @@ def _log(msg: str) -> None:
 def run(args: argparse.Namespace) -> int:
     import pandas as pd
 
-    from gearsim.analysis.atlas import chaotic_band, default_line, plane_atlas
+    from gearsim.analysis.atlas_summary import chaotic_band, default_line, plane_atlas
     from gearsim.analysis.boundaries import unexplained
     from gearsim.results import parquet
     from gearsim.study import provenance as gprov
