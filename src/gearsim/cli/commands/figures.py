@@ -119,6 +119,10 @@ def _context(args, study):
         pts = Path(path).with_name(Path(path).stem + "_points.parquet")
         if not name.endswith("_curves") and pts.is_file():
             ctx.orbits[f"{name}_points"] = read_table(pts)
+        # a plane's codimension-2 points, written beside its curves (docs/orbits.md)
+        c2 = Path(path).with_name(name.removesuffix("_curves") + "_codim2.parquet")
+        if name.endswith("_curves") and c2.is_file():
+            ctx.orbits[name.removesuffix("_curves") + "_codim2"] = read_table(c2)
     return ctx
 
 
