@@ -108,10 +108,13 @@ def test_edges_inside_a_fold_band_are_the_branch_the_chain_followed():
     assert bd.fold_bands(bd.curve_polylines(folds, "w"), "x", 0.3) == {1: [(0.75, 1.25)]}
 
 
-def test_chaos_beside_the_cascade_is_its_onset_else_a_crisis():
+def test_chaos_beside_the_cascade_is_its_onset_a_jump_a_crisis():
     cells = _cells(lambda i, j: ("periodic", 1, 8) if i < 5 else ("chaos", 1, 0))
     e = bd.classify_edges(cells, _vertical(0, "period_doubling", 8, X_EDGE))
     assert set(e["mechanism"]) == {"chaos_onset"}
+    e = bd.classify_edges(cells, _vertical(0, "period_doubling", 2, X_EDGE))
+    assert set(e["mechanism"]) == {"unexplained"}  # no cascade, no jump
+    cells.loc[cells["motion"] == "chaos", "x_max"] = 3.0  # the band ends abruptly: a jump
     e = bd.classify_edges(cells, _vertical(0, "period_doubling", 2, X_EDGE))
     assert set(e["mechanism"]) == {"crisis"}
 
