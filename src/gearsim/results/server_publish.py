@@ -218,7 +218,7 @@ def _check_target(cur, study: str, expect_published: Any) -> None:
 def _definitions(cur, schema: str, master) -> None:
     """The views (SQLite's SQL runs as it is, ``IF NOT EXISTS`` aside), and the SQLite
     definition of every table, index and view as its comment."""
-    for kind, name, _tbl, sql in master:
+    for kind, _name, _tbl, sql in master:
         if kind == "view":
             cur.execute(re.sub(r"^\s*CREATE\s+VIEW\s+IF\s+NOT\s+EXISTS\s", "CREATE VIEW ", sql,
                                flags=re.I))
