@@ -120,14 +120,26 @@ def _settings(src: sqlite3.Connection) -> tuple[str, str, str | None, str | None
 
 
 def _across(cur) -> None:
-    """``public.study_plane_cells``: every current study's ``plane_cells`` with its name."""
+    """``public.study_plane_cells``: the ``plane_cells`` of every study of this schema version,
+    each row with its study's name."""
     cur.execute(f"DROP VIEW IF EXISTS public.{ACROSS}")
     names = [r[0] for r in cur.execute(
         f"SELECT s.name FROM public.{STUDIES} s JOIN pg_namespace n ON n.nspname = s.name "
         "WHERE s.schema_version = %s ORDER BY s.name", (SCHEMA_VERSION,))]
     if not names:
         return
-    parts = [f"SELECT {_lit(n)}::text AS study, v.* FROM {quote(n)}.plane_cells v" for n in names]
+    cols: dict[str, list[str]] = {n: [] for n in names}
+    for schema, col in cur.execute(
+            "SELECT table_schema, column_name FROM information_schema.columns WHERE "
+            "table_name = 'plane_cells' AND table_schema = ANY(%s) ORDER BY ordinal_position",
+            (names,)).fetchall():
+        cols[schema].append(col)
+    # the columns every study has, in the order of the first (a migrated catalogue adds its new
+    # columns last; a study of an older gearsim may lack some)
+    common = [c for c in cols[names[0]] if all(c in cols[n] for n in names)]
+    select = ", ".join(f"v.{quote(c)}" for c in common)
+    parts = [f"SELECT {_lit(n)}::text AS study, {select} FROM {quote(n)}.plane_cells v"
+             for n in names]
     cur.execute(f"CREATE VIEW public.{ACROSS} AS " + " UNION ALL ".join(parts))
 
 

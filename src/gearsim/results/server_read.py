@@ -6,7 +6,7 @@ taken under the study's shared read lock, so a publish's swap
 :func:`pull_study` copies the study, in one such read, into a SQLite catalogue file identical to
 the one that was published (the tables, indexes and views from the SQLite definitions they
 carry as comments, the rows in their order). The report, the explorer and the export read that
-file through :func:`local_catalogue`, so what they write from the server is what they write from
+file through :func:`readable_catalogue`, so what they write from the server is what they write from
 the file.
 """
 
@@ -150,23 +150,34 @@ def _pull_table(con, out: sqlite3.Connection, table: str) -> None:
             out.executemany(sql, batch)
 
 
-@contextmanager
-def local_catalogue(catalogue: str | Path, study: str | None) -> Iterator[Path]:
-    """The SQLite catalogue a reader opens: ``catalogue`` itself when it is a file, or, when it
-    is a server URL, ``study`` pulled from it into a temporary file (removed afterwards)."""
+def readable_catalogue(catalogue: str | Path, study: str | None) -> Path:
+    """The SQLite catalogue a command reads: ``catalogue`` itself when it is a file, or, when it
+    is a server URL, ``study`` pulled from it into a temporary file (checked like every
+    catalogue, removed when the process ends)."""
     if not is_server_url(str(catalogue)):
         if study is not None:
             raise CatalogueError(f"--study {study}: a study is read from a database URL "
                                  f"(--catalogue postgresql://...), not from {catalogue}")
-        yield Path(catalogue)
-        return
+        return Path(catalogue)
     if study is None:
         raise CatalogueError(f"--catalogue {safe_url(str(catalogue))}: name the study to read "
                              "(--study NAME)")
-    with tempfile.TemporaryDirectory(prefix="gearsim-study-") as tmp:
-        path, _ = pull_study(str(catalogue), study, Path(tmp) / f"{study}.sqlite")
-        open_catalogue(path).close()
-        yield path
+    import atexit
+    import shutil
+
+    tmp = Path(tempfile.mkdtemp(prefix="gearsim-study-"))
+    atexit.register(shutil.rmtree, tmp, True)
+    path, _ = pull_study(str(catalogue), study, tmp / f"{study}.sqlite")
+    open_catalogue(path).close()
+    return path
+
+
+def catalogue_name(catalogue: str | Path, study: str | None) -> str:
+    """How outputs name the catalogue they were read from: its path, or the server's URL
+    (password hidden) and the study."""
+    if is_server_url(str(catalogue)):
+        return f"{safe_url(str(catalogue))} study {study}"
+    return str(catalogue)
 
 
 def migrate_study(url: str, study: str) -> tuple[int, int]:
