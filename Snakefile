@@ -23,6 +23,7 @@ include: "workflow/rules/points.smk"
 include: "workflow/rules/planes.smk"
 include: "workflow/rules/multistability.smk"
 include: "workflow/rules/orbits.smk"
+include: "workflow/rules/atlas.smk"
 include: "workflow/rules/catalogue.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/report.smk"
@@ -36,6 +37,7 @@ rule all:
         TARGETS_PLANES,
         TARGETS_MULTISTABILITY,
         TARGETS_ORBITS,
+        TARGETS_ATLAS,
         TARGETS_CATALOGUE,
         TARGETS_FIGURES,
         TARGETS_REPORT,

@@ -96,12 +96,7 @@ def timed_cell(params, u0, st, start_period):
     window = s.tail(n * max(1, min(len(s), 4 * max(n, 8)) // n)) if n > 0 else s
     cls = classify_motion(
         window,
-        w=params.w,
-        b=params.b,
-        eps=params.eps,
-        xi=params.xi,
-        Fm=params.Fm,
-        Fe=params.Fe,
+        params,
         n=n,
         lyap_threshold=st.lyap_threshold,
     )

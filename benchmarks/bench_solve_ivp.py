@@ -161,12 +161,7 @@ def ivp_cell(p, st):
     window = s.tail(n * max(1, min(len(s), 4 * max(n, 8)) // n)) if n > 0 else s
     cls = classify_motion(
         window,
-        w=p.w,
-        b=p.b,
-        eps=p.eps,
-        xi=p.xi,
-        Fm=p.Fm,
-        Fe=p.Fe,
+        p,
         n=n,
         lyap_threshold=st.lyap_threshold,
     )

@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 
 from gearsim.cell.classify import classify_motion, estimate_period, impact_state
+from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.integrate import PeriodSummaries
+
+
+def _params(**kw):
+    """A cell's parameters for the hand-built records (b, eps, xi, Fm, Fe of the tests)."""
+    return ModelParameters(**{"w": 1.0, "b": 1.0, "eps": 0.2, "xi": 0.05, "Fm": 0.1, "Fe": 0.2,
+                              **kw})
 
 
 def _summaries(section_x, nface, nback, tdis, lyap=None, fmax=None, xv=None):
@@ -69,7 +76,7 @@ def test_classify_period_two_double_sided():
     nback = np.tile([1, 0], m // 2)
     tdis = np.tile([0.3 * T, 0.1 * T], m // 2)
     s = _summaries(x, nface, nback, tdis)
-    c = classify_motion(s, w=w, b=0.15, eps=0.2, xi=0.05, Fm=0.1, Fe=0.2, n=2)
+    c = classify_motion(s, _params(w=w, b=0.15), n=2)
     assert (c.n, c.p, c.q, c.I) == (2, 2, 1, 2)
     assert c.label == "2/2T" and c.label_npq == "2-2-1"
     assert c.dc == pytest.approx(0.2)
@@ -81,23 +88,52 @@ def test_classify_period_two_double_sided():
     assert c.motion == "periodic" and c.converged
 
 
+@pytest.mark.parametrize(
+    "form", [{}, {"te_damping": 0.3}, {"mesh_damping_contact": 0.6},
+             {"te_damping": 0.5, "mesh_damping_contact": 1.0, "phi_e": 0.7}],
+)
+def test_section_readings_follow_the_model_form(form):
+    """The kmax_section_* readings are the model's mesh force on the section (cos w tau = 1,
+    sin w tau = 0), every form included: with te_damping = beta the damper also sees
+    (1 - beta) of the error rate e' = -Fe w sin(w tau + phi_e); with mesh_damping_contact =
+    delta a point inside the backlash keeps only (1 - delta) of the damping (docs/model.md)."""
+    w, b, eps, xi, Fm, Fe = 1.3, 0.15, 0.2, 0.05, 0.1, 0.2
+    pr = _params(w=w, b=b, **form)
+    x = np.tile([0.4, 0.9, 0.1], 10)  # 0.1 lies inside the backlash
+    v = np.tile([0.5, -0.2, 12.0], 10)  # the point inside the backlash bears the largest force
+    T = 2 * math.pi / w
+    s = _summaries(x, np.ones(30), np.zeros(30), np.full(30, 0.1 * T), xv=v)
+    c = classify_motion(s, pr, n=3)
+    beta, delta = pr.te_damping, pr.mesh_damping_contact
+    rate = v + (1 - beta) * (-Fe * w * math.sin(pr.phi_e))  # the rate the damper sees
+    inside = np.abs(x) <= b
+    f = np.where(inside, 0.0, x - np.sign(x) * b)
+    force = (1 + eps) * f + 2 * xi * np.where(inside, 1 - delta, 1.0) * rate
+    assert c.kmax_section_mean == pytest.approx(force.max() / Fm, rel=1e-12)
+    assert c.kmax_section_static == pytest.approx(force.max() / (Fm + Fe * w * w), rel=1e-12)
+    if form:  # the form changes the reading (the test would not see a form left out)
+        base = classify_motion(s, _params(w=w, b=b), n=3)
+        change = abs(base.kmax_section_mean - c.kmax_section_mean)
+        assert change > 1e-3 * abs(base.kmax_section_mean)
+
+
 def test_classify_no_impact_and_chaos_and_quasiperiodic():
     w = 2.0
     T = 2 * math.pi / w
     s0 = _summaries(np.full(20, 1.1), np.zeros(20), np.zeros(20), np.zeros(20))
-    c0 = classify_motion(s0, w=w, b=1.0, eps=0.2, xi=0.05, Fm=0.1, Fe=0.2, n=1)
+    c0 = classify_motion(s0, _params(w=w, b=1.0), n=1)
     assert (c0.label, c0.label_npq, c0.I, c0.dc) == ("0/1T", "1-0-0", 0, 0.0)
     rng = np.random.default_rng(1)
     x = rng.uniform(0, 1, 64)
     chaos = _summaries(x, np.ones(64), np.zeros(64), np.full(64, 0.5 * T), lyap=np.full(64, 0.3))
-    cc = classify_motion(chaos, w=w, b=1.0, eps=0.2, xi=0.05, Fm=0.1, Fe=0.2, n=0)
+    cc = classify_motion(chaos, _params(w=w, b=1.0), n=0)
     assert cc.motion == "chaos" and cc.label == "chaos" and cc.I == 1 and cc.p is None
     assert cc.lyapunov == pytest.approx(0.3 / T)
     quasi = _summaries(x, np.ones(64), np.zeros(64), np.zeros(64), lyap=np.full(64, 1e-4))
-    cq = classify_motion(quasi, w=w, b=1.0, eps=0.2, xi=0.05, Fm=0.1, Fe=0.2, n=0)
+    cq = classify_motion(quasi, _params(w=w, b=1.0), n=0)
     assert cq.motion == "quasi-periodic"
     slow = _summaries(x, np.ones(64), np.zeros(64), np.zeros(64), lyap=np.full(64, -0.5))
-    cs = classify_motion(slow, w=w, b=1.0, eps=0.2, xi=0.05, Fm=0.1, Fe=0.2, n=0)
+    cs = classify_motion(slow, _params(w=w, b=1.0), n=0)
     assert cs.motion == "unsettled" and cs.status == "not_converged" and not cs.converged
 
 
@@ -116,7 +152,7 @@ def test_counts_come_from_the_last_motion_period():
     x = np.tile([0.1, 0.2, 0.3, 0.4], m // 4)
     nface = np.tile([1, 1, 0, 1], m // 4)
     s = _summaries(x, nface, np.zeros(m), np.full(m, 1.0))
-    c = classify_motion(s, w=1.0, b=0.05, eps=0.2, xi=0.05, Fm=0.1, Fe=0.2, n=4)
+    c = classify_motion(s, _params(w=1.0, b=0.05), n=4)
     assert c.label_npq == "4-3-0" and c.label == "1/4T"
 
 

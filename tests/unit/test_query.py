@@ -11,9 +11,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from gearsim.cli.commands.query import EXAMPLES, execute
 from gearsim.cli.main import main
 from gearsim.results import catalogue as gc
+from gearsim.results.query import EXAMPLES, execute
 
 ROOT = Path(__file__).resolve().parents[2]
 

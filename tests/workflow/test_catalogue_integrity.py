@@ -299,7 +299,7 @@ class Reader(threading.Thread):
         self.db, self.stop, self.counts, self.errors = db, threading.Event(), [], []
 
     def run(self):
-        from gearsim.cli.commands.query import execute
+        from gearsim.results.query import execute
 
         while not self.stop.is_set():
             try:

@@ -23,9 +23,11 @@ from gearsim.presentation import explorer
 from gearsim.presentation.explorer import (
     MAX_POINTS,
     MISSING,
+    NO_VALUE,
     Block,
     array_of,
     decode_block,
+    digits_of,
     json_of,
     plane_from_cells,
     plane_payload,
@@ -115,10 +117,10 @@ def test_payload_of_a_plane(page):
     assert [p["cat_keys"][c] for c in cats] == list(style.pattern_categories(cells))
     labels = np.array(p["labels"])[array_of(raw, p["label"])[k]]
     assert list(labels) == list(cells["label"].fillna(""))
-    for col in ("dc", "kmax"):
-        enc = p["layers"][col]
-        got = values_of(raw, enc)[k]
-        np.testing.assert_allclose(got, cells[col], rtol=0, atol=0.51 * enc["step"])
+    for col, digits in (("dc", 4), ("kmax", 4), ("lyapunov", 5)):
+        got = digits_of(raw, p["layers"][col]["values"])[k]
+        want = [float(f"{v:.{digits}f}") if np.isfinite(v) else np.nan for v in cells[col]]
+        np.testing.assert_array_equal(got, want)
     counts = array_of(raw, p["counts"]).astype(int)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     px = values_of(raw, p["px"])
@@ -139,11 +141,31 @@ def test_floquet_margin_is_a_layer_when_the_cells_carry_it(page):
     margin = np.linspace(0.1, 0.99, len(cells))
     p = plane_payload(plane_from_cells("wb", cells.assign(floquet_margin=margin),
                                        ("w", "b")), block)
-    enc = p["layers"]["floquet"]
+    enc = p["layers"]["floquet"]["values"]
     raw = decode_block(block.encoded())
     k = cells["j"].to_numpy() * p["nx"] + cells["i"].to_numpy()
-    got = values_of(raw, enc)[k]
-    np.testing.assert_allclose(got, margin, atol=0.51 * enc["step"])
+    got = digits_of(raw, enc)[k]
+    np.testing.assert_array_equal(got, [float(f"{v:.5f}") for v in margin])
+
+
+def test_layers_carry_the_shown_digits_whatever_the_range():
+    """A layer's values travel as the digits the readout shows, exactly as Python prints them
+    (ties to even included), whatever the other cells hold: a runaway value of 1e6 beside
+    values near 1 leaves their last digit intact (16-bit steps over that range were ~16
+    wide), NaN stays missing, values beyond 32 bits come back exact."""
+    rng = np.random.default_rng(7)
+    v = rng.uniform(0.18, 6.6, 5000)
+    v[:4] = [1.048804e6, 0.03125, 0.09375, -2.5e-5]  # 1/32, 3/32: exact ties at 4 decimals
+    v[4], v[5], v[6] = np.nan, 3.1e12, -7.25e9  # no value; beyond 32 bits at 4 decimals
+    block = Block()
+    enc = block.digits(v, 4)
+    raw = decode_block(block.encoded())
+    got = digits_of(raw, enc)
+    want = [float(f"{x:.4f}") if np.isfinite(x) else np.nan for x in v]
+    np.testing.assert_array_equal(got[:4], [1048804.0, 0.0312, 0.0938, -0.0])  # ties to even
+    np.testing.assert_array_equal(got, want)
+    assert set(enc["big"]) == {"0", "5", "6"}  # 1.05e10, 3.1e16, -7.25e13 at 4 decimals
+    assert NO_VALUE < 0 and np.isnan(got[4])
 
 
 def test_readout_carries_status_critical_and_refined(page):
@@ -338,6 +360,75 @@ def test_page_in_chromium(page, tmp_path):
         driver.save_screenshot(str(tmp_path / "weps-attractors.png"))
         errors = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not errors, errors
+    finally:
+        driver.quit()
+
+
+def _readout(driver, plane: str, x: float, y: float) -> dict[str, str]:
+    """Hover the data point (x, y) of a plane: the readout's DC, Kmax and λ as shown."""
+    _move(driver, plane, x, y)
+    text = driver.find_element("id", "cell").text
+    return {k: re.search(rf"{k} = (.+?)(?:   |\n|$)", text).group(1)
+            for k in ("DC", "Kmax", "λ")}
+
+
+def _digits(v, d: int) -> str:
+    return f"{v:.{d}f}"
+
+
+def test_readout_equals_the_catalogue(page, tmp_path):
+    """Hovering cells of both planes shows each cell's catalogue DC, Kmax and λ to the last
+    shown digit; on a plane with diverged cells (one of the older tables whose diverged cells
+    carry a runaway Kmax of ~1e6, one with none) every other cell still reads its own Kmax, the
+    runaway one reads its value marked as above the drawn range (and the legend counts it), the
+    one without a value says why."""
+    wd, out = page
+    con = open_catalogue(wd / CATALOGUE)
+    cat = pd.read_sql_query("select p.name as plane, c.i, c.j, c.x, c.y, c.dc, c.kmax, "
+                            "c.lyapunov from cells c join planes p on c.plane_id = p.id", con)
+    con.close()
+    rng = np.random.default_rng(54)
+    driver = _driver(tmp_path)
+    try:
+        _load(driver, out.as_uri())
+        for plane in ("wb", "weps"):
+            rows = cat[cat["plane"] == plane]
+            for _, r in rows.iloc[rng.choice(len(rows), size=min(8, len(rows)),
+                                              replace=False)].iterrows():
+                got = _readout(driver, plane, float(r["x"]), float(r["y"]))
+                assert driver.execute_script("return window.GEARSIM.hover") == \
+                    f"{plane}:{r['i']}:{r['j']}"
+                for key, col, d in (("DC", "dc", 4), ("Kmax", "kmax", 4), ("λ", "lyapunov", 5)):
+                    if np.isfinite(r[col]):
+                        assert got[key] == _digits(r[col], d), (plane, r["i"], r["j"], key)
+                    else:
+                        assert got[key].startswith("none"), (plane, key, got[key])
+    finally:
+        driver.quit()
+    # a plane with diverged cells: a runaway Kmax (older tables) and a NULL one (this code)
+    cells = pd.read_parquet(wd / "results/wb/cells.parquet").reset_index(drop=True)
+    big, null = 0, len(cells) - 1
+    cells.loc[[big, null], ["motion", "label", "label_npq", "status"]] = [
+        ["diverged", "diverged", "", "diverged"]] * 2
+    cells.loc[big, "kmax"] = 1_048_804.25
+    cells.loc[null, ["kmax", "dc", "lyapunov"]] = np.nan
+    html = tmp_path / "diverged.html"
+    html.write_text(explorer.render([plane_from_cells("wb", cells, ("w", "b"))], {}))
+    driver = _driver(tmp_path)
+    try:
+        _load(driver, html.as_uri())
+        driver.find_element("id", "layer-wb-kmax").click()
+        assert "▲ 1 cell above" in driver.find_element("id", "legend-wb").text
+        for k in rng.choice(np.arange(1, len(cells) - 1), size=min(8, len(cells) - 2),
+                            replace=False):
+            r = cells.loc[k]
+            got = _readout(driver, "wb", float(r["w"]), float(r["b"]))
+            assert got["Kmax"] == _digits(r["kmax"], 4), (k, got)
+        got = _readout(driver, "wb", float(cells.loc[big, "w"]), float(cells.loc[big, "b"]))
+        assert got["Kmax"].startswith("1048804.2500 (above the drawn range"), got
+        got = _readout(driver, "wb", float(cells.loc[null, "w"]), float(cells.loc[null, "b"]))
+        assert got["Kmax"] == got["DC"] == "none (diverged: no steady motion)", got
+        assert not [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
     finally:
         driver.quit()
 

@@ -33,6 +33,8 @@ rule report:
         diagrams=lambda wildcards: [f for f in DIAGRAM_FILES if f.endswith(".png")],
         points=lambda wildcards: POINT_FILES,
         orbits=lambda wildcards: ORBIT_REPORT_INPUTS,
+        # the plane atlas: boundary edges by mechanism, the cascade (workflow/rules/atlas.smk)
+        atlas=lambda wildcards: ATLAS_REPORT_INPUTS,
         config=CONFIG,
     output:
         report="results/report.md",

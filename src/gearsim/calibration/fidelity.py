@@ -44,6 +44,7 @@ from gearsim.calibration.sweeps import (
 )
 from gearsim.calibration.tables import form_report_lines  # noqa: F401  (the report's import)
 from gearsim.calibration.targets import Measured, landmark_part
+from gearsim.dynamics.model import dead_zone_series, elastic_mesh_force, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters
 
 
@@ -305,9 +306,8 @@ def kmax_readings(params: ModelParameters, u0: np.ndarray | None, *, periods: in
     tr = trajectory(params, u0, periods=periods, samples_per_period=samples,
                     transient=transient, settings=settings)
     x = tr.state[:, 0]
-    f = np.where(x > params.b, x - params.b, np.where(x < -params.b, x + params.b, 0.0))
-    c = np.cos(params.w * tr.tau)
-    elastic = (1.0 + params.eps * c) * f
+    f = dead_zone_series(x, params.b)
+    elastic = elastic_mesh_force(pack_parameters(params), np.cos(params.w * tr.tau), x)
     F = np.asarray(tr.mesh_force)
     Fm, few2, fe = params.Fm, params.Fe * params.w**2, params.Fe
     per = F[:-1].reshape(periods, samples)

@@ -58,6 +58,8 @@ from numba import njit
 
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS, MOTIONS  # noqa: F401  (re-exported)
 from gearsim.cell.record import Classification
+from gearsim.dynamics.model import pack_parameters, section_force
+from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics.integrate import PeriodSummaries
 
 #: a motion without a period whose largest peak-to-peak amplitude x_max - x_min rises from each
@@ -408,18 +410,16 @@ def amplitude_grows(xmax: np.ndarray, xmin: np.ndarray) -> bool:
 
 def classify_motion(
     s: PeriodSummaries,
+    params: ModelParameters,
     *,
-    w: float,
-    b: float,
-    eps: float,
-    xi: float,
-    Fm: float,
-    Fe: float,
     n: int,
     lyap_threshold: float = 0.005,
     settled: bool = True,
 ) -> Classification:
-    """Classify the motion recorded in ``s`` given its period ``n`` (0 if none was found)."""
+    """Classify the motion recorded in ``s`` at ``params`` given its period ``n`` (0 if none was
+    found). The section force is the model's (:func:`gearsim.dynamics.model.section_force`,
+    every model form)."""
+    w, Fm, Fe = params.w, params.Fm, params.Fe
     T = 2.0 * math.pi / w
     if n > 0:
         reps = max(1, len(s) // n)
@@ -437,11 +437,7 @@ def classify_motion(
     back_any = int(win.nback.sum())
     I = impact_state(face_any if n == 0 else p, back_any if n == 0 else q, dis, total)
     dc = dis / total if total > 0 else 0.0
-    # mesh force at the section: cos(w k T) = 1 there
-    xs = win.section[:, 0]
-    vs = win.section[:, 1]
-    f_dead = np.where(xs > b, xs - b, np.where(xs < -b, xs + b, 0.0))
-    f_sec = (1.0 + eps) * f_dead + 2.0 * xi * vs
+    f_sec = section_force(pack_parameters(params), win.section[:, 0], win.section[:, 1])
     static = Fm + Fe * w * w
     fm = Fm if Fm > 0 else float("nan")
     lyap = float(win.lyap.sum() / total) if total > 0 else float("nan")

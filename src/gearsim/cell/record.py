@@ -54,6 +54,31 @@ class Classification:
 #: the fields of :class:`Classification`, in order (the first columns of a cell's row)
 CLASSIFICATION_FIELDS = tuple(f.name for f in fields(Classification))
 
+#: Motions that reached no steady state: a ``diverged`` motion left every bound (or its long run
+#: grew), an ``unsettled`` one was still changing at the end of its window (status
+#: ``not_converged``) or of the step budget (status ``budget``). What the window read of them is
+#: a transient's, not a property of the cell: their rows hold no :data:`STEADY_READINGS`.
+UNSTEADY_MOTIONS = ("diverged", "unsettled")
+#: The readings of a steady motion, NULL (NaN) in the row of an :data:`UNSTEADY_MOTIONS` motion:
+#: the Kmax readings, the smallest force, the fraction of time in the backlash and the Lyapunov
+#: exponent. ``x_min`` / ``x_max`` stay: how far the motion went is what shows it diverging.
+STEADY_READINGS = ("dc", "kmax_peak_mean", "kmax_peak_static", "kmax_section_mean",
+                   "kmax_section_static", "kmin_peak_mean", "lyapunov", "kmax")
+#: Where the dictionary says when a steady reading is NULL (one wording, every table).
+UNSTEADY_NULL = ("NULL when the motion is diverged or unsettled (status diverged, not_converged "
+                 "or budget: no steady motion to read)")
+
+
+def row_values(cls: Classification) -> dict:
+    """The classification's columns of a table row (:func:`result_columns`, but ``periods`` and
+    ``steps``): every field plus ``kmax``, the :data:`STEADY_READINGS` NaN for an
+    :data:`UNSTEADY_MOTIONS` motion."""
+    row = {name: getattr(cls, name) for name in CLASSIFICATION_FIELDS}  # flat: no deepcopy
+    row["kmax"] = cls.kmax
+    if cls.motion in UNSTEADY_MOTIONS:
+        row.update(dict.fromkeys(STEADY_READINGS, float("nan")))
+    return row
+
 
 def result_columns() -> dict[str, tuple[type, bool]]:
     """Name -> (Python type, optional) of every column of a cell's row

@@ -31,7 +31,7 @@ import numpy as np
 
 from gearsim.cell.classify import repeats_throughout, window_period
 from gearsim.cell.growth import check_growth
-from gearsim.cell.record import CLASSIFICATION_FIELDS, Classification, result_columns
+from gearsim.cell.record import Classification, result_columns, row_values
 from gearsim.cell.verify import (
     FLOQUET,
     REFINE_RTOL,
@@ -96,9 +96,7 @@ class CellResult:
 
     def row(self) -> dict[str, Any]:
         """Flat record for tables (the catalogue's cell columns: :func:`result_columns`)."""
-        cls = self.classification
-        c = {name: getattr(cls, name) for name in CLASSIFICATION_FIELDS}  # flat: no deepcopy
-        c["kmax"] = self.classification.kmax
+        c = row_values(self.classification)  # no readings of a motion that never settled
         c["periods"] = self.periods
         c["steps"] = self.steps
         return c

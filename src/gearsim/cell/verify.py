@@ -296,8 +296,7 @@ def read_window(params: ModelParameters, summaries: PeriodSummaries, n: int,
     else:
         window = summaries
     cls = classify_motion(
-        window, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
-        Fe=params.Fe, n=n, lyap_threshold=st.lyap_threshold,
+        window, params, n=n, lyap_threshold=st.lyap_threshold,
     )  # fmt: skip
     if n > 0:
         cls.settle = window_settle(params, summaries, n)
@@ -389,8 +388,7 @@ def orbit_classification(params: ModelParameters, ref: Refinement, st: Integrati
     if run.status != STATUS_OK or len(run.summaries) < ref.n:
         return None
     cls = classify_motion(
-        run.summaries, w=params.w, b=params.b, eps=params.eps, xi=params.xi, Fm=params.Fm,
-        Fe=params.Fe, n=ref.n, lyap_threshold=st.lyap_threshold,
+        run.summaries, params, n=ref.n, lyap_threshold=st.lyap_threshold,
     )  # fmt: skip
     T = 2.0 * math.pi / params.w
     status = "bifurcation" if 1.0 - ref.mu_max < BIFURCATION_MARGIN else "ok"

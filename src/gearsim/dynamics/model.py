@@ -252,19 +252,49 @@ def tracked_force(c, s, x, v, P, r0, s0):
     return mesh_force(c, x, v, P, r0, s0)
 
 
+def dead_zone_series(x: np.ndarray, gap: float) -> np.ndarray:
+    """The dead zone ``f(x, gap)`` of :func:`dead_zone` on arrays (numpy; each sample's own
+    region): ``x - gap`` above ``gap``, ``x + gap`` below ``-gap``, 0 inside."""
+    x = np.asarray(x, dtype=float)
+    return np.where(x > gap, x - gap, np.where(x < -gap, x + gap, 0.0))
+
+
+def elastic_mesh_force(p: np.ndarray, c, x) -> np.ndarray:
+    """The elastic part ``(1 + eps c) f(x, b)`` of the mesh force (numpy, packed ``p``), ``c`` the
+    cosine of the mesh phase."""
+    return (1.0 + p[P_EPS] * c) * dead_zone_series(x, p[P_B])
+
+
+def mesh_force_at_phase(p: np.ndarray, c, s, x, v) -> np.ndarray:
+    """The mesh force of every model form (numpy, packed ``p``) at mesh phase ``w tau`` given by
+    ``c = cos``, ``s = sin``, displacement ``x`` and rate ``v`` (arrays broadcast together).
+
+    The array form of :func:`mesh_force_full`: ``(1 + eps c) f(x, b)`` plus the damper on the
+    rate it sees (``x'`` plus the transmission-error rate of ``te_damping``, none inside the
+    backlash with ``mesh_damping_contact``). In the base form the added terms are exact zeros:
+    ``(1 + eps c) f + 2 xi x'`` bit for bit.
+    """
+    x = np.asarray(x, dtype=float)
+    s0 = (np.abs(x) > p[P_B]).astype(float)
+    damper = (p[P_XI2] - p[P_XIO] * (1.0 - s0)) * (v + p[P_VTE] * (s * p[P_CPHI] + c * p[P_SPHI]))
+    return elastic_mesh_force(p, c, x) + damper
+
+
 def mesh_force_series(p: np.ndarray, tau: np.ndarray, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     """The mesh force of every model form along a recorded trajectory (numpy, packed ``p``).
 
     ``tau`` must be the time within the period or absolute time (the force is T-periodic).
     Used by :func:`gearsim.cell.simulate.trajectory` (its one source of the force for every form).
     """
-    b = p[P_B]
-    s0 = (np.abs(x) > b).astype(float)
-    f = np.where(x > b, x - b, np.where(x < -b, x + b, 0.0))
     ph = p[P_W] * np.asarray(tau, dtype=float)
-    c, s = np.cos(ph), np.sin(ph)
-    damper = (p[P_XI2] - p[P_XIO] * (1.0 - s0)) * (v + p[P_VTE] * (s * p[P_CPHI] + c * p[P_SPHI]))
-    return (1.0 + p[P_EPS] * c) * f + damper
+    return mesh_force_at_phase(p, np.cos(ph), np.sin(ph), x, v)
+
+
+def section_force(p: np.ndarray, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The mesh force on the Poincare section ``tau = k T`` (``cos w tau = 1``, ``sin = 0``
+    exactly) at the section states ``x``, ``x'`` = ``v``: the force behind the
+    ``kmax_section_*`` readings, every model form included."""
+    return mesh_force_at_phase(p, 1.0, 0.0, x, v)
 
 
 @njit(cache=True, nogil=True, inline="always")

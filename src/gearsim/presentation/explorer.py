@@ -13,13 +13,24 @@ in physical units (rpm, N m, um) when the study has a gear file.
 The page needs no server and no network, and loads in about a second: no plotting library, and
 the data are one gzip-compressed binary block (base64) of typed arrays that the browser inflates
 with its own ``DecompressionStream``. Per cell: pattern, label and n-p-q indices, impact state,
-period (one or two bytes each), DC, Kmax, Lyapunov exponent and Floquet margin as 16-bit steps
-over their range (resolution range / 65534; stored as differences of neighbours, high bytes
-then low bytes), the number of section points; the section points themselves as 16-bit steps
-over the plane's range, at most :data:`MAX_POINTS` per cell (the last ``n`` only for a periodic
-cell of period ``n``: they are its distinct points; fewer per chaotic cell when a page would hold
-more than :data:`POINTS_BUDGET` bytes of them); the coexisting attractors of each searched cell
+period (one or two bytes each); the value layers (:data:`VALUE_LAYERS`: DC, Kmax, Lyapunov
+exponent, Floquet margin) as the catalogue's values rounded to the digits the page shows
+(integers, stored as differences of neighbours in four byte planes; a value too large for 32
+bits travels as JSON beside them), so that the readout shows each cell's catalogue value to its
+last digit whatever the other cells hold; the number of section points; the section points
+themselves as 16-bit steps over the plane's range (resolution range / 65534), at most
+:data:`MAX_POINTS` per cell (the last ``n`` only for a periodic cell of period ``n``: they are
+its distinct points; fewer per chaotic cell when a page would hold more than
+:data:`POINTS_BUDGET` bytes of them); the coexisting attractors of each searched cell
 (one line each) as JSON text inside the same block.
+
+A value layer is drawn over a range (:class:`ValueLayer`): DC over [0, 1], Kmax from its
+smallest value to the static maps' cap (:func:`gearsim.presentation.figures.planes.robust_max`),
+the others over their values. A cell outside the drawn range is drawn at the end colour and
+marked so in its readout and, with the count of such cells, in the legend; a cell without a
+value (a motion that never settled has no Kmax, DC or Lyapunov exponent) says why. A new layer
+is one :class:`ValueLayer` in :data:`VALUE_LAYERS` (the page builds its button, colours, legend
+and readout line from it).
 
 Every quantity is dimensionless as in the catalogue (docs/model.md): x = X_n / b_c,
 x' = dx/dtau with tau = omega_n t; DC is a fraction of the mesh period; Kmax is the catalogue's
@@ -57,6 +68,42 @@ MAX_SWEEP_POINTS = 64
 FLOQUET_COLUMNS = ("floquet_margin", "mu_max", "max_abs_mu")
 #: 16-bit code of a missing value in a quantised array
 MISSING = 65535
+#: code of a missing value in a layer of shown digits (:meth:`Block.digits`)
+NO_VALUE = -(2**31)
+#: code of a value too large for 32 bits at its digits (the value travels in the layer's JSON)
+BIG_VALUE = 2**31 - 1
+
+
+@dataclass(frozen=True)
+class ValueLayer:
+    """A per-cell number drawn as a colour map: its page key and button, the table columns it
+    reads (the first present), the legend's title (``{reading}``: the Kmax definition,
+    ``{column}``: the column read), the decimals the readout shows (the values travel as these
+    digits), the colour map and the drawn range (``unit``: [0, 1]; ``capped``: smallest value to
+    :func:`~gearsim.presentation.figures.planes.robust_max`, as the static maps; ``full``: the
+    values' range; ``margin``: log10 of 1 - value over [-4, 0], black at status bifurcation)."""
+
+    key: str
+    button: str
+    columns: tuple[str, ...]
+    title: str
+    readout: str
+    digits: int
+    cmap: str = "turbo"
+    scale: str = "full"
+    optional: bool = False  # a layer only where the cells carry a column
+
+
+VALUE_LAYERS = (
+    ValueLayer("dc", "DC", ("dc",), "DC (fraction of the mesh period)", "DC", 4, scale="unit"),
+    ValueLayer("kmax", "Kmax", ("kmax", DEFAULT_KMAX), "Kmax ({reading})", "Kmax", 4,
+               scale="capped"),
+    ValueLayer("lyapunov", "λ", ("lyapunov",), "largest Lyapunov exponent (1/τ)", "λ", 5,
+               cmap="magma"),
+    ValueLayer("floquet", "Floquet margin 1 − max|μ|", FLOQUET_COLUMNS,
+               "log10 of the Floquet margin 1 − max|μ| ({column}); black: status bifurcation",
+               "max|μ|", 5, scale="margin", optional=True),
+)
 
 _SYMBOLS = {"w": "ω", "b": "b", "xi": "ξ", "eps": "ε", "Fm": "F_m", "Fe": "F_e"}
 
@@ -98,6 +145,17 @@ class Block:
         return {"array": self.add(planes, "u1"), "n": int(q.size), "coding": "delta16",
                 "lo": lo, "step": step}
 
+    def digits(self, v: np.ndarray, digits: int) -> dict[str, Any]:
+        """Values as the integers of their ``digits``-decimal rounding (``value = q / 10**digits``
+        exactly as Python's ``f"{v:.{digits}f}"`` prints it); NaN -> :data:`NO_VALUE`, a value
+        beyond 32 bits -> :data:`BIG_VALUE` with ``{cell: value}`` in ``big``. Stored as
+        differences of neighbours (mod 2^32) in four byte planes, high bytes first."""
+        q, big = shown_digits(v, digits)
+        d = np.diff(q.astype(np.uint32), prepend=np.uint32(0)).astype(np.uint32)
+        planes = np.concatenate([((d >> s) & 0xFF).astype(np.uint8) for s in (24, 16, 8, 0)])
+        return {"array": self.add(planes, "u1"), "n": int(q.size), "coding": "delta32",
+                "digits": int(digits), "big": big}
+
     def add_json(self, obj: Any) -> dict[str, Any]:
         """``obj`` as UTF-8 JSON text in the buffer (``{"json": [dtype, offset, length]}``):
         text of many similar lines, which gzip packs to a small fraction of its size."""
@@ -133,6 +191,39 @@ def dequantise(q: np.ndarray, lo: float, step: float) -> np.ndarray:
 def values_of(buffer: bytes, enc: Mapping[str, Any]) -> np.ndarray:
     """A :meth:`Block.quantised` array back as values (NaN where missing)."""
     return dequantise(quantised_of(buffer, enc), enc["lo"], enc["step"])
+
+
+def shown_digits(v: np.ndarray, digits: int) -> tuple[np.ndarray, dict[str, float]]:
+    """``(q, big)``: the int32 ``q`` with ``q / 10**digits`` the value ``v`` rounded to
+    ``digits`` decimals as ``f"{v:.{digits}f}"`` rounds it (correctly rounded, ties to even),
+    :data:`NO_VALUE` where ``v`` is NaN, :data:`BIG_VALUE` where ``q`` would not fit 32 bits
+    (those values in ``big``, by cell index)."""
+    from decimal import ROUND_HALF_EVEN, Decimal
+
+    v = np.asarray(v, dtype=float)
+    ok = np.isfinite(v)
+    scaled = np.where(ok, v, 0.0) * 10.0**digits
+    q = np.rint(scaled)
+    # near a tie the product's rounding error may decide: those few by exact decimal rounding
+    frac = np.abs(scaled - np.floor(scaled) - 0.5)
+    unit = Decimal(1).scaleb(-digits)
+    for k in np.flatnonzero(ok & (frac < 1e-6 * np.maximum(1.0, np.abs(scaled)))):
+        q[k] = float(Decimal(float(v[k])).quantize(unit, ROUND_HALF_EVEN).scaleb(digits))
+    big_cells = ok & (np.abs(q) >= BIG_VALUE)
+    out = np.where(ok, np.where(big_cells, BIG_VALUE, q), NO_VALUE).astype(np.int64)
+    return out.astype(np.int32), {str(int(k)): float(v[k]) for k in np.flatnonzero(big_cells)}
+
+
+def digits_of(buffer: bytes, enc: Mapping[str, Any]) -> np.ndarray:
+    """A :meth:`Block.digits` array back as values (NaN where missing; the big values exact)."""
+    planes = array_of(buffer, enc["array"]).astype(np.uint32)
+    n = enc["n"]
+    d = (planes[:n] << 24) | (planes[n:2 * n] << 16) | (planes[2 * n:3 * n] << 8) | planes[3 * n:]
+    q = np.cumsum(d, dtype=np.uint32).astype(np.int32).astype(np.int64)
+    out = np.where(q == NO_VALUE, np.nan, q / 10.0**enc["digits"])
+    for k, value in enc["big"].items():
+        out[int(k)] = value
+    return out
 
 
 def decode_block(encoded: str) -> bytes:
@@ -351,21 +442,15 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
     n = _int_or(df["n"])
     periodic = np.where(df["motion"].fillna("").astype(str).to_numpy() == "periodic", n, 0)
     counts, px, pv = _poincare(df, rows, present, cap, periodic)
-    kmax_col = "kmax" if "kmax" in df.columns else DEFAULT_KMAX
-    kmax = grid(kmax_col)
-    from gearsim.presentation.figures.planes import robust_max
-
-    finite = kmax[np.isfinite(kmax)]
     small = "<u1" if max(len(labels), len(npqs)) < 255 else "<u2"
-    layers: dict[str, Any] = {
-        "dc": block.quantised(grid("dc"), 0.0, 1.0),
-        "kmax": block.quantised(kmax),
-        "lyapunov": block.quantised(grid("lyapunov") if "lyapunov" in df.columns
-                                    else np.full(nx * ny, np.nan)),
-    }
-    floquet = next((c for c in FLOQUET_COLUMNS if c in df.columns), None)
-    if floquet is not None:
-        layers["floquet"] = block.quantised(grid(floquet))
+    layers: dict[str, Any] = {}
+    for layer in VALUE_LAYERS:
+        column = next((c for c in layer.columns if c in df.columns), None)
+        if column is None and layer.optional:
+            continue
+        values = grid(column) if column is not None else np.full(nx * ny, np.nan)
+        layers[layer.key] = layer_payload(layer, values, block, column)
+    floquet = layers["floquet"]["column"] if "floquet" in layers else None
     # the verified-motion columns of the readout: status, critical multiplier, refined
     verified: dict[str, Any] = {}
     for col in ("status", "critical"):
@@ -392,8 +477,6 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
         "I": block.add(np.where(present, _int_or(df["I"], -9)[rows], -9), "<i1"),
         "n": block.add(np.where(present, n[rows], -1), "<i2"),
         "layers": layers,
-        "kmax_cap": float(robust_max(kmax)) if len(finite) else 1.0,
-        "kmax_reading": KMAX_DEFINITION,
         "floquet_column": floquet,
         "verified": verified,
         "counts": block.add(np.clip(counts, 0, 255), "u1"),
@@ -410,6 +493,40 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
             na[k] = min(int(v), 254)
         payload["n_attractors"] = block.add(na, "u1")
     return payload
+
+
+def layer_payload(layer: ValueLayer, values: np.ndarray, block: Block,
+                  column: str | None) -> dict[str, Any]:
+    """One value layer of a plane: its description for the page, its drawn range and how many
+    cells lie below or above it, and its values as the shown digits (:meth:`Block.digits`)."""
+    shown = digits_of_values(values, layer.digits)
+    finite = shown[np.isfinite(shown)]
+    lo = float(finite.min()) if len(finite) else 0.0
+    hi = float(finite.max()) if len(finite) else 1.0
+    if layer.scale == "unit":
+        lo, hi = 0.0, 1.0
+    elif layer.scale == "capped":
+        from gearsim.presentation.figures.planes import robust_max
+
+        hi = float(robust_max(shown)) if len(finite) else 1.0
+    elif layer.scale == "margin":
+        lo, hi = -4.0, 0.0  # log10 of 1 - value
+    over = under = 0
+    if layer.scale in ("unit", "capped", "full"):
+        over, under = int(np.sum(finite > hi)), int(np.sum(finite < lo))
+    return {"key": layer.key, "button": layer.button, "readout": layer.readout,
+            "title": layer.title.format(reading=KMAX_DEFINITION, column=column),
+            "column": column, "cmap": layer.cmap, "scale": layer.scale, "lo": lo, "hi": hi,
+            "over": over, "under": under, "values": block.digits(values, layer.digits)}
+
+
+def digits_of_values(values: np.ndarray, digits: int) -> np.ndarray:
+    """The values as the page shows them (rounded to ``digits`` decimals)."""
+    q, big = shown_digits(values, digits)
+    out = np.where(q == NO_VALUE, np.nan, q / 10.0**digits)
+    for k, value in big.items():
+        out[int(k)] = value
+    return out
 
 
 def sweep_payload(name: str, df: pd.DataFrame, block: Block,

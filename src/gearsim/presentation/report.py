@@ -54,6 +54,7 @@ from gearsim.analysis.paper import (
 from gearsim.cell.motion import KMAX_READINGS, double_sided, face_impact, no_impact
 from gearsim.presentation.report_inputs import (
     fallback_notes,
+    load_atlas,
     load_audits,
     load_curve_status,
     load_plane,
@@ -351,6 +352,7 @@ def build_report(
     rep.multistable = [m for m in (multistable_summary(p, cells.get(p)) for p in names) if m]
     rep.verified = [v for v in (verified_summary(p, cells.get(p)) for p in names) if v]
     rep.curves = load_curve_status(results, names)
+    rep.atlas = load_atlas(results, names)
     # exact bifurcation points by continuation, when `gearsim continue` has run (docs/orbits.md)
     exact_points = Path(results) / "orbits" / "standard_points.parquet"
     if exact_points.is_file() and "standard" in loaded:

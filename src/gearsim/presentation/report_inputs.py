@@ -102,6 +102,23 @@ def load_curve_status(results: str | Path, planes: Sequence[str]) -> list[str]:
     return out
 
 
+def load_atlas(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
+    """The plane atlas of each plane that has one (``results/atlas/<plane>.json``, written by
+    ``gearsim atlas``), with ``unexplained_file``: the linked list of unexplained edges,
+    relative to ``results``."""
+    import json
+
+    out = []
+    for plane in planes:
+        f = Path(results) / "atlas" / f"{plane}.json"
+        if f.is_file():
+            a = json.loads(f.read_text())
+            csv = f.with_name(f"{plane}_unexplained.csv")
+            a["unexplained_file"] = f"atlas/{csv.name}" if csv.is_file() else None
+            out.append(a)
+    return out
+
+
 def load_audits(results: str | Path, planes: Sequence[str]) -> list[dict[str, Any]]:
     """The numerical audit of each plane (``results/<plane>/audit.parquet`` provenance)."""
     from gearsim.results.catalogue import read_metadata

@@ -22,6 +22,7 @@ from gearsim.analysis.paper import (
     within,
 )
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_READINGS
+from gearsim.presentation.report_atlas import atlas_lines
 from gearsim.presentation.report_record import Report
 from gearsim.presentation.scorecard import scorecard_lines
 from gearsim.presentation.study_summary import plane_lines, point_lines, sweep_lines
@@ -285,6 +286,7 @@ def to_markdown(rep: Report) -> str:
         out += [*warning, ""] if warning else []
         out += _study_lines(rep, heading=None)
         out += audit
+    out += atlas_lines(rep.atlas)
     if rep.curves:
         out += ["## Bifurcation curves not followed in full", "",
                 *[f"- {line}" for line in rep.curves], ""]

@@ -56,6 +56,7 @@ class Report:
     multistable: list[dict[str, Any]] = field(default_factory=list)  # per plane with attractors
     verified: list[dict[str, Any]] = field(default_factory=list)  # per plane: verified_summary
     curves: list[str] = field(default_factory=list)  # bifurcation curves skipped or cut short
+    atlas: list[dict[str, Any]] = field(default_factory=list)  # per plane: gearsim atlas
     paper_material: bool = False  # the study configures a paper sweep or plane
 
     @property

@@ -116,11 +116,63 @@ def scorecard(rep: Any) -> list[ScoreRow]:
         rows.append(ScoreRow("hysteresis of the fold (Fig 18)", "jump up and down differ",
                              f"band {lo:.4f} <= w <= {hi:.4f}", ok=hi > lo,
                              tolerance="a band exists"))
+    rows += _atlas_rows(getattr(rep, "atlas", []) or [])
     for m in rep.multistable:
         rows.append(ScoreRow(f"coexisting attractors, plane {m['plane']}",
                              "coexistence near the fold",
                              f"{m['multi']} of {m['searched']} searched cells"))
     return rows
+
+
+def _share_text(counts: dict[str, int], main: str, also: str) -> tuple[str, float | None]:
+    n = counts.get("edges", 0)
+    if not n:
+        return "no such boundary", None
+    x = counts.get(main, 0) / n
+    return (f"{100 * x:.1f} % of {n} edges on {main.replace('_', '-')} curves "
+            f"({100 * counts.get(also, 0) / n:.1f} % on {also} curves)"), x
+
+
+def _atlas_rows(atlas: list[dict[str, Any]]) -> list[ScoreRow]:
+    """The paper's mechanisms measured on the whole of each plane (``gearsim atlas``)."""
+    rows = []
+    for a in atlas:
+        m, p = a.get("mechanisms") or {}, a["plane"]
+        if "grazing" in m:
+            text, _ = _share_text(m["grazing"], "grazing", "fold")
+            rows.append(ScoreRow(f"non-impact <-> impact boundaries by grazing, plane {p}",
+                                 "grazing bifurcation", text))
+        if "doubling" in m:
+            text, _ = _share_text(m["doubling"], "period_doubling", "grazing")
+            rows.append(ScoreRow(f"adjacent impact motions by period doubling, plane {p}",
+                                 "period doubling", text))
+        bi = a.get("b_independence")
+        if bi:
+            rows.append(ScoreRow(
+                f"patterns independent of b above b = {bi['above']:g}, plane {p}",
+                "independent of b",
+                f"largest |dw/db| of any curve above it {bi['max_slope']:.3g}"
+                + (f" ({bi['curve']})" if bi.get("curve") else "")
+                + f"; {bi['edges_along_y_periodic']} edges between periodic cells along b "
+                f"above it ({bi['edges_along_y']} in all)"))
+        dm = a.get("damping")
+        if dm:
+            b0, b1 = dm["bands"][0], dm["bands"][-1]
+            shrink = (dm["rho_impact"] is not None and dm["rho_impact"] < 0
+                      and dm["rho_chaos"] is not None and dm["rho_chaos"] < 0)
+            rows.append(ScoreRow(
+                f"more damping shrinks the impact and chaotic regions, plane {p}",
+                "both shrink as xi grows",
+                f"impact {100 * b0['impact']:.1f} % -> {100 * b1['impact']:.1f} %, chaotic "
+                f"{100 * b0['chaos']:.2f} % -> {100 * b1['chaos']:.2f} % of the cells from "
+                f"xi {b0['lo']:.3g}-{b0['hi']:.3g} to {b1['lo']:.3g}-{b1['hi']:.3g}; rank "
+                f"correlation with xi {_rho(dm['rho_impact'])} / {_rho(dm['rho_chaos'])}",
+                ok=shrink, tolerance="both correlations < 0"))
+    return rows
+
+
+def _rho(v: float | None) -> str:
+    return "—" if v is None else f"{v:+.2f}"
 
 
 def scorecard_lines(rep: Any) -> list[str]:

@@ -10,6 +10,14 @@ the nominal length ``b_c``, time ``tau = w_n t``, forces over ``Km b_c``. A unit
 from __future__ import annotations
 
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION, KMAX_READINGS
+from gearsim.cell.record import UNSTEADY_NULL
+
+#: when the columns of a cell's period are NULL
+_NO_PERIOD = "NULL without a period (n = 0: chaos, quasi-periodic, unsettled, diverged)"
+#: when a column of a Newton-refined orbit is NULL
+_NO_NEWTON = "NULL where Newton did not converge (flag no_convergence)"
+#: when a column of a job's provenance is NULL
+_NO_PROVENANCE = "NULL where the job's file does not record it (files of older versions)"
 
 #: Model parameters: (unit, meaning). The names of
 #: :class:`gearsim.dynamics.parameters.ModelParameters`.
@@ -56,20 +64,26 @@ RESULT: dict[str, tuple[str, str]] = {
         "2 both, -2 never in contact",
     ),
     "n": ("mesh periods", "period of the motion (0: no period <= n_max)"),
-    "p": ("1", "entries into face contact per motion period"),
-    "q": ("1", "entries into back contact per motion period"),
+    "p": ("1", f"entries into face contact per motion period; {_NO_PERIOD}"),
+    "q": ("1", f"entries into back contact per motion period; {_NO_PERIOD}"),
     "label": ("", "pattern label I/nT, or chaos / quasi-periodic / unsettled / diverged"),
     "label_npq": ("", "n-p-q label ('' without a period)"),
-    "dc": ("1", "fraction of time inside the backlash over the analysed window"),
+    "dc": ("1", f"fraction of time inside the backlash over the analysed window; {UNSTEADY_NULL}"),
     # Kmax once (gearsim.cell.motion); the other readings under their own names
     "kmax": ("1", f"Kmax, the maximum dynamic load coefficient: {KMAX_DEFINITION} "
-                  f"(the same number as {DEFAULT_KMAX})"),
-    **{k: ("1", f"{v} ({'the reading that is Kmax' if k == DEFAULT_KMAX else 'not Kmax'})")
+                  f"(the same number as {DEFAULT_KMAX}); {UNSTEADY_NULL}"),
+    **{k: ("1", f"{v} ({'the reading that is Kmax' if k == DEFAULT_KMAX else 'not Kmax'}); "
+                f"{UNSTEADY_NULL}")
        for k, v in KMAX_READINGS.items()},
-    "kmin_peak_mean": ("1", "smallest mesh force over the motion / Fm"),
-    "lyapunov": ("1/tau", "largest Lyapunov exponent per unit dimensionless time"),
-    "x_min": ("1 (X_n / b_c)", "smallest mesh displacement over the analysed window"),
-    "x_max": ("1 (X_n / b_c)", "largest mesh displacement over the analysed window"),
+    "kmin_peak_mean": ("1", f"smallest mesh force over the motion / Fm; {UNSTEADY_NULL}"),
+    "lyapunov": ("1/tau", f"largest Lyapunov exponent per unit dimensionless time; "
+                          f"{UNSTEADY_NULL}"),
+    "x_min": ("1 (X_n / b_c)", "smallest mesh displacement over the analysed window; NULL where "
+                               "no period was measured (diverged or out of its step budget "
+                               "before its window) or the value left the floating-point range"),
+    "x_max": ("1 (X_n / b_c)", "largest mesh displacement over the analysed window; NULL where "
+                               "no period was measured (diverged or out of its step budget "
+                               "before its window) or the value left the floating-point range"),
     "converged": ("", "true when a period was found (or chaos / quasi-periodic decided)"),
     "window_periods": ("mesh periods", "length of the analysed window"),
     "mu_max": (
@@ -84,7 +98,8 @@ RESULT: dict[str, tuple[str, str]] = {
     "refined": ("", "true when the label is that of the Newton-refined orbit (slow settling)"),
     "settle": (
         "1 (of the x range)",
-        "estimated distance of the last section point from the periodic orbit it settles to",
+        "estimated distance of the last section point from the periodic orbit it settles to; "
+        + _NO_PERIOD,
     ),
     "mu_lin": (
         "1 (per mesh period)",
@@ -120,22 +135,26 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("runs", "id"): _ID,
     ("runs", "kind"): ("", "tile | sweep | audit: the job that produced the data"),
     ("runs", "name"): ("", "plane or sweep name"),
-    ("runs", "tile"): ("", "tile number within the plane (tiles only)"),
-    ("runs", "file"): ("", "the Parquet file the data came from"),
+    ("runs", "tile"): ("", "tile number within the plane; NULL for sweeps and audits"),
+    ("runs", "file"): ("", f"the Parquet file the data came from; {_NO_PROVENANCE}"),
     ("runs", "config_hash"): ("", "sha256 (16 hex) of the configuration subtree of the job"),
     ("runs", "code_version"): ("", "sha256 (16 hex) of the sources that determine results"),
     ("runs", "package_versions"): ("JSON", "python and package versions of the job"),
-    ("runs", "parameters_source"): ("", "standard-parameter file, or builtin-defaults"),
-    ("runs", "tangent_seed"): ("", "seed of the Lyapunov tangent vector"),
-    ("runs", "audit_seed"): ("", "seed of the audit sample (audits only)"),
-    ("runs", "host"): ("", "host name of the job"),
-    ("runs", "workers"): ("", "dask workers (or in-process) of the job"),
-    ("runs", "started"): ("UTC", "job start"),
-    ("runs", "finished"): ("UTC", "job end"),
-    ("runs", "wall_s"): ("s", "wall time of the job"),
-    ("runs", "cells"): ("1", "cells (or sweep points, audited cells) the job produced"),
+    ("runs", "parameters_source"): ("", "standard-parameter file, or builtin-defaults; "
+                                    + _NO_PROVENANCE),
+    ("runs", "tangent_seed"): ("", "seed of the Lyapunov tangent vector; " + _NO_PROVENANCE),
+    ("runs", "audit_seed"): ("", "seed of the audit sample; NULL except for audits"),
+    ("runs", "host"): ("", "host name of the job; " + _NO_PROVENANCE),
+    ("runs", "workers"): ("", "dask workers (or in-process) of the job; " + _NO_PROVENANCE),
+    ("runs", "started"): ("UTC", f"job start; {_NO_PROVENANCE}"),
+    ("runs", "finished"): ("UTC", f"job end; {_NO_PROVENANCE}"),
+    ("runs", "wall_s"): ("s", "wall time of the job; " + _NO_PROVENANCE),
+    ("runs", "cells"): ("1", "cells (or sweep points, audited cells) the job produced; "
+                        + _NO_PROVENANCE),
     ("runs", "status"): ("", "ok | budget (stopped at its budget: partial results) | "
-                         "skipped (nothing to follow: e.g. a plane of mostly diverged cells)"),
+                         "skipped (nothing to follow: e.g. a plane of mostly diverged cells); "
+                         "never NULL (a catalogue migrated from schema version 2 marks its "
+                         "runs ok)"),
     ("planes", "id"): _ID,
     ("planes", "name"): ("", "plane name (config key planes.<name>)"),
     ("planes", "x_name"): ("", "parameter on the x axis (columns cells.x, cells.i)"),
@@ -158,7 +177,8 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("cells", "j"): ("1", "y index, 0 .. y_n - 1"),
     ("cells", "x"): ("as planes.x_name", "value of the x parameter at the cell centre"),
     ("cells", "y"): ("as planes.y_name", "value of the y parameter at the cell centre"),
-    ("cells", "elapsed_s"): ("s", "wall time of the cell"),
+    ("cells", "elapsed_s"): ("s", "wall time of the cell; NULL where its tile does not record "
+                                  "it"),
     ("sweeps", "id"): _ID,
     ("sweeps", "name"): ("", "sweep name (config key sweeps.<name>)"),
     ("sweeps", "run_id"): ("", "runs.id of the sweep job"),
@@ -188,10 +208,16 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("audits", "lyapunov"): RESULT["lyapunov"],
     ("audits", "agree"): ("", "same label and n-p-q as the catalogue cell"),
     ("sweep_points", "direction"): (
-        "", "forward | backward: the sweep order that reached the point (hysteresis)"
+        "", "forward | backward: the sweep order that reached the point (hysteresis); NULL "
+            "where the sweep's table has no direction column (older tables: forward)"
     ),
     ("cells", "n_attractors"): (
-        "1", "coexisting attractors found from the plane's multistability starts (NULL: off)"
+        "1", "distinct attractors (bounded steady motions) that the cell's seeded starts and "
+             "its continuation state reached (docs/multistability.md); starts that diverged or "
+             "did not settle are not counted, so 0 means every start diverged or none settled "
+             "(its attractors row is the one 'diverged' line); NULL where the cell was not "
+             "searched: its plane's multistability is off, or the cell is not on the searched "
+             "lattice (multistability: every: k searches every k-th cell per axis)"
     ),
     ("attractors", "id"): _ID,
     ("attractors", "cell_id"): ("", "cells.id of the cell"),
@@ -207,9 +233,11 @@ CATALOGUE: dict[tuple[str, str], tuple[str, str]] = {
     ("attractors", "dc"): RESULT["dc"],
     ("attractors", "kmax"): RESULT["kmax"],
     ("attractors", "lyapunov"): RESULT["lyapunov"],
-    ("attractors", "status"): RESULT["status"],
+    ("attractors", "status"): (RESULT["status"][0], RESULT["status"][1]
+                               + "; NULL where the attractor tile does not record it"),
     ("attractors", "mu_max"): RESULT["mu_max"],
-    ("attractors", "critical"): RESULT["critical"],
+    ("attractors", "critical"): (RESULT["critical"][0], RESULT["critical"][1]
+                                 + "; NULL without a refined orbit"),
     ("attractors", "basin_fraction"): ("1", "share of the cell's seeded starts that reach it"),
     ("attractors", "n_starts"): ("1", "seeded starts that reach it"),
     ("attractors", "n_early"): ("1", "of those, labelled early (certified ellipsoid or "
@@ -246,17 +274,21 @@ CATALOGUE.update({
     ("cell_orbits", "cell_id"): ("", "cells.id of the refined cell"),
     ("cell_orbits", "run_id"): ("", "runs.id of the refine-orbits job"),
     ("cell_orbits", "converged"): ("", "Newton reached residual 1e-10"),
-    ("cell_orbits", "residual"): ("1", "max |P^n(y) - y| at the refined orbit"),
-    ("cell_orbits", "mu_max"): ("1", "largest Floquet multiplier modulus (per n mesh periods)"),
+    ("cell_orbits", "residual"): ("1", "max |P^n(y) - y| at the refined orbit; " + _NO_NEWTON),
+    ("cell_orbits", "mu_max"): ("1", "largest Floquet multiplier modulus (per n mesh periods); "
+                                + _NO_NEWTON),
     ("cell_orbits", "kind"): ("", "kind of that multiplier: fold | period_doubling | "
                               "neimark_sacker"),
     ("cell_orbits", "grazing_margin"): ("1 (X_n / b_c)",
-                                        "smallest turning-point distance to a contact boundary"),
-    ("cell_orbits", "shift"): ("1", "max |orbit - simulated section point| over (x, x')"),
+                                        "smallest turning-point distance to a contact boundary; "
+                                        + _NO_NEWTON),
+    ("cell_orbits", "shift"): ("1", "max |orbit - simulated section point| over (x, x'); "
+                               + _NO_NEWTON),
     ("cell_orbits", "minimal_period"): ("mesh periods", "true period of the refined orbit"),
     ("cell_orbits", "flag"): ("", "empty when Newton confirms the simulation, else "
                               "no_convergence | unstable | period"),
-    ("cell_orbits", "ms"): ("ms", "wall time of the refinement"),
+    ("cell_orbits", "ms"): ("ms", "wall time of the refinement; NULL where the orbit table does "
+                            "not record it"),
 })
 
 #: the views of :mod:`gearsim.results.views` (one per plane, one per sweep), as documented in the
