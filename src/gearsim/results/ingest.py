@@ -495,9 +495,6 @@ def build_catalogue(
     plane_files, sweep_files, audit_files, attractor_files, orbit_files = (
         list(f) for f in (plane_files, sweep_files, audit_files, attractor_files, orbit_files)
     )
-    for f in [*plane_files, *sweep_files, *audit_files, *orbit_files]:
-        if not Path(f).is_file():
-            raise CatalogueError(f"input file not found: {f}")
     # a lower bound (cells are stored once more, with their indexes): catches a folder that
     # cannot hold the catalogue at all before the build
     _prepare_dir(out, need=_size([*plane_files, *sweep_files, *audit_files, *attractor_files,
