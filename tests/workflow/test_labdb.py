@@ -187,7 +187,7 @@ def test_a_study_publishes_with_every_row_and_a_second_beside_it(server, study, 
 def test_the_readme_queries_answer_alike_on_both(server, study):
     """The README's and docs/pipeline.md's SQL (gearsim query's examples) on the file and, with
     the study's schema on the search path, on the server: the same rows."""
-    from gearsim.cli.commands.query import EXAMPLES
+    from gearsim.results.query import EXAMPLES
 
     _wd, cat = study
     url = server.url()
