@@ -424,6 +424,26 @@ def test_a_schema_that_is_not_a_study_is_never_replaced(server, study, capsys):
         assert con.execute("SELECT to_regclass('labnotes.notes')").fetchone()[0] is not None
 
 
+def test_the_workflow_publishes_when_the_config_names_a_server(server, study):
+    """``publish: {url, study}`` adds the rule that publishes each build (dry run: the plan and
+    its command); a URL with a password in the config is one line, and the password is not in
+    it."""
+    from workflow_helpers import smk
+
+    wd, _cat = study
+    url = server.url(password=None)
+    r = smk(wd, "-n", "-p", "results/catalogue.d/server-wf.txt", "--configfile", *CONFIGS,
+            "--config", f'publish={{"url": "{url}", "study": "wf"}}')
+    assert "publish_server" in r.stdout and f"--to {url} --study wf" in r.stdout, r.stdout
+    r = smk(wd, "-n", "--configfile", *CONFIGS, "--config",
+            f'publish={{"url": "{server.url()}"}}', check=False)
+    err = r.stderr.strip()
+    LINES.append(r.stdout + r.stderr)
+    assert r.returncode == 2 and "carries a password" in err and PASSWORD not in err, err
+    r = smk(wd, "-n", "--configfile", *CONFIGS, check=False)
+    assert "publish_server" not in r.stdout + r.stderr
+
+
 # --------------------------------------------------------------------------- readers
 def test_report_explorer_and_export_from_the_server_equal_those_from_the_file(
         server, study, tmp_path, capsys, monkeypatch):
