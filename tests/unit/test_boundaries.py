@@ -214,7 +214,7 @@ def test_the_chaotic_band_is_located_from_both_ends(monkeypatch):
     def fake(params, name, start, stop, **kw):
         calls.append((round(params.b, 12), start, stop))
         d = 1.0 if stop > start else -1.0
-        w = [start + d * v for v in (0.05, 0.35, 0.45, 0.47)]
+        w = [start + d * abs(stop - start) * v for v in (0.1, 0.6, 0.8, 0.84)]
         return pd.DataFrame({"event": "period_doubling", "period": [1, 2, 4, 8], "value": w})
 
     monkeypatch.setattr(cascade, "locate_cascade", fake)
@@ -225,4 +225,5 @@ def test_the_chaotic_band_is_located_from_both_ends(monkeypatch):
                      (1.0, pytest.approx(2.5), pytest.approx(2.1))]
     assert [d["period"] for d in out["onset"]["doublings"]] == [1, 2, 4, 8]
     assert out["exit"]["doublings"][1]["ratio"] is None
-    assert out["exit"]["doublings"][2]["ratio"] == pytest.approx(3.0)
+    assert [d["ratio"] for d in out["exit"]["doublings"][2:]] == [pytest.approx(2.5),
+                                                                  pytest.approx(5.0)]
