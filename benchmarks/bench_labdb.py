@@ -14,7 +14,10 @@ process, in turn, ``--repeats`` times:
   temporary folder with its default, durable settings: fsync on, loopback TCP, password
   authentication), each time replacing the study published before (the swap of a re-publish).
 
-Target: the publish's median wall time at most 2x the build's. Writes ``results/labdb.json``.
+Target: the publish's median wall time at most 2x the build's. Then, not timed, the identity:
+the study read back from the server equals the build table by table, row by row, and ``gearsim
+report`` and ``gearsim explorer`` write the same bytes from the server as from the file
+(``--identity``: skip with ``--no-identity``). Writes ``results/labdb.json``.
 
     python benchmarks/bench_labdb.py --results /path/to/finished/run/results [--repeats 3]
 """
@@ -68,10 +71,48 @@ def counts(path: Path) -> dict[str, int]:
         con.close()
 
 
+def check_identity(build: Path, url: str, results: Path, config: Path, work: Path) -> dict:
+    """The study read back equals ``build`` row for row; the report and the explorer page are
+    the same bytes from the server as from the file."""
+    from gearsim.results.server_read import pull_study
+
+    pulled, _ = pull_study(url, "paper", work / "pulled.sqlite")
+    a, b = counts(build), counts(pulled)
+    assert a == b, (a, b)
+    ca, cb = sqlite3.connect(build), sqlite3.connect(pulled)
+    try:
+        for t in a:
+            q = f'SELECT * FROM "{t}" ORDER BY rowid'
+            assert ca.execute(q).fetchall() == cb.execute(q).fetchall(), t
+        q = "SELECT type, name, sql FROM sqlite_master ORDER BY type, name"
+        assert ca.execute(q).fetchall() == cb.execute(q).fetchall()
+    finally:
+        ca.close()
+        cb.close()
+    out = {"tables_equal": len(a)}
+    for what, extra in (("report", ["--sweeps", str(results / "sweeps"), "--calibration", "",
+                                    "--out"]),
+                        ("explorer", ["--out"])):
+        pages = []
+        for name, source in (("file", [str(build)]), ("server", [url, "--study", "paper"])):
+            dest = work / name / ("report.md" if what == "report" else "index.html")
+            r = run_child([what, "--configfile", str(config), "--results", str(results),
+                           "--catalogue", *source, *extra, str(dest)], cwd=work)
+            pages.append(dest.read_bytes())
+            out[f"{what}_{name}_wall_s"] = r["wall_s"]
+        assert pages[0] == pages[1], f"{what}: the server's differs from the file's"
+        out[f"{what}_bytes_equal"] = len(pages[0])
+    print(f"identity: {out}", file=sys.stderr)
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--results", required=True, help="a finished run's results folder")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--config", default=str(ROOT / "config/config.yaml"),
+                    help="the run's config (for the report and the explorer)")
+    ap.add_argument("--no-identity", dest="identity", action="store_false")
     args = ap.parse_args(argv)
     setup_env()
     from postgres_server import Server
@@ -101,10 +142,12 @@ def main(argv=None) -> int:
             publishes.append(p)
             print(f"repeat {k}: build {b['wall_s']} s wall ({b['cpu_s']} CPU-s), publish "
                   f"{p['wall_s']} s wall ({p['cpu_s']} CPU-s of the client)", file=sys.stderr)
+        load1 = loadavg()
+        identity = check_identity(out, url, results, Path(args.config), work) if args.identity \
+            else {}
     finally:
         server.close()
         shutil.rmtree(work, ignore_errors=True)
-    load1 = loadavg()
     build_s = statistics.median(b["wall_s"] for b in builds)
     publish_s = statistics.median(p["wall_s"] for p in publishes)
     payload = {
@@ -116,6 +159,7 @@ def main(argv=None) -> int:
         "publish_wall_s_median": publish_s,
         "ratio_publish_over_build": round(publish_s / build_s, 2),
         "target_ratio": 2.0,
+        "identity": identity,
         "load_before": load0,
         "load_after": load1,
     }
