@@ -168,7 +168,7 @@ def publish_study(source: str | Path, url: str, study: str, *, check: bool = Tru
     new, old = NEW.format(study), OLD.format(study)
     tables, after, order = _ddl(md, new)
     src = sqlite3.connect(f"{source.resolve().as_uri()}?mode=ro", uri=True)
-    con = connect(url)
+    con = connect(url, writing=True)
     counts: dict[str, int] = {}
     try:
         ensure_layout(con)
