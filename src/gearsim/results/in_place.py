@@ -12,7 +12,10 @@ and the orbits). A later run compares itself with that record before any job sta
 * other config files and a different content (a file of one's own without ``study:`` or
   ``folder:`` over a finished default run): it stops in one line naming both grids and the ways
   on (a ``folder:`` or ``study:`` name, which runs in ``studies/<name>/``, or
-  ``--config replace_results=true``). The fast look, ``config/quick.yaml``, has its folder.
+  ``--config replace_results=true``). The fast look, ``config/quick.yaml``, and the GPU run,
+  ``config/gpu.yaml``, have their folders. The line names, for each plane or sweep, the
+  grids and the settings that differ (``plane wb: multistability.every 3 -> 1``), read from the
+  settings each item's hash covers, which the record keeps.
 
 Results written before such records existed are compared by their grids, read from the
 Parquet files' metadata (planes and sweeps).
@@ -55,24 +58,70 @@ def _file_name(path: str | Path, root: Path) -> str:
         return p.as_posix()
 
 
+def flat_settings(tree: Any, prefix: str = "") -> dict[str, Any]:
+    """A nested mapping as ``{"a.b.c": value}`` (lists and scalars are values; an empty
+    mapping adds no key)."""
+    if not isinstance(tree, Mapping):
+        return {prefix or "value": tree}
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f"{prefix}.{key}" if prefix else str(key)
+        if isinstance(value, Mapping):
+            out.update(flat_settings(value, name))  # an empty mapping sets nothing
+        else:
+            out[name] = value
+    return out
+
+
 def run_record(study: Study, configfiles: Iterable[str | Path]) -> dict[str, Any]:
     """What a run of ``study`` (started with ``configfiles``) records about itself: the files,
-    the hash of every output's subtree, and the grid of every plane and sweep."""
+    the hash of every output's subtree and that subtree's settings, and the grid of every plane
+    and sweep."""
     cfg = study.config
-    items: dict[str, str] = {}
+    trees: dict[str, Any] = {}
     grids: dict[str, str] = {}
     for p in cfg["planes"]:
-        items[f"plane {p}"] = config_hash(plane_subtree(study, p))
+        trees[f"plane {p}"] = plane_subtree(study, p)
         grids[f"plane {p}"] = _grid(cfg["planes"][p])
     for s in cfg["sweeps"]:
-        items[f"sweep {s}"] = config_hash(sweep_subtree(study, s))
+        trees[f"sweep {s}"] = sweep_subtree(study, s)
         grids[f"sweep {s}"] = _grid(cfg["sweeps"][s])
     for f in cfg["points"]:
-        items[f"points {f}"] = config_hash(point_subtree(study, f))
-    items["audit"] = config_hash(cfg.get("audit"))
-    items["orbits"] = config_hash(cfg.get("orbits"))
+        trees[f"points {f}"] = point_subtree(study, f)
+    trees["audit"] = cfg.get("audit")
+    trees["orbits"] = cfg.get("orbits")
+    items = {name: config_hash(tree) for name, tree in trees.items()}
+    settings = {name: flat_settings(json.loads(json.dumps(tree, default=str)))
+                for name, tree in trees.items()}
     return {"files": [_file_name(f, study.root) for f in configfiles],
-            "content": config_hash(items), "items": items, "grids": grids}
+            "content": config_hash(items), "items": items, "grids": grids,
+            "settings": settings}
+
+
+def setting_changes(before: Mapping[str, Any], after: Mapping[str, Any], most: int = 3) -> str:
+    """``multistability.every 3 -> 1, tile_rows 16 -> 400`` (the first ``most`` of the settings
+    that differ, in order, then how many more), ``''`` when none differs."""
+    names = [k for k in after if before.get(k, _ABSENT) != after[k]]
+    names += [k for k in before if k not in after]
+    parts = [f"{_short(k)} {_value(before.get(k, _ABSENT))} -> {_value(after.get(k, _ABSENT))}"
+             for k in names[:most]]
+    more = len(names) - most
+    return ", ".join(parts) + (f" and {more} more" if more > 0 else "")
+
+
+_ABSENT = object()
+
+
+def _short(name: str) -> str:
+    """A setting's name without the item's own top key (``plane.x.n`` -> ``x.n``)."""
+    head, _, rest = name.partition(".")
+    return rest if rest and head in ("plane", "sweep", "points") else name
+
+
+def _value(v: Any) -> str:
+    if v is _ABSENT:
+        return "(unset)"
+    return f"{v:g}" if isinstance(v, float) else json.dumps(v) if not isinstance(v, str) else v
 
 
 def _legacy_grids(folder: Path) -> dict[str, str]:
@@ -98,15 +147,19 @@ def _legacy_grids(folder: Path) -> dict[str, str]:
 
 
 def _differences(before: Mapping[str, str], after: Mapping[str, str],
-                 changed: Iterable[str] = ()) -> list[str]:
-    """``name: grid in place -> this run's grid`` for each item whose grid or content differs."""
+                 changed: Iterable[str] = (), settings: Mapping[str, str] | None = None
+                 ) -> list[str]:
+    """``name: grid in place -> this run's grid`` for each item whose grid differs,
+    ``name: grid (settings that differ)`` for each other item whose content differs
+    (``settings``: :func:`setting_changes` by item, where the record in place has them)."""
     out = []
     for name in sorted(set(before) & set(after)):
         if before[name] != after[name]:
             out.append(f"{name}: {before[name]} -> {after[name]}")
     for name in sorted(set(changed) - {o.split(':')[0] for o in out}):
         grid = after.get(name, "")
-        out.append(f"{name}: {grid}{' ' if grid else ''}(other settings)")
+        what = (settings or {}).get(name) or "other settings"
+        out.append(f"{name}: {grid}{' ' if grid else ''}({what})")
     added = sorted(set(after) - set(before))
     if added:
         out.append("added " + ", ".join(added))
@@ -141,7 +194,10 @@ def check_in_place(record: Mapping[str, Any], folder: str | Path = "results", *,
             return
         changed = [k for k, v in record["items"].items()
                    if k in before.get("items", {}) and before["items"][k] != v]
-        diff = _differences(before.get("grids", {}), record["grids"], changed)
+        old = before.get("settings") or {}
+        what = {k: setting_changes(old[k], record["settings"][k]) for k in changed
+                if k in old and k in record.get("settings", {})}
+        diff = _differences(before.get("grids", {}), record["grids"], changed, what)
         raise UsageError(
             f"{folder}/ holds the results of {' + '.join(before_files)}; this run of {files} "
             f"would replace them ({_summary(diff) or 'other settings'}): {ways}")
