@@ -43,3 +43,28 @@ def test_each_mapper_refuses_bad_continuation_alike(mapper, continuation, words)
     with pytest.raises(ParameterError) as err:
         mapper(system, starts, continuation=continuation)
     assert str(err.value) == words
+
+
+def test_the_finder_maps_with_the_mapper_it_is_given():
+    """find_attractors hands its system, starts, options and continuation to the given mapper
+    and returns that mapper's answer: the recurrence mapper's, equal to calling it directly."""
+    from gearsim.analysis.attractors import FinderOptions, find_attractors
+    from gearsim.analysis.attractors.gear import sobol_unit
+
+    cell = ModelParameters(w=0.9, b=0.15)
+    options = FinderOptions(starts=4, seed=3)
+    calls = []
+
+    def spy(system, starts, options=None, *, continuation=None):
+        calls.append((system, starts, options, continuation))
+        return map_attractors(system, starts, options, continuation=continuation)
+
+    got = find_attractors(cell, options, mapper=spy)
+    (system, starts, opts, continuation), = calls
+    assert isinstance(system, GearCells) and system.params == [cell] and opts is options
+    assert continuation is None
+    assert np.array_equal(starts[0], system.start_states(0, sobol_unit(4, 3)))
+    (want,) = map_attractors(system, starts, options)
+    assert np.array_equal(got.start_labels, want.start_labels)
+    assert [a.basin_fraction for a in got.attractors] == [
+        a.basin_fraction for a in want.attractors]

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterable, Mapping
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -189,4 +188,23 @@ def _fault(exc: BaseException) -> str:
 
 
 def now_iso() -> str:
-    return datetime.now(UTC).isoformat(timespec="seconds")
+    """:func:`gearsim.study.provenance.now_iso` (the one clock of the records)."""
+    from gearsim.study.provenance import now_iso as now
+
+    return now()
+
+
+def read_partial(path: str | Path, inputs: str) -> tuple[pd.DataFrame | None, str]:
+    """The rows of the partial table ``path`` when it was computed from the same ``inputs``
+    (the key under ``inputs`` in its provenance), else ``None`` and why it is not resumed
+    (``""``: there is none)."""
+    path = Path(path)
+    if not path.is_file():
+        return None, ""
+    try:
+        meta = read_metadata(path) or {}
+        if meta.get("inputs") == inputs:
+            return pd.read_parquet(path), ""
+    except Exception as exc:  # noqa: BLE001 - a damaged partial table is recomputed
+        return None, f"{path} unreadable ({type(exc).__name__}): starting afresh"
+    return None, f"{path} holds cells of other inputs: starting afresh"

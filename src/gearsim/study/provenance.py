@@ -13,6 +13,7 @@ import hashlib
 import json
 import platform
 from collections.abc import Mapping
+from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,11 @@ from gearsim.study.config import Study
 
 #: Packages whose versions go into the provenance.
 PACKAGES = ("gearsim", "numpy", "numba", "scipy", "pandas", "pyarrow", "dask", "distributed")
+
+
+def now_iso() -> str:
+    """Now, UTC, to the second (ISO 8601): the time stamps of every record."""
+    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 def canonical_json(obj: Any) -> str:

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from gearsim.analysis.attractors.gear import GearCells, sobol_unit
+from gearsim.analysis.attractors.mapper import AttractorMapper
 from gearsim.analysis.attractors.options import FinderOptions
 from gearsim.analysis.attractors.pool import map_gear_cells
 from gearsim.analysis.attractors.results import CellAttractors, Steady
@@ -25,6 +26,7 @@ def find_attractors(
     start_states=None,
     stats: PoolStats | None = None,
     neighbours=None,
+    mapper: AttractorMapper = map_gear_cells,
 ) -> CellAttractors | list[CellAttractors]:
     """Coexisting attractors of one gear cell (``cells`` a :class:`ModelParameters`: one
     :class:`CellAttractors`) or of many (a sequence: one per cell, all starts in one lane pool).
@@ -40,7 +42,10 @@ def find_attractors(
     :class:`gearsim.cell.pool.PoolStats` collecting the lane use. ``neighbours`` (many cells):
     per cell the indices of its neighbouring cells in ``cells`` (e.g.
     :func:`grid_neighbours`), whose motions seed it
-    (``FinderOptions.neighbour_seeds``). Attractors most likely first.
+    (``FinderOptions.neighbour_seeds``). ``mapper``: the :class:`AttractorMapper` that maps
+    the starts (default the lane pool :func:`~gearsim.analysis.attractors.pool.map_gear_cells`;
+    ``forward_results``, ``stats`` and ``neighbours`` are its keyword options, handed to a
+    mapper only when given). Attractors most likely first.
     """
     options = options if options is not None else FinderOptions()
     one = isinstance(cells, ModelParameters)
@@ -64,11 +69,10 @@ def find_attractors(
         continuation = [{"forward": None if fw is None else fw[c],
                          "backward": None if bw is None else bw[c]}
                         for c in range(len(cell_list))]  # fmt: skip
-    found = map_gear_cells(
-        system, starts, options, continuation=continuation,
-        forward_results=per_cell(forward_results), stats=stats,
-        neighbours=None if one else neighbours,
-    )  # fmt: skip
+    extra = {"forward_results": per_cell(forward_results), "stats": stats,
+             "neighbours": None if one else neighbours}
+    found = mapper(system, starts, options, continuation=continuation,
+                   **{k: v for k, v in extra.items() if v is not None})
     return found[0] if one else found
 
 

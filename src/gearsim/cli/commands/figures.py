@@ -24,7 +24,6 @@ as the simulation rules see them.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -45,18 +44,6 @@ def _pairs(items: list[str], flag: str) -> dict[str, str]:
             raise UsageError(f"{flag} {name}: file not found: {path}")
         out[name] = path
     return out
-
-
-def _read(read_table, path: str, what: str):
-    """A table from ``path``, or one line naming it when it is not a readable Parquet file."""
-    try:
-        return read_table(path)
-    except OSError:
-        raise  # full disk, permission: the CLI names the file and the cause
-    except Exception as exc:  # pyarrow: ArrowInvalid, ArrowTypeError, ... for a foreign file
-        cause = " ".join(str(exc).split()) or type(exc).__name__
-        raise UsageError(f"{what}: {path} is not a readable Parquet table ({cause})") from None
-
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fig", type=int, nargs="+", action="extend", default=[], metavar="N",
@@ -90,169 +77,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p)
 
 
-def _context(args, study):
-    from gearsim.presentation.figures.context import Context
-    from gearsim.presentation.figures.data import read_table
-    from gearsim.results.parquet import read_metadata
-    from gearsim.study.figure_tables import FIGURE_DATA_KEY
-
-    config = study.config
-    ctx = Context(
-        params=study.parameters().model,
-        settings=study.settings,
-        point_specs=dict(config.get("points") or {}),
-        sweep_fixed={k: dict(v.get("fixed") or {}) for k, v in
-                     (config.get("sweeps") or {}).items()},
-    )
-    for name, path in _pairs(args.sweep, "--sweep").items():
-        ctx.sweeps[name] = _read(read_table, path, f"--sweep {name}")
-    for name, path in _pairs(args.plane, "--plane").items():
-        ctx.planes[name] = _read(read_table, path, f"--plane {name}")
-    for name, path in _pairs(args.points, "--points").items():
-        ctx.points[name] = _read(read_table, path, f"--points {name}")
-    for name, path in _pairs(args.figure_data, "--figure-data").items():
-        df = _read(read_table, path, f"--figure-data {name}")
-        df.attrs["figure_data"] = read_metadata(path, FIGURE_DATA_KEY) or {}
-        ctx.figure_data[name] = df
-    for name, path in _pairs(args.orbits, "--orbits").items():
-        ctx.orbits[name] = _read(read_table, path, f"--orbits {name}")
-        pts = Path(path).with_name(Path(path).stem + "_points.parquet")
-        if not name.endswith("_curves") and pts.is_file():
-            ctx.orbits[f"{name}_points"] = read_table(pts)
-    return ctx
-
-
-def _bind_single_plane(numbers, ctx, table) -> dict[str, str]:
-    """A figure of one plane (e.g. Fig 7 of ``wb``) given exactly one plane of another name
-    draws that one: returns ``{paper's plane: given plane}``."""
-    bound: dict[str, str] = {}
-    if len(ctx.planes) != 1:
-        return bound
-    (given, df), = ctx.planes.items()
-    for n in numbers:
-        wanted = table[n].inputs.planes if n in table else ()
-        if len(wanted) == 1 and wanted[0] not in ctx.planes:
-            ctx.planes[wanted[0]] = df
-            bound[wanted[0]] = given
-    return bound
-
-
-def _write_record(path: Path, rec: dict) -> None:
-    from gearsim.study.preflight import write_text_atomic
-
-    write_text_atomic(path, json.dumps(rec, indent=1, ensure_ascii=False) + "\n")
-
-
-def _physical(config):
-    """``(x, y) -> {parameter: {name, unit, k}}`` of the study's gear file (empty without)."""
-    from gearsim.physical.units import config_gear, physical_factors
-    from gearsim.study.config import study_root
-
-    gear = config_gear(config, study_root())
-    return lambda *names: physical_factors(gear, names)
-
-
-def _sweep_diagrams(args: argparse.Namespace, outdir: Path) -> None:
-    """``OUTDIR/sweeps/<sweep>.{png,pdf,json}`` for every ``--sweep``."""
-    import matplotlib.pyplot as plt
-
-    from gearsim.presentation.figures.data import read_table
-    from gearsim.presentation.figures.style import save_figure
-    from gearsim.presentation.figures.sweeps import figure_sweep_diagram, sweep_spec_of
-
-    study = study_from_args(args)
-    config = study.config
-    for name, path in _pairs(args.sweep, "--sweep").items():
-        spec = sweep_spec_of(path, config, name)
-        df = read_table(path)
-        param = str(df["parameter"].iloc[0]) if len(df) else ""
-        fig, caption = figure_sweep_diagram(df, name=name, spec=spec,
-                                            physical=_physical(config)(param).get(param))
-        stem = outdir / "sweeps" / name
-        files = [str(f) for f in save_figure(fig, stem)]
-        plt.close(fig)
-        _write_record(stem.with_suffix(".json"), {
-            "sweep": name, "title": f"Sweep {name}", "files": files, "caption": caption,
-            "inputs": [f"sweeps/{name}"], "spec": spec})
-        print(f"sweep {name}: wrote {', '.join(files)}", file=sys.stderr)
-
-
 def run(args: argparse.Namespace) -> int:
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from gearsim.presentation.figures import outputs
 
-    from gearsim.presentation.figures import context, maps, registry
-    from gearsim.presentation.figures.index import write_index
-    from gearsim.presentation.figures.style import physical_axes, save_figure
-
-    outdir = Path(args.outdir)
-    table = registry.figures()
-    numbers = list(dict.fromkeys(args.fig))
-    if args.all:
-        numbers = list(table)
-    if args.map and not args.maps:
-        raise UsageError("--map KIND needs --maps")
-    if not numbers and not args.index and not args.maps and not args.sweep_diagrams:
-        raise UsageError("nothing to do: give --fig N, --all, --maps, --sweep-diagrams or "
-                         "--index")
-    if args.sweep_diagrams and not args.sweep:
-        raise UsageError("--sweep-diagrams needs at least one --sweep NAME=PATH")
-    if args.maps and not args.plane:
-        raise UsageError("--maps needs at least one --plane NAME=PATH")
-    for kind in args.map or ():
-        registry.figures()  # extensions register their maps on import
-        if kind not in maps.PLANE_MAPS:
-            raise UsageError(f"unknown plane map '{kind}'; allowed: "
-                             f"{', '.join(maps.PLANE_MAPS)}")
-    from gearsim.study.preflight import check_folder
-
-    check_folder(outdir, what="--outdir")  # writable, with room, before any drawing
-    if args.sweep_diagrams:
-        _sweep_diagrams(args, outdir)
-    if numbers or args.maps:
-        study = study_from_args(args)
-        config = study.config
-        ctx = _context(args, study)
-        if args.maps:
-            physical = _physical(config)
-            for plane, df in ctx.planes.items():
-                for spec, fig, caption, notes in maps.build_maps(plane, df, args.map):
-                    xname, yname = context._axes(df)
-                    units = physical_axes(fig, physical(xname, yname), xname, yname)
-                    if units:
-                        notes = [*notes, "axes also in " + ", ".join(units) + " (the gear file)"]
-                    stem = outdir / "planes" / f"{plane}-{spec.kind}"
-                    stem.parent.mkdir(parents=True, exist_ok=True)
-                    files = [str(f) for f in save_figure(fig, stem)]
-                    plt.close(fig)
-                    _write_record(stem.with_suffix(".json"), {
-                        "plane": plane, "map": spec.kind, "title": spec.title,
-                        "axes": list(context._axes(df)), "files": files, "caption": caption,
-                        "notes": notes, "inputs": [f"{plane}/cells"],
-                        "parameters": ctx.params.to_dict(),
-                        "integration": ctx.settings.to_dict()})
-                    print(f"plane {plane} map {spec.kind}: wrote {', '.join(files)}",
-                          file=sys.stderr)
-        if args.all:  # keep the figures whose tables are present
-            numbers = [n for n in numbers if all(
-                name in getattr(ctx, kind) for kind, names in table[n].inputs.tables().items()
-                for name in names)]
-        bound = {} if args.all else _bind_single_plane(numbers, ctx, table)
-        for b in registry.build(numbers, ctx):
-            for paper, given in bound.items():
-                if f"{paper}/cells" in b.inputs:
-                    b.inputs = [f"{given}/cells" if i == f"{paper}/cells" else i
-                                for i in b.inputs]
-                    b.differences.insert(0, f"Drawn for the plane '{given}' (the paper's "
-                                         f"figure shows the plane '{paper}').")
-                    print(f"figure {b.number}: drawn for plane '{given}'", file=sys.stderr)
-            files = [str(f) for f in save_figure(b.figure, outdir / f"fig{b.number:02d}")]
-            plt.close(b.figure)
-            _write_record(outdir / f"fig{b.number:02d}.json", registry.record(b, files, ctx))
-            print(f"figure {b.number}: wrote {', '.join(files)}", file=sys.stderr)
-    if args.index:
-        path = write_index(outdir)
-        print(f"wrote {path}", file=sys.stderr)
+    req = outputs.Request(outdir=Path(args.outdir), numbers=args.fig, every=args.all,
+                          maps=args.maps, map_kinds=args.map,
+                          sweep_diagrams=args.sweep_diagrams, index=args.index)
+    tables = outputs.Tables(
+        sweeps=_pairs(args.sweep, "--sweep"), planes=_pairs(args.plane, "--plane"),
+        points=_pairs(args.points, "--points"),
+        figure_data=_pairs(args.figure_data, "--figure-data"),
+        orbits=_pairs(args.orbits, "--orbits"))
+    outputs.check_request(req, tables)
+    study = study_from_args(args) if (req.numbers or req.every or req.maps
+                                      or req.sweep_diagrams) else None
+    outputs.draw(study, tables, req, lambda line: print(line, file=sys.stderr))
     return 0

@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from gearsim.cli.commands._common import parse_assignment
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.physical.geometry import GearGeometry
+from gearsim.study.changes import parse_assignment
 
 NAME = "gear"
 HELP = ("print a gear file's dimensionless parameter set, or what a dimensionless set means in "

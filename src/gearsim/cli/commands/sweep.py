@@ -1,11 +1,10 @@
-"""``gearsim sweep``: a one-parameter sweep (bifurcation data) or a figure's named points."""
+"""``gearsim sweep``: a one-parameter sweep (bifurcation data) or a figure's named points (the
+job: :mod:`gearsim.study.sweep_job`)."""
 
 from __future__ import annotations
 
 import argparse
-import math
 import sys
-import time
 
 from gearsim.cli.commands._common import (
     add_parameter_arguments,
@@ -13,12 +12,8 @@ from gearsim.cli.commands._common import (
     command_parameters,
 )
 from gearsim.cli.commands._progress import Progress
-from gearsim.errors import UsageError
 from gearsim.results import parquet
-from gearsim.study.config import results_dir
-from gearsim.study.grid import sweep_values
-from gearsim.study.provenance import point_subtree, provenance, sweep_subtree
-from gearsim.study.sweeps import point_list, points_frame, sweep_frame
+from gearsim.study import sweep_job
 
 NAME = "sweep"
 HELP = "run a configured sweep (--name) or figure point set (--points) and write its Parquet file"
@@ -52,20 +47,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _check_recording(args: argparse.Namespace) -> None:
-    checks = (
-        ("--ramp-from", args.ramp_from, 0.0, 100.0, False),
-        ("--ramp-step", args.ramp_step, 0.0, 10.0, False),
-        ("--periods", args.periods, 1, 100_000, True),
-        ("--samples-per-period", args.samples_per_period, 4, 100_000, True),
-    )
-    for flag, v, lo, hi, closed in checks:
-        ok = math.isfinite(v) and (lo <= v if closed else lo < v) and v <= hi
-        if not ok:
-            rng = f"[{lo}, {hi}]" if closed else f"({lo}, {hi}]"
-            raise UsageError(f"{flag}: {v!r} is outside {rng}")
-
-
 def resolve(args: argparse.Namespace):
     """The sweep's study with the command line's values folded into its parameters (the swept
     value and the sweep's ``fixed`` values are set per point); it carries them into the
@@ -74,73 +55,15 @@ def resolve(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    _check_recording(args)
+    recording = sweep_job.Recording(args.ramp_from, args.ramp_step, args.periods,
+                                    args.samples_per_period).check()
     study = resolve(args).study
-    config = study.config
-    res = results_dir(config)
-    default = (
-        res / "sweeps" / f"{args.name}.parquet"
-        if args.name
-        else res / "points" / f"{args.points}.parquet"
-    )
-    out = check_new_file(args.out or default)
-    started = parquet.now_iso()
-    t0 = time.perf_counter()
-    if args.name:
-        if args.name not in config["sweeps"]:
-            raise UsageError(
-                f"unknown sweep '{args.name}'; configured: {', '.join(config['sweeps']) or 'none'}"
-            )
-        spec = config["sweeps"][args.name]
-        base = study.parameters(sweep=args.name).model
-        vals = sweep_values(spec)
-        progress = Progress(f"sweep {args.name}", len(vals))
-        df = sweep_frame(
-            base,
-            spec["name"],
-            vals,
-            spec.get("direction", "forward"),
-            study.settings,
-            progress,
-            spec.get("start", "continuation"),
-        )
-        subtree = sweep_subtree(study, args.name)
-        kind, name = "sweep", args.name
-    else:
-        if args.points not in config["points"]:
-            raise UsageError(
-                f"unknown point set '{args.points}'; configured: "
-                f"{', '.join(config['points']) or 'none'}"
-            )
-        progress = Progress(
-            f"points {args.points}", len(point_list(config["points"][args.points]))
-        )
-        df = points_frame(study, args.points, ramp_from=args.ramp_from,
-                          ramp_step=args.ramp_step, periods=args.periods,
-                          samples_per_period=args.samples_per_period, progress=progress)
-        subtree = {
-            **point_subtree(study, args.points),
-            "recording": {
-                "ramp_from": args.ramp_from,
-                "ramp_step": args.ramp_step,
-                "periods": args.periods,
-                "samples_per_period": args.samples_per_period,
-            },
-        }
-        kind, name = "points", args.points
+    out = check_new_file(args.out or sweep_job.default_out(study, args.name, args.points))
+    n = sweep_job.size(study, args.name, args.points)
+    progress = Progress(f"sweep {args.name}" if args.name else f"points {args.points}", n)
+    df, prov = sweep_job.run(study, args.name, args.points, recording, progress)
     progress.close()
-    wall = time.perf_counter() - t0
-    prov = provenance(
-        subtree,
-        kind=kind,
-        name=name,
-        study=study,
-        started=started,
-        finished=parquet.now_iso(),
-        wall_s=wall,
-        cells=len(df),
-        workers="in-process",
-    )
     parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
-    print(f"{kind} {name}: wrote {out} ({len(df)} rows in {wall:.1f} s)", file=sys.stderr)
+    print(f"{prov['kind']} {prov['name']}: wrote {out} ({len(df)} rows in {prov['wall_s']:.1f} s)",
+          file=sys.stderr)
     return 0
