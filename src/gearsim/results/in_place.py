@@ -19,6 +19,19 @@ and the orbits). A later run compares itself with that record before any job sta
 
 Results written before such records existed are compared by their grids, read from the
 Parquet files' metadata (planes and sweeps).
+
+A tile in place that no run of the folder computed (a tile of another configuration written by a
+command by hand) is found before any job, and so before Snakemake removes what depends on it
+(:func:`check_tiles_in_place`): one line naming the tile, the settings it differs in and the
+command that repairs it. The record keeps every configuration hash a run of the folder had, by
+plane, so a run interrupted after an edit of the study leaves tiles that still pass (Snakemake
+recomputes them).
+
+A command run by hand never replaces a file of such a folder unasked either
+(:func:`check_hand_outputs`): where one of the files it would write exists in a results folder
+that a run recorded, it stops before any work in one line naming the file, the option that
+writes elsewhere and the one that replaces it. The workflow's own jobs pass: Snakemake removes
+a job's declared outputs before the job starts, so the files they write do not exist yet.
 """
 
 from __future__ import annotations
@@ -33,7 +46,10 @@ from gearsim.errors import UsageError
 from gearsim.study.config import Study
 from gearsim.study.provenance import config_hash, plane_subtree, point_subtree, sweep_subtree
 
-__all__ = ["RECORD", "REPLACE_KEY", "check_in_place", "run_record", "write_record"]
+__all__ = [
+    "RECORD", "REPLACE_KEY", "check_hand_outputs", "check_in_place", "check_tiles_in_place",
+    "run_record", "workflow_folder", "write_record",
+]
 
 #: The record of the configuration that made a results folder (relative to the run's directory).
 RECORD = Path("results/.configuration.json")
@@ -208,11 +224,106 @@ def check_in_place(record: Mapping[str, Any], folder: str | Path = "results", *,
                          f"replace them ({_summary(diff)}): {ways}")
 
 
+def _read_record(folder: str | Path) -> dict[str, Any] | None:
+    try:
+        rec = json.loads((Path(folder) / RECORD.name).read_text())
+    except (OSError, ValueError):
+        return None
+    return rec if isinstance(rec, dict) else None
+
+
+def _history(record: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Every hash a run of the folder had, by item (its ``items`` included)."""
+    out = {k: set(v) for k, v in (record.get("history") or {}).items() if isinstance(v, list)}
+    for k, v in (record.get("items") or {}).items():
+        out.setdefault(k, set()).add(v)
+    return {k: sorted(v) for k, v in out.items()}
+
+
 def write_record(record: Mapping[str, Any], folder: str | Path = "results") -> Path:
-    """Record ``record`` as the configuration of ``folder`` (atomically)."""
+    """Record ``record`` as the configuration of ``folder`` (atomically), with the hashes of
+    every earlier run of the folder (``history``)."""
     path = Path(folder) / RECORD.name
+    before = _read_record(folder)
+    history = _history({"history": _history(before), "items": record["items"]} if before
+                       else record)
+    record = {**record, "history": history}
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
     os.replace(tmp, path)
     return path
+
+
+def workflow_folder(path: str | Path) -> Path | None:
+    """The results folder a run recorded (it holds :data:`RECORD`'s file) that the existing file
+    ``path`` lies in; None for a file outside one, or no file."""
+    p = Path(path)
+    if not p.is_file():
+        return None
+    for folder in p.resolve().parents:
+        if (folder / RECORD.name).is_file():
+            return folder
+    return None
+
+
+def check_hand_outputs(paths: Iterable[str | Path], *, replace: bool, elsewhere: str,
+                       allow: str = "--replace") -> None:
+    """Raise :class:`UsageError` (one line) when a command about to write ``paths`` would replace
+    a file of a results folder that a run made (:func:`workflow_folder`) and was not asked to
+    (``replace``). ``elsewhere``: the option that writes elsewhere (``--out PATH``), ``allow``:
+    the one that replaces."""
+    if replace:
+        return
+    made = [Path(p) for p in paths if workflow_folder(p) is not None]
+    if not made:
+        return
+    first = made[0]
+    more = f" (and {len(made) - 1} more of its files)" if len(made) > 1 else ""
+    raise UsageError(
+        f"{first}{more}: made by the workflow ({_shown(workflow_folder(first))}/ holds a run's "
+        f"results); nothing was written: give {elsewhere} to write elsewhere, or {allow} to "
+        "replace it")
+
+
+def _shown(folder: Path) -> str:
+    """A folder as the user would type it: relative to the working directory when inside it."""
+    try:
+        return folder.relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return folder.as_posix()
+
+
+def check_tiles_in_place(record: Mapping[str, Any], folder: str | Path = "results") -> None:
+    """Raise :class:`UsageError` (one line) for a tile in ``folder`` that no run of the folder
+    computed: its configuration hash is neither this run's (``record``) nor one the folder's
+    record has seen (a tile written by hand under another configuration). Nothing is removed;
+    the line names the command that repairs it. Without a record in place, nothing is checked."""
+    from gearsim.results.parquet import read_metadata
+
+    folder = Path(folder)
+    before = _read_record(folder)
+    if before is None:
+        return
+    seen = _history(before)
+    for name, current in record["items"].items():
+        kind, _, plane = name.partition(" ")
+        if kind != "plane":
+            continue
+        ok = set(seen.get(name, ())) | {current}
+        for tile in sorted((folder / plane / "tiles").glob("*.parquet")):
+            try:
+                prov = read_metadata(tile) or {}
+            except Exception:  # noqa: BLE001 - an unreadable tile is the plane job's to report
+                continue
+            got = prov.get("config_hash")
+            if not got or got in ok:
+                continue
+            theirs = flat_settings(json.loads(json.dumps(prov.get("subtree") or {}, default=str)))
+            differ = setting_changes(theirs, record.get("settings", {}).get(name, {}))
+            raise UsageError(
+                f"{_shown(tile.resolve())}: a tile of another configuration than this study's "
+                f"runs (the tile's -> this run's: {differ or 'configuration hash ' + got}; "
+                "written by a command by hand?); "
+                f"nothing was removed: repair it with `rm {_shown(tile.resolve())}` and run "
+                "again (the workflow recomputes it)")
