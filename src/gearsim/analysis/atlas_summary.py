@@ -202,7 +202,7 @@ def chaotic_band(cells: pd.DataFrame, params, *, x_name: str, y_name: str, y_val
     except (OrbitError, ValueError) as exc:
         out["onset"] = {"error": str(exc)}
     if reading.get("exit") == "cascade":
-        row = cells[cells["y"] == y].sort_values("x")
+        row = cells[cells["y"] == out["row"]].sort_values("x")
         after = row[(row["x"] > reading["end"]) & (row["motion"] == "periodic")
                     & (row["n"] == 1)]
         if len(after):
