@@ -28,6 +28,7 @@ SHARED_GROUPS = {
     "test_explorer.py": "tiny_study",
     "test_report_study.py": "tiny_study",
     "test_kmax_one.py": "tiny_study",
+    "test_labdb.py": "tiny_study",
 }
 # Units handed out first, longest first, so the last units to start are short ones and both
 # workers finish close together; units not named here follow in collection order. CPU seconds

@@ -77,8 +77,8 @@ def test_curve_is_vertical_in_b_while_the_orbit_has_no_back_contact(points):
     bifurcation points cannot move with b. The 1T period-doubling curve of the standard set
     (section x ~ 0.74, no back contact) must be a vertical line in (w, b)."""
     r = points[(points["kind"] == "period_doubling") & (points["period"] == 1)].iloc[0]
-    c = follow_curve(ONE, r, "b", 0.6, step2=0.1, max_points=4, range2=(0.0, 1.0))
-    assert len(c) == 4 and c["value2"].min() < 0.75
+    c = follow_curve(ONE, r, "b", 0.6, step2=0.1, max_points=8, range2=(0.0, 1.0))
+    assert len(c) == 8 and c["value2"].min() < 0.75
     assert np.ptp(c["value"].to_numpy()) < 1e-8
     # the orbit itself is shifted by the change of b
     np.testing.assert_allclose(c["x"] - c["value2"], c["x"].iloc[0] - c["value2"].iloc[0],

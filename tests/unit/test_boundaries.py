@@ -108,10 +108,13 @@ def test_edges_inside_a_fold_band_are_the_branch_the_chain_followed():
     assert bd.fold_bands(bd.curve_polylines(folds, "w"), "x", 0.3) == {1: [(0.75, 1.25)]}
 
 
-def test_chaos_beside_the_cascade_is_its_onset_else_a_crisis():
+def test_chaos_beside_the_cascade_is_its_onset_a_jump_a_crisis():
     cells = _cells(lambda i, j: ("periodic", 1, 8) if i < 5 else ("chaos", 1, 0))
     e = bd.classify_edges(cells, _vertical(0, "period_doubling", 8, X_EDGE))
     assert set(e["mechanism"]) == {"chaos_onset"}
+    e = bd.classify_edges(cells, _vertical(0, "period_doubling", 2, X_EDGE))
+    assert set(e["mechanism"]) == {"unexplained"}  # no cascade, no jump
+    cells.loc[cells["motion"] == "chaos", "x_max"] = 3.0  # the band ends abruptly: a jump
     e = bd.classify_edges(cells, _vertical(0, "period_doubling", 2, X_EDGE))
     assert set(e["mechanism"]) == {"crisis"}
 
@@ -166,3 +169,61 @@ def test_grid_cascade_reads_the_band_and_a_crisis_exit():
     assert g["start"] == pytest.approx(0.2) and g["onset"] == pytest.approx(0.8)
     assert g["end"] == pytest.approx(1.1) and g["exit"] == "crisis"
     assert g["after_end"] == "2/3T"
+
+
+def test_the_mechanisms_of_the_summary():
+    from gearsim.analysis.atlas_summary import b_independence, damping, mechanisms
+
+    # non-impact | impact on a face grazing; the impact side doubles on a doubling curve
+    cells = _cells(lambda i, j: ("periodic", 0, 1) if i < 5 else ("periodic", 1,
+                                                                 1 if i < 8 else 2))
+    curves = pd.concat([_vertical(0, "grazing", 1, X_EDGE, "x=+b"),
+                        _curve(1, "period_doubling", 1, [(X0 + 8 * DX, 0.0),
+                                                         (X0 + 8 * DX + 0.05, 1.2)])])
+    e = bd.classify_edges(cells, curves)
+    m = mechanisms(e)
+    assert m["grazing"] == {"edges": NY, "grazing": NY}
+    assert m["doubling"] == {"edges": NY, "period_doubling": NY}
+    bi = b_independence(curves, e, "b", above=0.5)
+    assert bi["max_slope"] == pytest.approx(0.05 / 1.2) and bi["curve"].startswith(
+        "period_doubling")
+    assert bi["edges_along_y"] == 0
+    # impact shrinking with y: the rows' impact share falls, the chaotic share is zero
+    cells = _cells(lambda i, j: ("periodic", 1 if i < NX - 1 - j else 0, 1))
+    d = damping(cells, quarters=2)
+    assert d["rho_impact"] == pytest.approx(-1.0)
+    assert d["bands"][0]["impact"] > d["bands"][1]["impact"]
+    assert d["bands"][0]["chaos"] == 0.0 and np.isnan(d["rho_chaos"])
+
+
+def test_the_chaotic_band_is_located_from_both_ends(monkeypatch):
+    """chaotic_band reads the row nearest the line, continues from the cascade's start towards
+    the onset and, after an inverse cascade, from the first period-1 cell back (the
+    continuation replaced by a table of known doublings)."""
+    from gearsim.analysis import atlas_summary, cascade
+    from gearsim.dynamics.parameters import ModelParameters
+
+    seq = (["1/1T"] * 3 + ["1/2T"] * 3 + ["1/4T", "1/8T"] + ["chaos"] * 4
+           + ["1/8T", "1/4T", "1/2T", "1/1T", "1/1T"])
+    cells = pd.DataFrame([{"x": 1.0 + 0.1 * k, "y": y, "label": s,
+                           "motion": "chaos" if s == "chaos" else "periodic",
+                           "n": 0 if s == "chaos" else int(s.split("/")[1][:-1]), "I": 1}
+                          for y in (0.95, 1.05) for k, s in enumerate(seq)])
+    calls = []
+
+    def fake(params, name, start, stop, **kw):
+        calls.append((round(params.b, 12), start, stop))
+        d = 1.0 if stop > start else -1.0
+        w = [start + d * abs(stop - start) * v for v in (0.1, 0.6, 0.8, 0.84)]
+        return pd.DataFrame({"event": "period_doubling", "period": [1, 2, 4, 8], "value": w})
+
+    monkeypatch.setattr(cascade, "locate_cascade", fake)
+    out = atlas_summary.chaotic_band(cells, ModelParameters(), x_name="w", y_name="b",
+                                     y_value=1.0)
+    assert out["row"] == 0.95 and out["value"] == 1.0  # the line itself, read on its row
+    assert calls == [(1.0, pytest.approx(1.2), pytest.approx(1.8)),
+                     (1.0, pytest.approx(2.5), pytest.approx(2.1))]
+    assert [d["period"] for d in out["onset"]["doublings"]] == [1, 2, 4, 8]
+    assert out["exit"]["doublings"][1]["ratio"] is None
+    assert [d["ratio"] for d in out["exit"]["doublings"][2:]] == [pytest.approx(2.5),
+                                                                  pytest.approx(5.0)]

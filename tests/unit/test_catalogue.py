@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import copy
+import json
+import shutil
 import sqlite3
 from pathlib import Path
 
@@ -13,6 +15,7 @@ import pytest
 
 from gearsim.cell.simulate import CellResult
 from gearsim.results import catalogue as gc
+from gearsim.results import schema as gsch
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
@@ -145,7 +148,7 @@ def test_catalogue_replaced_atomically(small, tmp_path):
 # ------------------------------------------------------------------------- metadata (13.4)
 def test_schema_version_and_application_id(small):
     con = sqlite3.connect(small["db"])
-    assert con.execute("PRAGMA user_version").fetchone()[0] == gc.SCHEMA_VERSION == 3
+    assert con.execute("PRAGMA user_version").fetchone()[0] == gc.SCHEMA_VERSION == 4
     assert con.execute("PRAGMA application_id").fetchone()[0] == 0x47454152
     con.close()
     gc.open_catalogue(small["db"]).close()
@@ -156,7 +159,8 @@ def test_column_dictionary_covers_every_column(small):
     docs = {(t, c): (u, m) for t, c, u, m in con.execute(
         "SELECT table_name, column_name, unit, meaning FROM column_dictionary")}
     tables = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
-    assert len(tables) == 12  # 8 + bifurcation_points, bifurcation_curves, cell_orbits, attractors
+    # 8 + bifurcation_points, bifurcation_curves, codim2_points, cell_orbits, attractors
+    assert len(tables) == 13
     for t in tables:
         for col in con.execute(f'PRAGMA table_info("{t}")'):
             assert (t, col[1]) in docs, (t, col[1])
@@ -173,7 +177,7 @@ def test_catalogue_info_and_integration(small):
 
     con = sqlite3.connect(small["db"])
     info = {k: json.loads(v) for k, v in con.execute("SELECT key, value FROM catalogue_info")}
-    assert info["schema_version"] == gc.SCHEMA_VERSION == 3
+    assert info["schema_version"] == gc.SCHEMA_VERSION == 4
     assert info["code_versions"] == [gprov.code_version()]
     want = gcfg.integration_settings(small["cfg"]).to_dict()
     assert info["integration"] == json.loads(json.dumps(want))
@@ -205,3 +209,68 @@ def test_sweep_parameters_are_the_values_used(small):
     pparams = json.loads(con.execute("SELECT parameters FROM planes").fetchone()[0])
     assert "w" not in pparams and "b" not in pparams and pparams["xi"] == base["xi"]
     con.close()
+
+
+# ----------------------------------------------------------------- the plane atlas's tables
+def _atlas_files(d):
+    """A seed table, a curve and a codimension-2 point in the plane atlas's columns."""
+    mu = {"mu_re": [[-1.0, 0.5]], "mu_im": [[0.0, 0.1]], "stable": [False]}
+    seed = dict(point=[0], kind=["period_doubling"], period=[1], boundary=[""], name=["w"],
+                value=[1.0055], x=[0.3], v=[0.1], mu_max=[1.0], branch=[0], plane=["wb"],
+                name2=["b"], value2=[0.5], curve=[0], source=["map"], seed_i=[3], seed_j=[2],
+                seed_i2=[4], seed_j2=[2], label_a=["1/1T"], label_b=["1/2T"], **mu)
+    curve = {k: v * 2 for k, v in seed.items() if k not in ("point", "branch")}
+    curve.update(value2=[0.5, 0.6], seq=[0, 1], flank=["", ""], end_first=["edge", "codim2"],
+                 end_last=["codim2", "codim2"], end_first_detail=["b = 0", "b = 0"],
+                 end_last_detail=["at point 0", "at point 0"], codim2_first=[-1, -1],
+                 codim2_last=[0, 0], curve=[0, 0])
+    c2 = dict(point=[0], plane=["wb"], kind=["pd_grazing"],
+              conditions=["period_doubling; grazing x=-b"], period=[1], boundary=["x=-b"],
+              name=["w"], value=[1.01], name2=["b"], value2=[0.3], curves=[[0, 1]],
+              curve_kinds=[["period_doubling", "grazing"]], residual_1=[1e-10],
+              residual_2=[2e-10], residual=[2e-10], step=[1e-8], iterations=[4],
+              converged=[True], gap_cells=[0.2], x=[0.3], v=[0.1], mu_max=[1.0], **{
+                  k: v for k, v in mu.items() if k != "stable"})
+    prov = {gc.PROVENANCE_KEY: {"kind": "curves", "name": "wb"}}
+    return [gc.write_parquet(pd.DataFrame(t), d / f"wb_{n}.parquet", prov)
+            for n, t in (("curves_points", seed), ("curves", curve), ("codim2", c2))]
+
+
+def test_the_plane_atlas_tables_are_loaded_with_their_columns(small, tmp_path):
+    files = _atlas_files(tmp_path)
+    db = tmp_path / "c.sqlite"
+    counts = gc.build_catalogue(db, [small["cells"]], orbit_files=files)
+    assert (counts["bifurcation_points"], counts["bifurcation_curves"],
+            counts["codim2_points"]) == (1, 2, 1)
+    con = gc.open_catalogue(db)
+    try:
+        assert con.execute("SELECT curve, source, seed_i, label_b FROM bifurcation_points"
+                           ).fetchall() == [(0, "map", 3, "1/2T")]
+        assert con.execute("SELECT seq, end_first, codim2_last FROM bifurcation_curves "
+                           "ORDER BY seq").fetchall() == [(0, "edge", 0), (1, "codim2", 0)]
+        kind, curves, conv, res = con.execute(
+            "SELECT kind, curves, converged, residual FROM codim2_points").fetchone()
+        assert (kind, json.loads(curves), conv, res) == ("pd_grazing", [0, 1], 1, 2e-10)
+    finally:
+        con.close()
+
+
+def test_a_version_3_catalogue_gains_the_atlas_tables(small, tmp_path):
+    db = tmp_path / "c.sqlite"
+    shutil.copyfile(small["db"], db)
+    con = sqlite3.connect(db)
+    con.execute("DROP TABLE codim2_points")
+    for t, cols in gsch._ATLAS_COLUMNS.items():
+        for c in cols:
+            con.execute(f"ALTER TABLE {t} DROP COLUMN {c}")
+    con.execute("PRAGMA user_version = 3")
+    con.commit()
+    con.close()
+    assert gc.migrate_catalogue(db) == (3, 4)
+    con = gc.open_catalogue(db)
+    try:
+        have = {r[1] for r in con.execute("PRAGMA table_info(bifurcation_curves)")}
+        assert set(gsch._ATLAS_COLUMNS["bifurcation_curves"]) <= have
+        assert con.execute("SELECT COUNT(*) FROM codim2_points").fetchone()[0] == 0
+    finally:
+        con.close()

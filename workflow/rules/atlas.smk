@@ -1,4 +1,4 @@
-# The plane atlas (docs/orbits.md, "The plane atlas: its accounting").
+# The plane atlas (docs/atlas.md).
 #
 # For every plane with bifurcation curves (config `orbits: {curves: true}`, the default):
 # each boundary edge of the pattern map classified by the located curve, fold band or chaotic

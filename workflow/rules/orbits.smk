@@ -4,10 +4,11 @@
 #  * standard_continuation: the continuation of the standard sweep's parameter set along w
 #    (Newton-Floquet, branch switching at period doublings): the exact landmarks of the report,
 #    Fig 4's unstable branches and exact marks, Fig 23; ~2-3 CPU-minutes.
-#  * bifurcation_curves: per plane, the fold, period-doubling and grazing points of that
-#    continuation (when the plane's seed parameters are the standard set's; else its own
-#    seeding continuation) followed across the plane's second parameter: Figs 21, 22 and the
-#    catalogue tables bifurcation_points / bifurcation_curves. Two processes per job.
+#  * bifurcation_curves: per plane, the plane atlas: every boundary of the plane's pattern map
+#    seeds a bifurcation curve (fold, period doubling of every period to 16, grazing of both
+#    flanks) located by Newton-Floquet and followed across the plane, and the codimension-2
+#    points where curves end or meet: Figs 21, 22 and the catalogue tables bifurcation_points /
+#    bifurcation_curves. Two processes per job; progress in logs/orbits/{plane}_curves.log.
 # On demand only (not in `all`: ~60 ms per periodic cell, hours on a 400 x 400 plane):
 #   snakemake --cores 2 results/wb/orbits.parquet
 
@@ -57,16 +58,16 @@ rule standard_continuation:
         "{params.sets} --sweep {input.sweep} --out {output.branches} "
         "--figure {output.figure} > {log} 2>&1"
 
-# Two-parameter bifurcation curves over a plane's pattern map.
+# The plane atlas: bifurcation curves seeded from the boundaries of a plane's pattern map.
 rule bifurcation_curves:
     input:
         cells=of_plane(lambda: rules.plane_cells.output.cells),
-        points=[rules.standard_continuation.output.points] if ORBITS_STANDARD else [],
         config=CONFIG,
     output:
         curves="results/orbits/{plane}_curves.parquet",
         points="results/orbits/{plane}_curves_points.parquet",
         branches="results/orbits/{plane}_curves_branches.parquet",
+        codim2="results/orbits/{plane}_codim2.parquet",
         figure="results/orbits/{plane}_curves.png",
     log:
         "logs/orbits/{plane}_curves.log",
@@ -77,13 +78,10 @@ rule bifurcation_curves:
     threads: 2
     params:
         config=plane_params,
-        points=lambda wildcards, input: (
-            f"--points {input.points}" if input.points else ""
-        ),
         code_version=CODE_VERSION["analysis"],
     shell:
         "gearsim bifurcation-curves --plane {wildcards.plane} --cells {input.cells} "
-        "{params.points} --workers {threads} --configfile {input.config} "
+        "--workers {threads} --configfile {input.config} "
         "--out {output.curves} > {log} 2>&1"
 
 # the continuation tables by the names the figures read (figures.registry, `Inputs.orbits`)
@@ -115,4 +113,6 @@ ORBIT_CATALOGUE_FILES = [
 ORBIT_REPORT_INPUTS = (
     [rules.standard_continuation.output.points] if ORBITS_STANDARD else []
 ) + expand(rules.bifurcation_curves.output.curves, plane=CURVE_PLANES)
-TARGETS_ORBITS = ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS
+# the codimension-2 points of each plane's curves (docs/orbits.md, "The plane atlas")
+ORBIT_CODIM2_FILES = expand(rules.bifurcation_curves.output.codim2, plane=CURVE_PLANES)
+TARGETS_ORBITS = ORBIT_CATALOGUE_FILES + ORBIT_REPORT_INPUTS + ORBIT_CODIM2_FILES

@@ -48,12 +48,13 @@ def mechanisms(edges: pd.DataFrame) -> dict[str, Any]:
 
 def b_independence(curves: pd.DataFrame | None, edges: pd.DataFrame, y_name: str,
                    x_name: str = "w", above: float = PAPER_B_THRESHOLD) -> dict[str, Any]:
-    """Above ``y = above``: the largest ``|dx/dy|`` of any curve segment with both ends above
-    it (and its curve), and the edges between cells along y (a label that changes with y)."""
+    """Above ``y = above``: the largest ``|dx/dy|`` of any curve segment reaching above it
+    (a straight segment's slope is that of its part above; and its curve), and the edges
+    between cells along y (a label that changes with y)."""
     worst, which = 0.0, None
     for line in bd.curve_polylines(curves, x_name):
         xy = line["xy"]
-        ok = (xy[:-1, 1] > above) & (xy[1:, 1] > above)
+        ok = (xy[:-1, 1] > above) | (xy[1:, 1] > above)
         dx, dy = np.diff(xy[:, 0])[ok], np.diff(xy[:, 1])[ok]
         keep = np.abs(dy) > 0
         if keep.any():
@@ -201,7 +202,7 @@ def chaotic_band(cells: pd.DataFrame, params, *, x_name: str, y_name: str, y_val
     except (OrbitError, ValueError) as exc:
         out["onset"] = {"error": str(exc)}
     if reading.get("exit") == "cascade":
-        row = cells[cells["y"] == y].sort_values("x")
+        row = cells[cells["y"] == out["row"]].sort_values("x")
         after = row[(row["x"] > reading["end"]) & (row["motion"] == "periodic")
                     & (row["n"] == 1)]
         if len(after):

@@ -78,47 +78,71 @@ def _curve_point(kind: str, n: int, boundary: str, name: str, name2: str, w_v: f
     }
 
 
-def _direction(hist: list, s1: float, s2: float, direction: float) -> np.ndarray:
-    """The curve's unit direction in the plane scaled by ``(s1, s2)``: its last secant (the
-    first step: along ``name2`` towards the stop)."""
-    if len(hist) < 2:
-        return np.array([0.0, direction])
-    (m0, w0, _), (m1, w1, _) = hist[-2], hist[-1]
-    t = np.array([(w1 - w0) / s1, (m1 - m0) / s2])
-    return t / np.linalg.norm(t)
+def _end(reason: str) -> str:
+    """The end code of a curve half's stop reason (docs/orbits.md, ``end_first``)."""
+    for code in ("edge", "lost", "closed", "joins", BUDGET, "max_points"):
+        if reason.startswith(code):
+            return code
+    return "lost"
 
 
-def _predicted_state(hist: list, w_p: float, m_p: float, s1: float, s2: float) -> np.ndarray:
+class _Stepper:
+    """The curve's geometry in cell units: ``U = ((w - lo1) / c1, (mu - lo2) / c2)`` (one unit
+    is one cell of the map the curve is drawn on), the box of the plane, the predictor."""
+
+    def __init__(self, box: tuple[float, float, float, float], cell: tuple[float, float]):
+        self.lo1, self.hi1, self.lo2, self.hi2 = box
+        self.c1, self.c2 = cell
+        self.n1 = (self.hi1 - self.lo1) / self.c1
+        self.n2 = (self.hi2 - self.lo2) / self.c2
+
+    def u(self, w: float, m: float) -> np.ndarray:
+        return np.array([(w - self.lo1) / self.c1, (m - self.lo2) / self.c2])
+
+    def wm(self, u: np.ndarray) -> tuple[float, float]:
+        return self.lo1 + u[0] * self.c1, self.lo2 + u[1] * self.c2
+
+    def clip(self, u0: np.ndarray, t: np.ndarray, h: float):
+        """The step ``alpha <= h`` along ``t`` that stays inside the box, and the box side it
+        reaches (``"x"``: a w edge, ``"y"``: a mu edge, ``""``: none)."""
+        alpha, side = h, ""
+        for k, (n, s) in enumerate(((self.n1, "x"), (self.n2, "y"))):
+            if t[k] > 1e-15:
+                a = (n - u0[k]) / t[k]
+            elif t[k] < -1e-15:
+                a = -u0[k] / t[k]
+            else:
+                continue
+            if a < alpha:
+                alpha, side = max(a, 0.0), s
+        return alpha, side
+
+    def inside(self, u: np.ndarray, tol: float = 1e-9) -> bool:
+        return bool(-tol <= u[0] <= self.n1 + tol and -tol <= u[1] <= self.n2 + tol)
+
+
+def _near_any(u: np.ndarray, polys: Sequence[np.ndarray], r: float) -> bool:
+    """``u`` lies within ``r`` of one of the polylines (cell units)."""
+    for poly in polys:
+        if len(poly) < 2:
+            continue
+        a, b = poly[:-1], poly[1:]
+        ab = b - a
+        s = np.clip(((u - a) * ab).sum(axis=1) / np.maximum((ab * ab).sum(axis=1), 1e-300),
+                    0.0, 1.0)
+        if float(np.min(np.linalg.norm(a + s[:, None] * ab - u, axis=1))) <= r:
+            return True
+    return False
+
+
+def _predicted_state(hist: list, u_p: np.ndarray) -> np.ndarray:
     """The section state at the predicted point, extrapolated from the last two points."""
-    m1, w1, y1 = hist[-1]
+    u1, y1 = hist[-1]
     if len(hist) < 2:
         return y1
-    m0, w0, y0 = hist[-2]
-    dist = math.hypot((w1 - w0) / s1, (m1 - m0) / s2)
-    f = math.hypot((w_p - w1) / s1, (m_p - m1) / s2) / max(dist, 1e-300)
-    return y1 + f * (y1 - y0)
-
-
-def _predict(hist: list, h: float, scale: tuple[float, float], direction: float,
-             range2: tuple[float, float]):
-    """The next point's prediction ``(w, mu, swap, edge, state)`` a step ``h`` (``name2``
-    units) along the curve; ``swap`` where it runs more along ``name`` than along ``name2``,
-    ``edge`` when the step is cut at the edge of ``range2``; the edge value (a float) when the
-    last point is on it already."""
-    (s1, s2), (lo2, hi2) = scale, range2
-    m1, w1, _ = hist[-1]
-    t = _direction(hist, s1, s2, direction)
-    hn = h / s2  # step in scaled units
-    w_p, m_p = w1 + hn * t[0] * s1, m1 + hn * t[1] * s2
-    swap = abs(t[0]) > abs(t[1])
-    edge = False
-    if not swap and not (lo2 - 1e-12 <= m_p <= hi2 + 1e-12):
-        m_edge = hi2 if m_p > hi2 else lo2
-        if abs(m_edge - m1) <= 1e-12:
-            return m_edge
-        frac = (m_edge - m1) / (m_p - m1)
-        w_p, m_p, edge = w1 + frac * (w_p - w1), m_edge, True
-    return w_p, m_p, swap, edge, _predicted_state(hist, w_p, m_p, s1, s2)
+    u0, y0 = hist[-2]
+    f = float(np.linalg.norm(u_p - u1)) / max(float(np.linalg.norm(u1 - u0)), 1e-300)
+    return y1 + min(f, 4.0) * (y1 - y0)
 
 
 class _Relocator:
@@ -126,8 +150,10 @@ class _Relocator:
     secant solve (``method="secant"``), with the windowed continuation as the fallback for its
     first two failures (and the method for Neimark-Sacker points); counts what it used."""
 
-    def __init__(self, kind: str, boundary: str, n: int, method: str, cfg: Continuation):
+    def __init__(self, kind: str, boundary: str, n: int, method: str, cfg: Continuation,
+                 wtol: float = 1e-9):
         self.kind, self.boundary, self.n, self.method, self.cfg = kind, boundary, n, method, cfg
+        self.wtol = wtol
         self.stats = {"secant": 0, "secant_failed": 0, "window": 0, "swapped": 0}
         self.slopes: dict[str, float] = {}
 
@@ -139,7 +165,7 @@ class _Relocator:
                 found = relocate_fold(p_fixed, n, along, pred, y_pred, win, cfg)
             else:
                 found = relocate_secant(p_fixed, kind, boundary, n, along, pred, y_pred,
-                                        win, cfg, wtol=1e-9, slope=self.slopes.get(along),
+                                        win, cfg, wtol=self.wtol, slope=self.slopes.get(along),
                                         tangent_error=TRACKING_TANGENT_ERROR)
                 if found is not None:
                     self.slopes[along] = found[0].get("slope", math.nan)
@@ -166,28 +192,40 @@ def follow_curve(
     *,
     step2: float,
     step_min: float | None = None,
-    window: float = 0.01,
+    window: float | None = None,
     config: Continuation | None = None,
     max_points: int = 200,
     method: str = "secant",
     range2: Sequence[float] | None = None,
     range1: Sequence[float] | None = None,
+    cell: Sequence[float] | None = None,
+    deviation: float = 0.3,
+    tangent: Sequence[float] | None = None,
+    avoid: Sequence[np.ndarray] = (),
 ) -> pd.DataFrame:
-    """Follow one located bifurcation point in ``name2`` from its value in ``params`` towards
-    ``stop2``.
+    """Follow one located bifurcation point across the plane ``(name, name2)``.
 
     ``point`` is a row of :func:`bifurcation_points` (``kind``, ``period``, ``boundary``,
-    ``name``, ``value``, ``x``, ``v``). Returns the curve (columns :data:`CURVE_COLUMNS` without
-    ``curve``), starting with the given point.
+    ``name``, ``value``, ``x``, ``v``; ``name2`` is at its value in ``params``). Returns the
+    curve (columns :data:`CURVE_COLUMNS` without ``curve``), starting with the given point;
+    ``attrs``: ``reason`` (in words), ``end`` (``edge``, ``lost``, ``closed``, ``budget``,
+    ``max_points``), ``last_state`` (the last point's section state), ``relocations``.
 
-    Stepping: the first step moves ``name2`` towards ``stop2``; then the curve's secant
-    direction in the plane (each axis scaled by its range: ``range1`` for ``name``, default
-    2.4 wide; ``range2``, default the start-to-``stop2`` distance) predicts the next point,
-    ``step2`` (in ``name2`` units) long. Where the curve runs more along ``name`` than along
-    ``name2`` the roles swap: ``name`` is fixed at the prediction and the point is located
-    along ``name2`` (a curve turning back in ``name2`` is followed round its turn instead of
-    being lost). The curve ends when it leaves ``range2`` (the last point lands on its edge)
-    or ``range1``, or is lost.
+    Geometry in cell units (``cell = (c1, c2)``, the map's cell sizes; default a 400th of each
+    range): the first step goes along ``tangent`` (default: along ``name2`` towards
+    ``stop2``), then along the secant of the last two points. A point is located at the
+    predicted value of the coordinate the curve runs along more (secant on its test function
+    along the other one), so a curve turning in either parameter is followed round its turn.
+    Step control (pseudo-arclength in the plane): the distance ``d`` between the predicted and
+    the located point is the curve's curvature times half the squared step; the next step is
+    ``h sqrt(deviation / d)`` (at most twice, at least half the last; at most ``step2``, in
+    ``name2`` units), and a step whose ``d`` exceeds one cell is refused and halved. So the
+    polygon of the points stays within ~``deviation`` cells of the curve: as fine as the map,
+    and long steps where the curve is straight. The curve ends at the plane's edge (its last
+    point on the edge), where it returns to its start (``closed``), or where the point is lost
+    (the step halved below ``step_min``: a codimension-2 point, or the branch ceasing to
+    exist). ``avoid``: polylines (cell units) of curves of the same kind already followed; two
+    points in a row within half a cell of one of them end the curve (``joins``).
     """
     if name2 not in ModelParameters.names():
         raise ParameterError(f"second parameter 'name2' = {name2!r} is not a model parameter")
@@ -197,69 +235,108 @@ def follow_curve(
     n = int(point["period"])
     boundary = str(point.get("boundary", "") or "")
     name = str(point["name"])
-    cfg = _tracking_config(config, kind, window)
     mu = float(getattr(params, name2))
     direction = 1.0 if stop2 > mu else -1.0
     lo2, hi2 = ((min(range2), max(range2)) if range2 is not None
                 else (min(mu, stop2), max(mu, stop2)))
     lo1, hi1 = (min(range1), max(range1)) if range1 is not None else (1e-6, 100.0)
-    s1 = (hi1 - lo1) if range1 is not None else 2.4
-    s2 = max(hi2 - lo2, abs(step2))
-    h = abs(step2)
-    h_min = step_min if step_min is not None else h / 4
-    pts: list[dict[str, Any]] = []
+    if cell is None:
+        cell = ((hi1 - lo1 if range1 is not None else 2.4) / 400.0,
+                max(hi2 - lo2, abs(step2)) / 400.0)
+    geo = _Stepper((lo1, hi1, lo2, hi2), (float(cell[0]), float(cell[1])))
+    h_max = abs(step2) / geo.c2
+    h_min = (step_min / geo.c2) if step_min is not None else min(0.2, h_max / 4)
+    win_min = {name: (window if window is not None else geo.c1),
+               name2: (window * geo.c2 / geo.c1 if window is not None else geo.c2)}
+    cfg = _tracking_config(config, kind, win_min[name])
     locate = _Relocator(kind, boundary, n, method, cfg)
     stats = locate.stats
+    pts: list[dict[str, Any]] = []
 
     def add(w_v, mu_v, r):
         pts.append(_curve_point(kind, n, boundary, name, name2, w_v, mu_v, r))
 
     add(float(point["value"]), mu, point)
-    hist = [(mu, float(point["value"]), section_state(point))]
-    reason = "max points"
+    u0 = geo.u(float(point["value"]), mu)
+    hist = [(u0, section_state(point))]
+    t = np.array(tangent, dtype=float) if tangent is not None else np.array([0.0, direction])
+    t /= np.linalg.norm(t)
+    h = min(h_max, 1.0)  # the first step: a cell, its direction a guess
+    path = 0.0
+    near = 0
+    reason = "max_points"
     while len(pts) < max_points:
-        m1, w1, y1 = hist[-1]
+        u1, y1 = hist[-1]
+        w1, m1 = geo.wm(u1)
         if cfg.out_of_budget():
             reason = f"{BUDGET}: wall-clock budget spent at {name2} = {m1:.6g}"
             break
-        pred = _predict(hist, h, (s1, s2), direction, (lo2, hi2))
-        if not isinstance(pred, tuple):
-            reason = f"reached {name2} = {pred}"
+        alpha, side = geo.clip(u1, t, h)
+        if alpha <= 1e-9:
+            reason = f"edge: reached the plane's edge at {name} = {w1:.6g}, {name2} = {m1:.6g}"
             break
-        w_p, m_p, swap, edge, y_pred = pred
+        u_p = u1 + alpha * t
+        w_p, m_p = geo.wm(u_p)
+        y_pred = _predicted_state(hist, u_p)
+        swap = side == "x" or (side == "" and abs(t[0]) > abs(t[1]))
         try:
-            if swap:
+            if swap:  # fixed name at the prediction, located along name2
+                win = max(0.5 * alpha, 1.0) * geo.c2
                 found = locate(params.with_(**{name2: m1, name: w_p}), name2, m_p, y_pred,
-                               window * s2 / s1)
+                               max(win, win_min[name2]))
                 stats["swapped"] += 1
             else:
-                found = locate(params.with_(**{name2: m_p}), name, w_p, y_pred, window)
+                win = max(0.5 * alpha, 1.0) * geo.c1
+                found = locate(params.with_(**{name2: m_p}), name, w_p, y_pred,
+                               max(win, win_min[name]))
         except ParameterError:
             found = None
+        if found is not None:
+            r, y = found
+            w_new, m_new = (w_p, float(r["value"])) if swap else (float(r["value"]), m_p)
+            u_new = geo.u(w_new, m_new)
+            dev = float(np.linalg.norm(u_new - u_p))
+            if not geo.inside(u_new):
+                found = None  # beyond the edge: a shorter step lands on it
+            elif len(hist) > 1 and dev > max(1.0, 4 * deviation) and alpha > 2 * h_min:
+                found = None  # the curve bends more than the step resolves
         if found is None:
-            h *= 0.5
+            h = (0.5 if alpha > 2.0 else 0.25) * min(h, alpha)
             if h < h_min:
-                reason = f"point lost beyond {name2} = {m1:.6g}, {name} = {w1:.6g}"
+                reason = f"lost: point lost beyond {name} = {w1:.8g}, {name2} = {m1:.8g}"
                 break
             continue
-        r, y = found
-        w_new, m_new = (w_p, float(r["value"])) if swap else (float(r["value"]), m_p)
-        if not (lo2 - 1e-12 <= m_new <= hi2 + 1e-12):
-            reason = f"left {name2} in [{lo2}, {hi2}] near {name} = {w_new:.6g}"
-            break
         add(w_new, m_new, r)
-        hist.append((m_new, w_new, y))
-        if edge:
-            reason = f"reached {name2} = {m_new}"
+        seg = u_new - u1
+        path += float(np.linalg.norm(seg))
+        hist.append((u_new, y))
+        t_new = seg / float(np.linalg.norm(seg))
+        turn = math.acos(max(-1.0, min(1.0, float(t_new @ t))))
+        t = t_new
+        if side:
+            reason = (f"edge: reached the plane's edge at {name} = {w_new:.6g}, "
+                      f"{name2} = {m_new:.6g}")
             break
-        if not (lo1 <= w_new <= hi1):
-            reason = f"left {name} in [{lo1}, {hi1}] at {name2} = {m_new:.6g}"
+        near = near + 1 if len(hist) > 2 and _near_any(u_new, avoid, 0.5) else 0
+        if near >= 2:
+            reason = (f"joins: runs onto a curve already followed at {name} = {w_new:.6g}, "
+                      f"{name2} = {m_new:.6g}")
             break
-        h = min(abs(step2), h * 1.5)
+        if path > 8.0 and float(np.linalg.norm(u_new - u0)) < max(1.0, 0.75 * alpha):
+            reason = f"closed: returned to its start at {name} = {w_new:.6g}, {name2} = {m_new:.6g}"
+            break
+        grow = 2.0 if len(hist) <= 2 else min(2.0, max(0.5, 0.9 * math.sqrt(
+            deviation / max(dev, 1e-12))))
+        if turn > 0.35:
+            grow = min(grow, 0.5)
+        h = min(h_max, max(h_min, alpha * grow))
     df = pd.DataFrame(pts, columns=[c for c in CURVE_COLUMNS if c != "curve"])
     df.attrs["reason"] = reason
+    df.attrs["end"] = _end(reason)
     df.attrs["status"] = BUDGET if reason.startswith(BUDGET) else "ok"
     df.attrs["relocations"] = stats
+    df.attrs["last_state"] = [float(v) for v in hist[-1][1]]
+    df.attrs["last_tangent"] = [float(v) for v in t]
     return df
 
 

@@ -28,8 +28,9 @@ and explained by one **mechanism**, the first that applies of:
     a later one of the cascade) within :data:`NEAR_CELLS`: the rest of the cascade
     accumulates inside the cell gap (the onset, or the exit of an inverse cascade);
 ``crisis``
-    any other edge between a chaotic and a periodic cell: the chaotic band ends abruptly, as
-    read from the grid (a crisis; not located by a test function);
+    any other edge between a chaotic and a periodic cell across which the motion jumps
+    (:func:`is_jump`): the chaotic band ends abruptly, as read from the grid (a crisis; not
+    located by a test function);
 ``near_curve``
     a quasi-periodic, unsettled or diverged cell's edge within :data:`NEAR_CELLS` of any curve
     (next to a doubling a cell's transient decays too slowly to settle in its window:
@@ -322,7 +323,9 @@ def classify_edges(cells: pd.DataFrame, curves: pd.DataFrame | None, plane: str 
                     found = "chaos_onset"
                     best = (line["curve"], float(dist[k, c]))
                     break
-            found = found or "crisis"
+            if found is None and is_jump(row.dc0, row.dc1, row.x_max0 - row.x_min0,
+                                         row.x_max1 - row.x_min1):
+                found = "crisis"
         else:
             found = "near_curve" if e["near_any"].iat[k] else None
             if found:

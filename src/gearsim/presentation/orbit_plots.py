@@ -93,35 +93,104 @@ CURVE_STYLE = {
     "grazing": (":", "#ff7f0e", "grazing"),
     "neimark_sacker": ("--", "#9467bd", "Neimark-Sacker"),
 }
+#: the line of each kind of curve in Figs 21 and 22 (the grazing by its flank): dash pattern and
+#: the words of the caption; the colour is the orbit's period (:data:`CURVE_PERIOD_COLOURS`)
+CURVE_LINES = {
+    ("period_doubling", ""): ("-", "period doubling n -> 2n"),
+    ("fold", ""): ((0, (6, 2, 1, 2)), "fold"),
+    ("grazing", "face"): ((0, (1, 1.2)), "grazing of the tooth face (x = +b)"),
+    ("grazing", "back"): ((0, (3, 1.5)), "grazing of the tooth back (x = -b)"),
+    ("grazing", "bearing"): ((0, (3, 1, 1, 1, 1, 1)), "grazing of a bearing clearance"),
+    ("neimark_sacker", ""): ((0, (5, 3)), "Neimark-Sacker"),
+}
+#: colour of a curve by the period of its orbit (1, 2, 4, 8, 16, more)
+CURVE_PERIOD_COLOURS = ("#111111", "#1f4fd6", "#e7298a", "#6a3d9a", "#b15928", "#17becf")
+#: marker of each kind of codimension-2 point (docs/orbits.md, the atlas's tables)
+CODIM2_MARKERS = {
+    "pd_grazing": ("*", "doubling meets grazing"),
+    "fold_grazing": ("D", "fold meets grazing"),
+    "cusp": ("^", "cusp (two folds meet)"),
+    "double_grazing": ("s", "both flanks graze"),
+    "pd_pd": ("p", "two doublings meet"),
+    "grazing_grazing": ("X", "two turning points graze"),
+}
 
 
-def draw_curves(ax, curves: pd.DataFrame, *, swap: bool = False, labels: bool = True) -> None:
-    """Draw two-parameter bifurcation curves (``value`` on x, ``value2`` on y)."""
-    seen: set[str] = set()
+def curve_flank(row) -> str:
+    """``face``, ``back``, ``bearing`` for a grazing curve (its ``flank`` column, else read
+    from its ``boundary``), ``""`` for the other kinds."""
+    if str(row.get("kind", "")) != "grazing":
+        return ""
+    flank = str(row.get("flank", "") or "")
+    if flank:
+        return flank
+    b = str(row.get("boundary", "") or "").replace(" ", "")
+    return "face" if b.startswith("x=+") else "back" if b.startswith("x=-") else "bearing"
+
+
+def _period_colour(n: int) -> str:
+    k = int(np.log2(max(n, 1))) if n & (n - 1) == 0 else len(CURVE_PERIOD_COLOURS) - 1
+    return CURVE_PERIOD_COLOURS[min(k, len(CURVE_PERIOD_COLOURS) - 1)]
+
+
+def _curve_text(kind: str, flank: str, n: int) -> str:
+    if kind == "period_doubling":
+        return f"period doubling {n}T -> {2 * n}T"
+    if kind == "grazing":
+        return f"grazing {dict(face='x=+b', back='x=-b').get(flank, 'bearing')}, {n}T"
+    return f"{kind.replace('_', ' ')}, {n}T"
+
+
+def draw_curves(ax, curves: pd.DataFrame, *, swap: bool = False, labels: bool = True,
+                codim2: pd.DataFrame | None = None) -> list:
+    """Draw two-parameter bifurcation curves (``value`` on x, ``value2`` on y): the dash
+    pattern by kind (a grazing by its flank), the colour by the orbit's period, a white halo
+    under each line; the codimension-2 points as black markers by kind. Returns the legend
+    handles: one per kind and period drawn, then one per kind of codimension-2 point."""
+    from matplotlib import patheffects
+    from matplotlib.lines import Line2D
+
+    halo = [patheffects.withStroke(linewidth=3.2, foreground="white", alpha=0.8)]
+    keys: dict[tuple[str, str, int], Line2D] = {}
     for _, c in curves.groupby("curve", sort=True):
-        kind = str(c["kind"].iloc[0])
-        ls, colour, text = CURVE_STYLE.get(kind, ("-", "k", kind))
-        n = int(c["period"].iloc[0])
+        r = c.iloc[0]
+        kind, n = str(r["kind"]), int(r["period"])
+        flank = curve_flank(r)
+        ls, _text = CURVE_LINES.get((kind, flank), ("-", kind))
+        colour = _period_colour(n)
         xs, ys = c["value"].to_numpy(), c["value2"].to_numpy()
         if swap:
             xs, ys = ys, xs
-        ax.plot(xs, ys, ls=ls, color=colour, lw=1.8,
-                label=None if (kind in seen or not labels) else text)
-        seen.add(kind)
-        k = len(xs) // 2
-        ax.annotate(f"{n}T", (xs[k], ys[k]), fontsize=6.5, color=colour,
-                    xytext=(3, 3), textcoords="offset points")
+        ax.plot(xs, ys, ls=ls, color=colour, lw=1.5, path_effects=halo, zorder=3)
+        if len(xs) == 1:
+            ax.plot(xs, ys, marker=".", color=colour, ms=4, zorder=3)
+        keys.setdefault((kind, flank, n), Line2D([], [], ls=ls, color=colour, lw=1.5,
+                                                 label=_curve_text(kind, flank, n)))
+    order = {k: i for i, k in enumerate(("period_doubling", "grazing", "fold"))}
+    handles = [keys[k] for k in sorted(keys, key=lambda k: (order.get(k[0], 9), k[1], k[2]))]
+    if codim2 is not None and len(codim2):
+        for kind, g in codim2.groupby("kind", sort=True):
+            marker, text = CODIM2_MARKERS.get(str(kind), ("o", str(kind)))
+            xs, ys = g["value"].to_numpy(), g["value2"].to_numpy()
+            if swap:
+                xs, ys = ys, xs
+            ax.plot(xs, ys, ls="none", marker=marker, ms=7, mfc="white", mec="black",
+                    mew=1.1, zorder=5)
+            handles.append(Line2D([], [], ls="none", marker=marker, ms=7, mfc="white",
+                                  mec="black", mew=1.1, label=f"{text} ({len(g)})"))
+    return handles if labels else []
 
 
 def figure_curves(curves: pd.DataFrame, cells: pd.DataFrame | None = None, *,
-                  title: str | None = None):
-    """Bifurcation curves over the plane's pattern map (if ``cells`` is given)."""
+                  title: str | None = None, codim2: pd.DataFrame | None = None):
+    """Bifurcation curves and codimension-2 points over the plane's pattern map (if ``cells``
+    is given); the legends: the patterns on the right, the curves below them."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.5, 5.2))
+    fig, ax = plt.subplots(figsize=(9.6, 6.0))
     if cells is not None and len(cells):
         from gearsim.presentation.figures.planes import draw_pattern_map
 
@@ -129,19 +198,19 @@ def figure_curves(curves: pd.DataFrame, cells: pd.DataFrame | None = None, *,
                                                             "bbox_to_anchor": (1.01, 1.0)})
     name = str(curves["name"].iloc[0]) if len(curves) else "w"
     name2 = str(curves["name2"].iloc[0]) if len(curves) else "b"
-    draw_curves(ax, curves)
+    handles = draw_curves(ax, curves, codim2=codim2)
     if cells is not None and len(cells):
         ax.set_xlim(float(cells["x"].min()), float(cells["x"].max()))
         ax.set_ylim(float(cells["y"].min()), float(cells["y"].max()))
-    handles = [h for h in ax.get_lines() if h.get_label() and not h.get_label().startswith("_")]
     if handles:
-        fig.legend(handles=handles, loc="lower right", fontsize=7, title="curves (Newton)",
-                   title_fontsize=7)
+        fig.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.745, 0.02),
+                   fontsize=6, title="curves: kind, period (Newton-Floquet)",
+                   title_fontsize=6.5, ncol=1 if len(handles) <= 16 else 2, frameon=False)
     ax.set_xlabel(param_label(name))
     ax.set_ylabel(param_label(name2))
     if title:
         ax.set_title(title, fontsize=9)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.07, right=0.74, bottom=0.09, top=0.93)
     return fig
 
 

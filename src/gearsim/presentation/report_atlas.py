@@ -1,4 +1,4 @@
-"""The report's plane atlas (``gearsim atlas``, docs/orbits.md): per plane, the boundary
+"""The report's plane atlas (``gearsim atlas``, docs/atlas.md): per plane, the boundary
 length by mechanism, the share of the periodic boundaries a located curve or a fold band
 explains, the link to the unexplained edges, and the chaotic band along its line. Text only:
 the numbers are those of the atlas summaries."""

@@ -7,7 +7,8 @@ The names the rest of gearsim uses, from the modules that hold them:
 * :mod:`gearsim.results.schema`: the catalogue's tables, ``SCHEMA_VERSION``, ``open_catalogue``
   (every reader's way in), ``migrate_catalogue``;
 * :mod:`gearsim.results.ingest`: ``build_catalogue``;
-* :mod:`gearsim.results.publish`: ``publish``, ``set_aside_damaged``.
+* :mod:`gearsim.results.publish`: ``publish``, ``set_aside_damaged``, ``publish_anywhere`` and
+  ``migrate_anywhere`` (a file, or a study on a database server: :mod:`gearsim.results.server`).
 
 Files (see docs/pipeline.md)
 ----------------------------
@@ -38,11 +39,17 @@ from gearsim.results.parquet import (
     read_metadata,
     write_parquet,
 )
-from gearsim.results.publish import publish, set_aside_damaged
+from gearsim.results.publish import (
+    migrate_anywhere,
+    publish,
+    publish_anywhere,
+    set_aside_damaged,
+)
 from gearsim.results.schema import *  # noqa: F403 (the names of schema.__all__)
 
 __all__ = [
     *schema.__all__, "CatalogueError", "PLANE_KEY", "PROVENANCE_KEY", "TILES_KEY",
-    "build_catalogue", "combine_tiles", "now_iso", "publish", "read_metadata",
+    "build_catalogue", "combine_tiles", "migrate_anywhere", "now_iso", "publish",
+    "publish_anywhere", "read_metadata",
     "set_aside_damaged", "write_parquet",
 ]

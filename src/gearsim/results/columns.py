@@ -269,6 +269,83 @@ for _t in ("bifurcation_points", "bifurcation_curves"):
         (_t, "stable"): ("", "largest multiplier modulus below 1"),
     })
 CATALOGUE[("bifurcation_curves", "curve")] = ("", "curve number (one located point followed)")
+# the plane atlas (docs/orbits.md, "The plane atlas: its tables"); NULL in older catalogues
+for _t in ("bifurcation_points", "bifurcation_curves"):
+    CATALOGUE.update({
+        (_t, "source"): ("", "map (seeded from a boundary of the plane's pattern map) | sweep "
+                         "(from the standard continuation)"),
+        (_t, "seed_i"): ("", "grid index i of the first cell beside the seeding edge (-1: sweep)"),
+        (_t, "seed_j"): ("", "grid index j of the first cell beside the seeding edge (-1: sweep)"),
+        (_t, "seed_i2"): ("", "grid index i of the second cell beside the seeding edge"),
+        (_t, "seed_j2"): ("", "grid index j of the second cell beside the seeding edge"),
+        (_t, "label_a"): ("", "label I/nT of the first seeding cell ('' for sweep)"),
+        (_t, "label_b"): ("", "label I/nT of the second seeding cell ('' for sweep)"),
+    })
+CATALOGUE.update({
+    ("bifurcation_points", "curve"): ("", "bifurcation_curves.curve it seeded (-1: it landed "
+                                      "on a curve already followed; NULL: a continuation's "
+                                      "point)"),
+    ("bifurcation_curves", "flank"): ("", "face (x=+b) | back (x=-b) | bearing (a bearing "
+                                      "clearance) for a grazing, else empty"),
+    ("bifurcation_curves", "seq"): ("", "index of the point along its curve (0: its first end)"),
+    ("bifurcation_curves", "end_first"): ("", "why the curve ends at its first point: edge | "
+                                          "codim2 | closed | lost | budget | max_points"),
+    ("bifurcation_curves", "end_last"): ("", "why the curve ends at its last point (as "
+                                         "end_first)"),
+    ("bifurcation_curves", "end_first_detail"): ("", "end_first in words, with the values"),
+    ("bifurcation_curves", "end_last_detail"): ("", "end_last in words, with the values"),
+    ("bifurcation_curves", "codim2_first"): ("", "codim2_points.point at the first end (-1: "
+                                             "none)"),
+    ("bifurcation_curves", "codim2_last"): ("", "codim2_points.point at the last end (-1: "
+                                            "none)"),
+    ("codim2_points", "id"): _ID,
+    ("codim2_points", "run_id"): ("", "runs.id of the curves job"),
+    ("codim2_points", "plane"): ("", "plane the point belongs to"),
+    ("codim2_points", "point"): ("", "point id within the plane"),
+    ("codim2_points", "kind"): ("", "pd_grazing | fold_grazing | cusp | double_grazing | pd_pd "
+                                "| grazing_grazing"),
+    ("codim2_points", "conditions"): ("", "its two defining conditions, e.g. 'period_doubling; "
+                                      "grazing x=-b'"),
+    ("codim2_points", "period"): ("mesh periods", "period n of the orbit"),
+    ("codim2_points", "boundary"): ("", "grazing boundary involved, else empty"),
+    ("codim2_points", "name"): ("", "the plane's x parameter"),
+    ("codim2_points", "value"): ("as the parameter", "its value at the point"),
+    ("codim2_points", "name2"): ("", "the plane's y parameter"),
+    ("codim2_points", "value2"): ("as the parameter", "its value at the point"),
+    ("codim2_points", "curves"): ("JSON", "bifurcation_curves.curve ids of the curves it joins"),
+    ("codim2_points", "curve_kinds"): ("JSON", "their kinds, in the same order"),
+    ("codim2_points", "residual_1"): ("1", "|first test function| at the point"),
+    ("codim2_points", "residual_2"): ("1", "|second test function| at the point"),
+    ("codim2_points", "residual"): ("1", "the larger of the two (< 1e-8 when converged)"),
+    ("codim2_points", "step"): ("as the parameters", "last Newton step, the larger of the two "
+                                "parameters' (< 1e-6 when converged)"),
+    ("codim2_points", "iterations"): ("", "Newton iterations"),
+    ("codim2_points", "converged"): ("", "both conditions met to 1e-8, the point fixed to 1e-6"),
+    ("codim2_points", "gap_cells"): ("cells", "distance from the joined curves' last points to "
+                                     "the point (largest over the curves)"),
+    ("codim2_points", "x"): ("1 (X_n / b_c)", "section displacement x(tau = 0) of the orbit"),
+    ("codim2_points", "v"): ("1", "section velocity dx/dtau of the orbit"),
+    ("codim2_points", "mu_max"): ("1", "largest Floquet multiplier modulus (per n mesh periods)"),
+    ("codim2_points", "multipliers"): ("JSON", "all Floquet multipliers as [re, im], by "
+                                       "modulus"),
+})
+# when the atlas's columns are NULL: a catalogue migrated from version 3 has them all NULL;
+# codim2_points' numbers are NULL where its table gives none (NaN)
+_MIGRATED_NULL = "NULL in a catalogue migrated from schema version 3 (built before the atlas)"
+for _key in [("bifurcation_curves", c) for c in (
+        "flank", "seq", "end_first", "end_last", "end_first_detail", "end_last_detail",
+        "codim2_first", "codim2_last")] + [(t, c) for t in ("bifurcation_points",
+                                                            "bifurcation_curves")
+                                           for c in ("source", "seed_i", "seed_j", "seed_i2",
+                                                     "seed_j2", "label_a", "label_b")]:
+    _unit, _meaning = CATALOGUE[_key]
+    if "NULL" not in _meaning:
+        CATALOGUE[_key] = (_unit, f"{_meaning}; {_MIGRATED_NULL}")
+for _col in ("residual_1", "residual_2", "residual", "step", "iterations", "gap_cells", "x", "v",
+             "mu_max", "multipliers"):
+    _unit, _meaning = CATALOGUE[("codim2_points", _col)]
+    CATALOGUE[("codim2_points", _col)] = (
+        _unit, f"{_meaning}; NULL where the point's table gives no value (not computed)")
 CATALOGUE.update({
     ("cell_orbits", "id"): _ID,
     ("cell_orbits", "cell_id"): ("", "cells.id of the refined cell"),

@@ -59,8 +59,10 @@ def _axis(lo: float, hi: float, n: int) -> np.ndarray:
     return lo + (np.arange(n) + 0.5) * (hi - lo) / n
 
 
-def plane_dataset(catalogue: str | Path, plane: str):
-    """The cells of ``plane`` from the catalogue as an :class:`xarray.Dataset` (see module doc)."""
+def plane_dataset(catalogue: str | Path, plane: str, *, source: str | None = None):
+    """The cells of ``plane`` from the catalogue as an :class:`xarray.Dataset` (see module doc).
+    ``source``: the catalogue's name in the attributes (default its path; a study read from a
+    server: :func:`gearsim.results.server_read.catalogue_name`)."""
     import xarray as xr
 
     from gearsim import __version__
@@ -129,7 +131,7 @@ def plane_dataset(catalogue: str | Path, plane: str):
         "integration": json.dumps(rec["integration"], sort_keys=True),
         "config_hash": rec.get("config_hash") or "",
         "code_version": rec.get("code_version") or "",
-        "catalogue": str(catalogue),
+        "catalogue": source if source is not None else str(catalogue),
         "catalogue_built": str(info.get("built", "")),
         "catalogue_schema_version": int(info.get("schema_version", 0)),
         "git_commit": str(info.get("git_commit") or ""),

@@ -40,6 +40,7 @@ from gearsim.results.schema import (
     Cell,
     CellAttractor,
     CellOrbit,
+    Codim2Point,
     ColumnDoc,
     Plane,
     Run,
@@ -398,8 +399,54 @@ def _insert_attractors(session: Session, f: Path, counts: dict) -> None:
     counts["attractors"] = counts.get("attractors", 0) + len(rows)
 
 
+#: the plane atlas's columns of the seed and curve tables (docs/orbits.md): integers, the rest
+#: text; absent from older files (NULL)
+_SEED_INTS = ("seed_i", "seed_j", "seed_i2", "seed_j2")
+_POINT_ATLAS = ("curve", "source", *_SEED_INTS, "label_a", "label_b")
+_CURVE_ATLAS = ("flank", "seq", "source", *_SEED_INTS, "label_a", "label_b", "end_first",
+                "end_last", "end_first_detail", "end_last_detail", "codim2_first",
+                "codim2_last")
+_ATLAS_INTS = {"curve", "seq", "codim2_first", "codim2_last", *_SEED_INTS}
+
+
+def _atlas_values(r: Mapping[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
+    out = {}
+    for n in names:
+        v = _nan_to_none(r.get(n))
+        out[n] = None if v is None else int(v) if n in _ATLAS_INTS else str(v)
+    return out
+
+
+def _codim2_row(r: Mapping[str, Any], run_id: int) -> dict[str, Any]:
+    """A row of ``codim2_points`` from a row of a plane's ``*_codim2.parquet``."""
+    def f(name):
+        v = _nan_to_none(r.get(name))
+        return None if v is None else float(v)
+
+    mu = None
+    if r.get("mu_re") is not None and r.get("mu_im") is not None:
+        mu = [[float(a), float(b)] for a, b in zip(r["mu_re"], r["mu_im"], strict=True)]
+    it = _nan_to_none(r.get("iterations"))
+    return {
+        "run_id": run_id, "plane": r.get("plane", ""), "point": int(r["point"]),
+        "kind": str(r["kind"]), "conditions": str(r["conditions"]),
+        "period": int(r["period"]), "boundary": str(r.get("boundary") or ""),
+        "name": str(r["name"]), "value": float(r["value"]), "name2": str(r["name2"]),
+        "value2": float(r["value2"]),
+        "curves": [int(c) for c in (r.get("curves") if r.get("curves") is not None else [])],
+        "curve_kinds": [str(c) for c in (r.get("curve_kinds")
+                                         if r.get("curve_kinds") is not None else [])],
+        "residual_1": f("residual_1"), "residual_2": f("residual_2"),
+        "residual": f("residual"), "step": f("step"),
+        "iterations": None if it is None else int(it), "converged": bool(r["converged"]),
+        "gap_cells": f("gap_cells"), "x": f("x"), "v": f("v"), "mu_max": f("mu_max"),
+        "multipliers": mu,
+    }
+
+
 def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
-    """Insert a bifurcation points / curves file or a refine-orbits file (by its columns)."""
+    """Insert a bifurcation points / curves / codimension-2 file or a refine-orbits file (by
+    its columns)."""
 
     prov, run, df = _file_run(session, f, "orbit file", counts)
     if "orbit_flag" in df.columns:
@@ -420,8 +467,13 @@ def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
                 "ms": _nan_to_none(r["orbit_ms"]),
             })
         table, key = CellOrbit, "cell_orbits"
+    elif "conditions" in df.columns:  # a plane's codimension-2 points (docs/orbits.md)
+        rows = [_codim2_row(r, run.id) for r in df.to_dict("records")]
+        table, key = Codim2Point, "codim2_points"
     else:
-        is_curve = "curve" in df.columns
+        # curve points have no 'point' column; a seed table (bifurcation points) has one,
+        # and since the plane atlas also the 'curve' it seeded
+        is_curve = "curve" in df.columns and "point" not in df.columns
         rows = []
         for r in df.to_dict("records"):
             row = {
@@ -434,6 +486,7 @@ def _insert_orbit_file(session: Session, f: Path, counts: dict) -> None:
                                 for a, b in zip(r["mu_re"], r["mu_im"], strict=True)],
                 "stable": bool(r["stable"]),
             }
+            row.update(_atlas_values(r, _CURVE_ATLAS if is_curve else _POINT_ATLAS))
             if is_curve:
                 row["curve"] = int(r["curve"])
             rows.append(row)

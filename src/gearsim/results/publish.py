@@ -42,6 +42,45 @@ def publish(built: str | Path, target: str | Path) -> Path:
     return target
 
 
+def publish_anywhere(built: str | Path, target: str, study: str | None = None) -> str:
+    """Publish ``built`` to ``target``: a file (:func:`publish`), or a database URL as the study
+    ``study`` (:func:`gearsim.results.server_publish.publish_study`). Returns where, for a line
+    (a URL's password hidden)."""
+    from gearsim.results.server import is_server_url, safe_url
+
+    if not is_server_url(target):
+        if study is not None:
+            raise CatalogueError(f"--study {study}: a study is published to a database URL "
+                                 f"(--to postgresql://...), not to the file {target}")
+        return str(publish(built, target))
+    if study is None:
+        raise CatalogueError(f"--to {safe_url(target)}: name the study to publish (--study NAME)")
+    from gearsim.results.server_publish import publish_study
+
+    counts = publish_study(built, target, study)
+    return f"{safe_url(target)} study {study} ({counts.get('cells', 0)} cells)"
+
+
+def migrate_anywhere(paths: list[str], study: str | None = None
+                     ) -> list[tuple[str, tuple[int, int]]]:
+    """Migrate catalogue files, or the study ``study`` of one database URL; ``[(where, (old,
+    new))]``."""
+    from gearsim.results.schema import migrate_catalogue
+    from gearsim.results.server import is_server_url, safe_url
+
+    urls = [p for p in paths if is_server_url(p)]
+    if not urls:
+        if study is not None:
+            raise CatalogueError(f"--study {study}: a study is migrated on a database URL")
+        return [(p, migrate_catalogue(p)) for p in paths]
+    if len(paths) != 1 or study is None:
+        raise CatalogueError(f"{safe_url(urls[0])}: migrate one database's study at a time "
+                             "(gearsim catalogue migrate URL --study NAME)")
+    from gearsim.results.server_read import migrate_study
+
+    return [(f"{safe_url(urls[0])} study {study}", migrate_study(urls[0], study))]
+
+
 def set_aside_damaged(published: str | Path, built: str | Path, *,
                       dry_run: bool = False) -> list[str]:
     """Make the workflow rebuild a catalogue that readers would refuse. Returns a line for each.

@@ -1,7 +1,8 @@
 """The SQLite catalogue's schema (SQLAlchemy 2), its version, its checks on open and migrations.
 
 Tables ``runs``, ``planes``, ``cells``, ``sweeps``, ``sweep_points``, ``audits``, ``attractors``,
-``bifurcation_points``, ``bifurcation_curves``, ``cell_orbits``, ``catalogue_info`` and
+``bifurcation_points``, ``bifurcation_curves``, ``codim2_points``, ``cell_orbits``,
+``catalogue_info`` and
 ``column_dictionary``; ``PRAGMA user_version`` is :data:`SCHEMA_VERSION`. Every reader opens a
 catalogue through :func:`open_catalogue`; :func:`migrate_catalogue` brings an older one up to date.
 """
@@ -45,6 +46,7 @@ from gearsim.results.views import create_views
 __all__ = [
     "APPLICATION_ID", "MIGRATIONS", "OLDEST_MIGRATABLE", "REBUILD", "REQUIRED", "REQUIRED_2",
     "ROW_COLUMNS", "SCHEMA_VERSION", "Audit", "Base", "BifurcationCurve", "BifurcationPoint",
+    "Codim2Point",
     "CatalogueInfo", "Cell", "CellAttractor", "CellOrbit", "ColumnDoc", "Plane", "Run", "Sweep",
     "SweepPoint", "catalogue_problem", "make_engine", "migrate_catalogue", "open_catalogue",
 ]
@@ -54,8 +56,10 @@ __all__ = [
 #: 1: runs, planes, cells, sweeps, sweep_points, audits;
 #: 2: column dictionary, catalogue_info, integration settings of planes and sweeps;
 #: 3: attractors, bifurcation_points, bifurcation_curves, cell_orbits, cells.n_attractors (some
-#:    catalogues of version 2 already have them) and runs.status (ok, budget, skipped).
-SCHEMA_VERSION = 3
+#:    catalogues of version 2 already have them) and runs.status (ok, budget, skipped);
+#: 4: codim2_points, and the plane atlas's columns of bifurcation_curves (flank, seq, source,
+#:    seed cells and labels, how each end ends) and bifurcation_points (curve, source, seed).
+SCHEMA_VERSION = 4
 #: The oldest version :func:`migrate_catalogue` brings up to date (older: rebuild).
 OLDEST_MIGRATABLE = 2
 #: ``PRAGMA application_id``: "GEAR"; tells a gearsim catalogue from any other SQLite file.
@@ -80,6 +84,7 @@ REQUIRED = REQUIRED_2 | frozenset(
         "bifurcation_points",
         "bifurcation_curves",
         "cell_orbits",
+        "codim2_points",
     }
 )
 #: How to rebuild a catalogue, for messages.
@@ -289,16 +294,30 @@ class _LocatedBifurcation:
     stable: Mapped[bool] = mapped_column(Boolean)
 
 
-class BifurcationPoint(_LocatedBifurcation, Base):
+class _Seeded:
+    """Where a curve was seeded (the plane atlas, docs/orbits.md): from a boundary of the map
+    (its two cells and their labels) or from the standard sweep; NULL in older catalogues."""
+
+    source: Mapped[str | None] = mapped_column(String(16))
+    seed_i: Mapped[int | None] = mapped_column(Integer)
+    seed_j: Mapped[int | None] = mapped_column(Integer)
+    seed_i2: Mapped[int | None] = mapped_column(Integer)
+    seed_j2: Mapped[int | None] = mapped_column(Integer)
+    label_a: Mapped[str | None] = mapped_column(String(32))
+    label_b: Mapped[str | None] = mapped_column(String(32))
+
+
+class BifurcationPoint(_LocatedBifurcation, _Seeded, Base):
     """A bifurcation located by continuation (gearsim.analysis.continuation; docs/orbits.md)."""
 
     __tablename__ = "bifurcation_points"
     id: Mapped[int] = mapped_column(primary_key=True)
     run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
     plane: Mapped[str] = mapped_column(String(64), index=True)
+    curve: Mapped[int | None] = mapped_column(Integer)  # the curve it seeded (-1: none)
 
 
-class BifurcationCurve(_LocatedBifurcation, Base):
+class BifurcationCurve(_LocatedBifurcation, _Seeded, Base):
     """A point of a two-parameter bifurcation curve (gearsim.analysis.bifcurves; docs/orbits.md)."""
 
     __tablename__ = "bifurcation_curves"
@@ -306,6 +325,46 @@ class BifurcationCurve(_LocatedBifurcation, Base):
     run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
     plane: Mapped[str] = mapped_column(String(64), index=True)
     curve: Mapped[int] = mapped_column(Integer)
+    flank: Mapped[str | None] = mapped_column(String(16))
+    seq: Mapped[int | None] = mapped_column(Integer)
+    end_first: Mapped[str | None] = mapped_column(String(16))
+    end_last: Mapped[str | None] = mapped_column(String(16))
+    end_first_detail: Mapped[str | None] = mapped_column(Text)
+    end_last_detail: Mapped[str | None] = mapped_column(Text)
+    codim2_first: Mapped[int | None] = mapped_column(Integer)
+    codim2_last: Mapped[int | None] = mapped_column(Integer)
+
+
+class Codim2Point(Base):
+    """A codimension-2 point of a plane: where two curves meet or a curve ends inside the
+    plane, located by Newton on its two defining conditions (docs/orbits.md)."""
+
+    __tablename__ = "codim2_points"
+    id: Mapped[int] = mapped_column(primary_key=True)
+    run_id: Mapped[int] = mapped_column(ForeignKey("runs.id"))
+    plane: Mapped[str] = mapped_column(String(64), index=True)
+    point: Mapped[int] = mapped_column(Integer)
+    kind: Mapped[str] = mapped_column(String(32))
+    conditions: Mapped[str] = mapped_column(Text)
+    period: Mapped[int] = mapped_column(Integer)
+    boundary: Mapped[str] = mapped_column(String(32))
+    name: Mapped[str] = mapped_column(String(32))
+    value: Mapped[float] = mapped_column(Float)
+    name2: Mapped[str] = mapped_column(String(32))
+    value2: Mapped[float] = mapped_column(Float)
+    curves: Mapped[list] = mapped_column(JSON)
+    curve_kinds: Mapped[list] = mapped_column(JSON)
+    residual_1: Mapped[float | None] = mapped_column(Float)
+    residual_2: Mapped[float | None] = mapped_column(Float)
+    residual: Mapped[float | None] = mapped_column(Float)
+    step: Mapped[float | None] = mapped_column(Float)
+    iterations: Mapped[int | None] = mapped_column(Integer)
+    converged: Mapped[bool] = mapped_column(Boolean)
+    gap_cells: Mapped[float | None] = mapped_column(Float)
+    x: Mapped[float | None] = mapped_column(Float)
+    v: Mapped[float | None] = mapped_column(Float)
+    mu_max: Mapped[float | None] = mapped_column(Float)
+    multipliers: Mapped[list | None] = mapped_column(JSON)
 
 
 class CellOrbit(Base):
@@ -509,7 +568,7 @@ def _migrate_2_to_3(op, con) -> None:
 
     have = set(sa.inspect(con).get_table_names())
     for name in ("attractors", "bifurcation_points", "bifurcation_curves", "cell_orbits"):
-        if name not in have:
+        if name not in have:  # this version's table (step 4 then finds its columns there)
             Base.metadata.tables[name].create(con)  # with its indexes
     cols = {c["name"] for c in sa.inspect(con).get_columns("cells")}
     if "n_attractors" not in cols:
@@ -520,9 +579,34 @@ def _migrate_2_to_3(op, con) -> None:
     con.exec_driver_sql("UPDATE runs SET status = 'ok' WHERE status IS NULL")
 
 
+#: the columns version 4 adds to older tables (the plane atlas's), by table
+_ATLAS_COLUMNS = {
+    "bifurcation_points": ("curve", "source", "seed_i", "seed_j", "seed_i2", "seed_j2",
+                           "label_a", "label_b"),
+    "bifurcation_curves": ("flank", "seq", "source", "seed_i", "seed_j", "seed_i2", "seed_j2",
+                           "label_a", "label_b", "end_first", "end_last", "end_first_detail",
+                           "end_last_detail", "codim2_first", "codim2_last"),
+}
+
+
+def _migrate_3_to_4(op, con) -> None:
+    """Version 4: ``codim2_points`` and the plane atlas's columns of the curve tables (NULL in
+    the rows already there)."""
+    import sqlalchemy as sa
+
+    if "codim2_points" not in set(sa.inspect(con).get_table_names()):
+        Base.metadata.tables["codim2_points"].create(con)
+    for table, names in _ATLAS_COLUMNS.items():
+        have = {c["name"] for c in sa.inspect(con).get_columns(table)}
+        for name in names:
+            if name not in have:
+                col = Base.metadata.tables[table].c[name]
+                op.add_column(table, sa.Column(name, col.type, nullable=True))
+
+
 #: ``{version: step}``: the step takes a catalogue of ``version`` to ``version + 1``
 #: (Alembic operations on one connection, inside one transaction).
-MIGRATIONS = {2: _migrate_2_to_3}
+MIGRATIONS = {2: _migrate_2_to_3, 3: _migrate_3_to_4}
 
 
 def migrate_catalogue(path: str | Path) -> tuple[int, int]:

@@ -1,5 +1,5 @@
 """``gearsim atlas``: a plane's boundaries accounted for, its chaotic band and the paper's
-mechanisms measured over the whole plane (docs/orbits.md, "The plane atlas")."""
+mechanisms measured over the whole plane (docs/atlas.md)."""
 
 from __future__ import annotations
 

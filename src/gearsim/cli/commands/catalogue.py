@@ -1,16 +1,9 @@
-"""``gearsim catalogue``: combine tiles, audit a plane, build the SQLite catalogue.
+"""``gearsim catalogue``: combine tiles, audit a plane, build and publish the catalogue.
 
-Subcommands (each is one Snakemake rule):
-
-* ``gearsim catalogue cells --plane wb --tiles T0 T1 ... --out results/wb/cells.parquet``
-* ``gearsim catalogue audit --plane wb --cells results/wb/cells.parquet
-  --out results/wb/audit.parquet``
-* ``gearsim catalogue build --cells C1 C2 --sweeps S1 S2 [--audits A1 A2]
-  --out results/catalogue.d/build.sqlite --publish results/catalogue.sqlite``
-* ``gearsim catalogue publish --from results/catalogue.d/build.sqlite
-  --to results/catalogue.sqlite`` (restore the published copy by hand)
-* ``gearsim catalogue migrate results/catalogue.sqlite`` (bring a catalogue of an older schema
-  version up to this one, in place and atomically)
+``cells`` (a plane's tiles into ``cells.parquet``), ``audit``, ``build`` (the SQLite catalogue,
+published with ``--publish``), ``publish --from BUILT --to results/catalogue.sqlite`` or ``--to
+postgresql://user@host/lab --study paper`` (a lab's database: the study's schema swapped in one
+transaction; docs/pipeline.md), ``migrate FILE`` or ``migrate URL --study NAME``.
 """
 
 from __future__ import annotations
@@ -18,55 +11,45 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
 from gearsim.cli.commands._common import add_config_arguments, check_plane, study_from_args
-from gearsim.errors import UsageError
-from gearsim.study.audit import audit_frame, audit_settings
 from gearsim.study.provenance import plane_record
 
 NAME = "catalogue"
-HELP = "combine a plane's tiles, audit it, or build results/catalogue.sqlite"
+HELP = "combine a plane's tiles, audit it, build results/catalogue.sqlite or publish it"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="action", required=True, parser_class=type(p))
-    c = sub.add_parser("cells", help="combine a plane's tile files into cells.parquet")
-    c.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
-    c.add_argument("--tiles", nargs="+", required=True, help="the plane's tile Parquet files")
-    c.add_argument("--out", "-o", required=True, help="the plane's cells.parquet to write")
-    add_config_arguments(c)
-    a = sub.add_parser("audit", help="re-simulate a sample of cells at tightened tolerance")
-    a.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
-    a.add_argument("--cells", required=True, help="the plane's cells.parquet")
-    a.add_argument("--out", "-o", required=True, help="the plane's audit.parquet to write")
-    add_config_arguments(a)
+    for name, help_, more in (("cells", "combine a plane's tile files into cells.parquet",
+                               ("--tiles", "the plane's tile Parquet files")),
+                              ("audit", "re-simulate a sample of cells at tightened tolerance",
+                               ("--cells", "the plane's cells.parquet"))):
+        c = sub.add_parser(name, help=help_)
+        c.add_argument("--plane", required=True, help="plane name (a key of `planes:`)")
+        c.add_argument(more[0], required=True, nargs="+" if name == "cells" else None,
+                       help=more[1])
+        c.add_argument("--out", "-o", required=True, help=f"the plane's {name} file to write")
+        add_config_arguments(c)
     b = sub.add_parser("build", help="build the SQLite catalogue (one transaction, atomic)")
-    b.add_argument("--cells", nargs="*", default=[], help="cells.parquet files")
-    b.add_argument("--sweeps", nargs="*", default=[], help="sweep Parquet files")
-    b.add_argument("--audits", nargs="*", default=[], help="audit Parquet files")
-    b.add_argument("--attractors", nargs="*", default=[],
-                   help="attractor tile files (gearsim attractor-tile)")
-    b.add_argument("--orbits", nargs="*", default=[],
-                   help="bifurcation points / curves and refine-orbits Parquet files "
-                   "(docs/orbits.md)")
-    b.add_argument("--out", "-o", required=True,
-                   help="the catalogue file to write (the rule's output)")
-    b.add_argument(
-        "--publish",
-        metavar="PATH",
-        help="then replace PATH atomically by the new catalogue (results/catalogue.sqlite: "
-        "readers never see it missing or partial, a failed build keeps the last good one)",
-    )
-    pub = sub.add_parser(
-        "publish", help="check a built catalogue and atomically replace --to by it"
-    )
+    for flag, what in (("--cells", "cells.parquet files"), ("--sweeps", "sweep Parquet files"),
+                       ("--audits", "audit Parquet files"),
+                       ("--attractors", "attractor tile files (gearsim attractor-tile)"),
+                       ("--orbits", "bifurcation points / curves and refine-orbits Parquet "
+                        "files (docs/orbits.md)")):
+        b.add_argument(flag, nargs="*", default=[], help=what)
+    b.add_argument("--out", "-o", required=True, help="the catalogue file to write")
+    b.add_argument("--publish", metavar="PATH",
+                   help="then replace PATH atomically by the new catalogue (readers never see "
+                   "it missing or partial, a failed build keeps the last good one)")
+    pub = sub.add_parser("publish", help="publish a built catalogue: a file, or a study")
     pub.add_argument("--from", dest="source", required=True, help="a built catalogue")
-    pub.add_argument("--to", required=True, help="e.g. results/catalogue.sqlite")
-    mig = sub.add_parser(
-        "migrate", help="bring a catalogue of an older schema version up to this gearsim's"
-    )
-    mig.add_argument("path", nargs="+", help="catalogue file(s), e.g. results/catalogue.sqlite")
+    pub.add_argument("--to", required=True, help="a file (results/catalogue.sqlite) or a "
+                     "database URL (postgresql://user@host/lab; the password from ~/.pgpass)")
+    pub.add_argument("--study", help="with a URL: the study's name (its schema there)")
+    mig = sub.add_parser("migrate", help="bring an older schema version up to this one")
+    mig.add_argument("path", nargs="+", help="catalogue file(s), or one database URL")
+    mig.add_argument("--study", help="with a URL: the study to migrate")
 
 
 def _cells(args) -> int:
@@ -80,94 +63,54 @@ def _cells(args) -> int:
 
 
 def _audit(args) -> int:
-    import pandas as pd
-
     from gearsim.cli.commands._progress import Progress
-    from gearsim.results import catalogue
-    from gearsim.study import provenance
-
-    study = study_from_args(args)
-    config = study.config
-    check_plane(study, args.plane)
+    from gearsim.results.audit_file import audit_plane
     from gearsim.study.preflight import check_output
 
+    study = study_from_args(args)
+    check_plane(study, args.plane)
     check_output(args.out)  # writable, with room, before any simulation
-    cells = pd.read_parquet(args.cells)
-    started = catalogue.now_iso()
-    t0 = time.perf_counter()
-    progress = Progress(
-        f"audit {args.plane}", max(1, int(config["audit"]["fraction"] * len(cells)))
-    )
-    df = audit_frame(study, args.plane, cells, progress)
-    progress.close()
-    agreement = float(df["agree"].mean()) if len(df) else float("nan")
-    threshold = float(config["audit"]["threshold"])
-    subtree = {**provenance.plane_subtree(study, args.plane), "audit": dict(config["audit"])}
-    prov = provenance.provenance(
-        subtree,
-        kind="audit",
-        name=args.plane,
-        study=study,
-        started=started,
-        finished=catalogue.now_iso(),
-        wall_s=time.perf_counter() - t0,
-        cells=len(df),
-        audit_seed=int(config["audit"]["seed"]),
-        agreement=agreement,
-        threshold=threshold,
-        settings=audit_settings(study).to_dict(),
-        workers="in-process",
-    )
-    catalogue.write_parquet(df, args.out, {catalogue.PROVENANCE_KEY: prov})
-    verdict = "PASS" if len(df) == 0 or agreement >= threshold else "BELOW THRESHOLD"
-    print(
-        f"audit {args.plane}: {len(df)} cells, agreement {agreement:.3f} "
-        f"(threshold {threshold}) {verdict}",
-        file=sys.stderr,
-    )
+    n, agreement, threshold = audit_plane(study, args.plane, args.cells, args.out,
+                                          lambda total: Progress(f"audit {args.plane}", total))
+    verdict = "PASS" if n == 0 or agreement >= threshold else "BELOW THRESHOLD"
+    print(f"audit {args.plane}: {n} cells, agreement {agreement:.3f} (threshold {threshold}) "
+          f"{verdict}", file=sys.stderr)
     return 0
 
 
 def _build(args) -> int:
     from gearsim.results import catalogue
 
-    for f in [*args.cells, *args.sweeps, *args.audits, *args.orbits]:
-        if not Path(f).is_file():
-            raise UsageError(f"input file not found: {f}")
     t0 = time.perf_counter()
     counts = catalogue.build_catalogue(
         args.out, args.cells, args.sweeps, args.audits, publish_to=args.publish,
-        attractor_files=args.attractors,
-        orbit_files=args.orbits,
-    )
+        attractor_files=args.attractors, orbit_files=args.orbits)
     summary = ", ".join(f"{k}={v}" for k, v in counts.items())
     where = f" -> {args.publish}" if args.publish else ""
-    print(
-        f"catalogue {args.out}{where}: {summary} ({time.perf_counter() - t0:.1f} s)",
-        file=sys.stderr,
-    )
+    print(f"catalogue {args.out}{where}: {summary} ({time.perf_counter() - t0:.1f} s)",
+          file=sys.stderr)
     return 0
 
 
 def _publish(args) -> int:
     from gearsim.results import catalogue
 
-    catalogue.publish(args.source, args.to)
-    print(f"catalogue {args.source} -> {args.to}", file=sys.stderr)
+    t0 = time.perf_counter()
+    where = catalogue.publish_anywhere(args.source, args.to, args.study)
+    print(f"catalogue {args.source} -> {where} ({time.perf_counter() - t0:.1f} s)",
+          file=sys.stderr)
     return 0
 
 
 def _migrate(args) -> int:
     from gearsim.results import catalogue
 
-    for path in args.path:
-        old, new = catalogue.migrate_catalogue(path)
+    for path, (old, new) in catalogue.migrate_anywhere(args.path, args.study):
         done = "already at" if old == new else f"migrated from version {old} to"
         print(f"catalogue {path}: {done} schema version {new}", file=sys.stderr)
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
-    actions = {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish,
-               "migrate": _migrate}
-    return actions[args.action](args)
+    return {"cells": _cells, "audit": _audit, "build": _build, "publish": _publish,
+            "migrate": _migrate}[args.action](args)

@@ -29,7 +29,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "default: %(default)s)")
     p.add_argument("--catalogue", default="results/catalogue.sqlite",
                    help="SQLite catalogue (its attractors table is shown when present; "
-                   "default: %(default)s)")
+                   "default: %(default)s), or a database URL with --study")
+    p.add_argument("--study", help="with a database URL: the study to read")
     p.add_argument("--out", "-o", default="results/explorer/index.html",
                    help="the page, one HTML file to open in a browser (default: %(default)s)")
     p.add_argument("--plane", nargs="+", default=None, metavar="NAME",
@@ -69,8 +70,10 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.physical.units import config_gear
     from gearsim.presentation.report import build_report
     from gearsim.presentation.scorecard import scorecard
+    from gearsim.results.server_read import readable_catalogue
 
-    rep, _ = build_report(sweeps_dir=results / "sweeps", catalogue=args.catalogue,
+    catalogue = readable_catalogue(args.catalogue, args.study)
+    rep, _ = build_report(sweeps_dir=results / "sweeps", catalogue=catalogue,
                           results=results, calibration=None, planes=planes, sweeps=sweeps,
                           study=config.get("study"))
     rows = ([{"item": r.item, "paper": r.paper, "ours": r.ours, "located": r.located,
@@ -79,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     title = (f"gearsim explorer: study {config['study']}" if config.get("study")
              else "gearsim explorer: reproduction of the paper")
     out = write_explorer(args.out, planes=planes, sweeps=sweeps, results=results,
-                         catalogue=args.catalogue, sweep_fixed=fixed,
+                         catalogue=catalogue, sweep_fixed=fixed,
                          gear=config_gear(config, study.root), scorecard=rows, title=title)
     size = out.stat().st_size
     print(f"wrote {out} ({size / 1e6:.1f} MB; {len(planes)} planes, {len(sweeps)} sweeps)",

@@ -24,15 +24,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--db",
         dest="catalogue",
         default="results/catalogue.sqlite",
-        help="catalogue file (default results/catalogue.sqlite)",
+        help="catalogue file (default results/catalogue.sqlite), or a database URL with --study",
     )
+    p.add_argument("--study", help="with a database URL: the study to read")
 
 
 def run(args: argparse.Namespace) -> int:
     from gearsim.results.export import check_out, plane_dataset, write
+    from gearsim.results.server_read import catalogue_name, readable_catalogue
 
     check_out(args.out, args.format)
-    ds = plane_dataset(args.catalogue, args.plane)
+    ds = plane_dataset(readable_catalogue(args.catalogue, args.study), args.plane,
+                       source=catalogue_name(args.catalogue, args.study))
     out = write(ds, args.out, args.format)
     dims = " x ".join(f"{d} {n}" for d, n in ds.sizes.items())
     print(

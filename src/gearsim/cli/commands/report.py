@@ -23,7 +23,9 @@ HELP = ("write the study's report (Markdown): the scorecard against the paper, o
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sweeps", default="results/sweeps", help="directory of <sweep>.parquet")
-    p.add_argument("--catalogue", default="results/catalogue.sqlite", help="SQLite catalogue")
+    p.add_argument("--catalogue", default="results/catalogue.sqlite",
+                   help="SQLite catalogue, or a database URL with --study")
+    p.add_argument("--study", help="with a database URL: the study to read")
     p.add_argument("--results", default="results",
                    help="results directory (<plane>/audit.parquet, fallback <plane>/cells.parquet)")
     p.add_argument("--calibration", default="docs/calibration.json",
@@ -41,7 +43,10 @@ def run(args: argparse.Namespace) -> int:
         specs = dict(config.get("sweeps") or {})
         points = list(config.get("points") or {})
         study = config.get("study")
-    rep, text = build_report(sweeps_dir=args.sweeps, catalogue=args.catalogue,
+    from gearsim.results.server_read import readable_catalogue
+
+    catalogue = readable_catalogue(args.catalogue, args.study)
+    rep, text = build_report(sweeps_dir=args.sweeps, catalogue=catalogue,
                              results=args.results, calibration=args.calibration or None,
                              planes=planes, sweeps=sweeps, study=study, sweep_specs=specs,
                              point_sets=points)

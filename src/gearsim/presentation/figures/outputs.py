@@ -124,6 +124,10 @@ def read_context(study: Study, tables: Tables) -> Context:
         pts = Path(path).with_name(Path(path).stem + "_points.parquet")
         if not name.endswith("_curves") and pts.is_file():
             ctx.orbits[f"{name}_points"] = data.read_table(pts)
+        # a plane's codimension-2 points, written beside its curves (docs/orbits.md)
+        c2 = Path(path).with_name(name.removesuffix("_curves") + "_codim2.parquet")
+        if name.endswith("_curves") and c2.is_file():
+            ctx.orbits[name.removesuffix("_curves") + "_codim2"] = data.read_table(c2)
     return ctx
 
 
