@@ -128,6 +128,8 @@ def _preflight():
     # results that another configuration made are not replaced unasked (gearsim.results.in_place)
     try:
         gin.check_in_place(RUN_RECORD, "results", replace=REPLACE_RESULTS)
+        # a tile no run of this folder computed: found now, before any job removes its plane
+        gin.check_tiles_in_place(RUN_RECORD, "results")
     except UsageError as exc:
         print(f"gearsim: error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None

@@ -28,7 +28,8 @@ HELP = "simulate one point and print its pattern, DC, Kmax, Lyapunov exponent an
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--omega", "-w", type=float, default=None,
-        help="dimensionless mesh frequency w (required unless --gear with --rpm)",
+        help="dimensionless mesh frequency w (default with --gear: the gear file's speed_rpm; "
+        "otherwise required unless --set w=... or the study's parameters give it)",
     )
     add_parameter_arguments(p)
     p.add_argument(
@@ -54,8 +55,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The point's parameters (:func:`gearsim.cli.commands._common.command_parameters`)."""
-    return command_parameters(args, omega_required=True, w=args.omega)
+    """The point's parameters (:func:`gearsim.cli.commands._common.command_parameters`): a gear
+    file gives its own speed and torque (``speed_rpm``, ``torque_Nm``) unless an option sets
+    them, so ``--omega`` is required only without one."""
+    return command_parameters(args, omega_required=not args.gear, w=args.omega)
 
 
 def run(args: argparse.Namespace) -> int:
