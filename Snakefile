@@ -41,3 +41,12 @@ rule all:
         TARGETS_CATALOGUE,
         TARGETS_FIGURES,
         TARGETS_REPORT,
+
+
+onerror:
+    # Snakemake names a failed job's log relative to the folder the run works in
+    # (studies/<folder>/ for a study of one's own): the same logs as paths from here
+    from gearsim.study.preflight import failed_job_logs
+
+    for _line in failed_job_logs(log, RUN_FOLDER):
+        print(f"gearsim: {_line}", file=sys.stderr)

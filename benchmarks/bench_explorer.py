@@ -18,6 +18,11 @@
         the page built from the same catalogue with this checkout): bytes and load times,
         alternating loads; writes benchmarks/results/explorer_compare.json
 
+    python benchmarks/bench_explorer.py readout PAGE --catalogue CAT --cells 20
+        hovers CELLS random cells of every plane of a page in headless chromium (a real mouse
+        over each cell's centre) and compares the readout's DC, Kmax and lambda with the
+        catalogue's values to the digits shown; writes benchmarks/results/explorer_readout.json
+
 Load time: from navigation start to the page's "ready" mark (the data inflated and every map
 and diagram drawn; ``performance.now()``), median of 5 loads in a fresh headless chromium
 (1500 x 1100), and the wall time of ``driver.get`` + ready as selenium sees it. Writes
@@ -184,6 +189,67 @@ def compare(pages: list[str], repeats: int) -> dict:
     return out
 
 
+def readout(page_path: Path, catalogue: str, cells: int, seed: int) -> dict:
+    """Hover ``cells`` random cells of every plane of the page; each readout value against the
+    catalogue's, formatted to the digits the page shows."""
+    import re
+
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    from gearsim.results.catalogue import open_catalogue
+
+    con = open_catalogue(catalogue)
+    cat = pd.read_sql_query("select p.name as plane, c.i, c.j, c.x, c.y, c.motion, c.dc, "
+                            "c.kmax, c.lyapunov from cells c join planes p on "
+                            "c.plane_id = p.id", con)
+    con.close()
+    profile = tempfile.mkdtemp(prefix="bench-explorer-")
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = shutil.which("chromium")
+    for flag in (*FLAGS, f"--user-data-dir={profile}"):
+        opts.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=opts)
+    rng = np.random.default_rng(seed)
+    out: dict = {}
+    try:
+        driver.get(page_path.resolve().as_uri())
+        deadline = time.monotonic() + 120
+        while driver.execute_script("return document.body.dataset.ready") != "1":
+            if time.monotonic() > deadline:
+                raise SystemExit("the page never finished drawing")
+            time.sleep(0.1)
+        for plane in driver.execute_script("return Object.keys(window.GEARSIM.planes);"):
+            rows = cat[cat["plane"] == plane]
+            rec = []
+            for _, r in rows.iloc[rng.choice(len(rows), size=min(cells, len(rows)),
+                                              replace=False)].iterrows():
+                canvas = driver.find_element("id", f"map-{plane}")
+                driver.execute_script("arguments[0].scrollIntoView({block: 'center'});", canvas)
+                dx, dy = driver.execute_script(
+                    "return window.GEARSIM.pixelOf(arguments[0], arguments[1], arguments[2]);",
+                    plane, float(r["x"]), float(r["y"]))
+                ActionChains(driver).move_to_element_with_offset(
+                    canvas, int(round(dx)), int(round(dy))).perform()
+                hover = driver.execute_script("return window.GEARSIM.hover")
+                text = driver.find_element("id", "cell").text
+                shown = {k: re.search(rf"{k} = (.+?)(?:   |\n|$)", text).group(1)
+                         for k in ("DC", "Kmax", "λ")}
+                want = {k: (f"{r[c]:.{d}f}" if np.isfinite(r[c]) else "none")
+                        for k, c, d in (("DC", "dc", 4), ("Kmax", "kmax", 4),
+                                        ("λ", "lyapunov", 5))}
+                same = (hover == f"{plane}:{r['i']}:{r['j']}" and all(
+                    shown[k].split(" ")[0] == want[k] for k in want))
+                rec.append({"i": int(r["i"]), "j": int(r["j"]), "motion": r["motion"],
+                            "shown": shown, "catalogue": want, "hover": hover, "equal": same})
+            out[plane] = {"cells": len(rec), "equal": sum(x["equal"] for x in rec),
+                          "rows": rec}
+    finally:
+        driver.quit()
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -194,6 +260,11 @@ def main() -> None:
     a.add_argument("--results", default="results")
     a.add_argument("--catalogue", default="results/catalogue.sqlite")
     a.add_argument("--configfile", nargs="+", default=["config/config.yaml"])
+    r = sub.add_parser("readout", help="random cells' readouts against the catalogue")
+    r.add_argument("page")
+    r.add_argument("--catalogue", default="results/catalogue.sqlite")
+    r.add_argument("--cells", type=int, default=20)
+    r.add_argument("--seed", type=int, default=54)
     b = sub.add_parser("stand-in", help="a stand-in for the default run's two planes")
     b.add_argument("--source", required=True, help="results directory of a computed run")
     b.add_argument("--plane", required=True,
@@ -207,6 +278,15 @@ def main() -> None:
         p.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
     before = loadavg()
+    if args.what == "readout":
+        rec = {"page": args.page, "catalogue": args.catalogue, "seed": args.seed,
+               "planes": readout(Path(args.page), args.catalogue, args.cells, args.seed)}
+        RESULTS.mkdir(exist_ok=True)
+        (RESULTS / "explorer_readout.json").write_text(json.dumps(rec, indent=1))
+        for plane, r in rec["planes"].items():
+            print(f"{plane}: {r['equal']} of {r['cells']} random cells show the catalogue's "
+                  "DC, Kmax and lambda to the last shown digit")
+        return
     if args.what == "compare":
         rec = {"pages": compare(args.pages, args.repeats), "load_before": before,
                "load_after": loadavg(), "targets": {"MB": 5.0, "load_s": 2.0}}

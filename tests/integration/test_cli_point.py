@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import pyarrow.parquet as pq
+import pytest
 import yaml
 
 from gearsim.cell.simulate import IntegrationSettings
@@ -91,3 +92,27 @@ def test_point_out_records_source_and_settings(tmp_path, capsys):
     meta = pq.read_schema(out).metadata
     assert meta[b"gearsim.parameters_source"] == b"config/standard_parameters.yaml"
     assert json.loads(meta[b"gearsim.settings"])["method"] == "rk4"
+
+
+def test_gear_file_gives_its_speed_and_torque(capsys):
+    """`--gear FILE` alone simulates at the file's speed_rpm and torque_Nm (the same point as
+    naming them with --rpm / --torque); an option still overrides the file."""
+    from gearsim.physical.units import load_gear
+
+    gear = load_gear("config/gears/example_m3.yaml")
+    assert main(["point", "--gear", "config/gears/example_m3.yaml", "--json"]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    model = gear.to_model_parameters()
+    assert alone["w"] == model.w and alone["speed_rpm"] == gear.speed_rpm
+    assert alone["torque_Nm"] == gear.torque_Nm
+    assert main(["point", "--gear", "config/gears/example_m3.yaml", "--rpm",
+                 repr(gear.speed_rpm), "--torque", repr(gear.torque_Nm), "--json"]) == 0
+    named = json.loads(capsys.readouterr().out)
+    assert {k: named[k] for k in ("w", "label", "kmax", "dc")} == \
+        {k: alone[k] for k in ("w", "label", "kmax", "dc")}
+    assert main(["point", "--gear", "config/gears/example_m3.yaml", "--rpm",
+                 repr(gear.speed_rpm / 2), "--json"]) == 0
+    half = json.loads(capsys.readouterr().out)
+    assert half["w"] == pytest.approx(model.w / 2, rel=1e-12)
+    assert main(["point", "--json"]) == 2  # without a gear file, the frequency is asked for
+    assert "give --omega" in capsys.readouterr().err

@@ -107,6 +107,23 @@ def test_progress_in_place_on_a_terminal_and_spaced_in_a_log():
         p(k, 100, (k - 40) * 2.0)
     lines = log.getvalue().splitlines()
     assert len(lines) == 2  # the first and the last: the calls came faster than LOG_INTERVAL
-    assert "41/100 cells (41%), 0.50 cells/s, 2 s so far, 1 min 58 s left" in lines[0]
+    # no rate from one cell (its time may be a compile's): the time left is not guessed
+    assert "41/100 cells (41%), 2 s so far, time left: measuring the rate" in lines[0]
+    assert "100/100 cells (100%), 0.50 cells/s, 2 min 00 s so far, 0 s left" in lines[1]
     assert (duration_text(59.6), duration_text(200), duration_text(7500)) == (
         "1 min 00 s", "3 min 20 s", "2 h 05 min")
+
+
+def test_time_left_waits_for_a_measured_rate():
+    """A first cell that took a minute (the kernels compiled before it) and then 2 cells/s: no
+    time left until MEASURE_CELLS cells and MEASURE_SECONDS seconds after the first cell, then
+    the time left at the rate measured from the first cell on (not the first minute's)."""
+    log = io.StringIO()
+    p = Progress("job", 1000, stream=log, interval=0)
+    p(1, 1000, 60.0)
+    p(2, 1000, 60.5)
+    p(9, 1000, 64.0)  # 8 cells in 4 s: not yet MEASURE_SECONDS
+    p(13, 1000, 66.0)  # 12 cells in 6 s: 2 cells/s, 987 cells left: 8 min 14 s
+    lines = log.getvalue().splitlines()
+    assert all("time left: measuring the rate" in line for line in lines[:3]), lines
+    assert "13/1000 cells (1%), 2.00 cells/s, 1 min 06 s so far, 8 min 14 s left" in lines[3]

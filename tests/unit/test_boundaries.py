@@ -194,3 +194,36 @@ def test_the_mechanisms_of_the_summary():
     assert d["rho_impact"] == pytest.approx(-1.0)
     assert d["bands"][0]["impact"] > d["bands"][1]["impact"]
     assert d["bands"][0]["chaos"] == 0.0 and np.isnan(d["rho_chaos"])
+
+
+def test_the_chaotic_band_is_located_from_both_ends(monkeypatch):
+    """chaotic_band reads the row nearest the line, continues from the cascade's start towards
+    the onset and, after an inverse cascade, from the first period-1 cell back (the
+    continuation replaced by a table of known doublings)."""
+    from gearsim.analysis import atlas_summary, cascade
+    from gearsim.dynamics.parameters import ModelParameters
+
+    seq = (["1/1T"] * 3 + ["1/2T"] * 3 + ["1/4T", "1/8T"] + ["chaos"] * 4
+           + ["1/8T", "1/4T", "1/2T", "1/1T", "1/1T"])
+    cells = pd.DataFrame([{"x": 1.0 + 0.1 * k, "y": y, "label": s,
+                           "motion": "chaos" if s == "chaos" else "periodic",
+                           "n": 0 if s == "chaos" else int(s.split("/")[1][:-1]), "I": 1}
+                          for y in (0.95, 1.05) for k, s in enumerate(seq)])
+    calls = []
+
+    def fake(params, name, start, stop, **kw):
+        calls.append((round(params.b, 12), start, stop))
+        d = 1.0 if stop > start else -1.0
+        w = [start + d * abs(stop - start) * v for v in (0.1, 0.6, 0.8, 0.84)]
+        return pd.DataFrame({"event": "period_doubling", "period": [1, 2, 4, 8], "value": w})
+
+    monkeypatch.setattr(cascade, "locate_cascade", fake)
+    out = atlas_summary.chaotic_band(cells, ModelParameters(), x_name="w", y_name="b",
+                                     y_value=1.0)
+    assert out["row"] == 0.95 and out["value"] == 1.0  # the line itself, read on its row
+    assert calls == [(1.0, pytest.approx(1.2), pytest.approx(1.8)),
+                     (1.0, pytest.approx(2.5), pytest.approx(2.1))]
+    assert [d["period"] for d in out["onset"]["doublings"]] == [1, 2, 4, 8]
+    assert out["exit"]["doublings"][1]["ratio"] is None
+    assert [d["ratio"] for d in out["exit"]["doublings"][2:]] == [pytest.approx(2.5),
+                                                                  pytest.approx(5.0)]

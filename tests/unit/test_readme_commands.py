@@ -31,3 +31,38 @@ def test_readme_commands_parse():
             build_parser(argv[0]).parse_args(argv)
         except SystemExit as exc:  # argparse's exit: a README line the CLI rejects
             raise AssertionError(f"gearsim {' '.join(argv)}: rejected ({exc})") from None
+
+
+def test_readme_lists_the_model_forms():
+    """The README's table of model forms names every option with its range and default (the
+    parameters' own), and the single-DOF model."""
+    from gearsim.dynamics.parameters import _RANGES, MODELS, ModelParameters, interval_text
+
+    text = (ROOT / "README.md").read_text()
+    assert "--set model=1dof" in text and set(MODELS) == {"6dof", "1dof"}
+    defaults = ModelParameters()
+    for name in ("te_damping", "mesh_damping_contact", "friction_arm_var"):
+        row = next((ln for ln in text.splitlines() if ln.startswith(f"| `{name}`")), None)
+        assert row is not None, name
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[1] == interval_text(_RANGES[name]), (name, cells)
+        assert float(cells[2]) == getattr(defaults, name), (name, cells)
+
+
+def test_readme_study_file_example_is_a_valid_study_file(tmp_path):
+    """The README's study file (`my.yaml`) merges over config/config.yaml and changes what it
+    says."""
+    import yaml
+
+    from gearsim.study.config import Study
+
+    text = (ROOT / "README.md").read_text()
+    block = re.search(r"e\.g\. `my\.yaml`:\n\n```yaml\n(.*?)```", text, flags=re.S).group(1)
+    (tmp_path / "my.yaml").write_text(block)
+    study = Study.load([tmp_path / "my.yaml"], root=ROOT)
+    doc = yaml.safe_load(block)
+    model = study.parameters().model
+    for name, value in doc["parameters"].items():
+        assert getattr(model, name) == value
+    for name, value in doc["integration"].items():
+        assert getattr(study.settings, name) == value

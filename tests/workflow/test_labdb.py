@@ -313,9 +313,29 @@ def test_two_publishers_of_different_studies_both_land_and_of_one_study_take_tur
     assert _study_counts(url, "gamma") in {_sqlite_counts(cat), _sqlite_counts(other)}
 
 
+def test_a_reader_role_keeps_reading_after_each_publish(server, study):
+    """Read rights come from the publisher's default privileges (docs/pipeline.md): a reader
+    role reads the study after a re-publish makes its schema anew."""
+    url = server.url()
+    _wd, cat = study
+    with psycopg.connect(url, autocommit=True) as con:
+        con.execute("CREATE ROLE lab_reader LOGIN PASSWORD 'reader-pw'")
+        con.execute("ALTER DEFAULT PRIVILEGES GRANT USAGE ON SCHEMAS TO lab_reader")
+        con.execute("ALTER DEFAULT PRIVILEGES GRANT SELECT ON TABLES TO lab_reader")
+        con.execute("GRANT SELECT ON public.studies TO lab_reader")
+    publish_study(cat, url, "paper")
+    reader = server.url(user="lab_reader", password="reader-pw")
+    assert _study_counts(reader, "paper") == _sqlite_counts(cat)
+    with psycopg.connect(reader) as con:
+        assert con.execute("SELECT count(*) FROM study_plane_cells").fetchone()[0] > 0
+        with pytest.raises(psycopg.errors.InsufficientPrivilege):
+            con.execute("DELETE FROM paper.cells")
+
+
 # ----------------------------------------------------------------------------- faults
 def test_an_unreachable_server_and_a_wrong_password_are_one_line(server, study, capsys):
     _wd, cat = study
+    publish_study(cat, server.url(), "paper")
     before = _study_counts(server.url(), "paper")
     closed = server.url(port=1)
     for url, why in ((closed, "cannot connect"),
@@ -338,6 +358,7 @@ def test_a_server_stopped_in_the_middle_of_a_publish_leaves_the_study_as_it_was(
     the study is the previous catalogue, whole."""
     url = server.url()
     _wd, cat = study
+    publish_study(cat, url, "paper")
     with psycopg.connect(url) as con:
         stamp = con.execute("SELECT published FROM studies WHERE name = 'paper'").fetchone()[0]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"),
@@ -405,6 +426,26 @@ def test_a_schema_that_is_not_a_study_is_never_replaced(server, study, capsys):
         assert con.execute("SELECT to_regclass('labnotes.notes')").fetchone()[0] is not None
 
 
+def test_the_workflow_publishes_when_the_config_names_a_server(server, study):
+    """``publish: {url, study}`` adds the rule that publishes each build (dry run: the plan and
+    its command); a URL with a password in the config is one line, and the password is not in
+    it."""
+    from workflow_helpers import smk
+
+    wd, _cat = study
+    url = server.url(password=None)
+    r = smk(wd, "-n", "-p", "results/catalogue.d/server-wf.txt", "--configfile", *CONFIGS,
+            "--config", f'publish={{"url": "{url}", "study": "wf"}}')
+    assert "publish_server" in r.stdout and f"--to {url} --study wf" in r.stdout, r.stdout
+    r = smk(wd, "-n", "--configfile", *CONFIGS, "--config",
+            f'publish={{"url": "{server.url()}"}}', check=False)
+    err = r.stderr.strip()
+    LINES.append(r.stdout + r.stderr)
+    assert r.returncode == 2 and "carries a password" in err and PASSWORD not in err, err
+    r = smk(wd, "-n", "--configfile", *CONFIGS, check=False)
+    assert "publish_server" not in r.stdout + r.stderr
+
+
 # --------------------------------------------------------------------------- readers
 def test_report_explorer_and_export_from_the_server_equal_those_from_the_file(
         server, study, tmp_path, capsys, monkeypatch):
@@ -432,8 +473,10 @@ def test_report_explorer_and_export_from_the_server_equal_those_from_the_file(
 
 
 def test_the_password_is_never_written(server):
-    """Every line above, the studies table and every study's provenance and info."""
+    """Every line above, the server's log, the studies table and every study's provenance and
+    info."""
     assert LINES and not any(PASSWORD in line for line in LINES)
+    assert server.log() and PASSWORD not in server.log()
     with psycopg.connect(server.url()) as con:
         for (name,) in con.execute("SELECT name FROM studies").fetchall():
             for table in ("runs", "catalogue_info", "planes"):

@@ -46,9 +46,14 @@ def finished(tiny_run, tmp_path_factory):
 GRID = "planes:\n  wb:\n    x: {name: w, min: 0.1, max: 2.5, n: 10}\n"
 
 
+# a file of one's own that changes a plane's settings, not its grid
+SETTINGS = "planes:\n  wb:\n    fixed: {xi: 0.07}\n"
+
+
 @pytest.mark.parametrize(("own", "says"), [
     (OWN, "added plane weps"),
     (GRID, "plane wb: w 0.1..2.5 x b 0..1: 8 x 8 -> w 0.1..2.5 x b 0..1: 10 x 8"),
+    (SETTINGS, "plane wb: w 0.1..2.5 x b 0..1: 8 x 8 (fixed.xi (unset) -> 0.07)"),
 ])
 def test_another_configuration_stops_before_any_job(finished, own, says):
     (finished / "config" / "own.yaml").write_text(own)

@@ -9,7 +9,8 @@ rule catalogue:
         sweeps=lambda wildcards: SWEEP_FILES,
         audits=lambda wildcards: AUDIT_FILES,
         attractors=lambda wildcards: ATTRACTOR_FILES,
-        orbits=lambda wildcards: ORBIT_CATALOGUE_FILES,
+        # the bifurcation points and curves, and the codimension-2 points (codim2_points)
+        orbits=lambda wildcards: ORBIT_CATALOGUE_FILES + ORBIT_CODIM2_FILES,
     output:
         build=CATALOGUE_BUILD,
     log:
@@ -43,3 +44,39 @@ rule published_catalogue:
 
 
 TARGETS_CATALOGUE = [rules.catalogue.output.build]
+
+
+# A lab's database (config `publish: {url, study}`; docs/pipeline.md, "A lab's database"): the
+# catalogue published there as one study after each build, swapped in atomically. Its output is
+# the command's line (the URL with its password hidden). Without `publish`, no such rule.
+def _publish_target():
+    from gearsim.errors import USER_ERRORS
+    from gearsim.results.server import configured_target
+
+    try:
+        return configured_target(config["publish"], config.get("study"))
+    except USER_ERRORS as exc:
+        print(f"gearsim: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
+if config.get("publish"):
+    PUBLISH_URL, PUBLISH_STUDY = _publish_target()
+
+    rule publish_server:
+        input:
+            rules.catalogue.output.build,
+        output:
+            f"results/catalogue.d/server-{PUBLISH_STUDY}.txt",
+        log:
+            "logs/catalogue_server.log",
+        conda:
+            GEARSIM_ENV
+        params:
+            url=PUBLISH_URL,
+            study=PUBLISH_STUDY,
+        shell:
+            "gearsim catalogue publish --from {input} --to {params.url:q} "
+            "--study {params.study} > {log} 2>&1 && cp {log} {output}"
+
+    TARGETS_CATALOGUE.append(rules.publish_server.output[0])

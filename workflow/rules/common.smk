@@ -128,6 +128,8 @@ def _preflight():
     # results that another configuration made are not replaced unasked (gearsim.results.in_place)
     try:
         gin.check_in_place(RUN_RECORD, "results", replace=REPLACE_RESULTS)
+        # a tile no run of this folder computed: found now, before any job removes its plane
+        gin.check_tiles_in_place(RUN_RECORD, "results")
     except UsageError as exc:
         print(f"gearsim: error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
@@ -182,9 +184,9 @@ FIGURE_DATA_TABLES = gfd.figure_data_tables(config)
 # the compiled kernels' stamp (rule compile), named by the simulation code's version
 KERNEL_STAMP = f"results/.kernels/{CODE_VERSION['tiles']}"
 COMPILED = ancient(KERNEL_STAMP)
-# jobs that simulate hold one GPU when execution.device is cuda or auto (README, "On a GPU"):
-# `--resources gpu=1` runs one at a time; on SLURM the executor asks for it (--gpus=1)
-GPU_JOBS = int(config.get("execution", {}).get("device", "cpu") != "cpu")
+# jobs that simulate hold one GPU when the study's execution.device is cuda or auto (README, "On
+# a GPU"): `--resources gpu=1` runs one at a time; on SLURM the executor asks for it (--gpus=1)
+GPU_JOBS = int(STUDY.execution.uses_gpu)
 
 
 def of_plane(rule_output):

@@ -1,11 +1,18 @@
 """The ``gearsim`` command line: one subcommand per module in :mod:`gearsim.cli.commands`.
 
 Each module there defines ``NAME``, ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``;
-modules are discovered automatically, so a new subcommand is one new file.
+modules are discovered automatically, so a new subcommand is one new file. A long command may
+also define ``kept(args) -> str``: what an interrupted run of it keeps (Ctrl-C, below).
 Bad input and faults of the machine or of the files (full disk, read-only folder, missing
 permission, a file that is not what its name says) exit with status 2 and one line on stderr
 naming the file and the cause, never a traceback (set ``GEARSIM_DEBUG=1`` to get the traceback
 of a machine or file fault).
+
+Ctrl-C (SIGINT) in any command ends it with one line -- what was kept (the command's
+``kept(args)``, else :data:`KEPT`) and the command line that resumes it -- and exit status 130,
+never a traceback. The kernels' first compile says what it is doing and about how long it takes
+(:func:`announce_compile`); their cache is ``NUMBA_CACHE_DIR``, by default ``.numba_cache/`` of
+the source checkout (:func:`default_cache_dir`).
 """
 
 from __future__ import annotations
@@ -15,7 +22,9 @@ import importlib
 import importlib.util
 import os
 import pkgutil
+import shlex
 import sys
+from pathlib import Path
 
 from gearsim import __version__
 from gearsim.cli import commands
@@ -29,6 +38,79 @@ DEBUG_ENV = "GEARSIM_DEBUG"
 #: what `gearsim --help` says first (plain words: it is printed, not rendered)
 DESCRIPTION = ("gearsim: the nonlinear dynamics of a curve-face gear pair over parameter planes, "
                "sweeps and points. `gearsim COMMAND --help` describes one command.")
+
+#: What an interrupted command keeps when it does not say (its outputs are written to a temporary
+#: name and renamed when complete: a file it was writing is not left half-written)
+KEPT = "files it had finished are kept; none is left half-written"
+#: Exit status of a command stopped by Ctrl-C (128 + SIGINT, as the shell reports it)
+INTERRUPTED = 130
+#: About how long the kernels' first compile takes (``gearsim compile`` on one free core of a
+#: 2020s x86 CPU; docs/decisions.md): what the notice before it says
+COMPILE_SECONDS = 40
+
+
+def default_cache_dir() -> Path | None:
+    """``.numba_cache/`` of the source checkout this package runs from (where the Makefile and
+    the workflow put it), None for an installed package (Numba's own default then)."""
+    root = Path(__file__).resolve().parents[3]
+    return root / ".numba_cache" if (root / "pyproject.toml").is_file() else None
+
+
+def _set_cache_dir() -> None:
+    """Point ``NUMBA_CACHE_DIR`` at :func:`default_cache_dir` unless the user set it (before
+    Numba is imported; the check for stale kernels then looks there too)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    default = default_cache_dir()
+    if default is None:
+        return
+    os.environ["NUMBA_CACHE_DIR"] = str(default)
+    from gearsim.numerics.cache import invalidate_stale_cache
+
+    invalidate_stale_cache()
+
+
+def _cache_is_cold() -> bool:
+    """Whether no compiled kernel of the numerics is cached yet (a first run)."""
+    from gearsim.numerics.cache import cache_directory
+
+    numerics = Path(__file__).resolve().parents[1] / "numerics"
+    cache = cache_directory(numerics)
+    return not any(cache.glob("*.nbi"))
+
+
+def announce_compile(stream=None):
+    """On a first run (no cached kernel), say so in one line when Numba starts compiling: what
+    it does, about how long, and where the result is kept for later runs. Returns the
+    listener (None on a warm cache)."""
+    if not _cache_is_cold():
+        return None
+    from numba.core import event
+
+    stream = stream or sys.stderr
+    cache = os.environ.get("NUMBA_CACHE_DIR") or "the package's __pycache__ folders"
+
+    class _Notice(event.Listener):
+        said = False
+
+        def on_start(self, ev):
+            if not self.said:
+                self.said = True
+                print(f"gearsim: compiling the numerical kernels for this CPU, once: about "
+                      f"{COMPILE_SECONDS} s on a free core, longer on a busy machine (later "
+                      f"runs load them from {cache})", file=stream, flush=True)
+
+        def on_end(self, ev):
+            pass
+
+    notice = _Notice()
+    event.register("numba:compile", notice)
+    return notice
+
+
+def _resume_line(argv: list[str]) -> str:
+    return "gearsim " + shlex.join(argv)
+
 
 def _subcommand_modules(only: str | None = None):
     if only is not None:
@@ -60,7 +142,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     for mod in _subcommand_modules(only):
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        p.set_defaults(_run=mod.run, _kept=getattr(mod, "kept", None))
     return parser
 
 
@@ -68,10 +150,19 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:
         argv = sys.argv[1:]
     only = argv[0] if argv and not argv[0].startswith("-") else None
-    parser = build_parser(only)
-    args = parser.parse_args(argv)
     try:
+        _set_cache_dir()
+        parser = build_parser(only)
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        sys.stderr.write("\ngearsim: interrupted before the command started; nothing was "
+                         "written\n")
+        return INTERRUPTED
+    try:
+        announce_compile()
         return int(args._run(args) or 0)
+    except KeyboardInterrupt:
+        return interrupted(args, argv)
     except USER_ERRORS as exc:
         sys.stderr.write(f"gearsim {args.command}: error: {one_line(exc)}\n")
         return 2
@@ -94,6 +185,24 @@ def main(argv: list[str] | None = None) -> int:
             raise  # a bug: the traceback is what a developer needs
         sys.stderr.write(f"gearsim {args.command}: error: {line}\n")
         return 2
+
+
+def interrupted(args: argparse.Namespace, argv: list[str]) -> int:
+    """The end of a command stopped by Ctrl-C: one line saying what was kept and the command
+    that resumes it; :data:`INTERRUPTED`."""
+    from gearsim.cli.commands._progress import end_line
+
+    end_line()
+    kept = KEPT
+    if args._kept is not None:
+        try:
+            kept = args._kept(args)
+        except Exception:  # noqa: BLE001 - the line must come out whatever the command's state
+            kept = KEPT
+    sys.stderr.write(f"gearsim {args.command}: interrupted; {kept}; run the same command to "
+                     f"resume: {_resume_line(argv)}\n")
+    sys.stderr.flush()
+    return INTERRUPTED
 
 
 def os_error_line(exc: OSError) -> str:

@@ -329,6 +329,23 @@ CATALOGUE.update({
     ("codim2_points", "multipliers"): ("JSON", "all Floquet multipliers as [re, im], by "
                                        "modulus"),
 })
+# when the atlas's columns are NULL: a catalogue migrated from version 3 has them all NULL;
+# codim2_points' numbers are NULL where its table gives none (NaN)
+_MIGRATED_NULL = "NULL in a catalogue migrated from schema version 3 (built before the atlas)"
+for _key in [("bifurcation_curves", c) for c in (
+        "flank", "seq", "end_first", "end_last", "end_first_detail", "end_last_detail",
+        "codim2_first", "codim2_last")] + [(t, c) for t in ("bifurcation_points",
+                                                            "bifurcation_curves")
+                                           for c in ("source", "seed_i", "seed_j", "seed_i2",
+                                                     "seed_j2", "label_a", "label_b")]:
+    _unit, _meaning = CATALOGUE[_key]
+    if "NULL" not in _meaning:
+        CATALOGUE[_key] = (_unit, f"{_meaning}; {_MIGRATED_NULL}")
+for _col in ("residual_1", "residual_2", "residual", "step", "iterations", "gap_cells", "x", "v",
+             "mu_max", "multipliers"):
+    _unit, _meaning = CATALOGUE[("codim2_points", _col)]
+    CATALOGUE[("codim2_points", _col)] = (
+        _unit, f"{_meaning}; NULL where the point's table gives no value (not computed)")
 CATALOGUE.update({
     ("cell_orbits", "id"): _ID,
     ("cell_orbits", "cell_id"): ("", "cells.id of the refined cell"),

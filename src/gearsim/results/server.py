@@ -112,6 +112,31 @@ def conninfo(url: str) -> dict[str, Any]:
     return kw
 
 
+def configured_target(publish: dict[str, Any], study: str | None) -> tuple[str, str]:
+    """``(url, study)`` of the config's ``publish`` section: a URL without a password (the
+    config is recorded and logged; the password belongs in ~/.pgpass or PGPASSWORD) and a study
+    name (default: the config's ``study``, else ``paper``)."""
+    from sqlalchemy.engine import make_url
+
+    from gearsim.errors import ConfigError
+
+    url = str(publish.get("url") or "")
+    try:
+        u = make_url(url)
+    except Exception:
+        raise ConfigError(f"config key 'publish.url': {safe_url(url)} is not a database URL "
+                          "(postgresql://user@host/db)") from None
+    if u.password is not None:
+        raise ConfigError(f"config key 'publish.url': {safe_url(url)} carries a password; give "
+                          "it in ~/.pgpass or PGPASSWORD, never in the config")
+    conninfo(url)  # a dialect we publish to
+    name = publish.get("study") or study or "paper"
+    try:
+        return url, check_study_name(name)
+    except CatalogueError as exc:
+        raise ConfigError(f"config key 'publish.study': {exc}".replace("--study ", "")) from None
+
+
 def psycopg_module():
     try:
         import psycopg
@@ -122,15 +147,16 @@ def psycopg_module():
     return psycopg
 
 
-def connect(url: str, *, autocommit: bool = False):
-    """A psycopg connection to ``url``; unreachable or refused is one line."""
+def connect(url: str, *, autocommit: bool = False, writing: bool = False):
+    """A psycopg connection to ``url``; unreachable or refused is one line (``writing``: saying
+    that nothing was changed)."""
     psycopg = psycopg_module()
     try:
         return psycopg.connect(autocommit=autocommit, **conninfo(url))
     except psycopg.Error as exc:
+        tail = "; nothing was changed" if writing else ""
         raise CatalogueError(
-            f"{safe_url(url)}: cannot connect ({_scrub(one_line(exc), url)}); nothing was changed"
-        ) from None
+            f"{safe_url(url)}: cannot connect ({_scrub(one_line(exc), url)}){tail}") from None
 
 
 def fault_line(exc: BaseException, url: str, what: str) -> str:

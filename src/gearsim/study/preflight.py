@@ -19,7 +19,8 @@ from pathlib import Path
 from gearsim.errors import UsageError
 
 __all__ = [
-    "check_folder", "check_output", "check_outputs", "free_bytes", "os_cause", "write_text_atomic"
+    "check_folder", "check_output", "check_outputs", "failed_job_logs", "free_bytes", "os_cause",
+    "write_text_atomic",
 ]
 
 #: Free space asked of a file system when the caller gives no estimate (bytes): room for a small
@@ -130,3 +131,36 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
         if tmp.exists():
             tmp.unlink()
     return path
+
+
+#: Snakemake's line naming a failed job's log (``    log: logs/x.log (check log file(s) ...)``)
+_FAILED_LOG = "log: "
+_FAILED_LOG_END = " (check log file"
+
+
+def failed_job_logs(snakemake_log: str | Path, run_folder: str | None) -> list[str]:
+    """Lines naming the log of every failed job of a run, as paths to open from the project
+    folder (where the run was started): Snakemake names them relative to the folder the run
+    works in, which for a study of one's own (or a ``folder:``) is ``studies/<folder>/``. Empty
+    for a run in the project folder itself (its paths are right as they stand) or when the log
+    names none."""
+    if run_folder is None:
+        return []
+    try:
+        text = Path(snakemake_log).read_text(errors="replace")
+    except OSError:
+        return []
+    out: list[str] = []
+    rule = ""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("Error in rule ") and stripped.endswith(":"):
+            rule = stripped[len("Error in rule "):-1]
+        elif stripped.startswith(_FAILED_LOG) and _FAILED_LOG_END in stripped:
+            names = stripped[len(_FAILED_LOG):stripped.index(_FAILED_LOG_END)]
+            for name in (n.strip() for n in names.split(",")):
+                where = name if Path(name).is_absolute() else f"studies/{run_folder}/{name}"
+                entry = f"log of the failed job{f' {rule}' if rule else ''}: {where}"
+                if entry not in out:
+                    out.append(entry)
+    return out

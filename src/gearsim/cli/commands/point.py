@@ -12,10 +12,12 @@ import numpy as np
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION, KMAX_READINGS
 from gearsim.cell.simulate import simulate_cell, trajectory
 from gearsim.cli.commands._common import (
+    add_device_argument,
     add_parameter_arguments,
     check_output_path,
     command_parameters,
     json_safe,
+    select_device,
     settings_from_args,
 )
 from gearsim.errors import UsageError
@@ -28,9 +30,11 @@ HELP = "simulate one point and print its pattern, DC, Kmax, Lyapunov exponent an
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--omega", "-w", type=float, default=None,
-        help="dimensionless mesh frequency w (required unless --gear with --rpm)",
+        help="dimensionless mesh frequency w (default with --gear: the gear file's speed_rpm; "
+        "otherwise required unless --set w=... or the study's parameters give it)",
     )
     add_parameter_arguments(p)
+    add_device_argument(p)
     p.add_argument(
         "--out",
         "-o",
@@ -54,13 +58,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The point's parameters (:func:`gearsim.cli.commands._common.command_parameters`)."""
-    return command_parameters(args, omega_required=True, w=args.omega)
+    """The point's parameters (:func:`gearsim.cli.commands._common.command_parameters`): a gear
+    file gives its own speed and torque (``speed_rpm``, ``torque_Nm``) unless an option sets
+    them, so ``--omega`` is required only without one."""
+    return command_parameters(args, omega_required=not args.gear, w=args.omega)
 
 
 def run(args: argparse.Namespace) -> int:
     out = check_output_path(args.out) if args.out else None
     r = resolve(args)
+    select_device(args, r.study)  # a device that cannot run is one line; one cell runs here
     params, source, gear = r.params, r.source, r.gear
     settings = settings_from_args(args, r.study)
     t0 = time.perf_counter()
