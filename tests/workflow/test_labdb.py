@@ -335,6 +335,7 @@ def test_a_reader_role_keeps_reading_after_each_publish(server, study):
 # ----------------------------------------------------------------------------- faults
 def test_an_unreachable_server_and_a_wrong_password_are_one_line(server, study, capsys):
     _wd, cat = study
+    publish_study(cat, server.url(), "paper")
     before = _study_counts(server.url(), "paper")
     closed = server.url(port=1)
     for url, why in ((closed, "cannot connect"),
@@ -357,6 +358,7 @@ def test_a_server_stopped_in_the_middle_of_a_publish_leaves_the_study_as_it_was(
     the study is the previous catalogue, whole."""
     url = server.url()
     _wd, cat = study
+    publish_study(cat, url, "paper")
     with psycopg.connect(url) as con:
         stamp = con.execute("SELECT published FROM studies WHERE name = 'paper'").fetchone()[0]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"),
