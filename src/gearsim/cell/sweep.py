@@ -13,6 +13,7 @@ from gearsim.cell.chains import simulate_rows
 from gearsim.cell.simulate import CellResult, IntegrationSettings, seeds_continuation, simulate_cell
 from gearsim.cell.verify import fill_margins
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics.settings import Method
 
 
 def continuation_chain(
@@ -54,6 +55,7 @@ def sweep_records(
     direction: str = "forward",
     settings: IntegrationSettings | None = None,
     progress: Callable[[int, int, float], None] | None = None,
+    backend=None,
 ) -> list[dict[str, Any]]:
     """One record per swept value: the one sweep builder (orbit_diagram, ``gearsim sweep``).
 
@@ -68,6 +70,9 @@ def sweep_records(
         bit-identical to the scalar chain); DP5 through :func:`continuation_chain`.
     progress
         Called as ``progress(done, total, elapsed_s)`` every 25 cells and at the end.
+    backend
+        Where the batched chain's lane runs (:func:`gearsim.numerics.backend.select`; None: the
+        CPU).
 
     Records: ``parameter``, ``value``, ``direction``, the classification columns
     (:meth:`CellResult.row`), ``poincare_x`` / ``poincare_v`` (section samples of the analysed
@@ -83,7 +88,8 @@ def sweep_records(
     if direction == "both":
         return [rec for d in ("forward", "backward")
                 for rec in sweep_records(params, name, values, continuation=continuation,
-                                         direction=d, settings=settings, progress=progress)]
+                                         direction=d, settings=settings, progress=progress,
+                                         backend=backend)]
     vals = np.sort(np.asarray(values, dtype=float))
     if direction == "backward":
         vals = vals[::-1]
@@ -96,10 +102,10 @@ def sweep_records(
         if progress and ((i + 1) % 25 == 0 or i + 1 == len(plist)):
             progress(i + 1, len(plist), stamps[-1] - t0)
 
-    if settings is not None and settings.method == "rk4":
+    if settings is not None and settings.method is Method.RK4:
         results = simulate_rows([plist], settings=settings, continuation=continuation,
-                                on_cell=lambda _r, i, res: on_cell(i, res))[0]
-        fill_margins(results, settings)  # the Floquet margins, in shared kernel calls
+                                on_cell=lambda _r, i, res: on_cell(i, res), backend=backend)[0]
+        fill_margins(results, settings, backend)  # the Floquet margins, in shared kernel calls
     else:
         results = continuation_chain(plist, settings=settings, continuation=continuation,
                                      on_cell=on_cell)
@@ -135,7 +141,7 @@ def sweep_records_many(
     continuation=continuation)`` (each sweep one chain of :func:`simulate_rows`, the Floquet
     margins in shared kernel calls). ``settings.method`` must be ``"rk4"``; ``elapsed_s`` is the
     call's wall time shared out over its cells."""
-    if settings.method != "rk4":
+    if settings.method is not Method.RK4:
         raise ParameterError("sweep_records_many: the batched path needs method rk4")
     if name not in ModelParameters.names():
         raise ParameterError(

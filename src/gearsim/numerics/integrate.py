@@ -68,7 +68,7 @@ from gearsim.numerics.events import (
     channels,
     turn_extremum,
 )
-from gearsim.numerics.settings import IntegrationSettings
+from gearsim.numerics.settings import IntegrationSettings, Method
 from gearsim.numerics.steps import (
     FASTMATH,
     METHOD_DP5,
@@ -162,7 +162,7 @@ def end_period_tangent(z):
 def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings, bound, acc):
     """The vector kernel's grid step for one cell; returns True if the event layer must redo it.
 
-    Same arithmetic as ``kernel._lane_step`` and its turning-point pass (both inline
+    Same arithmetic as ``kernel.lane_step`` and its turning-point pass (both inline
     :func:`rk4_state`, :func:`rk4_tangent` and :func:`grid_step_flag`, then call
     :func:`turn_extremum`): a step that stands is stored with its accumulators.
     """
@@ -441,7 +441,7 @@ def run_periods(
 def steps_lower_bound(params: ModelParameters, settings: IntegrationSettings,
                       periods: int) -> int:
     """Fewest steps ``periods`` mesh periods can take (RK4: its grid; DP5: the step cap)."""
-    if settings.method == "rk4":
+    if settings.method is Method.RK4:
         per = rk4_steps_per_period(params, settings)
     else:
         per = int(math.ceil(params.mesh_period / settings.hmax))
