@@ -84,3 +84,13 @@ def test_the_record_keeps_every_hash_a_run_had(tmp_path):
     assert history["plane wb"] == sorted({first["items"]["plane wb"],
                                           second["items"]["plane wb"]})
     assert history["plane wxi"] == [first["items"]["plane wxi"]]
+
+
+def test_partial_kept_says_what_an_interrupted_run_keeps(tmp_path):
+    import pandas as pd
+
+    partial = tmp_path / "wb_orbits.parquet.partial"
+    assert ip.partial_kept(partial, "cells refined").startswith("no cells refined were kept")
+    pd.DataFrame({"i": range(7)}).to_parquet(partial)
+    assert ip.partial_kept(partial, "cells refined") == \
+        f"the 7 cells refined so far are kept in {partial}"
