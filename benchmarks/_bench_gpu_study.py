@@ -73,9 +73,10 @@ def _cores() -> int:
 
 
 def _start_lanes(device, cells, ys, periods, N):
+    from gearsim.numerics.backend import select
     from gearsim.numerics.batch import Lanes
 
-    lanes = Lanes(len(cells), periods, device=device)
+    lanes = Lanes(len(cells), periods, select(device))
     lanes.begin_call()
     for l, p in enumerate(cells):
         lanes.load_params(l, p, N)
@@ -128,13 +129,10 @@ def _count_launches() -> dict:
 
 def _cpu_rows(specs):
     """A CPU worker: a group of plane rows on the CPU path; its records and CPU seconds."""
-    from gearsim.numerics import device
-
-    device.select("cpu")
     from gearsim.study.tiles import simulate_rows_batched
 
     t0 = time.process_time()
-    recs = simulate_rows_batched(specs)
+    recs = simulate_rows_batched(specs)  # the CPU backend
     return [_plane_key(r) for r in recs], time.process_time() - t0
 
 
@@ -149,10 +147,10 @@ def _scale_plane(args, specs):
 
 
 def stage_planes(args) -> dict:
-    from gearsim.numerics import device
+    from gearsim.numerics.backend import select
     from gearsim.study.tiles import row_groups, simulate_rows_batched
 
-    device.select("cuda")
+    gpu = select("cuda")
     full = _scale_plane(args, _plane_specs(None))
     nx = len(full[0]["x_values"])
     cells_full = nx * len(full)
@@ -160,14 +158,15 @@ def stage_planes(args) -> dict:
     # a first pass of a few cells a row sizes the pass that fits the budget
     k0 = min(nx, 2 if args.smoke else 16)
     t0 = time.perf_counter()
-    simulate_rows_batched([dict(s, x_values=s["x_values"][:k0]) for s in full])
+    simulate_rows_batched([dict(s, x_values=s["x_values"][:k0]) for s in full], backend=gpu)
     t_first = time.perf_counter() - t0
     per_col = t_first / k0
     k = int(min(nx, max(k0, args.plane_budget / max(per_col, 1e-9))))
     out["first_pass"] = {"cols": k0, "wall_s": round(t_first, 3)}
     launches = _count_launches()
     t0 = time.perf_counter()
-    recs = simulate_rows_batched([dict(s, x_values=s["x_values"][:k]) for s in full])
+    recs = simulate_rows_batched([dict(s, x_values=s["x_values"][:k]) for s in full],
+                                 backend=gpu)
     wall = time.perf_counter() - t0
     gpu = {_plane_key(r)[:3]: _plane_key(r)[3:] for r in recs}
     # both planes' chains in one lanes object, the period test's verdict inside the launch:
@@ -242,9 +241,6 @@ def _cell_params(keys):
 
 
 def _find(cells, lanes: int, device_kind: str):
-    from gearsim.numerics import device
-
-    device.select(device_kind)
     from gearsim.analysis.attractors.api import find_attractors
     from gearsim.analysis.attractors.options import FinderOptions
     from gearsim.dynamics.parameters import ModelParameters
@@ -252,7 +248,10 @@ def _find(cells, lanes: int, device_kind: str):
     st = _settings()
     plist = [ModelParameters.from_mapping(c[3]) for c in cells]
     t0 = time.process_time()
-    found = find_attractors(plist, FinderOptions(starts=16, seed=0, lanes=lanes), settings=st)
+    from gearsim.numerics.backend import select
+
+    found = find_attractors(plist, FinderOptions(starts=16, seed=0, lanes=lanes), settings=st,
+                            backend=select(device_kind))
     labels = {tuple(c[:3]): sorted(str(a.steady.label) for a in ca.attractors)
               for c, ca in zip(cells, found, strict=True)}
     return labels, time.process_time() - t0
@@ -266,18 +265,17 @@ def stage_coexistence(args) -> dict:
     order = _cell_order()
     total = len(order)
     chunk = 4 if args.smoke else args.finder_cells
-    from gearsim.numerics import device
+    from gearsim.numerics.backend import select
 
-    device.select("cuda")
     out = {"cells_full": total, "starts_per_cell": 16, "chunks": [],
-           "pool_lanes": device.pool_lanes(4 if args.smoke else args.gpu_lanes or 256)}
+           "pool_lanes": select("cuda").pool_lanes(4 if args.smoke else args.gpu_lanes or 256)}
     gpu_labels: dict = {}
     t_all = 0.0
     for k in range(0, total, chunk):
         cells = _cell_params(order[k : k + chunk])
         t0 = time.perf_counter()
-        # the probing pool: --gpu-lanes, else the device's width (gearsim.numerics.device.
-        # pool_lanes: multiprocessors x POOL_LANES_PER_SM)
+        # the probing pool: --gpu-lanes, else the device's width (gearsim.numerics.backend.
+        # CudaLanes.pool_lanes: multiprocessors x POOL_LANES_PER_SM)
         labels, _ = _find(cells, 4 if args.smoke else args.gpu_lanes or 256, "cuda")
         wall = time.perf_counter() - t0
         t_all += wall

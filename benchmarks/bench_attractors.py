@@ -59,7 +59,7 @@ from gearsim.analysis.attractors import (  # noqa: E402
 from gearsim.analysis.attractors.gear import bounded_clouds  # noqa: E402
 from gearsim.analysis.attractors.recurrence import map_attractors  # noqa: E402
 from gearsim.cell import chains, pool  # noqa: E402
-from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics import batch, lanes_layout  # noqa: E402
 from gearsim.study.config import Study  # noqa: E402
 
 OPTS = FinderOptions(starts=16, seed=0)
@@ -126,7 +126,7 @@ class KernelMeter:
         meter = self
 
         def run(lanes, N, m, nu, bound, tangent=True):
-            taking = int(np.sum(lanes.ist[batch._ST] == 0))
+            taking = int(np.sum(lanes.ist[lanes_layout.IST_ST] == 0))
             t0 = time.process_time()
             meter._run(lanes, N, m, nu, bound, tangent)
             meter.cpu += time.process_time() - t0

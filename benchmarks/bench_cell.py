@@ -32,7 +32,7 @@ setup_env()
 import numpy as np  # noqa: E402
 import yaml  # noqa: E402
 
-from gearsim.cell import chains  # noqa: E402
+from gearsim.cell import chain, chains  # noqa: E402
 from gearsim.cell.classify import classify_motion, estimate_period  # noqa: E402
 from gearsim.cell.simulate import (  # noqa: E402
     IntegrationSettings,
@@ -42,7 +42,7 @@ from gearsim.cell.simulate import (  # noqa: E402
 )
 from gearsim.dynamics.model import static_state  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
-from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics import batch, lanes_layout  # noqa: E402
 from gearsim.numerics.integrate import PeriodSummaries  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -171,12 +171,12 @@ def kernel_period_cost(st, lanes=8):
         for i, p in enumerate(cells):
             L.load_params(i, p, 256)
             L.load_state(i, y0[i])
-            L.ist[batch._ST, i] = 0
+            L.ist[lanes_layout.IST_ST, i] = 0
         L.run(256, 2, 0.0, 1e6, tangent)
         ts = []
         for _ in range(5):
-            L.ist[batch._ST, :lanes] = 0
-            L.ist[batch._DONE] = 0
+            L.ist[lanes_layout.IST_ST, :lanes] = 0
+            L.ist[lanes_layout.IST_DONE] = 0
             a = time.process_time()
             L.run(256, 30, 0.0, 1e6, tangent)
             ts.append((time.process_time() - a) / 30)
@@ -187,7 +187,7 @@ def kernel_period_cost(st, lanes=8):
 def batched_tile(bs, cells_w, st):
     rows = [[p.with_(b=b) for p in cells_w] for b in bs]
     times = {"kernel": 0.0, "decide": 0.0}
-    run0, decide0 = batch.Lanes.run, chains._decide
+    run0, decide0 = batch.Lanes.run, chain.decide
 
     def run(self, *a, **k):
         t = time.process_time()
@@ -199,13 +199,13 @@ def batched_tile(bs, cells_w, st):
         decide0(*a, **k)
         times["decide"] += time.process_time() - t
 
-    batch.Lanes.run, chains._decide = run, decide
+    batch.Lanes.run, chain.decide = run, decide
     try:
         t = time.process_time()
         res = chains.simulate_rows(rows, settings=st)
         total = time.process_time() - t
     finally:
-        batch.Lanes.run, chains._decide = run0, decide0
+        batch.Lanes.run, chain.decide = run0, decide0
     n = sum(len(r) for r in rows)
     per = {
         "cells": n,

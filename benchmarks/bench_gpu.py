@@ -27,7 +27,7 @@ what it measured:
    on all, the labels compared on the cells both ran.
 6. ``coexistence``: every cell's coexisting attractors, 16 starts per cell (the finder,
    :func:`gearsim.analysis.attractors.find_attractors`, its probing pool as wide as the GPU
-   holds, :func:`gearsim.numerics.device.pool_lanes`, or ``--gpu-lanes``)
+   holds, :meth:`gearsim.numerics.backend.CudaLanes.pool_lanes`, or ``--gpu-lanes``)
    on the GPU in chunks of cells until the stage's budget, projected to both planes' 320 000
    cells; the CPU finder on a sample of at least 100 000 starts on every core; each cell's
    attractor labels compared on the cells both ran.
@@ -85,10 +85,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 # ============================================================================ stages
 def stage_env(args) -> dict:
-    from gearsim.numerics import device
+    from gearsim.numerics.backend import select
 
-    dev = device.select("cuda")
-    rec = {"device": dev.record(), "host": machine(), "cores": _cores()}
+    rec = {"device": select("cuda").record(), "host": machine(), "cores": _cores()}
     from numba import cuda
 
     d = cuda.get_current_device()
@@ -104,8 +103,8 @@ def stage_env(args) -> dict:
 _COMPILE = """
 import time, numpy as np
 t0 = time.perf_counter()
-from gearsim.numerics import device
-device.select("cuda")
+from gearsim.numerics.backend import select
+gpu = select("cuda")
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.dynamics.model import static_state
 from gearsim.numerics.batch import Lanes, steps_per_period
@@ -113,7 +112,7 @@ from gearsim.numerics.settings import IntegrationSettings
 st = IntegrationSettings(method="rk4")
 p = ModelParameters(w=1.0, b=0.3)
 N = steps_per_period(p, st)
-lanes = Lanes(8, 1, device="cuda")
+lanes = Lanes(8, 1, gpu)
 lanes.begin_call()
 for l in range(8):
     lanes.load_params(l, p, N); lanes.load_state(l, static_state(p.to_array())); lanes.status[l] = 0

@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 from gearsim.cell.simulate import IntegrationSettings, initial_tangent, run_periods  # noqa: E402
 from gearsim.dynamics.model import static_state  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
-from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics import batch, lanes_layout  # noqa: E402
 from gearsim.numerics.integrate import METHODS, integrate_periods  # noqa: E402
 from gearsim.numerics.steps import phase_tables, rk4_steps_per_period  # noqa: E402
 
@@ -52,8 +52,8 @@ def load_lanes(lanes, cs, y0, N):
     """Set-up of a timed batched run: counters reset (start at period 100), the cells'
     parameters and start states loaded into ``lanes`` (a ``batch.Lanes``)."""
     lanes.ist[:] = 0
-    lanes.ist[batch._POS] = 0
-    lanes.ist[batch._K] = 100
+    lanes.ist[lanes_layout.IST_POS] = 0
+    lanes.ist[lanes_layout.IST_K] = 100
     for lane, p in enumerate(cs):
         lanes.load_params(lane, p, N)
         lanes.load_state(lane, y0[lane])

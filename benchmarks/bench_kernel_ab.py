@@ -38,7 +38,7 @@ HERE = Path(__file__).resolve().parent
 WORKER = r"""
 import json, sys, time
 import numpy as np
-from gearsim.numerics import batch
+from gearsim.numerics import batch, lanes_layout
 from gearsim.dynamics.model import static_state
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.cell.simulate import IntegrationSettings, run_periods
@@ -71,7 +71,7 @@ for tangent in (False, True):
         c0 = time.process_time()
         lanes.run(N, periods, 0.0, 1e6, tangent)
         cpu.append(time.process_time() - c0)
-        steps = int(lanes.ist[batch._STEPS, :n].sum())
+        steps = int(lanes.ist[lanes_layout.IST_STEPS, :n].sum())
     grid = n * periods * N
     out["tangent" if tangent else "state"] = {
         "cpu_median_s": sorted(cpu)[len(cpu) // 2], "cpu_min_s": min(cpu),

@@ -2,7 +2,7 @@
 
 One run measures, side by side on the same machine state:
 
-* **kernel** - ``batch.advance`` alone on 24 lanes already on their motion (the bench_kernel
+* **kernel** - ``kernel.advance`` alone on 24 lanes already on their motion (the bench_kernel
   set: w in [0.6, 2.4], b in {0.15, 0.3, 1.0}), with and without the tangent vector:
   cell-steps per CPU second;
 * **simulate tile** - one worker's share of a default-config tile (``--rows`` plane rows of the
@@ -39,9 +39,10 @@ setup_env()
 import numpy as np  # noqa: E402
 
 from gearsim.analysis.attractors import pool as apool  # noqa: E402
-from gearsim.cell import chains, simulate  # noqa: E402
+from gearsim.cell import chain, chains, simulate  # noqa: E402
 from gearsim.dynamics.parameters import ModelParameters  # noqa: E402
-from gearsim.numerics import batch  # noqa: E402
+from gearsim.numerics import batch, lanes_layout  # noqa: E402
+from gearsim.numerics import kernel as kernel_module  # noqa: E402
 from gearsim.results import catalogue  # noqa: E402
 from gearsim.study import tiles  # noqa: E402
 from gearsim.study.config import Study, study_config  # noqa: E402
@@ -76,22 +77,22 @@ def timed(name, fn, *, per_stage=False):
 
 
 def instrument() -> None:
-    adv = batch.advance
+    adv = kernel_module.advance
 
     def kernel(blk, ist, N, m, *rest):
-        act = int(np.sum(ist[batch._ST] == 0))
+        act = int(np.sum(ist[lanes_layout.IST_ST] == 0))
         LANE[f"{STAGE[-1]}:computed"] += (ist.shape[1] // batch.LANES) * batch.LANES * N * m
         LANE[f"{STAGE[-1]}:useful"] += act * N * m
         if rest[-1]:
             TANGENT[STAGE[-1]] += act * N * m
         return adv(blk, ist, N, m, *rest)
 
-    batch.advance = timed("kernel", kernel, per_stage=True)
+    kernel_module.advance = timed("kernel", kernel, per_stage=True)
     simulate.estimate_period = timed("period test", simulate.estimate_period, per_stage=True)
-    chains.finish_cell = timed("classification (finish_cell)", chains.finish_cell,
-                              per_stage=True)  # fmt: skip
-    chains._begin_cell = timed("cell set-up (params, regions)", chains._begin_cell,
-                              per_stage=True)  # fmt: skip
+    chain.finish_cell = timed("classification (finish_cell)", chain.finish_cell,
+                             per_stage=True)  # fmt: skip
+    chain.begin_cell = timed("cell set-up (params, regions)", chain.begin_cell,
+                            per_stage=True)  # fmt: skip
     tiles.cell_records = timed("records", tiles.cell_records)
     # the attractor task's stages: the pool's chunk checks and finished runs, the forward
     # motions' certificates before the pool, the neighbours' seeds, the final assembly
@@ -108,7 +109,7 @@ def use(st):
 
 
 def kernel_rate(tangent: bool, periods: int = 20, repeats: int = 3) -> float:
-    """Cell-steps per CPU second of batch.advance on 24 lanes (bench_kernel's cells)."""
+    """Cell-steps per CPU second of kernel.advance on 24 lanes (bench_kernel's cells)."""
     ws = np.linspace(0.6, 2.4, 24)
     cs = [ModelParameters(w=float(w), b=(0.15, 0.3, 1.0)[i % 3]) for i, w in enumerate(ws)]
     st = simulate.IntegrationSettings(method="rk4")
@@ -122,9 +123,9 @@ def kernel_rate(tangent: bool, periods: int = 20, repeats: int = 3) -> float:
         for l, p in enumerate(cs):
             lanes.load_params(l, p, 256)
             lanes.load_state(l, y0[l])
-            lanes.ist[batch._ST, l] = 0
-            lanes.ist[batch._POS, l] = 0
-            lanes.ist[batch._K, l] = 100
+            lanes.ist[lanes_layout.IST_ST, l] = 0
+            lanes.ist[lanes_layout.IST_POS, l] = 0
+            lanes.ist[lanes_layout.IST_K, l] = 100
         c0 = time.process_time()
         lanes.run(256, periods, 0.0, 1e6, tangent)
         best.append(time.process_time() - c0)

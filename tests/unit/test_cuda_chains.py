@@ -25,7 +25,8 @@ import pytest
 from gearsim.cell.chains import simulate_rows
 from gearsim.cell.simulate import IntegrationSettings
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.numerics import batch, device
+from gearsim.numerics import batch, kernel
+from gearsim.numerics.backend import CudaLanes, select
 from gearsim.numerics.device import DeviceError, _probe
 
 _name, _version, _simulated, _why = _probe()
@@ -50,7 +51,7 @@ def both():
     from gearsim.numerics import cuda_lanes
 
     calls = {"cpu": 0, "cuda": 0}
-    real = {"cpu": batch.advance, "cuda": cuda_lanes.advance_device}
+    real = {"cpu": kernel.advance, "cuda": cuda_lanes.advance_device}
 
     def counted(kind):
         def call(*a, **k):
@@ -59,15 +60,13 @@ def both():
         return call
 
     mp = pytest.MonkeyPatch()
-    mp.setattr(batch, "advance", counted("cpu"))
+    mp.setattr(kernel, "advance", counted("cpu"))
     mp.setattr(cuda_lanes, "advance_device", counted("cuda"))
     out = {}
     try:
         for kind in ("cpu", "cuda"):
-            device.select(kind)
-            out[kind] = simulate_rows(ROWS + [CHAOS], settings=ST)
+            out[kind] = simulate_rows(ROWS + [CHAOS], settings=ST, backend=select(kind))
     finally:
-        device.select("cpu")
         mp.undo()
     return out, calls
 
@@ -105,7 +104,7 @@ def test_gpu_chains_take_the_verdict_on_the_device(both):
 def _lanes(n: int, m: int) -> tuple[batch.Lanes, int]:
     p = ModelParameters(w=1.0, b=0.3)
     N = batch.steps_per_period(p, ST)
-    lanes = batch.Lanes(n, m, device="cuda")
+    lanes = batch.Lanes(n, m, select("cuda"))
     lanes.begin_call()
     for l in range(n):
         lanes.load_params(l, p, N)
@@ -166,9 +165,9 @@ def test_the_finder_on_the_gpu_fills_it_and_keeps_its_labels(monkeypatch):
     widths = []
     real = pool._Pool.__init__
 
-    def init(self, capacity, records, history=0):
+    def init(self, capacity, records, history=0, backend=None):
         widths.append(capacity)
-        real(self, capacity, records, history)
+        real(self, capacity, records, history, backend)
 
     monkeypatch.setattr(pool._Pool, "__init__", init)
     from gearsim.numerics import cuda_lanes
@@ -184,16 +183,14 @@ def test_the_finder_on_the_gpu_fills_it_and_keeps_its_labels(monkeypatch):
     cell = ModelParameters(w=1.0, b=0.1)
     opts = FinderOptions(starts=4, seed=0, lanes=2)
     found = {}
-    try:
-        for kind in ("cpu", "cuda"):
-            dev = device.select(kind)
-            widths.clear()
-            found[kind] = find_attractors(cell, opts, settings=ST)
-            probe_width = widths[1] if len(widths) > 1 else None  # the measuring pool is first
-            want = 2 if kind == "cpu" else max(2, dev.multiprocessors * device.POOL_LANES_PER_SM)
-            assert probe_width == want
-    finally:
-        device.select("cpu")
+    for kind in ("cpu", "cuda"):
+        backend = select(kind)
+        widths.clear()
+        found[kind] = find_attractors(cell, opts, settings=ST, backend=backend)
+        probe_width = widths[1] if len(widths) > 1 else None  # the measuring pool is first
+        want = 2 if kind == "cpu" else max(
+            2, backend.device.multiprocessors * CudaLanes.POOL_LANES_PER_SM)
+        assert probe_width == want
     # the probing pool's chunks go back to the judge; the measuring lanes take the verdict on
     # the GPU (the chain driver's plan)
     assert any(planned) and not all(planned)

@@ -25,6 +25,7 @@ from gearsim.cell.simulate import initial_tangent, run_periods
 from gearsim.dynamics.model import static_state
 from gearsim.dynamics.parameters import ModelParameters
 from gearsim.numerics import batch
+from gearsim.numerics.backend import select
 from gearsim.numerics.device import _probe
 
 _name, _version, _simulated, _why = _probe()
@@ -56,7 +57,7 @@ PERIODS = 3
 def _lanes(device, cells, y0, n_lanes, start=60):
     """Lanes of ``cells`` (one each, then frozen padding lanes up to ``n_lanes``)."""
     N = batch.steps_per_period(cells[0], RK4)
-    lanes = batch.Lanes(n_lanes, PERIODS + 2, device=device)
+    lanes = batch.Lanes(n_lanes, PERIODS + 2, select(device))
     lanes.begin_call()
     for l, p in enumerate(cells):
         lanes.load_params(l, p, N)

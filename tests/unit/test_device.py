@@ -14,54 +14,65 @@ from pathlib import Path
 import pytest
 
 from gearsim.numerics import device
+from gearsim.numerics.backend import CPU, select
 from gearsim.numerics.batch import Lanes
 from gearsim.study import provenance
+from gearsim.study.config import Study
 
 ROOT = Path(__file__).resolve().parents[2]
 _, _, _simulated, WHY = device._probe()
 no_gpu = pytest.mark.skipif(not WHY, reason="a CUDA device (or the simulator) is present")
 
 
-@pytest.fixture(autouse=True)
-def back_to_cpu():
-    yield
-    device.select("cpu")
-
-
 def test_default_is_the_cpu_and_leaves_provenance_as_it_was():
-    dev = device.select("cpu")
-    assert dev.kind == "cpu" and dev.record() is None
-    assert Lanes(3, 1).device == "cpu"
-    rec = provenance.provenance({"a": 1}, kind="tile", name="x")
-    assert "device" not in rec
+    backend = select("cpu")
+    assert backend is CPU and backend.kind == "cpu" and backend.record() is None
+    assert Lanes(3, 1).backend is CPU
+    for rec in (provenance.provenance({"a": 1}, kind="tile", name="x"),
+                provenance.provenance({"a": 1}, kind="tile", name="x", device=backend.record())):
+        assert "device" not in rec
 
 
 @no_gpu
 def test_cuda_without_a_gpu_is_one_line_naming_the_setting():
     with pytest.raises(device.DeviceError) as err:
-        device.select("cuda")
+        select("cuda")
     msg = str(err.value)
     assert msg.startswith("execution.device: cuda: ") and "\n" not in msg
-    assert device.current().kind == "cpu"  # nothing changed
+    assert Lanes(3, 1).backend is CPU  # nothing chosen for anyone else
 
 
 @no_gpu
 def test_auto_falls_back_to_the_cpu_and_says_so(caplog):
     with caplog.at_level("WARNING", logger="gearsim.numerics.device"):
-        dev = device.select("auto")
-    assert dev.kind == "cpu" and dev.asked == "auto" and dev.note.startswith("on the CPU: ")
+        backend = select("auto")
+    dev = backend.device
+    assert backend.kind == "cpu" and dev.asked == "auto" and dev.note.startswith("on the CPU: ")
     assert any("auto" in r.getMessage() for r in caplog.records)
-    assert Lanes(3, 1).device == "cpu"
-    rec = provenance.provenance({"a": 1}, kind="tile", name="x")
+    assert Lanes(3, 1, backend).backend.kind == "cpu"
+    rec = provenance.provenance({"a": 1}, kind="tile", name="x", device=backend.record())
     assert rec["device"]["kind"] == "cpu" and rec["device"]["asked"] == "auto"
     assert rec["device"]["note"] == dev.note
     # outside the configuration hash: the same subtree hashes alike on either device
     assert rec["config_hash"] == provenance.config_hash({"a": 1})
 
 
+def test_the_study_carries_its_device_and_the_workflow_reads_it_there():
+    """The study's execution settings say where its jobs run (config/gpu.yaml: cuda, a GPU
+    job); --device is folded in by with_device; no choice is kept anywhere else."""
+    paper = Study.load(root=ROOT)
+    gpu = Study.load([ROOT / "config/gpu.yaml"], root=ROOT)
+    assert paper.execution == device.Execution("cpu") and not paper.execution.uses_gpu
+    assert gpu.execution.device == "cuda" and gpu.execution.uses_gpu
+    assert paper.with_device("auto").execution.device == "auto"
+    assert paper.with_device(None) is paper
+    assert paper.with_device("auto").settings == paper.settings  # outside the settings
+    assert "STUDY.execution.uses_gpu" in (ROOT / "workflow/rules/common.smk").read_text()
+
+
 def test_unknown_device_is_one_line():
     with pytest.raises(device.DeviceError, match=r"^execution.device: 'gpu' is not one of"):
-        device.select("gpu")
+        select("gpu")
 
 
 @no_gpu

@@ -122,19 +122,19 @@ def test_step_budget_during_measurement():
 
 
 def test_batched_lanes_compacted_as_cells_finish_give_the_same_results(monkeypatch):
-    """simulate_cells packs the unfinished lanes into fewer SIMD blocks as cells finish (issue
-    16): every cell's result equals its own single-lane run, bit for bit."""
+    """simulate_cells packs the unfinished lanes into fewer SIMD blocks as cells finish:
+    every cell's result equals its own single-lane run, bit for bit."""
     from gearsim.cell import chains
     from gearsim.cell.chains import simulate_cells
 
     sizes = []
-    compact = chains._compact
+    compact = chains.compact
 
     def counted(lanes, chains):
         sizes.append((lanes.n_blocks, len(chains)))
         return compact(lanes, chains)
 
-    monkeypatch.setattr(chains, "_compact", counted)
+    monkeypatch.setattr(chains, "compact", counted)
 
     st = reference_settings(method="rk4", transient=30, max_periods=96)
     ws = np.linspace(0.5, 2.2, 19)  # periodic cells finish early, chaotic ones use the budget

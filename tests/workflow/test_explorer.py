@@ -495,3 +495,38 @@ def test_points_cap_keeps_a_chaotic_page_small():
     cap = points_cap([plane(many)])
     assert MIN_POINTS <= cap < MAX_POINTS and 4 * (cap * many + 200) <= POINTS_BUDGET
     assert points_cap([plane(10_000_000)]) == MIN_POINTS
+
+
+def test_curves_and_codimension_2_points_look_as_in_figs_21_22(page, tmp_path):
+    """A curve drawn with its look from the catalogue row (orbit_plots.curve_look: colour by
+    period, dash by kind and flank) and a codimension-2 point drawn as its white marker; the
+    legend names the curve by kind and period and the point by kind."""
+    from gearsim.presentation.orbit_plots import curve_look
+
+    wd, _ = page
+    cells = pd.read_parquet(wd / "results/wb/cells.parquet")
+    plane = plane_from_cells("wb", cells, ("w", "b"))
+    look = curve_look({"kind": "period_doubling", "period": 2, "boundary": ""})
+    plane.curves = [{"curve": 0, "kind": "period_doubling", "period": 2, "xname": "w",
+                     "yname": "b", "x": [1.0, 1.0], "y": [0.0, 1.0], **look}]
+    plane.codim2 = [{"kind": "pd_grazing", "marker": "s", "text": "doubling meets grazing",
+                     "xname": "w", "yname": "b", "x": 1.6, "y": 0.5, "period": 2,
+                     "converged": True, "conditions": "period_doubling; grazing x=-b"}]
+    out = tmp_path / "atlas.html"
+    out.write_text(explorer.render([plane], {}))
+    driver = _driver(tmp_path)
+    try:
+        _load(driver, out.as_uri())
+        px = driver.execute_script(
+            "const f = window.GEARSIM.planes.wb.frame, X = Math.round(f.X(1.0)),"
+            " Y = Math.round(f.Y(0.5)); return Array.from(f.ctx.getImageData(X - 1, Y, 3, 1)"
+            ".data);")
+        blue = np.array(_hex(look["colour"]))
+        assert min(np.abs(np.array(px[k:k + 3]) - blue).sum() for k in (0, 4, 8)) < 3 * 40
+        # the marker's white face at the point
+        assert _pixel(driver, "wb", 1.6, 0.5) == [255, 255, 255]
+        legend = driver.find_element("id", "legend-wb").text
+        assert "period doubling 2T -> 4T" in legend and "doubling meets grazing (1)" in legend
+        assert not [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+    finally:
+        driver.quit()

@@ -471,8 +471,10 @@ def test_report_explorer_and_export_from_the_server_equal_those_from_the_file(
 
 
 def test_the_password_is_never_written(server):
-    """Every line above, the studies table and every study's provenance and info."""
+    """Every line above, the server's log, the studies table and every study's provenance and
+    info."""
     assert LINES and not any(PASSWORD in line for line in LINES)
+    assert server.log() and PASSWORD not in server.log()
     with psycopg.connect(server.url()) as con:
         for (name,) in con.execute("SELECT name FROM studies").fetchall():
             for table in ("runs", "catalogue_info", "planes"):

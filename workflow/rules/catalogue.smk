@@ -9,7 +9,8 @@ rule catalogue:
         sweeps=lambda wildcards: SWEEP_FILES,
         audits=lambda wildcards: AUDIT_FILES,
         attractors=lambda wildcards: ATTRACTOR_FILES,
-        orbits=lambda wildcards: ORBIT_CATALOGUE_FILES,
+        # the bifurcation points and curves, and the codimension-2 points (codim2_points)
+        orbits=lambda wildcards: ORBIT_CATALOGUE_FILES + ORBIT_CODIM2_FILES,
     output:
         build=CATALOGUE_BUILD,
     log:

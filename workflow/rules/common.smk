@@ -184,9 +184,9 @@ FIGURE_DATA_TABLES = gfd.figure_data_tables(config)
 # the compiled kernels' stamp (rule compile), named by the simulation code's version
 KERNEL_STAMP = f"results/.kernels/{CODE_VERSION['tiles']}"
 COMPILED = ancient(KERNEL_STAMP)
-# jobs that simulate hold one GPU when execution.device is cuda or auto (README, "On a GPU"):
-# `--resources gpu=1` runs one at a time; on SLURM the executor asks for it (--gpus=1)
-GPU_JOBS = int(config.get("execution", {}).get("device", "cpu") != "cpu")
+# jobs that simulate hold one GPU when the study's execution.device is cuda or auto (README, "On
+# a GPU"): `--resources gpu=1` runs one at a time; on SLURM the executor asks for it (--gpus=1)
+GPU_JOBS = int(STUDY.execution.uses_gpu)
 
 
 def of_plane(rule_output):

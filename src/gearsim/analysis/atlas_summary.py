@@ -102,6 +102,19 @@ def _pairs(edges: pd.DataFrame, top: int = 10) -> list[dict[str, Any]]:
     return t.to_dict("records")
 
 
+def crises(edges: pd.DataFrame, top: int = 8) -> list[dict[str, Any]]:
+    """Where the chaotic band ends abruptly (edges classified ``crisis``), as the grid reads
+    it: per pair of labels, the edges and the extent of their midpoints."""
+    c = edges[edges["mechanism"] == "crisis"]
+    if not len(c):
+        return []
+    pair = [" | ".join(sorted((a, b))) for a, b in zip(c["label0"], c["label1"], strict=True)]
+    t = c.assign(pair=pair).groupby("pair").agg(edges=("x", "size"), x_lo=("x", "min"),
+                                                 x_hi=("x", "max"), y_lo=("y", "min"),
+                                                 y_hi=("y", "max")).reset_index()
+    return t.sort_values("edges", ascending=False).head(top).to_dict("records")
+
+
 def plane_atlas(cells: pd.DataFrame, curves: pd.DataFrame | None, *, plane: str,
                 x_name: str, y_name: str) -> tuple[pd.DataFrame, dict[str, Any]]:
     """The classified edges (:func:`gearsim.analysis.boundaries.classify_edges`) and the
@@ -121,6 +134,7 @@ def plane_atlas(cells: pd.DataFrame, curves: pd.DataFrame | None, *, plane: str,
         "explained": {k: list(v) for k, v in bd.explained_share(edges).items()},
         "mechanisms": mechanisms(edges),
         "unexplained_pairs": _pairs(edges),
+        "crises": crises(edges),
     }
     if y_name == "b":
         summary["b_independence"] = b_independence(curves, edges, y_name, x_name)

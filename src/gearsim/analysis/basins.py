@@ -82,12 +82,14 @@ def basin_grid(
     settings=None,
     box: tuple[float, float, float, float] | None = None,
     options: FinderOptions | None = None,
+    backend=None,
 ) -> BasinGrid:
     """Classify the starts of an ``n x n`` grid over ``box = (xmin, xmax, vmin, vmax)``.
 
     Default box: the :func:`~gearsim.analysis.attractors.start_box` of ``params``. ``options``: the
     finder's :class:`~gearsim.analysis.attractors.FinderOptions` (e.g. ``early=False``; its
-    ``starts`` and ``seed`` are replaced by the grid).
+    ``starts`` and ``seed`` are replaced by the grid). ``backend``: where the starts' lanes run
+    (:func:`gearsim.numerics.backend.select`; None: the CPU).
     """
     if isinstance(n, bool) or not isinstance(n, int) or not 2 <= n <= 2000:
         raise ParameterError(f"setting 'n' = {n!r} must be an integer in [2, 2000]")
@@ -99,14 +101,15 @@ def basin_grid(
         raise ParameterError(f"setting 'box' = {box!r}: need xmin < xmax and vmin < vmax")
     xs = xmin + (np.arange(n) + 0.5) * (xmax - xmin) / n
     vs = vmin + (np.arange(n) + 0.5) * (vmax - vmin) / n
-    system = GearCells([params], settings)
+    system = GearCells([params], settings, backend)
     V, X = np.meshgrid(vs, xs, indexing="ij")
     unit = np.column_stack([(X.ravel() - xmin) / (xmax - xmin), (V.ravel() - vmin) / (vmax - vmin)])
     # the unit square maps to the start box; a custom box maps through its own affine map
     states = system.start_states(0, unit)
     states[:, 0] = X.ravel()
     states[:, 1] = V.ravel()
-    ca = find_attractors(params, options, settings=settings, start_states=states)
+    ca = find_attractors(params, options, settings=settings, start_states=states,
+                         backend=backend)
     shape = (n, n)
     return BasinGrid(
         params=params,

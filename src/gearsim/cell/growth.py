@@ -84,7 +84,7 @@ def grows(xmax: np.ndarray, xmin: np.ndarray) -> bool:
                if k >= 4)  # fmt: skip
 
 
-def _long_runs(cells: Sequence, st, periods: int) -> list[tuple[bool, int, int]]:
+def _long_runs(cells: Sequence, st, periods: int, backend=None) -> list[tuple[bool, int, int]]:
     """``(bounded, periods run, steps)`` of a :data:`LONG_RUN` from each result's final state:
     RK4 cells of one step grid in one batched kernel call, others one by one."""
     from gearsim.numerics.batch import run_periods_batched, steps_per_period
@@ -109,7 +109,8 @@ def _long_runs(cells: Sequence, st, periods: int) -> list[tuple[bool, int, int]]
         y[:, :10] = [cells[i].final_state[:10] for i in idx]
         summ, _fin, status, steps = run_periods_batched(
             [cells[i].params for i in idx], y, periods, st,
-            start_periods=[int(cells[i].final_period) for i in idx], tangent=False)
+            start_periods=[int(cells[i].final_period) for i in idx], tangent=False,
+            backend=backend)
         for q, i in enumerate(idx):
             s = summ[q]
             out[i] = (int(status[q]) == 0 and len(s) == periods and not grows(s.xmax, s.xmin),
@@ -117,14 +118,15 @@ def _long_runs(cells: Sequence, st, periods: int) -> list[tuple[bool, int, int]]
     return out  # type: ignore[return-value]
 
 
-def check_growth(results: Sequence, st, periods: int = LONG_RUN) -> None:
+def check_growth(results: Sequence, st, periods: int = LONG_RUN, backend=None) -> None:
     """The rule for motions without a period, in place on
     :class:`~gearsim.cell.simulate.CellResult` s: each chaotic, quasi-periodic or unsettled
     result gets its
     ``mu_lin``; where ``mu_lin > 1`` a ``periods``-period run from its final state decides
     (``long_run`` = its periods): bounded, the label stands; diverged or growing, the result
     becomes ``diverged`` (its window's readings kept). The run's periods and steps are the
-    cell's. Its final state stays the window's (the state a continuation chain went on from)."""
+    cell's. Its final state stays the window's (the state a continuation chain went on from).
+    ``backend``: where the long runs' lanes run (default the CPU)."""
     todo = [r for r in results if r.classification.motion in CHECKED]
     if not todo:
         return
@@ -134,7 +136,8 @@ def check_growth(results: Sequence, st, periods: int = LONG_RUN) -> None:
     check = [r for r, mu in zip(todo, mus, strict=True) if mu > 1.0]
     if not check:
         return
-    for r, (bounded, done, steps) in zip(check, _long_runs(check, st, periods), strict=True):
+    runs = _long_runs(check, st, periods, backend)
+    for r, (bounded, done, steps) in zip(check, runs, strict=True):
         c = r.classification
         c.long_run = float(done)
         r.periods += done

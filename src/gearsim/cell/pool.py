@@ -2,7 +2,7 @@
 attractor finder), each run exactly :func:`gearsim.cell.simulate.simulate_cell` from its start,
 whose transient the judge may cut short or pause.
 
-The phases of a run are those of the chain driver (:mod:`gearsim.cell.chains`): a job is a
+The phases of a run are those of the chain machine (:mod:`gearsim.cell.chain`): a job is a
 one-cell chain there.
 """
 
@@ -14,16 +14,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from gearsim.cell.chains import (
-    _LEAD,
-    _MEASURE,
-    _TRANSIENT,
-    _begin_lead,
-    _begin_measure,
-    _Chain,
-    _decide,
-    _device_plan,
-)
+from gearsim.cell import chain
+from gearsim.cell.chain import Chain, Rules
 from gearsim.cell.simulate import (
     CellResult,
     IntegrationSettings,
@@ -34,9 +26,8 @@ from gearsim.cell.simulate import (
 from gearsim.cell.verify import OrbitCache
 from gearsim.dynamics.model import N_STATE, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
-from gearsim.numerics import kernel as plan_rows  # the PLAN_* rows of a GPU launch
+from gearsim.numerics.backend import CPU, CpuLanes
 from gearsim.numerics.batch import LANES, Lanes
-from gearsim.numerics.device import pool_lanes
 from gearsim.numerics.integrate import steps_lower_bound
 
 #: what a pool's judge answers for a probing job after each chunk of its transient
@@ -74,7 +65,7 @@ class PoolJob:
     hist: np.ndarray | None = None
     state: np.ndarray | None = None  # the section state (10) when last shown to the judge
     result: CellResult | None = None
-    ch: _Chain | None = field(default=None, repr=False)
+    ch: Chain | None = field(default=None, repr=False)
     saved: np.ndarray | None = field(default=None, repr=False)
 
 
@@ -129,10 +120,11 @@ class _Pool:
     """Lanes of one step grid with a job per occupied lane, and the last ``history`` section
     states of every lane (probing pool)."""
 
-    def __init__(self, capacity: int, records: int, history: int = 0):
+    def __init__(self, capacity: int, records: int, history: int = 0,
+                 backend: CpuLanes | None = None):
         self.records = records
         self.history = history
-        self.lanes = Lanes(max(1, capacity), records)
+        self.lanes = Lanes(max(1, capacity), records, backend)
         self.jobs: list[PoolJob | None] = [None] * self.lanes.size
         self.hist = np.full((self.lanes.size, history, N_STATE), np.nan)
 
@@ -174,7 +166,7 @@ class _Pool:
 
     def _resize(self, n: int) -> None:
         occ = [j for j in self.jobs if j is not None]
-        new = Lanes(max(n, len(occ), 1), self.records, self.lanes.device)
+        new = Lanes(max(n, len(occ), 1), self.records, self.lanes.backend)
         hist = np.full((new.size, self.history, N_STATE), np.nan)
         if occ:
             old = np.array([j.ch.lane for j in occ], dtype=np.int64)
@@ -190,26 +182,22 @@ class _Pool:
 
     def run(self, jobs: list[PoolJob], m: int, N: int, nu, bound: float, tangent: bool,
             record_transient: bool, stats: PoolStats, st: IntegrationSettings | None = None
-            ) -> np.ndarray | None:
-        """Advance the lanes of ``jobs`` (all occupied lanes) ``m`` periods. With ``st`` on a
-        GPU, the measuring lanes take the chain driver's verdict inside the launch (its plan,
-        :func:`gearsim.cell.chains._device_plan`, returned; ``m`` is then the plan's)."""
+            ) -> tuple[int, np.ndarray | None]:
+        """Advance the lanes of ``jobs`` (all occupied lanes) ``m`` periods; with ``st``, as one
+        part of their chains (:func:`gearsim.cell.chain.run_part`: on a backend that can, the
+        measuring lanes take their verdicts inside the call, and the part's own periods run).
+        Returns the periods run and, with ``st``, each lane's verdict period (-1: none)."""
         lanes = self.lanes
         lanes.begin_call()
         idx = np.array([j.ch.lane for j in jobs], dtype=np.int64)
         lanes.status[idx] = 0
-        lanes.position[idx] = [j.ch.measured if j.ch.phase == _MEASURE
+        lanes.position[idx] = [j.ch.measured if j.ch.phase == chain.MEASURE
                                else 0 if record_transient else -1 for j in jobs]  # fmt: skip
         lanes.period[idx] = [j.ch.k for j in jobs]
         t0 = time.process_time()
-        plan = None
-        if st is not None and lanes.device == "cuda":
-            from gearsim.cell.device_chains import chain_kernel
-
-            m, plan = _device_plan([j.ch for j in jobs], lanes, st)
-            lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent, kernel=chain_kernel,
-                      plan=plan, test=(st.chunk, st.max_periods, st.n_max, st.period_rtol,
-                                       st.max_steps))
+        period = None
+        if st is not None:
+            m, period = chain.run_part([j.ch for j in jobs], lanes, st, N, nu, bound, tangent)
         else:
             lanes.run(N, m, 0.0 if nu is None else nu, bound, tangent)
         stats.kernel_cpu_s += time.process_time() - t0
@@ -218,20 +206,20 @@ class _Pool:
         stats.steps += computed * N
         stats.calls += 1
         done = lanes.done[idx].tolist()
-        steps = lanes.steps[idx].tolist()
         stats.useful += sum(done)
         stats.periods += sum(done)
-        for j, d, n in zip(jobs, done, steps, strict=True):
-            c = j.ch
-            c.k += d
-            c.left -= d
-            c.steps += n
+        if st is None:
+            for j, d, n in zip(jobs, done, lanes.steps[idx].tolist(), strict=True):
+                c = j.ch
+                c.k += d
+                c.left -= d
+                c.steps += n
         if self.history:
             # the last section states of every lane, oldest first
             h, k = self.hist, min(m, self.history)
             h[:, : self.history - k] = h[:, k:]
             h[:, -k:] = self.lanes.sec[:, m - k : m]
-        return plan
+        return m, period
 
 
 def run_pool(
@@ -245,6 +233,7 @@ def run_pool(
     floquet: str = "slow",
     orbits: OrbitCache | None = None,
     stats: PoolStats | None = None,
+    backend: CpuLanes | None = None,
 ) -> PoolStats:
     """Run full-length runs of one step grid (``N`` RK4 steps per period, variable-ratio order
     ``nu``) in a pool of SIMD lanes refilled from ``judge`` until it has no job left.
@@ -257,16 +246,20 @@ def run_pool(
     job it labels (:data:`STOP`) frees its lane at once, a parked one is kept with its state
     (lane column) and resumes bit for bit when the judge hands it back. Lanes that measure
     (tangent on) are a second, smaller pool, so the probes never integrate a tangent vector.
+    ``backend``: where the lanes run (default the CPU; a GPU's probing pool is as wide as it
+    holds, :meth:`~gearsim.numerics.backend.CpuLanes.pool_lanes`).
     """
     st = settings
-    lanes = pool_lanes(lanes)  # a GPU's width: the starts fill it (the CPU's is ``lanes``)
+    backend = backend or CPU
+    lanes = backend.pool_lanes(lanes)  # a GPU's width: the starts fill it (the CPU's: lanes)
+    rules = Rules(continuation=False, floquet=floquet, orbits=orbits, settle=False)
     if recurrence_probe(st, True, st.transient):
         raise ParameterError("the lane pool needs integration.transient_recurrence = 0")
     bound = float(getattr(st, "divergence_bound", 1.0e6))
     stats = stats or PoolStats()
     history = 0
     probe: _Pool | None = None
-    meas = _Pool(LANES, max(st.max_periods, 1))
+    meas = _Pool(LANES, max(st.max_periods, 1), backend=backend)
     packed: dict[int, tuple[ModelParameters, np.ndarray]] = {}  # id(params) -> packed
     tangents: dict[int, tuple[ModelParameters, np.ndarray]] = {}  # id(params) -> tangent0
 
@@ -291,7 +284,7 @@ def run_pool(
             y = np.asarray(job.u0, dtype=float)[:N_STATE]
             if y.shape != (N_STATE,) or not np.all(np.isfinite(y)):
                 raise ParameterError("initial state 'u0' must be 10 finite numbers")
-            c = _Chain(index=0, cells=[p], u0=y, period0=job.period0)
+            c = Chain(index=0, cells=[p], u0=y, period0=job.period0)
             c.start, c.period, c.k, c.N, c.h, c.nu = y, job.period0, job.period0, N, \
                 p.mesh_period / N, nu
             tg = tangents.get(id(p))
@@ -301,7 +294,7 @@ def run_pool(
             c.lead = min(st.tangent_lead, job.transient)
             # the probe pool runs whole chunks (its lanes stay in step); the rest of the
             # transient runs in the measuring pool before the lead
-            c.phase, c.left = _TRANSIENT, (job.transient - c.lead) // chunk * chunk
+            c.phase, c.left = chain.TRANSIENT, (job.transient - c.lead) // chunk * chunk
             job.rest = job.transient - c.lead - c.left
             job.ch = c
             job.hist = None
@@ -330,9 +323,9 @@ def run_pool(
             job.where = "measure"
             c.measured = 0
             if job.rest > 0:
-                c.phase, c.left = _TRANSIENT, job.rest
+                c.phase, c.left = chain.TRANSIENT, job.rest
             else:
-                _begin_lead(c, meas.lanes, st)
+                chain.begin_lead(c, meas.lanes, st)
 
     def park(pool: _Pool, job: PoolJob) -> None:
         stats.parked += 1
@@ -351,7 +344,7 @@ def run_pool(
         new = judge.take(max(0, lanes - (len(probe.occupied()) if probe else 0)))
         if probe is None:
             history = max([j.history for j in new if j.probe], default=0)
-            probe = _Pool(lanes, chunk, history)
+            probe = _Pool(lanes, chunk, history, backend)
         probe.ensure(sum(j.where in ("new", "probe") for j in new))
         meas.ensure(sum(j.where == "wait" for j in new))
         for job in new:
@@ -406,31 +399,10 @@ def run_pool(
             meas.pack()
             jobs = meas.occupied()
             m = min(j.ch.left for j in jobs)
-            plan = meas.run(jobs, m, N, nu, bound, True, False, stats, st)
-            status = meas.lanes.status
-            done = meas.lanes.done
+            _, period = meas.run(jobs, m, N, nu, bound, True, False, stats, st)
             for j in jobs:
                 c = j.ch
-                l = c.lane
-                if c.phase == _MEASURE:
-                    c.measured += int(done[l])
-                if status[l] != 0:
-                    end(meas, j, diverged_result(j.params, c.k, c.steps))
-                elif plan is not None and plan[plan_rows.PLAN_TEST, l]:
-                    if plan[plan_rows.PLAN_N, l] >= 0:  # the GPU's verdict stopped the lane
-                        _decide(c, meas.lanes, st, False, None, floquet, orbits,
-                                n=int(plan[plan_rows.PLAN_N, l]))
-                        if c.results:
-                            end(meas, j, c.results[0])
-                    else:  # the launch ended before the verdict: the chunk goes on
-                        c.left = int(plan[plan_rows.PLAN_NEXT, l])
-                elif c.left == 0:
-                    if c.phase == _TRANSIENT:
-                        _begin_lead(c, meas.lanes, st)
-                    elif c.phase == _LEAD:
-                        _begin_measure(c, meas.lanes, st)
-                    else:
-                        _decide(c, meas.lanes, st, False, None, floquet, orbits)
-                        if c.results:  # classified (or over the step budget): the run is over
-                            end(meas, j, c.results[0])
+                chain.act(c, meas.lanes, st, rules, int(period[c.lane]))
+                if c.results:  # classified, diverged or over the step budget: the run is over
+                    end(meas, j, c.results[0])
     return stats

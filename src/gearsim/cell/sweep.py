@@ -54,6 +54,7 @@ def sweep_records(
     direction: str = "forward",
     settings: IntegrationSettings | None = None,
     progress: Callable[[int, int, float], None] | None = None,
+    backend=None,
 ) -> list[dict[str, Any]]:
     """One record per swept value: the one sweep builder (orbit_diagram, ``gearsim sweep``).
 
@@ -68,6 +69,9 @@ def sweep_records(
         bit-identical to the scalar chain); DP5 through :func:`continuation_chain`.
     progress
         Called as ``progress(done, total, elapsed_s)`` every 25 cells and at the end.
+    backend
+        Where the batched chain's lane runs (:func:`gearsim.numerics.backend.select`; None: the
+        CPU).
 
     Records: ``parameter``, ``value``, ``direction``, the classification columns
     (:meth:`CellResult.row`), ``poincare_x`` / ``poincare_v`` (section samples of the analysed
@@ -83,7 +87,8 @@ def sweep_records(
     if direction == "both":
         return [rec for d in ("forward", "backward")
                 for rec in sweep_records(params, name, values, continuation=continuation,
-                                         direction=d, settings=settings, progress=progress)]
+                                         direction=d, settings=settings, progress=progress,
+                                         backend=backend)]
     vals = np.sort(np.asarray(values, dtype=float))
     if direction == "backward":
         vals = vals[::-1]
@@ -98,8 +103,8 @@ def sweep_records(
 
     if settings is not None and settings.method == "rk4":
         results = simulate_rows([plist], settings=settings, continuation=continuation,
-                                on_cell=lambda _r, i, res: on_cell(i, res))[0]
-        fill_margins(results, settings)  # the Floquet margins, in shared kernel calls
+                                on_cell=lambda _r, i, res: on_cell(i, res), backend=backend)[0]
+        fill_margins(results, settings, backend)  # the Floquet margins, in shared kernel calls
     else:
         results = continuation_chain(plist, settings=settings, continuation=continuation,
                                      on_cell=on_cell)

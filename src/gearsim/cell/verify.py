@@ -123,10 +123,10 @@ def _switch_free(res) -> bool:
     return not np.any(res.params.to_array()[P_ACT : P_ACT + 4])
 
 
-def fill_margins(results: list, st: IntegrationSettings) -> None:
+def fill_margins(results: list, st: IntegrationSettings, backend=None) -> None:
     """Give every periodic result (``CellResult``) its Floquet margin ``mu_max`` and the kind of
     its critical multiplier (:data:`FLOQUET` ``"margin"``; in place), many cells in shared
-    kernel calls (:func:`orbit_margins`).
+    kernel calls on ``backend`` (:func:`orbit_margins`).
     Only with ``st.floquet == "margin"`` and RK4 (a DP5 cell's margin: ``"all"``).
     """
     if st.floquet != "margin" or st.method != "rk4":
@@ -134,15 +134,15 @@ def fill_margins(results: list, st: IntegrationSettings) -> None:
     todo = [r for r in results if _wants_margin(r)]
     got = orbit_margins([r.params for r in todo], [r.classification.n for r in todo],
                         [r.final_state for r in todo], st,
-                        [_switch_free(r) for r in todo])  # fmt: skip
+                        [_switch_free(r) for r in todo], backend)  # fmt: skip
     for r, m in zip(todo, got, strict=True):
         if m is not None:
             r.classification = replace(r.classification, mu_max=m[0], critical=m[1])
 
 
 def orbit_margins(params_list: list[ModelParameters], ns: list[int], states: list,
-                  st: IntegrationSettings, switch_free: list[bool] | None = None
-                  ) -> list[tuple[float, str] | None]:
+                  st: IntegrationSettings, switch_free: list[bool] | None = None,
+                  backend=None) -> list[tuple[float, str] | None]:
     """``(|mu|max, kind of the critical multiplier)`` of the period-``ns[i]`` orbit through
     each settled section state ``states[i]`` (None where no orbit is found), many cells in
     shared kernel calls.
@@ -153,7 +153,8 @@ def orbit_margins(params_list: list[ModelParameters], ns: list[int], states: lis
     (``switch_free[i]``, :func:`_switch_free`: the monodromy is the same at every state near the
     orbit); else at ``y`` after one Newton step
     (:func:`gearsim.numerics.shooting.newton_step`) when that is a fixed point to the
-    tolerance; else the one orbit solver's (:func:`floquet_margin`).
+    tolerance; else the one orbit solver's (:func:`floquet_margin`). ``backend``: where the
+    monodromies' lanes run (default the CPU).
     """
     out: list[tuple[float, str] | None] = [None] * len(params_list)
     free = switch_free if switch_free is not None else [False] * len(params_list)
@@ -165,7 +166,7 @@ def orbit_margins(params_list: list[ModelParameters], ns: list[int], states: lis
         for step in (0, 1):
             if not group:
                 break
-            maps = monodromies([params_list[i] for i in group], ys, n, st)
+            maps = monodromies([params_list[i] for i in group], ys, n, st, backend)
             again, y_again = [], []
             done: dict[int, list] = {}  # accepted, by dimension: one eigenvalue call each
             for i, y, (yn, M, status) in zip(group, ys, maps, strict=True):

@@ -16,18 +16,16 @@ import numpy as np
 
 from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
-from gearsim.numerics.device import current as current_device
+from gearsim.numerics.backend import CPU, CpuLanes, Part
 from gearsim.numerics.integrate import IntegrationSettings, PeriodSummaries
-from gearsim.numerics.kernel import (
-    _DONE,
-    _H,
-    _K,
-    _PAR,
-    _POS,
-    _ST,
-    _STEPS,
-    _Y,
+from gearsim.numerics.kernel import lane_reset_modes
+from gearsim.numerics.lanes_layout import (
     BLOCK,
+    IST_DONE,
+    IST_K,
+    IST_POS,
+    IST_ST,
+    IST_STEPS,
     LANES,
     NI,
     NROW,
@@ -37,8 +35,9 @@ from gearsim.numerics.kernel import (
     O_TDIS,
     O_XMAX,
     O_XMIN,
-    advance,
-    lane_reset_modes,
+    ROW_H,
+    ROW_PAR,
+    ROW_Y,
 )
 from gearsim.numerics.steps import phase_tables, rk4_steps_per_period
 
@@ -52,22 +51,21 @@ def _counter(row: int, doc: str) -> property:
 class Lanes:
     """Storage of ``n`` lanes in blocks of :data:`LANES` (padding lanes are frozen).
 
-    The lanes run on ``device`` ("cpu": the SIMD kernel; "cuda": the CUDA lane kernel of
-    :mod:`gearsim.numerics.cuda_lanes`, the same rows and records copied to the GPU and back);
-    by default the process's device (:func:`gearsim.numerics.device.select`). Callers read and
-    write a lane through the accessors below, not the row constants.
+    The lanes run on ``backend`` (:mod:`gearsim.numerics.backend`: the SIMD kernel by
+    default, or the CUDA lane kernel with the same rows and records copied to the GPU and back).
+    Callers read and write a lane through the accessors below, not the row constants.
     """
 
-    def __init__(self, n: int, capacity: int, device: str | None = None):
-        self.device = current_device().kind if device is None else device
+    def __init__(self, n: int, capacity: int, backend: CpuLanes | None = None):
+        self.backend = CPU if backend is None else backend
         self.n = n
         self.n_blocks = max(1, -(-n // LANES))
         self.size = self.n_blocks * LANES
         self.blk = np.zeros(self.n_blocks * BLOCK)
         self.view = self.blk.reshape(self.n_blocks, NROW, LANES)
         self.ist = np.zeros((NI, self.size), dtype=np.int64)
-        self.ist[_ST] = -1
-        self.ist[_POS] = -1
+        self.ist[IST_ST] = -1
+        self.ist[IST_POS] = -1
         cap = max(1, int(capacity))
         self.sec = np.zeros((self.size, cap, N_STATE))
         self.nface = np.zeros((self.size, cap), dtype=np.int64)
@@ -95,12 +93,12 @@ class Lanes:
         """Write the packed parameters of ``params`` (``packed`` if given: the same array
         computed before) for ``N`` steps per period."""
         v = self._lane(lane)
-        v[_PAR : _PAR + N_PARAMS] = pack_parameters(params) if packed is None else packed
-        v[_H] = params.mesh_period / N
+        v[ROW_PAR : ROW_PAR + N_PARAMS] = pack_parameters(params) if packed is None else packed
+        v[ROW_H] = params.mesh_period / N
 
     def load_state(self, lane: int, y: np.ndarray) -> None:
         """Set the state (10 or 20 entries) and the frozen regions as ``integrate_periods`` does."""
-        self._lane(lane)[_Y : _Y + len(y)] = y
+        self._lane(lane)[ROW_Y : ROW_Y + len(y)] = y
         self.reset_modes(lane)
 
     def reset_modes(self, lane: int) -> None:
@@ -109,71 +107,62 @@ class Lanes:
                          np.empty(N_STATE), np.empty(N_SWITCH), np.empty(N_SWITCH, dtype=np.bool_))
 
     def state(self, lane: int, n: int = 20) -> np.ndarray:
-        return self.get_rows(lane, _Y, n)
+        return self.get_rows(lane, ROW_Y, n)
 
     def states(self, k: int, n: int = 20) -> np.ndarray:
         """The first ``n`` state rows of lanes ``0 .. k-1`` as a ``(k, n)`` copy."""
         idx = np.arange(k)
-        return self.view[idx // LANES, _Y : _Y + n, idx % LANES]
+        return self.view[idx // LANES, ROW_Y : ROW_Y + n, idx % LANES]
 
-    def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True, *,
-            kernel=None, plan: np.ndarray | None = None, test: tuple = (1, 1, 1, 0.0, 0)) -> None:
-        """Advance the lanes with status 0 by ``m`` periods (the kernel :func:`advance`, or the
-        CUDA lane kernel on the same arrays). On cuda only: ``kernel``, ``plan`` and ``test``
-        of :func:`gearsim.numerics.cuda_lanes.advance_device` (a lane kernel with a verdict
-        on the device, each lane's periods)."""
-        C, S, LAM, CV, SV, Q = phase_tables(N, nu)
-        if self.device == "cuda":
-            from gearsim.numerics.cuda_lanes import advance_device
+    def run(self, N: int, m: int, nu: float, bound: float, tangent: bool = True) -> None:
+        """Advance the lanes with status 0 by ``m`` periods on the backend."""
+        self.backend.advance(self, N, m, phase_tables(N, nu), nu, bound, tangent)
 
-            advance_device(self.blk, self.ist, int(N), int(m), (C, S, LAM, CV, SV, Q), float(nu),
-                           float(bound), self.sec, self.nface, self.nback, self.fout,
-                           bool(tangent), kernel=kernel, plan=plan, test=test)
-            return
-        if plan is not None:
-            raise ValueError("Lanes.run: a per-lane plan runs on cuda only")
-        advance(self.blk, self.ist, int(N), int(m), C, S, LAM, CV, SV, Q, float(nu), float(bound),
-                self.sec, self.nface, self.nback, self.fout, bool(tangent))
+    def run_part(self, N: int, nu: float, bound: float, tangent: bool, part: Part) -> int:
+        """The lanes with status 0 through one part of a chain plan on the backend (its
+        verdicts read back into ``part``); returns the periods run
+        (:meth:`gearsim.numerics.backend.CpuLanes.run_part`)."""
+        return self.backend.run_part(self, N, nu, bound, tangent, part)
 
     # ---- the lane counters (rows of ``ist``, one entry per lane; writable views)
-    status = _counter(_ST, "0 running, 1 diverged, -1 not taking part in the next call.")
-    done = _counter(_DONE, "Periods completed in the last call.")
-    position = _counter(_POS, "Record position of the next call's first period (-1: not "
+    status = _counter(IST_ST, "0 running, 1 diverged, -1 not taking part in the next call.")
+    done = _counter(IST_DONE, "Periods completed in the last call.")
+    position = _counter(IST_POS, "Record position of the next call's first period (-1: not "
                         "recorded).")
-    period = _counter(_K, "Absolute period index at the start of the next call (the "
+    period = _counter(IST_K, "Absolute period index at the start of the next call (the "
                       "variable-ratio phase).")
-    steps = _counter(_STEPS, "RK4 steps taken in the last call (the event layer's trial steps "
+    steps = _counter(IST_STEPS, "RK4 steps taken in the last call (the event layer's trial steps "
                      "included).")
 
     def begin_call(self) -> None:
         """No lane takes part and the per-call counters are zero (callers then enrol lanes)."""
-        self.ist[_ST] = -1
-        self.ist[_DONE] = 0
-        self.ist[_STEPS] = 0
+        self.ist[IST_ST] = -1
+        self.ist[IST_DONE] = 0
+        self.ist[IST_STEPS] = 0
 
     # ---- a lane's rows
     def set_step(self, lane: int, h: float) -> None:
         """The lane's RK4 step (0 freezes it)."""
-        self._lane(lane)[_H] = h
+        self._lane(lane)[ROW_H] = h
 
     def set_steps(self, h: np.ndarray) -> None:
         """Every lane's RK4 step (0 freezes a lane)."""
-        self.set_column(_H, h)
+        self.set_column(ROW_H, h)
 
     def freeze(self, lane: int) -> None:
         """The lane takes part in no call until it is loaded again."""
-        self.ist[_ST, lane] = -1
-        self._lane(lane)[_H] = 0.0
+        self.ist[IST_ST, lane] = -1
+        self._lane(lane)[ROW_H] = 0.0
 
     def set_tangent(self, lane: int, z) -> None:
         """The lane's tangent vector (10 entries)."""
-        self.set_rows(lane, _Y + N_STATE, z)
+        self.set_rows(lane, ROW_Y + N_STATE, z)
 
     def load_packed(self, lane: int, packed: np.ndarray, h: float) -> None:
         """Packed parameters (:func:`gearsim.dynamics.model.pack_parameters`) and the step."""
         v = self._lane(lane)
-        v[_PAR : _PAR + N_PARAMS] = packed
-        v[_H] = h
+        v[ROW_PAR : ROW_PAR + N_PARAMS] = packed
+        v[ROW_H] = h
 
     def column(self, lane: int) -> np.ndarray:
         """A copy of every row of the lane (to park it and :meth:`restore` it bit for bit)."""
@@ -217,6 +206,7 @@ def run_periods_batched(
     *,
     start_periods: Sequence[int] | None = None,
     tangent: bool = True,
+    backend: CpuLanes | None = None,
 ) -> tuple[list[PeriodSummaries], np.ndarray, np.ndarray, np.ndarray]:
     """Integrate every cell ``n_periods`` periods from ``states`` (rows of 20: state, tangent).
 
@@ -225,7 +215,7 @@ def run_periods_batched(
     steps)``. With ``tangent=False`` the tangent rows are not integrated (the summaries'
     ``lyap`` and the final tangent are then meaningless); the state, section points and event
     records are bit-identical to ``tangent=True`` (the event layer decides on the state only;
-    tests/integration/test_attractors.py).
+    tests/integration/test_attractors.py). ``backend``: where the lanes run (default the CPU).
     """
     st = settings or IntegrationSettings(method="rk4")
     n = len(params_list)
@@ -237,20 +227,20 @@ def run_periods_batched(
     if len(nus) > 1:
         raise ParameterError("run_periods_batched: cells with different var_ratio_order")
     nu = nus.pop() if nus else 0.0
-    lanes = Lanes(n, n_periods)
+    lanes = Lanes(n, n_periods, backend)
     ks = [0] * n if start_periods is None else list(start_periods)
     for l, p in enumerate(params_list):
         lanes.load_params(l, p, N)
         lanes.load_state(l, np.asarray(states[l], dtype=float))
-        lanes.ist[_ST, l] = 0
-        lanes.ist[_POS, l] = 0
-        lanes.ist[_K, l] = ks[l]
+        lanes.ist[IST_ST, l] = 0
+        lanes.ist[IST_POS, l] = 0
+        lanes.ist[IST_K, l] = ks[l]
     lanes.run(N, n_periods, nu, getattr(st, "divergence_bound", 1.0e6), bool(tangent))
     out = []
     for l in range(n):
-        out.append(lanes.summaries(l, int(lanes.ist[_DONE, l])))
+        out.append(lanes.summaries(l, int(lanes.ist[IST_DONE, l])))
     finals = np.array([lanes.state(l) for l in range(n)])
-    return out, finals, lanes.ist[_ST, :n].copy(), lanes.ist[_STEPS, :n].copy()
+    return out, finals, lanes.ist[IST_ST, :n].copy(), lanes.ist[IST_STEPS, :n].copy()
 
 
 
@@ -262,6 +252,7 @@ def tangent_lanes_many(
     Zs: Sequence[np.ndarray],
     start_periods: Sequence[int] | None = None,
     packed: Sequence[np.ndarray] | None = None,
+    backend: CpuLanes | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """:func:`gearsim.numerics.variational.tangent_map` for RK4 of many cells in one kernel
     call, one SIMD lane per cell and tangent column (the blocks full). Every lane of a cell
@@ -270,7 +261,8 @@ def tangent_lanes_many(
     of the same per-step tangent maps (bit-identical to one scalar run per column,
     tests/unit/test_batch.py). The cells must share the step grid (steps per period,
     variable-ratio order); lanes are independent, so each cell's result is that of its own
-    call. ``packed``: the cells' packed parameters if the caller has them. Returns one
+    call. ``packed``: the cells' packed parameters if the caller has them; ``backend``: where
+    the lanes run (default the CPU). Returns one
     ``(y_end, DPhi Z, status)`` per cell."""
     N = steps_per_period(params_list[0], settings)
     p0 = params_list[0]
@@ -291,7 +283,7 @@ def tangent_lanes_many(
     if lane == 0:
         return [(np.asarray(y, dtype=float)[:N_STATE].copy(), np.zeros_like(Z), 0)
                 for y, (Z, *_rest) in zip(y0s, plan, strict=True)]
-    lanes = Lanes(lane, n_periods)
+    lanes = Lanes(lane, n_periods, backend)
     v = lanes.view
     unit = np.zeros((lane, N_STATE))  # each lane's unit tangent column
     scale = np.zeros(lane)  # its norm
@@ -306,20 +298,20 @@ def tangent_lanes_many(
         v[idx // LANES, :, idx % LANES] = v[l0 // LANES, :, l0 % LANES]
         unit[idx] = (Z[:, cols] / norms[cols]).T
         scale[idx] = norms[cols]
-        lanes.ist[_K, idx] = ks[c]
+        lanes.ist[IST_K, idx] = ks[c]
     every = np.arange(lane)
-    v[every // LANES, _Y + 10 : _Y + 20, every % LANES] = unit
-    lanes.ist[_ST, :lane] = 0
-    lanes.ist[_POS, :lane] = 0
+    v[every // LANES, ROW_Y + 10 : ROW_Y + 20, every % LANES] = unit
+    lanes.ist[IST_ST, :lane] = 0
+    lanes.ist[IST_POS, :lane] = 0
     lanes.run(N, n_periods, nu, float(getattr(settings, "divergence_bound", 1.0e6)), True)
     growth = np.ascontiguousarray(lanes.fout[:lane, :n_periods, O_LYAP]).sum(axis=1)
-    image = v[every // LANES, _Y + 10 : _Y + 20, every % LANES]  # (lanes, 10)
-    status = lanes.ist[_ST, :lane]
+    image = v[every // LANES, ROW_Y + 10 : ROW_Y + 20, every % LANES]  # (lanes, 10)
+    status = lanes.ist[IST_ST, :lane]
     for ln in range(lane):
         scale[ln] *= math.exp(growth[ln])  # math.exp: the scalar path's rounding
     image = image * scale[:, None]
     image[status != 0] = np.nan
-    finals = v[every // LANES, _Y : _Y + N_STATE, every % LANES]
+    finals = v[every // LANES, ROW_Y : ROW_Y + N_STATE, every % LANES]
     for c, (Z, cols, l0, _) in enumerate(plan):
         res = np.zeros_like(Z)
         y0 = np.asarray(y0s[c], dtype=float)[:N_STATE]

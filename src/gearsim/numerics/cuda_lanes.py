@@ -3,10 +3,10 @@
 The SIMD kernel (:mod:`gearsim.numerics.kernel`) advances blocks of lanes in vector registers and
 hands a flagged lane to the scalar event layer; a GPU runs one lane per thread, so here a thread
 walks its own lane through the same calls: :func:`~gearsim.numerics.kernel.period_start`, the
-grid step :func:`~gearsim.numerics.kernel._lane_step` (which inlines
+grid step :func:`~gearsim.numerics.kernel.lane_step` (which inlines
 :func:`gearsim.numerics.steps.rk4_state`, :func:`~gearsim.numerics.steps.rk4_tangent` and
 :func:`~gearsim.numerics.steps.grid_step_flag` on :func:`gearsim.dynamics.model.field_state`), a
-flagged step redone inside the thread by :func:`~gearsim.numerics.kernel._redo_lane` (the event
+flagged step redone inside the thread by :func:`~gearsim.numerics.kernel.redo_lane` (the event
 layer :func:`gearsim.numerics.events.advance_interval`: locate the switch, restart the step in the
 new region), and :func:`~gearsim.numerics.kernel.period_end`. numba-cuda compiles those ``@njit``
 functions as device code; nothing of the physics is written here.
@@ -27,33 +27,37 @@ import numpy as np
 from numba import cuda, float64, int64
 
 from gearsim.dynamics.model import N_MODE, N_PARAMS, N_STATE, N_SWITCH, P_W
-from gearsim.numerics.device import DeviceError, current
+from gearsim.numerics.device import Device, DeviceError
 from gearsim.numerics.events import N_ACC, N_CNT
 from gearsim.numerics.kernel import (
-    _DONE,
-    _FLAG,
-    _PAR,
-    _POS,
-    _ST,
-    _STEPS,
-    BLOCK,
-    LANES,
-    NI,
-    PLAN_LEFT,
-    PLAN_MEASURED,
-    PLAN_N,
-    PLAN_NEXT,
-    PLAN_ROWS,
-    PLAN_STEPS,
-    PLAN_TEST,
-    _lane_step,
-    _redo_lane,
     lane_general,
     lane_reset_modes,
+    lane_step,
     period_end,
     period_start,
+    redo_lane,
     step_entries,
 )
+from gearsim.numerics.lanes_layout import (
+    BLOCK,
+    IST_DONE,
+    IST_POS,
+    IST_ST,
+    IST_STEPS,
+    LANES,
+    NI,
+    ROW_FLAG,
+    ROW_PAR,
+)
+
+# ---- rows of a launch's per-lane plan (int64 ``[PLAN_ROWS, n_lanes]``, :func:`make_plan`) ----
+PLAN_LEFT = 0  # periods the lane runs at most in this launch
+PLAN_TEST = 1  # 1: a measuring lane, its verdict taken on the device at the end of each chunk
+PLAN_STEPS = 2  # the lane's cell's RK4 steps before this launch (the budget's count)
+PLAN_N = 3  # out: the period the verdict stopped the lane with (-1: not stopped by a verdict)
+PLAN_NEXT = 4  # in and out: periods to the end of the lane's current measuring chunk
+PLAN_MEASURED = 5  # periods the lane measured before this launch (its record position)
+PLAN_ROWS = 6
 
 SIMULATED = bool(cuda.core.config.ENABLE_CUDASIM)  # Numba's CUDA simulator (NUMBA_ENABLE_CUDASIM=1)
 
@@ -88,13 +92,13 @@ def lane_periods(blk, ist, l, k0, k1, N, C, S, LAM, CV, SV, Q, nu, bound, sec, n
             i2 = 2 * j
             cA, sA, cM, sM, cB, sB = step_entries(C, S, i2)
             cvA, svA, cvM, svM, cvB, svB = step_entries(CV, SV, i2)
-            _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, LAM[j],
+            lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, LAM[j],
                        Q[i2], Q[i2 + 1], Q[i2 + 2], bound, tangent, general, general)
-            fq = blk[r + _FLAG * LANES]
+            fq = blk[r + ROW_FLAG * LANES]
             if fq != 0.0 and events:
-                _redo_lane(blk, o, q, l, ist, j, N, LAM[j], bound, tangent, wk, fq == 2.0,
+                redo_lane(blk, o, q, l, ist, j, N, LAM[j], bound, tangent, wk, fq == 2.0,
                            general, tabs)
-                if ist[_ST, l] != 0:
+                if ist[IST_ST, l] != 0:
                     return True
         period_end(blk, ist, l, k, N, wz, nface, nback, fout)
     return False
@@ -128,7 +132,7 @@ def lane_kernel(verdict, cache: bool = True):
     def kernel(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout, tangent,
                events, plan, chunk, max_periods, n_max, rtol, max_steps):
         l = cuda.grid(1)
-        if l >= ist.shape[1] or ist[_ST, l] != 0:
+        if l >= ist.shape[1] or ist[IST_ST, l] != 0:
             return
         blk = _raw(blk)
         ist = _raw(ist)
@@ -161,7 +165,7 @@ def lane_kernel(verdict, cache: bool = True):
             lane_periods(blk, ist, l, 0, left, N, C, S, LAM, CV, SV, Q, nu, bound, sec, nface,
                          nback, fout, tangent, events, general, wk, wz)
             return
-        w = blk[r + (_PAR + P_W) * LANES]
+        w = blk[r + (ROW_PAR + P_W) * LANES]
         nxt = plan[PLAN_NEXT, l]
         k = 0
         while k < left:
@@ -174,7 +178,7 @@ def lane_kernel(verdict, cache: bool = True):
             if nxt > 0:
                 break  # the launch ends inside the chunk
             measured = plan[PLAN_MEASURED, l] + k
-            n = verdict(sec, fout, l, measured, w, plan[PLAN_STEPS, l] + ist[_STEPS, l], n_max,
+            n = verdict(sec, fout, l, measured, w, plan[PLAN_STEPS, l] + ist[IST_STEPS, l], n_max,
                         rtol, max_periods, max_steps)
             if n >= 0:
                 plan[PLAN_N, l] = n
@@ -202,8 +206,23 @@ def _errors() -> tuple[type[BaseException], ...]:
                              getattr(error, "NvvmError", None), MemoryError) if e is not None)
 
 
+def make_plan(size: int, lanes, measuring, m: int, left, measured, steps) -> np.ndarray:
+    """The per-lane plan of a launch of ``m`` periods: every lane of ``lanes`` runs at most
+    ``m`` periods from its cell's ``steps``; each of ``measuring`` (a subset) goes on from chunk
+    to chunk with its verdict (``left``: periods to the end of its current chunk, ``measured``:
+    its periods measured before)."""
+    plan = np.zeros((PLAN_ROWS, size), dtype=np.int64)
+    plan[PLAN_LEFT, lanes] = m
+    plan[PLAN_STEPS, lanes] = steps[lanes]
+    plan[PLAN_TEST, measuring] = 1
+    plan[PLAN_NEXT, measuring] = left[measuring]
+    plan[PLAN_MEASURED, measuring] = measured[measuring]
+    return plan
+
+
 def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, tangent,
-                   events=True, kernel=None, plan=None, test=(1, 1, 1, 0.0, 0)):
+                   events=True, kernel=None, plan=None, test=(1, 1, 1, 0.0, 0),
+                   device: Device | None = None):
     """Run a lane kernel over every lane and copy the results into the host arrays.
 
     The arguments and their effect are those of :func:`gearsim.numerics.kernel.advance` (the
@@ -216,14 +235,15 @@ def advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, t
     A failed allocation, copy or launch, or lanes whose arrays exceed the GPU's free memory
     (checked before anything is allocated), is one
     :class:`~gearsim.numerics.device.DeviceError` line naming the GPU, the lanes asked and the
-    setting; the host arrays are then unchanged.
+    setting; the host arrays are then unchanged. ``device``: the GPU's record (its name in
+    that line).
     ``kernel``: by default :data:`advance_kernel` (benchmarks/bench_gpu.py compiles it with
     register limits).
     """
     n = ist.shape[1]
     need = launch_bytes(n, m if plan is None else sec.shape[1], N, fout.shape[2])
     free = free_bytes()
-    dev = current()
+    dev = device or Device(kind="cuda")
     where = (f"execution.device: cuda ({dev.name or 'GPU'}): {n} lanes x {m} periods of {N} "
              "steps")
     if free is not None and need > free:
@@ -267,8 +287,8 @@ def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, 
 
     n = ist.shape[1]
     before = ist.copy()
-    taking = before[_ST] == 0
-    recorded = taking & (before[_POS] >= 0)
+    taking = before[IST_ST] == 0
+    recorded = taking & (before[IST_POS] >= 0)
     whole = plan is not None  # the records travel whole: a verdict reads a lane's earlier ones
     if plan is None:
         plan = np.zeros((PLAN_ROWS, n), dtype=np.int64)
@@ -277,7 +297,7 @@ def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, 
     plan_h[PLAN_N] = -1
     ist_d = before.copy()
     if not whole:
-        ist_d[_POS, recorded] = 0
+        ist_d[IST_POS, recorded] = 0
     d_blk = cuda.to_device(blk)
     d_ist = cuda.to_device(ist_d)
     d_plan = cuda.to_device(plan_h)
@@ -302,7 +322,7 @@ def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, 
     plan_out = d_plan.copy_to_host()
     d_blk.copy_to_host(blk)
     after = d_ist.copy_to_host()
-    after[_POS] = before[_POS]
+    after[IST_POS] = before[IST_POS]
     ist[:] = after
     plan[PLAN_N] = plan_out[PLAN_N]
     plan[PLAN_NEXT] = plan_out[PLAN_NEXT]
@@ -311,12 +331,12 @@ def _advance_device(blk, ist, N, m, tables, nu, bound, sec, nface, nback, fout, 
             d.copy_to_host(a)
     elif recorded.any():
         lanes = np.flatnonzero(recorded)
-        done = after[_DONE, lanes] - before[_DONE, lanes]  # periods completed in this call
+        done = after[IST_DONE, lanes] - before[IST_DONE, lanes]  # periods completed in this call
         # a lane that diverged wrote the section point of the period it stopped in
-        span = np.minimum(np.where(after[_ST, lanes] != 0, done + 1, done), cap)
+        span = np.minimum(np.where(after[IST_ST, lanes] != 0, done + 1, done), cap)
         li = np.repeat(lanes, span)
         ki = np.arange(int(span.sum())) - np.repeat(np.cumsum(span) - span, span)
-        dest = before[_POS, li] + ki
+        dest = before[IST_POS, li] + ki
         sec[li, dest] = d_sec.copy_to_host()[li, ki]
         full = ki < np.repeat(done, span)
         li, ki, dest = li[full], ki[full], dest[full]

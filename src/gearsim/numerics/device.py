@@ -1,16 +1,19 @@
 """Where the lanes run: the CPU (the SIMD kernel) or a CUDA GPU (the CUDA lane kernel).
 
-``execution.device`` in the configuration (``--device`` on the commands that simulate) is
-``cpu`` (the default), ``cuda`` or ``auto``. :func:`select` resolves it once per process and
-every :class:`gearsim.numerics.batch.Lanes` made afterwards runs there. ``cuda`` on a machine
-without numba-cuda (``pip install -e .[gpu]``) or without a GPU is one line naming the setting
-(:class:`DeviceError`, exit 2); ``auto`` falls back to the CPU and says so (the log, and the
-``device`` record of every result's provenance). This module loads ``numba.cuda`` only when a
-GPU is asked for: a CPU run never imports it.
+``execution.device`` in the configuration (:class:`Execution`, the study's execution settings;
+``--device`` on the commands that simulate) is ``cpu`` (the default), ``cuda`` or ``auto``.
+:func:`resolve` reads it into a :class:`Device`, and :func:`gearsim.numerics.backend.select`
+returns the lanes backend that runs there; the caller hands the backend on to whatever makes
+lanes. There is no process-wide choice. ``cuda`` on a machine without numba-cuda (``pip install
+-e .[gpu]``) or without a GPU is one line naming the setting (:class:`DeviceError`, exit 2);
+``auto`` falls back to the CPU and says so (the log, and the ``device`` record of the provenance
+of the results it made). This module loads ``numba.cuda`` only when a GPU is asked for: a CPU run
+never imports it.
 """
 
 from __future__ import annotations
 
+import functools
 import importlib.metadata
 import importlib.util
 import logging
@@ -45,12 +48,17 @@ class Device:
         return asdict(self)
 
 
-_current = [Device()]
+@dataclass(frozen=True)
+class Execution:
+    """Where a study's simulating jobs run (the configuration's ``execution`` section): outside
+    every settings hash, so a CPU run's files do not change."""
 
+    device: str = "cpu"  # cpu, cuda or auto
 
-def current() -> Device:
-    """The device chosen by the last :func:`select` (the CPU before any)."""
-    return _current[0]
+    @property
+    def uses_gpu(self) -> bool:
+        """Whether the simulating jobs hold a GPU (the workflow's ``gpu`` resource)."""
+        return self.device != "cpu"
 
 
 def _probe() -> tuple[str, str, bool, str]:
@@ -59,6 +67,7 @@ def _probe() -> tuple[str, str, bool, str]:
     return _probe_all()[:4]
 
 
+@functools.cache
 def _probe_all() -> tuple[str, str, bool, str, int]:
     """:func:`_probe` and the GPU's multiprocessors (1 under the simulator)."""
     if importlib.util.find_spec("numba_cuda") is None:
@@ -79,8 +88,9 @@ def _probe_all() -> tuple[str, str, bool, str, int]:
     return name, version, simulated, "", sms
 
 
-def select(asked: str, setting: str = "execution.device") -> Device:
-    """Resolve ``asked`` (cpu, cuda or auto), make it the process's device and return it."""
+def resolve(asked: str, setting: str = "execution.device") -> Device:
+    """The device of ``asked`` (cpu, cuda or auto; ``setting`` names where it was set in the
+    one line of a device that cannot run)."""
     if asked not in DEVICES:
         raise DeviceError(f"{setting}: '{asked}' is not one of {', '.join(DEVICES)}")
     dev = Device()
@@ -95,21 +105,4 @@ def select(asked: str, setting: str = "execution.device") -> Device:
             dev = Device(kind="cuda", asked=asked, name=name, numba_cuda=version,
                          simulated=simulated, multiprocessors=sms)
             log.info("%s: %s on %s (numba-cuda %s)", setting, asked, name, version)
-    _current[0] = dev
     return dev
-
-
-#: lanes of the finder's probing pool per multiprocessor of a GPU: 8 blocks of 128 threads, half
-#: of the 2 048 threads a multiprocessor of compute capability 9.0 keeps resident (the lane
-#: kernel's registers and ~1 kB of local memory per thread leave no more; docs/decisions.md)
-POOL_LANES_PER_SM = 1024
-
-
-def pool_lanes(cpu_lanes: int) -> int:
-    """The width of the finder's probing pool on the process's device: ``cpu_lanes`` (the
-    finder's ``lanes`` option) on the CPU; on a GPU at least its multiprocessors x
-    :data:`POOL_LANES_PER_SM` (an H200's 132: 135 168 lanes), so that a launch fills it."""
-    dev = current()
-    if dev.kind != "cuda":
-        return cpu_lanes
-    return max(cpu_lanes, dev.multiprocessors * POOL_LANES_PER_SM)

@@ -162,7 +162,7 @@ def end_period_tangent(z):
 def _rk4_grid_interval(j, h, y, p, mode, tangent, C, S, LAM, CV, SV, Q, bearings, bound, acc):
     """The vector kernel's grid step for one cell; returns True if the event layer must redo it.
 
-    Same arithmetic as ``kernel._lane_step`` and its turning-point pass (both inline
+    Same arithmetic as ``kernel.lane_step`` and its turning-point pass (both inline
     :func:`rk4_state`, :func:`rk4_tangent` and :func:`grid_step_flag`, then call
     :func:`turn_extremum`): a step that stands is stored with its accumulators.
     """

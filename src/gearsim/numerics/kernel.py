@@ -77,6 +77,36 @@ from gearsim.numerics.events import (
     channels,
 )
 from gearsim.numerics.integrate import _rk4_grid_interval, end_period_tangent
+from gearsim.numerics.lanes_layout import (
+    BLOCK,
+    IST_DONE,
+    IST_K,
+    IST_NB,
+    IST_NF,
+    IST_POS,
+    IST_ST,
+    IST_STEPS,
+    LANES,
+    O_FMAX,
+    O_FMIN,
+    O_LYAP,
+    O_TDIS,
+    O_XMAX,
+    O_XMIN,
+    ROW_FLAG,
+    ROW_FMN,
+    ROW_FMX,
+    ROW_H,
+    ROW_PAR,
+    ROW_R0,
+    ROW_RB,
+    ROW_S0,
+    ROW_SB,
+    ROW_TD,
+    ROW_XMN,
+    ROW_XMX,
+    ROW_Y,
+)
 from gearsim.numerics.steps import (
     FASTMATH,
     METHOD_RK4,
@@ -84,50 +114,6 @@ from gearsim.numerics.steps import (
     rk4_state,
     rk4_tangent,
 )
-
-#: Lanes per block (compile-time stride of the vector loop; 8 = two AVX2 vectors).
-LANES = 8
-
-# ---- float rows of a block (each row holds LANES doubles) ------------------------------------
-_Y = 0  # 20 rows: state (10) then tangent vector (10)
-_H = 20  # step h = T / N (0 freezes the lane)
-_PAR = 21  # N_PARAMS rows: the packed parameters (gearsim.dynamics.model layout)
-_R0 = _PAR + N_PARAMS  # mesh region (-1, 0, 1) as a double
-_S0 = _R0 + 1  # |mesh region|
-_RB = _R0 + 2  # 4 rows: bearing regions
-_SB = _R0 + 6  # 4 rows: |bearing region|
-_TD = _R0 + 10  # per-period accumulators: disengaged time, force and x extremes
-_FMX = _TD + 1
-_FMN = _TD + 2
-_XMX = _TD + 3
-_XMN = _TD + 4
-_FLAG = _TD + 5  # 1.0: the lane needs the event layer for the current step; 2.0: a turning point
-NROW = _FLAG + 1
-BLOCK = NROW * LANES
-
-# ---- integer rows (2-D array [NI, n_lanes]; touched by scalar code only) ---------------------
-_ST = 0  # status: 0 running, 1 diverged, -1 not taking part in this call
-_DONE = 1  # periods completed in this call
-_POS = 2  # record position of the first period of this call (-1: do not record)
-_K = 3  # absolute period index at the start of the call
-_STEPS = 4  # RK4 steps taken in this call (including the event layer's trial steps)
-_NF = 5  # face entries in the current period
-_NB = 6  # back entries in the current period
-NI = 7
-
-# ---- rows of a GPU launch's per-lane plan (int64 ``[PLAN_ROWS, n_lanes]``; the CUDA lane
-# kernel of gearsim.numerics.cuda_lanes and the chain driver read them) ----------------------
-PLAN_LEFT = 0  # periods the lane runs at most in this launch
-PLAN_TEST = 1  # 1: a measuring lane, its verdict taken on the device at the end of each chunk
-PLAN_STEPS = 2  # the lane's cell's RK4 steps before this launch (the budget's count)
-PLAN_N = 3  # out: the period the verdict stopped the lane with (-1: not stopped by a verdict)
-PLAN_NEXT = 4  # in and out: periods to the end of the lane's current measuring chunk
-PLAN_MEASURED = 5  # periods the lane measured before this launch (its record position)
-PLAN_ROWS = 6
-
-
-# ---- columns of the float per-period output ----
-O_TDIS, O_FMAX, O_FMIN, O_XMAX, O_XMIN, O_LYAP = range(6)
 
 
 # ============================================================================ block accessors
@@ -146,9 +132,11 @@ def _lane_modes(blk, o, q):
     r = o + q
     L = LANES
     return (
-        blk[r + _R0 * L], blk[r + _S0 * L],
-        blk[r + _RB * L], blk[r + (_RB + 1) * L], blk[r + (_RB + 2) * L], blk[r + (_RB + 3) * L],
-        blk[r + _SB * L], blk[r + (_SB + 1) * L], blk[r + (_SB + 2) * L], blk[r + (_SB + 3) * L],
+        blk[r + ROW_R0 * L], blk[r + ROW_S0 * L],
+        blk[r + ROW_RB * L], blk[r + (ROW_RB + 1) * L], blk[r + (ROW_RB + 2) * L],
+        blk[r + (ROW_RB + 3) * L],
+        blk[r + ROW_SB * L], blk[r + (ROW_SB + 1) * L], blk[r + (ROW_SB + 2) * L],
+        blk[r + (ROW_SB + 3) * L],
     )  # fmt: skip
 
 
@@ -202,7 +190,7 @@ def _base_form(P):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
+def lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM, qB,
                bound, tangent, bearings, forms):
     """RK4 grid step of lane ``q`` of a block (straight-line code: selects, no branches).
 
@@ -213,43 +201,43 @@ def _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, 
     """
     L = LANES
     r = o + q
-    y = _load10(blk, o, _Y, q)
-    P = field_params(blk, r + _PAR * L, L)
+    y = _load10(blk, o, ROW_Y, q)
+    P = field_params(blk, r + ROW_PAR * L, L)
     if not forms:
         P = _base_form(P)
     M = _lane_modes(blk, o, q)
-    h = blk[r + _H * L]
-    vrs = blk[r + (_PAR + P_VRS) * L]
-    vrc = blk[r + (_PAR + P_VRC) * L]
+    h = blk[r + ROW_H * L]
+    vrs = blk[r + (ROW_PAR + P_VRS) * L]
+    vrc = blk[r + (ROW_PAR + P_VRC) * L]
     vA = vrs * cvA + vrc * svA
     vM = vrs * cvM + vrc * svM
     vB = vrs * cvB + vrc * svB
     yn = rk4_state(y, h, cA, sA, vA, cM, sM, vM, cB, sB, vB, lam, qA, qM, qB, P, M)
-    A = (blk[r + (_PAR + P_ACT) * L], blk[r + (_PAR + P_ACT + 1) * L],
-         blk[r + (_PAR + P_ACT + 2) * L], blk[r + (_PAR + P_ACT + 3) * L])
+    A = (blk[r + (ROW_PAR + P_ACT) * L], blk[r + (ROW_PAR + P_ACT + 1) * L],
+         blk[r + (ROW_PAR + P_ACT + 2) * L], blk[r + (ROW_PAR + P_ACT + 3) * L])
     event, turn = grid_step_flag(y, yn, P, M, A, bound, bearings)
     flag = event | turn
-    _store10(blk, r + _Y * L, flag, y, yn)
+    _store10(blk, r + ROW_Y * L, flag, y, yn)
     if tangent:
-        z = _load10(blk, o, _Y + 10, q)
+        z = _load10(blk, o, ROW_Y + 10, q)
         zn = rk4_tangent(z, h, cA, cM, cB, lam, qA, qM, qB, P, M)
-        _store10(blk, r + (_Y + 10) * L, flag, z, zn)
+        _store10(blk, r + (ROW_Y + 10) * L, flag, z, zn)
     r0 = M[0]
-    td = blk[r + _TD * L]
-    blk[r + _TD * L] = _sel(flag | (r0 != 0.0), td, td + h)
+    td = blk[r + ROW_TD * L]
+    blk[r + ROW_TD * L] = _sel(flag | (r0 != 0.0), td, td + h)
     if forms:  # a literal: the base lane loop keeps mesh_force
         fl = mesh_force_full(cB, sB, yn[0], yn[1], P, r0, M[1])
     else:
         fl = mesh_force(cB, yn[0], yn[1], P, r0, M[1])
-    fmx = blk[r + _FMX * L]
-    fmn = blk[r + _FMN * L]
-    xmx = blk[r + _XMX * L]
-    xmn = blk[r + _XMN * L]
-    blk[r + _FMX * L] = _sel(flag, fmx, _fmax(fmx, fl))
-    blk[r + _FMN * L] = _sel(flag, fmn, _fmin(fmn, fl))
-    blk[r + _XMX * L] = _sel(flag, xmx, _fmax(xmx, yn[0]))
-    blk[r + _XMN * L] = _sel(flag, xmn, _fmin(xmn, yn[0]))
-    blk[r + _FLAG * L] = _sel(event, 1.0, _sel(turn, 2.0, 0.0))
+    fmx = blk[r + ROW_FMX * L]
+    fmn = blk[r + ROW_FMN * L]
+    xmx = blk[r + ROW_XMX * L]
+    xmn = blk[r + ROW_XMN * L]
+    blk[r + ROW_FMX * L] = _sel(flag, fmx, _fmax(fmx, fl))
+    blk[r + ROW_FMN * L] = _sel(flag, fmn, _fmin(fmn, fl))
+    blk[r + ROW_XMX * L] = _sel(flag, xmx, _fmax(xmx, yn[0]))
+    blk[r + ROW_XMN * L] = _sel(flag, xmn, _fmin(xmn, yn[0]))
+    blk[r + ROW_FLAG * L] = _sel(event, 1.0, _sel(turn, 2.0, 0.0))
 
 
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
@@ -265,22 +253,22 @@ def _block_step(blk, bi, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, l
     a lane without them gets the base loop's numbers, bit for bit: an inactive channel is never
     flagged and the forms' terms of a base lane are exact zeros).
     Unflagged lanes are updated in place (state, tangent, accumulators); flagged lanes (1.0: an
-    event, 2.0: a turning point of x) are left untouched for :func:`_redo_lane`. Returns True if
+    event, 2.0: a turning point of x) are left untouched for :func:`redo_lane`. Returns True if
     any lane is flagged.
     """
     o = (bi & 0xFFFFFF) * BLOCK  # provably >= 0: no wrap-around selects on the indices
     for q in range(LANES):
-        _lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM,
+        lane_step(blk, o, q, cA, sA, cvA, svA, cM, sM, cvM, svM, cB, sB, cvB, svB, lam, qA, qM,
                    qB, bound, tangent, general, general)
     anyf = False
     for q in range(LANES):
-        anyf = anyf | (blk[o + _FLAG * LANES + q] != 0.0)
+        anyf = anyf | (blk[o + ROW_FLAG * LANES + q] != 0.0)
     return anyf
 
 
 # ============================================================================ flagged lanes
 @njit(cache=True, nogil=True, _nrt=False)
-def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk, turn, general, tabs):
+def redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk, turn, general, tabs):
     """Redo grid step ``j`` of lane ``q`` as the scalar integrator does.
 
     The lane's rows are copied into the scalar work arrays of ``wk``; a turning point (``turn``)
@@ -294,23 +282,23 @@ def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk, turn, general, 
     L = LANES
     r = o + q
     for i in range(20):
-        wy[i] = blk[r + (_Y + i) * L]
+        wy[i] = blk[r + (ROW_Y + i) * L]
     for i in range(N_PARAMS):
-        pw[i] = blk[r + (_PAR + i) * L]
-    mode[0] = int(blk[r + _R0 * L])
+        pw[i] = blk[r + (ROW_PAR + i) * L]
+    mode[0] = int(blk[r + ROW_R0 * L])
     for c in range(1, N_SWITCH):
-        mode[c] = int(blk[r + (_RB + c - 1) * L])
+        mode[c] = int(blk[r + (ROW_RB + c - 1) * L])
     mode[MODE_FRICTION] = int(lam)
     channels(pw, mode, wy, gaps, active, False)
-    acc[ACC_TD] = blk[r + _TD * L]
-    acc[ACC_FMAX] = blk[r + _FMX * L]
-    acc[ACC_FMIN] = blk[r + _FMN * L]
-    acc[ACC_XMAX] = blk[r + _XMX * L]
-    acc[ACC_XMIN] = blk[r + _XMN * L]
-    cnt[CNT_NF] = ist[_NF, l]
-    cnt[CNT_NB] = ist[_NB, l]
+    acc[ACC_TD] = blk[r + ROW_TD * L]
+    acc[ACC_FMAX] = blk[r + ROW_FMX * L]
+    acc[ACC_FMIN] = blk[r + ROW_FMN * L]
+    acc[ACC_XMAX] = blk[r + ROW_XMX * L]
+    acc[ACC_XMIN] = blk[r + ROW_XMN * L]
+    cnt[CNT_NF] = ist[IST_NF, l]
+    cnt[CNT_NB] = ist[IST_NB, l]
     cnt[CNT_STEPS] = 0
-    h = blk[r + _H * L]
+    h = blk[r + ROW_H * L]
     C, S, LAM, CV, SV, Q = tabs
     status = 0
     if not turn or _rk4_grid_interval(j, h, wy, pw, mode, tangent, C, S, LAM, CV, SV, Q, general,
@@ -321,26 +309,26 @@ def _redo_lane(blk, o, q, l, ist, j, N, lam, bound, tangent, wk, turn, general, 
         status = advance_interval(METHOD_RK4, j * h, t_end, wy, pw, mode, gaps, active,
                                   20 if tangent else 10, nerr, tangent, ks, ytmp, ynew, ytry, 0.0,
                                   0.0, 0.0, T, bound, acc, cnt, ev_t, ev_c, 0.0)
-        ist[_STEPS, l] += cnt[CNT_STEPS] - 1  # the grid step itself is counted per period
+        ist[IST_STEPS, l] += cnt[CNT_STEPS] - 1  # the grid step itself is counted per period
     # ---- store back
     for i in range(20):
-        blk[r + (_Y + i) * L] = wy[i]
-    blk[r + _R0 * L] = float(mode[0])
-    blk[r + _S0 * L] = float(abs(mode[0]))
+        blk[r + (ROW_Y + i) * L] = wy[i]
+    blk[r + ROW_R0 * L] = float(mode[0])
+    blk[r + ROW_S0 * L] = float(abs(mode[0]))
     for c in range(1, N_SWITCH):
-        blk[r + (_RB + c - 1) * L] = float(mode[c])
-        blk[r + (_SB + c - 1) * L] = float(abs(mode[c]))
-    blk[r + _TD * L] = acc[ACC_TD]
-    blk[r + _FMX * L] = acc[ACC_FMAX]
-    blk[r + _FMN * L] = acc[ACC_FMIN]
-    blk[r + _XMX * L] = acc[ACC_XMAX]
-    blk[r + _XMN * L] = acc[ACC_XMIN]
-    ist[_NF, l] = cnt[CNT_NF]
-    ist[_NB, l] = cnt[CNT_NB]
+        blk[r + (ROW_RB + c - 1) * L] = float(mode[c])
+        blk[r + (ROW_SB + c - 1) * L] = float(abs(mode[c]))
+    blk[r + ROW_TD * L] = acc[ACC_TD]
+    blk[r + ROW_FMX * L] = acc[ACC_FMAX]
+    blk[r + ROW_FMN * L] = acc[ACC_FMIN]
+    blk[r + ROW_XMX * L] = acc[ACC_XMAX]
+    blk[r + ROW_XMN * L] = acc[ACC_XMIN]
+    ist[IST_NF, l] = cnt[CNT_NF]
+    ist[IST_NB, l] = cnt[CNT_NB]
     if status != 0:
-        ist[_ST, l] = 1
-        ist[_STEPS, l] += j + 1
-        blk[r + _H * L] = 0.0  # freeze the lane
+        ist[IST_ST, l] = 1
+        ist[IST_STEPS, l] += j + 1
+        blk[r + ROW_H * L] = 0.0  # freeze the lane
 
 
 # ============================================================================ lane bookkeeping
@@ -354,10 +342,10 @@ def lane_general(blk, r):
     L = LANES
     g = False
     for c in range(4):
-        if blk[r + (_PAR + P_ACT + c) * L] != 0.0:
+        if blk[r + (ROW_PAR + P_ACT + c) * L] != 0.0:
             g = True
-    if (blk[r + (_PAR + P_VTE) * L] != 0.0 or blk[r + (_PAR + P_XIO) * L] != 0.0
-            or blk[r + (_PAR + P_GAM1) * L] != 0.0):
+    if (blk[r + (ROW_PAR + P_VTE) * L] != 0.0 or blk[r + (ROW_PAR + P_XIO) * L] != 0.0
+            or blk[r + (ROW_PAR + P_GAM1) * L] != 0.0):
         g = True
     return g
 
@@ -371,17 +359,17 @@ def lane_reset_modes(blk, l, p, mode, y, gaps, active):
     L = LANES
     r = (l // L) * BLOCK + (l % L)
     for i in range(N_PARAMS):
-        p[i] = blk[r + (_PAR + i) * L]
+        p[i] = blk[r + (ROW_PAR + i) * L]
     for i in range(N_STATE):
-        y[i] = blk[r + (_Y + i) * L]
+        y[i] = blk[r + (ROW_Y + i) * L]
     for i in range(N_MODE):
         mode[i] = 0
     channels(p, mode, y, gaps, active, True)
-    blk[r + _R0 * L] = float(mode[0])
-    blk[r + _S0 * L] = float(abs(mode[0]))
+    blk[r + ROW_R0 * L] = float(mode[0])
+    blk[r + ROW_S0 * L] = float(abs(mode[0]))
     for c in range(1, 5):
-        blk[r + (_RB + c - 1) * L] = float(mode[c])
-        blk[r + (_SB + c - 1) * L] = float(abs(mode[c]))
+        blk[r + (ROW_RB + c - 1) * L] = float(mode[c])
+        blk[r + (ROW_SB + c - 1) * L] = float(abs(mode[c]))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -390,24 +378,24 @@ def period_start(blk, ist, l, k, nu, sec):
     counters, and the period's variable-ratio phase."""
     L = LANES
     r = (l // L) * BLOCK + (l % L)
-    pos = ist[_POS, l]
+    pos = ist[IST_POS, l]
     if pos >= 0:
         for i in range(N_STATE):
-            sec[l, pos + k, i] = blk[r + (_Y + i) * L]
-    x = blk[r + _Y * L]
-    r0 = blk[r + _R0 * L]
-    f0 = tracked_force(1.0, 0.0, x, blk[r + (_Y + 1) * L], field_params(blk, r + _PAR * L, L),
+            sec[l, pos + k, i] = blk[r + (ROW_Y + i) * L]
+    x = blk[r + ROW_Y * L]
+    r0 = blk[r + ROW_R0 * L]
+    f0 = tracked_force(1.0, 0.0, x, blk[r + (ROW_Y + 1) * L], field_params(blk, r + ROW_PAR * L, L),
                        r0, abs(r0))
-    blk[r + _FMX * L] = f0
-    blk[r + _FMN * L] = f0
-    blk[r + _XMX * L] = x
-    blk[r + _XMN * L] = x
-    blk[r + _TD * L] = 0.0
-    ist[_NF, l] = 0
-    ist[_NB, l] = 0
-    vrs, vrc = period_forcing(blk[r + (_PAR + P_VRA) * L], nu, ist[_K, l] + k)
-    blk[r + (_PAR + P_VRS) * L] = vrs
-    blk[r + (_PAR + P_VRC) * L] = vrc
+    blk[r + ROW_FMX * L] = f0
+    blk[r + ROW_FMN * L] = f0
+    blk[r + ROW_XMX * L] = x
+    blk[r + ROW_XMN * L] = x
+    blk[r + ROW_TD * L] = 0.0
+    ist[IST_NF, l] = 0
+    ist[IST_NB, l] = 0
+    vrs, vrc = period_forcing(blk[r + (ROW_PAR + P_VRA) * L], nu, ist[IST_K, l] + k)
+    blk[r + (ROW_PAR + P_VRS) * L] = vrs
+    blk[r + (ROW_PAR + P_VRC) * L] = vrc
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -417,30 +405,30 @@ def period_end(blk, ist, l, k, N, wz, nface, nback, fout):
     L = LANES
     r = (l // L) * BLOCK + (l % L)
     for i in range(N_STATE):
-        wz[i] = blk[r + (_Y + 10 + i) * L]
+        wz[i] = blk[r + (ROW_Y + 10 + i) * L]
     ly = end_period_tangent(wz)
     for i in range(N_STATE):
-        blk[r + (_Y + 10 + i) * L] = wz[i]
-    pos = ist[_POS, l]
+        blk[r + (ROW_Y + 10 + i) * L] = wz[i]
+    pos = ist[IST_POS, l]
     if pos >= 0:
         kk = pos + k
-        nface[l, kk] = ist[_NF, l]
-        nback[l, kk] = ist[_NB, l]
-        fout[l, kk, O_TDIS] = blk[r + _TD * L]
-        fout[l, kk, O_FMAX] = blk[r + _FMX * L]
-        fout[l, kk, O_FMIN] = blk[r + _FMN * L]
-        fout[l, kk, O_XMAX] = blk[r + _XMX * L]
-        fout[l, kk, O_XMIN] = blk[r + _XMN * L]
+        nface[l, kk] = ist[IST_NF, l]
+        nback[l, kk] = ist[IST_NB, l]
+        fout[l, kk, O_TDIS] = blk[r + ROW_TD * L]
+        fout[l, kk, O_FMAX] = blk[r + ROW_FMX * L]
+        fout[l, kk, O_FMIN] = blk[r + ROW_FMN * L]
+        fout[l, kk, O_XMAX] = blk[r + ROW_XMX * L]
+        fout[l, kk, O_XMIN] = blk[r + ROW_XMN * L]
         fout[l, kk, O_LYAP] = ly
-    ist[_DONE, l] += 1
-    ist[_STEPS, l] += N
+    ist[IST_DONE, l] += 1
+    ist[IST_STEPS, l] += N
 
 
 # ============================================================================ the kernel
 @njit(cache=True, nogil=True, fastmath=FASTMATH)
 def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, fout,
             tangent=True):
-    """Advance every lane with ``ist[_ST] == 0`` by ``m`` mesh periods of ``N`` RK4 steps.
+    """Advance every lane with ``ist[IST_ST] == 0`` by ``m`` mesh periods of ``N`` RK4 steps.
 
     Parameters
     ----------
@@ -454,7 +442,7 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
         The phase tables of :func:`gearsim.numerics.steps.phase_tables` for ``N`` and ``nu``.
     sec, nface, nback, fout
         Per-lane records ``[n_lanes, capacity, ...]``; period ``k`` of lane ``l`` is written at
-        ``ist[_POS, l] + k`` when that position is >= 0 (``fout`` columns: ``O_*``).
+        ``ist[IST_POS, l] + k`` when that position is >= 0 (``fout`` columns: ``O_*``).
     """
     n_lanes = ist.shape[1]
     nblk = n_lanes // LANES
@@ -476,7 +464,7 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
     for k in range(m):
         # ---- period start: section, accumulators, variable-ratio phase of the lane
         for l in range(n_lanes):
-            if ist[_ST, l] == 0:
+            if ist[IST_ST, l] == 0:
                 period_start(blk, ist, l, k, nu, sec)
         # ---- the N grid steps of the period
         for j in range(N):
@@ -503,13 +491,13 @@ def advance(blk, ist, N, m, C, S, LAM, CV, SV, Q, nu, bound, sec, nface, nback, 
                                        cvB, svB, lam, qA, qM, qB, bound, False, False)
                 if anyf:
                     for q in range(L):
-                        fq = blk[o + _FLAG * L + q]
+                        fq = blk[o + ROW_FLAG * L + q]
                         if fq != 0.0:
                             ll = bi * L + q
-                            if ist[_ST, ll] == 0:
-                                _redo_lane(blk, o, q, ll, ist, j, N, lam, bound, tangent, wk,
+                            if ist[IST_ST, ll] == 0:
+                                redo_lane(blk, o, q, ll, ist, j, N, lam, bound, tangent, wk,
                                            fq == 2.0, general, (C, S, LAM, CV, SV, Q))
         # ---- period end: tangent growth, records
         for l in range(n_lanes):
-            if ist[_ST, l] == 0:
+            if ist[IST_ST, l] == 0:
                 period_end(blk, ist, l, k, N, wz, nface, nback, fout)

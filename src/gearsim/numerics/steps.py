@@ -50,7 +50,7 @@ from gearsim.numerics.settings import (  # noqa: F401  (the integration methods'
 FASTMATH = {"contract"}
 
 # ``_nrt=False`` on the array functions of the step and event layers (rk4_step, dp5_step,
-# trial_step, events.*, kernel._redo_lane): they never allocate, they only read and write the
+# trial_step, events.*, kernel.redo_lane): they never allocate, they only read and write the
 # caller's arrays, so they need no reference counting. With Numba's runtime on, every array
 # argument and view is increfed/decrefed with a locked (atomic) instruction at each call
 # boundary; in the flagged-lane redo that was ~60 % of its time (perf: `lock incq`/`lock decq`

@@ -99,10 +99,11 @@ def monodromies(
     y0s: list[np.ndarray],
     n_periods: int,
     settings: IntegrationSettings,
+    backend=None,
 ) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """:func:`monodromy` of many cells at once: RK4 cells of one step grid share kernel calls
-    (:func:`gearsim.numerics.batch.tangent_lanes_many`, full SIMD blocks; each result is that
-    of its own call), others are computed one by one."""
+    (:func:`gearsim.numerics.batch.tangent_lanes_many`, full SIMD blocks, on ``backend``; each
+    result is that of its own call), others are computed one by one."""
     out: list = [None] * len(params_list)
     groups: dict[tuple, list[int]] = {}
     for i, p in enumerate(params_list):
@@ -117,7 +118,7 @@ def monodromies(
         ds = [n_evolved(pa) for pa in packed]
         res = tangent_lanes_many([params_list[i] for i in idx], [y0s[i] for i in idx],
                                  n_periods, settings, [eye[:, :d] for d in ds],
-                                 packed=packed)  # fmt: skip
+                                 packed=packed, backend=backend)  # fmt: skip
         for i, d, (y, MZ, st) in zip(idx, ds, res, strict=True):
             out[i] = (y, MZ[:d, :], st)
     return out

@@ -254,6 +254,7 @@ class PlaneData:
     attractors: dict[int, list[str]] | None = None  # cell index j * nx + i -> lines
     n_attractors: dict[int, int] | None = None  # cell index -> attractors found
     curves: list[dict[str, Any]] = field(default_factory=list)  # bifurcation curves
+    codim2: list[dict[str, Any]] = field(default_factory=list)  # codimension-2 points
     physical: dict[str, dict[str, Any]] = field(default_factory=dict)  # axis -> name/unit/k
 
 
@@ -309,9 +310,16 @@ def read_attractors(catalogue: str | Path, plane: str, nx: int
     return out, counts
 
 
+def _columns(con, table: str) -> set[str]:
+    return {r[1] for r in con.execute(f'PRAGMA table_info("{table}")')}
+
+
 def read_curves(catalogue: str | Path, plane: str) -> list[dict[str, Any]]:
     """The plane's two-parameter bifurcation curves from the catalogue (``bifurcation_curves``):
-    one polyline per curve, ``{kind, period, x, y}`` in the plane's axes."""
+    one polyline per curve, ``{kind, period, flank, x, y}`` in the plane's axes, with the look
+    of Figs 21 and 22 (:func:`gearsim.presentation.orbit_plots.curve_look`: ``colour`` by
+    period, ``dash`` by kind and flank, the legend's ``text``)."""
+    from gearsim.presentation.orbit_plots import curve_look
     from gearsim.results.catalogue import open_catalogue
 
     path = Path(catalogue)
@@ -322,17 +330,49 @@ def read_curves(catalogue: str | Path, plane: str) -> list[dict[str, Any]]:
         tables = {r[0] for r in con.execute("select name from sqlite_master where type='table'")}
         if "bifurcation_curves" not in tables:
             return []
-        df = pd.read_sql_query("select curve, kind, period, name, value, name2, value2 from "
+        extra = [c for c in ("boundary", "flank") if c in _columns(con, "bifurcation_curves")]
+        df = pd.read_sql_query("select curve, kind, period, name, value, name2, value2"
+                               + "".join(f", {c}" for c in extra) + " from "
                                "bifurcation_curves where plane = ? order by curve, id", con,
                                params=(plane,))
     finally:
         con.close()
     out = []
     for (curve, kind, period), g in df.groupby(["curve", "kind", "period"], sort=False):
+        look = curve_look(g.iloc[0].to_dict())
         out.append({"curve": int(curve), "kind": str(kind), "period": int(period),
                     "xname": str(g["name"].iloc[0]), "yname": str(g["name2"].iloc[0]),
                     "x": g["value"].astype(float).round(6).tolist(),
-                    "y": g["value2"].astype(float).round(6).tolist()})
+                    "y": g["value2"].astype(float).round(6).tolist(), **look})
+    return out
+
+
+def read_codim2(catalogue: str | Path, plane: str) -> list[dict[str, Any]]:
+    """The plane's codimension-2 points from the catalogue (``codim2_points``): ``{kind,
+    marker, text, xname, yname, x, y, period, converged}`` (the markers of Figs 21 and 22)."""
+    from gearsim.presentation.orbit_plots import CODIM2_MARKERS
+    from gearsim.results.catalogue import open_catalogue
+
+    path = Path(catalogue)
+    if not path.is_file():
+        return []
+    con = open_catalogue(path)
+    try:
+        tables = {r[0] for r in con.execute("select name from sqlite_master where type='table'")}
+        if "codim2_points" not in tables:
+            return []
+        df = pd.read_sql_query("select kind, period, name, value, name2, value2, converged, "
+                               "conditions from codim2_points where plane = ? order by point",
+                               con, params=(plane,))
+    finally:
+        con.close()
+    out = []
+    for r in df.itertuples(index=False):
+        marker, text = CODIM2_MARKERS.get(str(r.kind), ("o", str(r.kind)))
+        out.append({"kind": str(r.kind), "marker": marker, "text": text,
+                    "conditions": str(r.conditions), "period": int(r.period),
+                    "xname": str(r.name), "yname": str(r.name2), "x": round(float(r.value), 6),
+                    "y": round(float(r.value2), 6), "converged": bool(r.converged)})
     return out
 
 
@@ -483,6 +523,7 @@ def plane_payload(plane: PlaneData, block: Block, cap: int = MAX_POINTS) -> dict
         "px": block.quantised(px), "pv": block.quantised(pv),
         "attractors": None, "n_attractors": None,
         "curves": plane.curves,
+        "codim2": plane.codim2,
         "physical": plane.physical,
     }
     if plane.attractors is not None:  # one line per attractor of each searched cell
@@ -652,6 +693,7 @@ def write_explorer(out: str | Path, *, planes: Mapping[str, tuple[str, str]] | S
             p.attractors, p.n_attractors = read_attractors(catalogue, name,
                                                            int(cells["i"].max()) + 1)
             p.curves = read_curves(catalogue, name)
+            p.codim2 = read_codim2(catalogue, name)
         p.physical = physical_factors(gear, [p.xname, p.yname])
         loaded.append(p)
     tables = {s: pd.read_parquet(results / "sweeps" / f"{s}.parquet") for s in sweeps}

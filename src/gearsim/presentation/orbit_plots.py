@@ -8,6 +8,8 @@ modulus with the unit circle's radius as a reference line.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pandas as pd
 
@@ -139,6 +141,18 @@ def _curve_text(kind: str, flank: str, n: int) -> str:
     if kind == "grazing":
         return f"grazing {dict(face='x=+b', back='x=-b').get(flank, 'bearing')}, {n}T"
     return f"{kind.replace('_', ' ')}, {n}T"
+
+
+def curve_look(row) -> dict[str, Any]:
+    """How a curve is drawn in Figs 21 and 22 and in the explorer: ``colour`` (its period),
+    ``dash`` (its kind and flank, in units of the line width; empty: solid) and the legend's
+    ``text``."""
+    kind, n = str(row.get("kind", "")), int(row.get("period", 1))
+    flank = curve_flank(row)
+    ls, _ = CURVE_LINES.get((kind, flank), ("-", kind))
+    dash = [] if isinstance(ls, str) else list(ls[1])
+    return {"colour": _period_colour(n), "dash": dash, "text": _curve_text(kind, flank, n),
+            "flank": flank}
 
 
 def draw_curves(ax, curves: pd.DataFrame, *, swap: bool = False, labels: bool = True,

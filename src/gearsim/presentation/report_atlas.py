@@ -106,6 +106,12 @@ def atlas_lines(atlas: list[dict[str, Any]], h: str = "##") -> list[str]:
                                                  if link else "") + ", most frequent pairs: "
                        + "; ".join(f"{p['pair']} ({p['group']}) {p['edges']}"
                                    for p in a["unexplained_pairs"]) + ".")
+        if a.get("crises"):
+            out.append("- The chaotic band ends abruptly (a crisis, read from the grid, not "
+                       "located) between: " + "; ".join(
+                           f"{c['pair']} ({c['edges']} edges, {x} {c['x_lo']:.3f}-"
+                           f"{c['x_hi']:.3f}, {a['y']} {c['y_lo']:.4g}-{c['y_hi']:.4g})"
+                           for c in a["crises"]) + ".")
         if a.get("cascade"):
             out += _cascade_lines(a["cascade"], x)
         out.append("")

@@ -99,7 +99,11 @@ def _copy_table(cur, src: sqlite3.Connection, schema: str, table) -> int:
     names = ", ".join(quote(c) for c in cols)
     n = 0
     rows = src.execute(f"SELECT {names} FROM {quote(table.name)} ORDER BY rowid")
-    with cur.copy(f"COPY {quote(schema)}.{quote(table.name)} ({names}) FROM STDIN") as cp:
+    from psycopg.copy import QueuedLibpqWriter
+
+    # the queued writer sends from a thread of its own while this one formats the next rows
+    with cur.copy(f"COPY {quote(schema)}.{quote(table.name)} ({names}) FROM STDIN",
+                  writer=QueuedLibpqWriter(cur)) as cp:
         while batch := rows.fetchmany(20_000):
             for row in batch:
                 cp.write_row(row)

@@ -112,19 +112,17 @@ def pull_study(url: str, study: str, dest: str | Path, *, any_version: bool = Fa
                 "FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace "
                 "WHERE n.nspname = %s AND c.relkind IN ('r', 'i', 'v') ORDER BY c.oid",
                 (study,)).fetchall()
-            kinds = {"r": 0, "i": 1, "v": 2}
-            tables = []
-            for kind, name, comment in sorted(defs, key=lambda d: kinds[d[0]]):
-                if not (comment or "").startswith("sqlite: "):
-                    continue  # a constraint's own index (the table's definition makes it)
-                out.execute(comment[len("sqlite: "):])
-                if kind == "r":
-                    tables.append(name)
-            if "cells" not in tables:
+            # a constraint's own index has no comment: the table's definition makes it
+            sql = {k: [(n, c[len("sqlite: "):]) for kind, n, c in defs
+                       if kind == k and (c or "").startswith("sqlite: ")] for k in "riv"}
+            if "cells" not in dict(sql["r"]):
                 raise CatalogueError(f"{safe_url(url)}: study {study} is not a gearsim "
                                      "catalogue (its tables carry no definitions)")
-            for name in tables:
+            for name, ddl in sql["r"]:  # the tables, their rows, then indexes and views
+                out.execute(ddl)
                 _pull_table(con, out, name)
+            for _name, ddl in sql["i"] + sql["v"]:
+                out.execute(ddl)
             version = int(rec["schema_version"])
         out.execute(f"PRAGMA application_id = {APPLICATION_ID}")
         out.execute(f"PRAGMA user_version = {version}")

@@ -112,7 +112,7 @@ def tile_records(spec: Mapping[str, Any], cells, found: Sequence[CellAttractors]
 
 
 
-def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
+def cell_group_records(spec: Mapping[str, Any], backend=None) -> list[dict[str, Any]]:
     """Attractor records of a group of plane cells (one task of ``gearsim attractor-tile``).
 
     ``spec`` (plain data): ``plane``, ``tile``, ``params`` (dict), ``settings`` (dict),
@@ -120,7 +120,7 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
     ``starts``, ``seed`` and optionally ``forward_rows`` (per cell the plane tile's row of
     that cell, or None: its motion is known without a run). One record per attractor of each
     cell; a cell whose starts all diverged gets one record with ``attractor = -1`` and label
-    ``diverged``.
+    ``diverged``. ``backend``: where the starts' lanes run (None: the CPU).
     """
     base = ModelParameters.from_mapping(dict(spec["params"]))
     settings = IntegrationSettings(**spec["settings"])
@@ -134,7 +134,8 @@ def cell_group_records(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
     options = FinderOptions(starts=int(spec["starts"]), seed=int(spec["seed"]))
     found = find_attractors(plist, options, settings=settings, forward=fwd,
                             forward_results=known, stats=spec.get("stats"),
-                            neighbours=grid_neighbours([(c[0], c[1]) for c in cells]))  # fmt: skip
+                            neighbours=grid_neighbours([(c[0], c[1]) for c in cells]),
+                            backend=backend)  # fmt: skip
     return tile_records(spec, cells, found)
 
 
@@ -152,15 +153,16 @@ def run_attractor_tile(
     *,
     client=None,
     progress: Callable[[int, int, float], None] | None = None,
+    backend=None,
 ) -> pd.DataFrame:
     """The attractor records of the tasks ``specs`` (:func:`task_specs`), mapped over
-    ``client`` or in-process when None; ``progress(done_cells, total_cells, elapsed_s)`` after
-    each finished task."""
+    ``client`` or in-process when None (the lanes on ``backend``); ``progress(done_cells,
+    total_cells, elapsed_s)`` after each finished task."""
     total = sum(len(s["cells"]) for s in specs)
     t0 = time.perf_counter()
     records: list[dict] = []
     done = 0
-    results = (map(cell_group_records, specs) if client is None
+    results = ((cell_group_records(s, backend) for s in specs) if client is None
                else map_unordered(client, cell_group_records, specs))  # fmt: skip
     for recs in results:
         records.extend(recs)
@@ -172,12 +174,14 @@ def run_attractor_tile(
 
 def run_tile_job(specs: Sequence[Mapping[str, Any]], *, in_process: bool, workers: int = 1,
                  address: str | None = None,
-                 progress: Callable[[int, int, float], None] | None = None
+                 progress: Callable[[int, int, float], None] | None = None, backend=None
                  ) -> tuple[pd.DataFrame, str]:
-    """:func:`run_attractor_tile` in this process or on a dask cluster (``workers`` local
-    processes, or the scheduler at ``address``); also where it ran, in words."""
-    if in_process:
-        return run_attractor_tile(specs, progress=progress), "in-process"
+    """:func:`run_attractor_tile` in this process (its lanes on ``backend``, None: the CPU; a
+    backend that takes a job in one lanes object always runs here) or on a dask cluster
+    (``workers`` local processes, or the scheduler at ``address``); also where it ran, in
+    words."""
+    if in_process or (backend is not None and backend.one_lanes_object):
+        return run_attractor_tile(specs, progress=progress, backend=backend), "in-process"
     with open_client(workers, address) as client:
         return run_attractor_tile(specs, client=client, progress=progress), describe(client)
 

@@ -23,6 +23,7 @@ from typing import Any
 
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.errors import ConfigError
+from gearsim.numerics.device import Execution
 from gearsim.numerics.settings import IntegrationSettings
 from gearsim.safe_yaml import load_mapping
 from gearsim.study.config_io import load_standard_parameters
@@ -180,12 +181,14 @@ class Study:
 
     ``config`` is read-only (a mapping proxy over a private copy; :meth:`config_dict` gives a
     copy to write); ``root`` the directory relative paths are resolved against;
-    ``settings`` the integration settings of every simulation of the study.
+    ``settings`` the integration settings of every simulation of the study; ``execution``
+    where its simulating jobs run (the ``execution`` section; outside every settings hash).
     """
 
     config: Mapping[str, Any]
     root: Path
     settings: IntegrationSettings = field(init=False)
+    execution: Execution = field(init=False)
     _base: tuple[dict[str, Any], str] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -193,6 +196,7 @@ class Study:
         object.__setattr__(self, "config", MappingProxyType(config))
         object.__setattr__(self, "root", Path(self.root))
         object.__setattr__(self, "settings", integration_settings(config))
+        object.__setattr__(self, "execution", Execution(**(config.get("execution") or {})))
         object.__setattr__(self, "_base", _base_values(config, self.root))
         for kind, key in (("planes", "plane"), ("sweeps", "sweep")):
             for name in config.get(kind) or {}:
@@ -261,6 +265,15 @@ class Study:
         values make of the study in its records)."""
         config = self.config_dict()
         config["parameters"] = {**(config.get("parameters") or {}), **values}
+        return Study(config, self.root)
+
+    def with_device(self, device: str | None) -> Study:
+        """This study with its jobs run on ``device`` (a command's ``--device``; None: as it
+        is)."""
+        if device is None or device == self.execution.device:
+            return self
+        config = self.config_dict()
+        config["execution"] = {**(config.get("execution") or {}), "device": device}
         return Study(config, self.root)
 
     def sweep_set_arguments(self, sweep: str) -> str:

@@ -18,7 +18,6 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from gearsim.numerics.device import current as current_device
 from gearsim.numerics.settings import TANGENT_SEED
 from gearsim.study.config import Study
 
@@ -186,9 +185,12 @@ def provenance(
     name: str,
     study: Study | None = None,
     scope: str = "tiles",
+    device: Mapping[str, Any] | None = None,
     **extra: Any,
 ) -> dict[str, Any]:
-    """Provenance record (goes into Parquet key-value metadata and the catalogue's runs)."""
+    """Provenance record (goes into Parquet key-value metadata and the catalogue's runs).
+    ``device``: where the lanes ran (the lanes backend's record; None, the default CPU run,
+    adds nothing, so its files are unchanged)."""
     source = study.parameters().source if study is not None else "unknown"
     rec = {
         "kind": kind,
@@ -201,9 +203,8 @@ def provenance(
         "subtree": subtree,
         "host": platform.node(),
     }
-    device = current_device().record()  # None on the default CPU run: its files are unchanged
     if device is not None:
-        rec["device"] = device  # where the lanes ran: outside the configuration hash
+        rec["device"] = dict(device)  # where the lanes ran: outside the configuration hash
     rec.update(extra)
     return rec
 

@@ -61,8 +61,10 @@ def size(study: Study, sweep: str | None, points: str | None) -> int:
 
 
 def run(study: Study, sweep: str | None, points: str | None, recording: Recording,
-        progress: Progress | None = None) -> tuple[Any, dict]:
-    """The sweep ``sweep`` (or the point set ``points``) simulated: its table and provenance."""
+        progress: Progress | None = None, backend=None) -> tuple[Any, dict]:
+    """The sweep ``sweep`` (or the point set ``points``) simulated: its table and provenance.
+    ``backend``: where a sweep's chain runs (None: the CPU; a point set's motions are recorded
+    by the scalar integrator)."""
     from gearsim.study.grid import sweep_values
     from gearsim.study.sweeps import points_frame, sweep_frame
 
@@ -72,13 +74,14 @@ def run(study: Study, sweep: str | None, points: str | None, recording: Recordin
         spec = study.config["sweeps"][sweep]
         df = sweep_frame(study.parameters(sweep=sweep).model, spec["name"], sweep_values(spec),
                          spec.get("direction", "forward"), study.settings, progress,
-                         spec.get("start", "continuation"))
+                         spec.get("start", "continuation"), backend)
         subtree, kind, name = provenance.sweep_subtree(study, sweep), "sweep", sweep
     else:
         df = points_frame(study, points, **asdict(recording), progress=progress)
         subtree = {**provenance.point_subtree(study, points), "recording": asdict(recording)}
-        kind, name = "points", points
+        kind, name, backend = "points", points, None
     wall = time.perf_counter() - t0
     return df, provenance.provenance(subtree, kind=kind, name=name, study=study,
                                      started=started, finished=provenance.now_iso(),
-                                     wall_s=wall, cells=len(df), workers="in-process")
+                                     wall_s=wall, cells=len(df), workers="in-process",
+                                     device=None if backend is None else backend.record())

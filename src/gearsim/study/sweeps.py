@@ -19,15 +19,17 @@ from gearsim.study.tiles import records_to_frame
 
 def sweep_frame(
     base, name: str, values: np.ndarray, direction: str, settings, progress=None,
-    start: str = "continuation",
+    start: str = "continuation", backend=None,
 ) -> pd.DataFrame:
     """The records of :func:`gearsim.cell.sweep.sweep_records` with the catalogue's stable dtypes.
 
-    ``start="rest"``: every cell from the static state instead of the previous cell's state.
+    ``start="rest"``: every cell from the static state instead of the previous cell's state;
+    ``backend``: where its lane runs (None: the CPU).
     """
     return records_to_frame(sweep_records(base, name, values, direction=direction,
                                           settings=settings, progress=progress,
-                                          continuation=start == "continuation"))
+                                          continuation=start == "continuation",
+                                          backend=backend))
 
 
 def point_list(spec) -> list[dict[str, float]]:

@@ -77,10 +77,11 @@ class Placement:
     note: str = ""
 
 
-def placement(job: TileJob, *, device: str, workers: int = 1, scheduler: str | None = None,
+def placement(job: TileJob, backend, *, workers: int = 1, scheduler: str | None = None,
               no_cluster: bool = False) -> Placement:
-    """Where ``job`` runs on ``device`` (``cpu`` or ``cuda``); the address or worker count
-    checked (one line) when a cluster is used. Several planes run in this process."""
+    """Where ``job`` runs with the lanes ``backend`` (:func:`gearsim.numerics.backend.select`);
+    the address or worker count checked (one line) when a cluster is used. Several planes, and
+    a backend that takes a job's rows in one lanes object (a GPU), run in this process."""
     from gearsim.study.cluster import check_address, check_workers
 
     address = scheduler or job.study.config["cluster"].get("scheduler_address")
@@ -93,16 +94,17 @@ def placement(job: TileJob, *, device: str, workers: int = 1, scheduler: str | N
         check_address(address)
     else:
         check_workers(workers)
-    if device == "cuda":
-        return Placement(True, note=f"{job.label}: on the GPU, in this process (--workers and "
-                         "the scheduler address are not used)")
+    if backend.one_lanes_object:
+        return Placement(True, note=f"{job.label}: on the GPU, in this process "
+                         "(--workers and the scheduler address are not used)")
     return Placement(False, workers, address)
 
 
-def run(job: TileJob, where: Placement, *, device: str,
+def run(job: TileJob, where: Placement, backend, *,
         progress: Callable[[int, int, float], None] | None = None, say: Say = print
         ) -> list[tuple[Any, dict]]:
-    """Every tile of ``job`` simulated: one ``(frame, provenance)`` per plane, in order."""
+    """Every tile of ``job`` simulated: one ``(frame, provenance)`` per plane, in order (in this
+    process the lanes run on ``backend``; a cluster's workers run theirs on their CPUs)."""
     import time
 
     from gearsim.study import tiles
@@ -111,9 +113,9 @@ def run(job: TileJob, where: Placement, *, device: str,
     started, t0 = provenance.now_iso(), time.perf_counter()
     if len(job.planes) > 1:
         say(f"{job.label}: {job.total} cells of {len(job.planes)} planes in one call, "
-            f"in-process ({device})")
+            f"in-process ({backend.kind})")
         frames = tiles.run_tiles(job.study, [(p, job.tile) for p in job.planes],
-                                 progress=progress)
+                                 progress=progress, backend=backend)
         workers = f"in-process, one call with {job.label}"
     else:
         rows = job.rows[0]
@@ -123,7 +125,7 @@ def run(job: TileJob, where: Placement, *, device: str,
             workers = "in-process"
             say(f"{banner}, {workers}")
             frames = [tiles.run_tile(job.study, job.planes[0], job.tile, client=None,
-                                     progress=progress)]
+                                     progress=progress, backend=backend)]
         else:
             # connect first: a bad scheduler address is then the only line on stderr
             with open_client(where.workers, where.address) as client:
@@ -136,5 +138,5 @@ def run(job: TileJob, where: Placement, *, device: str,
     return [(df, provenance.provenance(
         provenance.plane_subtree(job.study, plane), kind="tile", name=plane, study=job.study,
         tile=job.tile, rows=[rows.start, rows.stop], workers=workers, started=started,
-        finished=finished, wall_s=wall, cells=len(df),
+        finished=finished, wall_s=wall, cells=len(df), device=backend.record(),
     )) for plane, rows, df in zip(job.planes, job.rows, frames, strict=True)]

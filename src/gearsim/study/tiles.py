@@ -83,12 +83,14 @@ def cell_records(spec: Mapping[str, Any], xs, results, stamps, t0: float) -> lis
 
 
 def simulate_rows_batched(specs: Sequence[Mapping[str, Any]],
-                          on_cell: Callable[[], None] | None = None) -> list[dict[str, Any]]:
+                          on_cell: Callable[[], None] | None = None,
+                          backend=None) -> list[dict[str, Any]]:
     """Simulate several plane rows at once with the batched RK4 kernel (gearsim.numerics.batch).
 
     Same records as :func:`simulate_row` for every spec (one lane per row; the rows advance
     together, 8 per SIMD block). The integration is fixed-step RK4 at ``steps_per_period``.
     The specs may come from several planes (:func:`run_tiles`). ``on_cell()``: after each cell.
+    ``backend``: where the lanes run (:func:`gearsim.numerics.backend.select`; None: the CPU).
     """
     settings = IntegrationSettings(**specs[0]["settings"])
     chains = []
@@ -105,9 +107,9 @@ def simulate_rows_batched(specs: Sequence[Mapping[str, Any]],
         if on_cell is not None:
             on_cell()
 
-    results = simulate_rows(chains, settings=settings, on_cell=done)
+    results = simulate_rows(chains, settings=settings, on_cell=done, backend=backend)
     # the Floquet margins of the periodic cells, their monodromies in shared kernel calls
-    fill_margins([r for row in results for r in row], settings)
+    fill_margins([r for row in results for r in row], settings, backend)
     rows = []
     for spec, res_row, st_row in zip(specs, results, stamps, strict=True):
         rows += cell_records(spec, spec["x_values"], res_row, st_row, t0)
@@ -174,8 +176,10 @@ def run_tile(
     *,
     client=None,
     progress: Callable[[int, int, float], None] | None = None,
+    backend=None,
 ) -> pd.DataFrame:
-    """Simulate all cells of a tile (rows mapped over ``client``, or in-process when None).
+    """Simulate all cells of a tile (rows mapped over ``client``, or in-process when None, its
+    lanes on ``backend``: :func:`gearsim.numerics.backend.select`, None the CPU).
 
     ``progress(done_cells, total_cells, elapsed_s)`` is called after each finished row.
     """
@@ -190,7 +194,7 @@ def run_tile(
         workers = 1 if client is None else max(1, len(client.nthreads()))
         groups = row_groups(specs, workers)
         if client is None:
-            results = map(simulate_rows_batched, groups)
+            results = (simulate_rows_batched(g, backend=backend) for g in groups)
         else:
             results = map_unordered(client, simulate_rows_batched, groups)
         for recs in results:
@@ -219,6 +223,7 @@ def run_tiles(
     jobs: Sequence[tuple[str, int]],
     *,
     progress: Callable[[int, int, float], None] | None = None,
+    backend=None,
 ) -> list[pd.DataFrame]:
     """The tiles ``jobs`` (``(plane, tile)`` pairs) in one call of the chain driver: every row
     of every tile a chain of one lanes object (on a GPU, one launch holds both planes' chains:
@@ -229,7 +234,8 @@ def run_tiles(
     groups = [row_specs(study, plane, tile) for plane, tile in jobs]
     specs = [s for g in groups for s in g]
     if specs and specs[0]["settings"].get("method") != "rk4":  # the scalar path: tile by tile
-        return [run_tile(study, plane, tile, progress=progress) for plane, tile in jobs]
+        return [run_tile(study, plane, tile, progress=progress, backend=backend)
+                for plane, tile in jobs]
     total = sum(len(s["x_values"]) for s in specs)
     t0 = time.perf_counter()
     count = [0]
@@ -239,7 +245,7 @@ def run_tiles(
         if progress and (count[0] % 1000 == 0 or count[0] == total):
             progress(count[0], total, time.perf_counter() - t0)
 
-    records = simulate_rows_batched(specs, on_cell) if specs else []
+    records = simulate_rows_batched(specs, on_cell, backend) if specs else []
     frames = []
     k = 0
     for g in groups:

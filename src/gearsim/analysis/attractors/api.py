@@ -27,6 +27,7 @@ def find_attractors(
     stats: PoolStats | None = None,
     neighbours=None,
     mapper: AttractorMapper = map_gear_cells,
+    backend=None,
 ) -> CellAttractors | list[CellAttractors]:
     """Coexisting attractors of one gear cell (``cells`` a :class:`ModelParameters`: one
     :class:`CellAttractors`) or of many (a sequence: one per cell, all starts in one lane pool).
@@ -45,7 +46,8 @@ def find_attractors(
     (``FinderOptions.neighbour_seeds``). ``mapper``: the :class:`AttractorMapper` that maps
     the starts (default the lane pool :func:`~gearsim.analysis.attractors.pool.map_gear_cells`;
     ``forward_results``, ``stats`` and ``neighbours`` are its keyword options, handed to a
-    mapper only when given). Attractors most likely first.
+    mapper only when given). ``backend``: where the starts' lanes run
+    (:func:`gearsim.numerics.backend.select`; default the CPU). Attractors most likely first.
     """
     options = options if options is not None else FinderOptions()
     one = isinstance(cells, ModelParameters)
@@ -54,7 +56,7 @@ def find_attractors(
         return None if v is None else [v] if one else v
 
     cell_list = [cells] if one else list(cells)
-    system = GearCells(cell_list, settings)
+    system = GearCells(cell_list, settings, backend)
     if start_states is None:
         unit = sobol_unit(options.starts, options.seed)
         starts = [system.start_states(c, unit) for c in range(len(cell_list))]

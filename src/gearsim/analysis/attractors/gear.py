@@ -49,10 +49,11 @@ class GearCells:
     ``transient_continuation`` the settings' one for continuation states.
     """
 
-    def __init__(self, params_list: Sequence[ModelParameters], settings=None):
+    def __init__(self, params_list: Sequence[ModelParameters], settings=None, backend=None):
         from gearsim.cell.simulate import IntegrationSettings
 
         self.params = list(params_list)
+        self.backend = backend  # where the lanes run (gearsim.numerics.backend; None: the CPU)
         st = settings or IntegrationSettings(method="rk4")
         self.settings = st.with_(method="rk4")
         self.transient = int(self.settings.transient)
@@ -102,7 +103,7 @@ class GearCells:
             summ, fin, status, _ = run_periods_batched(
                 plist, y, n_periods, self.settings, start_periods=[int(start_periods[r])
                                                                    for r in rows],
-                tangent=False,
+                tangent=False, backend=self.backend,
             )  # fmt: skip
             for q, r in enumerate(rows):
                 s = summ[q].section
@@ -129,7 +130,7 @@ class GearCells:
         res = simulate_cells(plist, settings=st, u0=[np.asarray(s, dtype=float)[:10]
                                                      for s in states],
                              start_periods=[int(k) for k in start_periods],
-                             orbits=self.orbits)  # fmt: skip
+                             orbits=self.orbits, backend=self.backend)  # fmt: skip
         return [gear_steady(r) for r in res]
 
     def fill_margins(self, found: Sequence[CellAttractors]) -> None:
@@ -138,7 +139,7 @@ class GearCells:
         (:func:`gearsim.cell.verify.orbit_margins`, the cells' attractors in shared kernel
         calls; only with ``floquet`` ``"margin"``)."""
         fill_orbit_margins([(p, a.steady) for p, ca in zip(self.params, found, strict=True)
-                            for a in ca.attractors], self.settings)
+                            for a in ca.attractors], self.settings, self.backend)
 
 
 def gear_steady(res) -> Steady:
@@ -163,11 +164,12 @@ def gear_steady(res) -> Steady:
     )
 
 
-def fill_orbit_margins(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) -> None:
+def fill_orbit_margins(pairs: Sequence[tuple[ModelParameters, Steady | None]], st,
+                       backend=None) -> None:
     """Each settled periodic motion of ``pairs`` (its cell's parameters, the motion) that lacks
     a Floquet margin gets one, in place (``info["mu_max"]``, ``info["critical"]``), all in
-    shared kernel calls (:func:`gearsim.cell.verify.orbit_margins`); only with ``floquet``
-    ``"margin"``."""
+    shared kernel calls on ``backend`` (:func:`gearsim.cell.verify.orbit_margins`); only with
+    ``floquet`` ``"margin"``."""
     from gearsim.cell.verify import orbit_margins, wants_margin
 
     if st.floquet != "margin":
@@ -181,7 +183,7 @@ def fill_orbit_margins(pairs: Sequence[tuple[ModelParameters, Steady | None]], s
                         i.get("mu_max"), p.var_ratio):  # fmt: skip
             todo.append((p, s))
     got = orbit_margins([p for p, _ in todo], [s.period for _, s in todo],
-                        [s.final_state for _, s in todo], st)  # fmt: skip
+                        [s.final_state for _, s in todo], st, backend=backend)  # fmt: skip
     for (_, s), m in zip(todo, got, strict=True):
         if m is not None:
             s.info["mu_max"], s.info["critical"] = m
@@ -292,7 +294,8 @@ def newton_verified(pairs: Sequence[tuple[ModelParameters, Steady | None]], st) 
     return [o is not None for o in newton_orbits(pairs, st)]
 
 
-def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAttractors]:
+def bounded_clouds(params_list, found: list[CellAttractors], st, backend=None
+                   ) -> list[CellAttractors]:
     """A chaotic, quasi-periodic or unsettled motion of a cell where the mesh's linear limit is
     unstable (``mu_lin > 1``: the parametric instability of the nearly linear mesh near w = 2;
     motions that grow after their window look like clouds in it, and one growing inside its
@@ -321,7 +324,7 @@ def bounded_clouds(params_list, found: list[CellAttractors], st) -> list[CellAtt
     res = simulate_cells([params_list[c] for c, _, _ in todo],
                          settings=st.with_(transient_continuation=st.transient),
                          u0=[np.asarray(found[c].starts[i], dtype=float)[:10]
-                             for c, _, i in todo])  # fmt: skip
+                             for c, _, i in todo], backend=backend)  # fmt: skip
     gone: dict[int, set[int]] = {}
     for (c, a, i), r in zip(todo, res, strict=True):
         found[c].start_periods_run[i] += int(r.periods)  # the long run is the start's too

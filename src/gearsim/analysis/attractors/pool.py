@@ -508,7 +508,7 @@ def map_gear_cells(
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
                        opts.early, stats, seeds, neighbours)  # fmt: skip
         run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,
-                 stats=stats)  # fmt: skip
+                 stats=stats, backend=system.backend)  # fmt: skip
     for cell in cells:
         if np.any(cell.labels == -2) or cell.parked:
             raise RuntimeError("attractor pool ended with unlabelled starts")  # a bug, not input
@@ -518,4 +518,4 @@ def map_gear_cells(
                      [c.known for c in cells], [c.cont for c in cells])  # fmt: skip
     system.fill_margins(found)
     found = [least_periods(ca, opts.merge_rtol) for ca in found]
-    return bounded_clouds(params_list, found, st)
+    return bounded_clouds(params_list, found, st, system.backend)

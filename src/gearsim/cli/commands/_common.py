@@ -42,13 +42,14 @@ def add_device_argument(p: argparse.ArgumentParser) -> None:
 
 
 def select_device(args: argparse.Namespace, study: Study):
-    """The command's device (``--device``, else ``execution.device``), made the process's
-    (:func:`gearsim.numerics.device.select`; cuda that cannot run is one line, exit 2)."""
-    from gearsim.numerics.device import select
+    """The lanes backend of the command's device (``--device``, else the study's
+    ``execution.device``; :func:`gearsim.numerics.backend.select`: cuda that cannot run is one
+    line, exit 2)."""
+    from gearsim.numerics.backend import select
 
-    if getattr(args, "device", None):
-        return select(args.device, "--device")
-    return select(study.config.get("execution", {}).get("device", "cpu"), "execution.device")
+    asked = getattr(args, "device", None)
+    return select(study.with_device(asked).execution.device,
+                  "--device" if asked else "execution.device")
 
 
 def add_parameter_arguments(p: argparse.ArgumentParser, *, integration: bool = True) -> None:

@@ -61,16 +61,17 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress(label, total)
     started, t0 = parquet.now_iso(), time.perf_counter()
     address = study.config["cluster"].get("scheduler_address")
-    # on the GPU the finder's lane pools run in this process (no dask workers)
-    gpu = select_device(args, study).kind == "cuda"
+    backend = select_device(args, study)  # a GPU's lane pools run in this process
     df, workers = at.run_tile_job(specs, progress=progress, workers=args.workers,
-                                  address=address, in_process=gpu or args.no_cluster
-                                  or (args.workers == 1 and not address))  # fmt: skip
+                                  address=address, backend=backend,
+                                  in_process=args.no_cluster or (args.workers == 1
+                                                                 and not address))  # fmt: skip
     progress.close()
     wall = time.perf_counter() - t0
     prov = at.tile_provenance(study, args.plane, args.tile, cells=total,
                               forward_states=tile_df is not None, workers=workers,
-                              started=started, finished=parquet.now_iso(), wall_s=wall)
+                              started=started, finished=parquet.now_iso(), wall_s=wall,
+                              device=backend.record())
     parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
     print(f"{label}: wrote {out} ({total} cells, {len(df)} attractor rows in {wall:.1f} s)",
           file=sys.stderr, flush=True)  # fmt: skip

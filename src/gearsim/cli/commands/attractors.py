@@ -14,13 +14,14 @@ HELP = (
 
 
 def add_multistability_arguments(p: argparse.ArgumentParser) -> None:
-    """``--omega``, the shared parameter options, ``--transient``, ``--full`` (shared with
-    ``gearsim basins``)."""
-    from gearsim.cli.commands._common import add_parameter_arguments
+    """``--omega``, the shared parameter options, ``--device``, ``--transient``, ``--full``
+    (shared with ``gearsim basins``)."""
+    from gearsim.cli.commands._common import add_device_argument, add_parameter_arguments
 
     p.add_argument("--omega", "-w", type=float, default=None,
                    help="dimensionless mesh frequency w (or --set w=W, or --gear with --rpm)")
     add_parameter_arguments(p, integration=False)
+    add_device_argument(p)
     p.add_argument("--transient", type=int, default=150,
                    help="mesh periods of transient of a start before measuring (default 150)")
     p.add_argument("--full", action="store_true",
@@ -36,8 +37,10 @@ def resolve(args: argparse.Namespace):
 
 
 def load_point(args: argparse.Namespace):
-    """Parameters and settings of a multistability command: the shared parameter resolution
-    and the study's integration settings (RK4, the production path) with ``--transient``."""
+    """Parameters, their source, settings and lanes backend of a multistability command: the
+    shared parameter resolution, the study's integration settings (RK4, the production path)
+    with ``--transient``, and the starts' device (``--device`` or ``execution.device``)."""
+    from gearsim.cli.commands._common import select_device
     from gearsim.dynamics.parameters import ParameterError
 
     if args.transient < 0:
@@ -45,7 +48,7 @@ def load_point(args: argparse.Namespace):
     r = resolve(args)
     # the study's settings (config/config.yaml: RK4, 192 steps per period), this transient
     settings = r.study.settings.with_(method="rk4", transient=int(args.transient))
-    return r.params, r.source, settings
+    return r.params, r.source, settings, select_device(args, r.study)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -62,10 +65,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.starts < 1 or args.starts > 1_000_000:
         raise ParameterError(f"--starts = {args.starts} must be in [1, 1000000]")
-    params, source, settings = load_point(args)
+    params, source, settings, backend = load_point(args)
     t0 = time.perf_counter()
     options = FinderOptions(starts=args.starts, seed=args.seed, early=not args.full)
-    ca = find_attractors(params, options, settings=settings)
+    ca = find_attractors(params, options, settings=settings, backend=backend)
     elapsed = time.perf_counter() - t0
     if args.json:
         out = {

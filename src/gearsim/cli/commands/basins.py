@@ -36,11 +36,11 @@ def run(args: argparse.Namespace) -> int:
     from gearsim.presentation.figures.multistability import figure_basins
     from gearsim.presentation.figures.style import save_figure
 
-    params, source, settings = load_point(args)
+    params, source, settings, backend = load_point(args)
     t0 = time.perf_counter()
     grid = basin_grid(params, n=args.n, settings=settings,
                       box=None if args.box is None else tuple(args.box),
-                      options=FinderOptions(early=not args.full))  # fmt: skip
+                      options=FinderOptions(early=not args.full), backend=backend)  # fmt: skip
     elapsed = time.perf_counter() - t0
     out = write_basin_grid(grid, args.out)
     att = grid.attractor_table()

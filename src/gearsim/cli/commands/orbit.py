@@ -8,7 +8,12 @@ import time
 
 from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
 from gearsim.cell.simulate import simulate_cell
-from gearsim.cli.commands._common import add_parameter_arguments, command_parameters
+from gearsim.cli.commands._common import (
+    add_device_argument,
+    add_parameter_arguments,
+    command_parameters,
+    select_device,
+)
 
 NAME = "orbit"
 HELP = (
@@ -31,6 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--period", "-n", type=int, default=None,
                    help="period in mesh periods (default: the period simulated from rest)")
     add_orbit_parameter_arguments(p)
+    add_device_argument(p)
     p.add_argument("--json", action="store_true", help="print the result as JSON")
 
 
@@ -41,6 +47,7 @@ def resolve(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> int:
     r = resolve(args)
+    select_device(args, r.study)  # a device that cannot run is one line; one orbit's lanes: CPU
     params, source = r.params, r.source
     st = shooting_settings(args.rtol)
     t0 = time.perf_counter()

@@ -12,10 +12,12 @@ import numpy as np
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION, KMAX_READINGS
 from gearsim.cell.simulate import simulate_cell, trajectory
 from gearsim.cli.commands._common import (
+    add_device_argument,
     add_parameter_arguments,
     check_output_path,
     command_parameters,
     json_safe,
+    select_device,
     settings_from_args,
 )
 from gearsim.errors import UsageError
@@ -32,6 +34,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "otherwise required unless --set w=... or the study's parameters give it)",
     )
     add_parameter_arguments(p)
+    add_device_argument(p)
     p.add_argument(
         "--out",
         "-o",
@@ -64,6 +67,7 @@ def resolve(args: argparse.Namespace):
 def run(args: argparse.Namespace) -> int:
     out = check_output_path(args.out) if args.out else None
     r = resolve(args)
+    select_device(args, r.study)  # a device that cannot run is one line; one cell runs here
     params, source, gear = r.params, r.source, r.gear
     settings = settings_from_args(args, r.study)
     t0 = time.perf_counter()

@@ -80,15 +80,15 @@ def run(args: argparse.Namespace) -> int:
     check_hand_outputs(job.outs, replace=args.replace, elsewhere="--out PATH")  # a run's tile
     for out in job.outs:
         check_new_file(out, need=0)  # not a folder, no file in the way (the folder not yet made)
-    device = select_device(args, study).kind
-    where = tile_job.placement(job, device=device, workers=args.workers,
-                               scheduler=args.scheduler, no_cluster=args.no_cluster)
+    backend = select_device(args, study)
+    where = tile_job.placement(job, backend, workers=args.workers, scheduler=args.scheduler,
+                               no_cluster=args.no_cluster)
     if where.note:
         _say(where.note)
     for k, out in enumerate(job.outs):  # every argument checked; room before any simulation
         check_new_file(out, need=job.space(k))
     progress = Progress(job.label, job.total)
-    tiles = tile_job.run(job, where, device=device, progress=progress, say=_say)
+    tiles = tile_job.run(job, where, backend, progress=progress, say=_say)
     progress.close()
     for plane, out, (df, prov) in zip(job.planes, job.outs, tiles, strict=True):
         parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})

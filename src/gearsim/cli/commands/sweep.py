@@ -7,9 +7,11 @@ import argparse
 import sys
 
 from gearsim.cli.commands._common import (
+    add_device_argument,
     add_parameter_arguments,
     check_new_file,
     command_parameters,
+    select_device,
 )
 from gearsim.cli.commands._progress import Progress
 from gearsim.results import parquet
@@ -24,6 +26,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     what.add_argument("--name", help="sweep name (a key of `sweeps:`)")
     what.add_argument("--points", metavar="FIG", help="point set name (a key of `points:`)")
     add_parameter_arguments(p, integration=False)
+    add_device_argument(p)
     p.add_argument(
         "--out",
         "-o",
@@ -61,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
     out = check_new_file(args.out or sweep_job.default_out(study, args.name, args.points))
     n = sweep_job.size(study, args.name, args.points)
     progress = Progress(f"sweep {args.name}" if args.name else f"points {args.points}", n)
-    df, prov = sweep_job.run(study, args.name, args.points, recording, progress)
+    backend = select_device(args, study)
+    df, prov = sweep_job.run(study, args.name, args.points, recording, progress, backend)
     progress.close()
     parquet.write_parquet(df, out, {parquet.PROVENANCE_KEY: prov})
     print(f"{prov['kind']} {prov['name']}: wrote {out} ({len(df)} rows in {prov['wall_s']:.1f} s)",
