@@ -189,7 +189,8 @@ def compare(pages: list[str], repeats: int) -> dict:
     return out
 
 
-def readout(page_path: Path, catalogue: str, cells: int, seed: int) -> dict:
+def readout(page_path: Path, catalogue: str, cells: int, seed: int,
+            motions: tuple[str, ...] = ()) -> dict:
     """Hover ``cells`` random cells of every plane of the page; each readout value against the
     catalogue's, formatted to the digits the page shows."""
     import re
@@ -221,6 +222,8 @@ def readout(page_path: Path, catalogue: str, cells: int, seed: int) -> dict:
             time.sleep(0.1)
         for plane in driver.execute_script("return Object.keys(window.GEARSIM.planes);"):
             rows = cat[cat["plane"] == plane]
+            if motions:
+                rows = rows[rows["motion"].isin(motions)]
             rec = []
             for _, r in rows.iloc[rng.choice(len(rows), size=min(cells, len(rows)),
                                               replace=False)].iterrows():
@@ -274,6 +277,8 @@ def main() -> None:
     r.add_argument("--catalogue", default="results/catalogue.sqlite")
     r.add_argument("--cells", type=int, default=20)
     r.add_argument("--seed", type=int, default=54)
+    r.add_argument("--motion", nargs="+", default=(),
+                   help="sample only cells of these motions (e.g. diverged unsettled)")
     b = sub.add_parser("stand-in", help="a stand-in for the default run's two planes")
     b.add_argument("--source", required=True, help="results directory of a computed run")
     b.add_argument("--plane", required=True,
@@ -289,9 +294,12 @@ def main() -> None:
     before = loadavg()
     if args.what == "readout":
         rec = {"page": args.page, "catalogue": args.catalogue, "seed": args.seed,
-               "planes": readout(Path(args.page), args.catalogue, args.cells, args.seed)}
+               "motions": list(args.motion),
+               "planes": readout(Path(args.page), args.catalogue, args.cells, args.seed,
+                                 tuple(args.motion))}
         RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "explorer_readout.json").write_text(json.dumps(rec, indent=1))
+        name = "explorer_readout" + ("_" + "_".join(args.motion) if args.motion else "")
+        (RESULTS / f"{name}.json").write_text(json.dumps(rec, indent=1))
         for plane, r in rec["planes"].items():
             print(f"{plane}: {r['equal']} of {r['cells']} random cells show the catalogue's "
                   "DC, Kmax and lambda to the last shown digit")
