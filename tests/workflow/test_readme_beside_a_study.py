@@ -85,7 +85,7 @@ def test_readme_commands_beside_a_finished_study(beside, tmp_path):
                  "config/tiny.yaml", "config/mine2.yaml", "--replace")
     assert r.returncode == 0, r.stderr
     planted = _files(wd)
-    r = smk_in(wd, "--cores", "2", "--configfile", "config/tiny.yaml", "results/wb/cells.parquet",
+    r = smk_in(wd, "results/wb/cells.parquet", "--cores", "2", "--configfile", "config/tiny.yaml",
                check=False)
     err = [ln for ln in r.stderr.splitlines() if ln.startswith("gearsim: error:")]
     assert r.returncode == 2 and len(err) == 1, r.stdout[-2000:] + r.stderr[-2000:]
@@ -93,7 +93,7 @@ def test_readme_commands_beside_a_finished_study(beside, tmp_path):
     assert f"`rm {tile}`" in err[0] and "nothing was removed" in err[0]
     assert _files(wd) == planted  # results/wb/cells.parquet and the rest still there
     os.remove(wd / tile)  # the repair, as named
-    smk_in(wd, "--cores", "2", "--configfile", "config/tiny.yaml", "results/wb/cells.parquet")
+    smk_in(wd, "results/wb/cells.parquet", "--cores", "2", "--configfile", "config/tiny.yaml")
     assert _files(wd)[tile] != planted[tile]
     assert pd.read_parquet(wd / "results/wb/cells.parquet").shape[0] == 64
 
