@@ -130,8 +130,10 @@ def test_readme_commands_beside_a_finished_study(beside, tmp_path):
     # --- 5. Ctrl-C on refine-orbits, then the same command resumes
     cmd = ["refine-orbits", "--plane", "wb", "--cells", "results/wb/cells.parquet",
            "--configfile", "config/tiny.yaml", "--every", "1", "--out", "wb_orbits.parquet"]
+    # SIGINT as a terminal delivers it (a shell's background job would inherit it ignored)
     proc = subprocess.Popen([sys.executable, "-m", "gearsim", *cmd], cwd=wd, env=_env(),
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     lines = []
     while True:
         line = proc.stderr.readline()
