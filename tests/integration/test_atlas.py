@@ -86,3 +86,44 @@ def test_face_grazing_curve_is_the_closed_form(tmp_path):
     codim2 = pd.read_parquet(tmp_path / "orbits" / "wxi_codim2.parquet")
     assert "conditions" in codim2.columns
     assert (tmp_path / "orbits" / "wxi_curves.png").is_file()
+
+
+def test_pd_grazing_point_where_the_doubling_orbit_first_touches_the_back_flank():
+    """A codimension-2 point with a known answer. An orbit that never reaches x = -b sees the
+    dead zone only through x - b: shifting x by b removes b from its equations, so the 1T
+    orbit's period doubling keeps its w (w*) as b falls, the orbit shifted by the change of b,
+    until its lowest turning point x_min(b) = x_min(1) - 1 + b meets -b, at
+    b* = (1 - x_min(1)) / 2. The period-doubling curve followed down from b = 1 is lost there;
+    the point is located from its end by the Newton solve of the two conditions."""
+    from gearsim.analysis.atlas import AtlasOptions
+    from gearsim.analysis.atlas_seeds import Grid
+    from gearsim.analysis.bifcurves import follow_curve
+    from gearsim.analysis.codim2 import codim2_points
+    from gearsim.analysis.continuation import continue_orbit
+    from gearsim.analysis.continuation_options import Continuation
+    from gearsim.analysis.exact_landmarks import bifurcation_points
+    from gearsim.analysis.orbits import grazing_margin
+    from gearsim.analysis.relocation import section_state
+
+    one = STANDARD.with_(model="1dof")
+    br = continue_orbit(one, "w", 0.95, 1.1, n=1, config=Continuation(ds=0.02, switch_depth=0))
+    pd_pt = bifurcation_points(br).query("kind == 'period_doubling'").iloc[0]
+    x_min = grazing_margin(one.with_(w=pd_pt.value), section_state(pd_pt), 1).x_min
+    w_star, b_star = float(pd_pt.value), (1.0 - x_min) / 2.0
+    grid = Grid("w", "b", 0.1, 2.5, 400, 0.0, 1.0, 400)
+    c = follow_curve(one, pd_pt, "b", 0.0, step2=0.1, range2=(0.0, 1.0), range1=(0.1, 2.5),
+                     cell=(grid.dx, grid.dy), max_points=100)
+    assert c.attrs["end"] == "lost" and c["value2"].min() > b_star
+    end = {"curve": 0, "side": "last", "w": float(c["value"].iloc[-1]),
+           "y": float(c["value2"].iloc[-1]), "state": c.attrs["last_state"],
+           "tangent": c.attrs["last_tangent"], "end": "lost", "kind": "period_doubling",
+           "boundary": "", "period": 1}
+    pts = codim2_points(one, c.assign(curve=0), grid, AtlasOptions(), [end])
+    assert len(pts) == 1
+    p = pts.iloc[0]
+    assert p["kind"] == "pd_grazing" and p["boundary"] == "x=-b" and p["converged"]
+    assert abs(p["value"] - w_star) < 1e-6 and abs(p["value2"] - b_star) < 1e-6
+    assert p["residual"] < 1e-8 and p["step"] < 1e-6
+    assert end["codim2"] == 0 and p["gap_cells"] < 0.5  # the curve's end converged to it
+    mu = np.array(p["mu_re"]) + 1j * np.array(p["mu_im"])
+    assert np.min(np.abs(mu + 1.0)) < 1e-8

@@ -227,3 +227,18 @@ def test_the_chaotic_band_is_located_from_both_ends(monkeypatch):
     assert out["exit"]["doublings"][1]["ratio"] is None
     assert [d["ratio"] for d in out["exit"]["doublings"][2:]] == [pytest.approx(2.5),
                                                                   pytest.approx(5.0)]
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--cells", "missing.parquet"], ["missing.parquet", "no such file"]),
+    (["--cells", "missing.parquet", "--depth", "9"], ["--depth = 9", "[0, 6]"]),
+    (["--cells", "missing.parquet", "--plane", "nope"], ["unknown plane 'nope'"]),
+])
+def test_atlas_command_refuses_bad_input_in_one_line(tmp_path, capsys, extra, words):
+    from gearsim.cli.main import main
+
+    args = ["atlas", "--plane", "wb", "--out", str(tmp_path / "a.json"), *extra]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and all(w in err[0] for w in words), err
+    assert not list(tmp_path.iterdir())

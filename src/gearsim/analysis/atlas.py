@@ -81,6 +81,7 @@ class AtlasOptions:
     deviation: float = 0.3  # the curve polygon's distance from the curve (step control)
     max_points: int = 800  # points of a curve half
     method: str = "secant"
+    fallback: int = 0  # secant failures of a curve half retried by a windowed continuation
     config: Continuation = field(default_factory=Continuation)
 
 
@@ -221,7 +222,8 @@ def _follow_both(base: ModelParameters, grid: Grid, s: dict, opts: AtlasOptions,
                          max_points=opts.max_points, method=opts.method,
                          range2=(grid.y_min, grid.y_max), range1=(grid.x_min, grid.x_max),
                          cell=(grid.dx, grid.dy), deviation=opts.deviation,
-                         tangent=(sign * t0[0], sign * t0[1]), avoid=avoid)
+                         tangent=(sign * t0[0], sign * t0[1]), avoid=avoid,
+                         fallback=opts.fallback)
         halves.append(c)
         if c.attrs.get("end") == "closed":
             break
@@ -353,6 +355,9 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
 
     _drive(base, grid, states, opts, next_task, done)
     cur = _curve_table(curves, grid)
+    ends = [_end_of(cid, side, hv, grid, c[3])
+            for cid, c in enumerate(curves)
+            for side, hv in zip(("first", "last"), (c[2][0], c[2][-1]), strict=True)]
     edges = edges.assign(curve=_explaining_curve(edges, curves, opts))
     wall = time.perf_counter() - t0
     stats = {"edges": len(edges), "candidates": len(cand), "seeds": len(seeds),
@@ -364,36 +369,78 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
     br = (pd.concat(branches, ignore_index=True) if branches
           else pd.DataFrame(columns=[*BRANCH_COLUMNS, "name2", "value2"]))
     return {"curves": cur, "seeds": seed_df, "edges": edges, "reasons": reasons,
-            "stats": stats, "branches": br}
+            "stats": stats, "branches": br, "ends": ends}
+
+
+def _end_of(cid: int, side: str, half: pd.DataFrame, grid: Grid, s: dict) -> dict[str, Any]:
+    """A curve end: its last point, orbit state and direction, the kind and why it ended."""
+    last = half.iloc[-1]
+    return {"curve": cid, "side": side, "w": float(last["value"]),
+            "y": float(last["value2"]), "state": half.attrs.get("last_state"),
+            "tangent": half.attrs.get("last_tangent"), "end": half.attrs.get("end", ""),
+            "kind": s["kind"], "boundary": s["boundary"], "period": s["period"]}
+
+
+def apply_codim2(curves: pd.DataFrame, ends: list[dict], grid: Grid) -> pd.DataFrame:
+    """The curve table with each end that converged to a codimension-2 point ending there:
+    ``end_*`` ``codim2``, ``codim2_*`` its id, and the curve point located at it (the
+    first condition's point where the second vanishes) added as the curve's end point."""
+    out = []
+    for cid, c in curves.groupby("curve", sort=True):
+        c = c.sort_values("seq")
+        for e in ends:
+            if e["curve"] != cid or "codim2" not in e:
+                continue
+            pt = e["codim2_point"]
+            r = pt["row"]
+            add = {**c.iloc[0 if e["side"] == "first" else -1].to_dict(),
+                   "value": pt["w"], "value2": pt["y"], "x": float(r["x"]),
+                   "v": float(r["v"]), "mu_max": float(r["mu_max"]),
+                   "mu_re": list(r["mu_re"]), "mu_im": list(r["mu_im"]),
+                   "stable": bool(r["stable"])}
+            side = e["side"]
+            add[f"end_{side}"] = "codim2"
+            c = c.assign(**{f"end_{side}": "codim2", f"codim2_{side}": int(e["codim2"]),
+                            f"end_{side}_detail": f"{c[f'end_{side}_detail'].iloc[0]}; "
+                            f"ends at codimension-2 point {e['codim2']}"})
+            add = {**add, f"codim2_{side}": int(e["codim2"]),
+                   f"end_{side}_detail": c[f"end_{side}_detail"].iloc[0]}
+            row = pd.DataFrame([add], columns=c.columns)
+            c = pd.concat([row, c] if side == "first" else [c, row], ignore_index=True)
+        out.append(c.assign(seq=np.arange(len(c))))
+    if not out:
+        return curves
+    return pd.concat(out, ignore_index=True)[list(curves.columns)]
 
 
 def _drive(base, grid, states, opts: AtlasOptions, next_task, done) -> None:
-    """Run tasks until none is left or the budget is spent (``workers`` processes)."""
-    if opts.workers <= 1:
-        while not opts.config.out_of_budget():
-            t = next_task([])
-            if t is None:
-                return
-            done(t, _run_task((base, grid, t, _states_near(states, t), opts)))
-        return
-    import multiprocessing as mp
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    """Run tasks until none is left or the budget is spent, in rounds of ``workers`` tasks
+    (processes) whose results are taken in the order they were sent: the atlas does not
+    depend on which process finishes first."""
+    pool = None
+    if opts.workers > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
 
-    ctx = mp.get_context("fork")
-    inflight: dict[Any, _Task] = {}
-    with ProcessPoolExecutor(max_workers=opts.workers, mp_context=ctx) as ex:
-        while True:
-            while len(inflight) < opts.workers and not opts.config.out_of_budget():
-                t = next_task(list(inflight.values()))
+        pool = ProcessPoolExecutor(max_workers=opts.workers, mp_context=mp.get_context("fork"))
+    try:
+        while not opts.config.out_of_budget():
+            batch: list[_Task] = []
+            while len(batch) < opts.workers:
+                t = next_task(batch)
                 if t is None:
                     break
-                inflight[ex.submit(_run_task, (base, grid, t, _states_near(states, t),
-                                               opts))] = t
-            if not inflight:
+                batch.append(t)
+            if not batch:
                 return
-            fin, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
-            for f in fin:
-                done(inflight.pop(f), f.result())
+            args = [(base, grid, t, _states_near(states, t), opts) for t in batch]
+            results = (list(pool.map(_run_task, args)) if pool is not None and len(batch) > 1
+                       else [_run_task(a) for a in args])
+            for t, res in zip(batch, results, strict=True):
+                done(t, res)
+    finally:
+        if pool is not None:
+            pool.shutdown()
 
 
 def _states_near(states: dict, t: _Task) -> dict:

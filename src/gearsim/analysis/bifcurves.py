@@ -151,9 +151,9 @@ class _Relocator:
     first two failures (and the method for Neimark-Sacker points); counts what it used."""
 
     def __init__(self, kind: str, boundary: str, n: int, method: str, cfg: Continuation,
-                 wtol: float = 1e-9):
+                 wtol: float = 1e-9, fallback: int = 2):
         self.kind, self.boundary, self.n, self.method, self.cfg = kind, boundary, n, method, cfg
-        self.wtol = wtol
+        self.wtol, self.fallback = wtol, fallback
         self.stats = {"secant": 0, "secant_failed": 0, "window": 0, "swapped": 0}
         self.slopes: dict[str, float] = {}
 
@@ -172,7 +172,7 @@ class _Relocator:
             stats["secant" if found is not None else "secant_failed"] += 1
             # the windowed continuation is a fallback for the first two failures only: a
             # point that neither finds is mostly the curve's end (a codimension-2 point)
-            if found is None and stats["secant_failed"] > 2:
+            if found is None and stats["secant_failed"] > self.fallback:
                 return None
         if found is None:
             for ww in (win, 2 * win):
@@ -202,6 +202,7 @@ def follow_curve(
     deviation: float = 0.3,
     tangent: Sequence[float] | None = None,
     avoid: Sequence[np.ndarray] = (),
+    fallback: int = 2,
 ) -> pd.DataFrame:
     """Follow one located bifurcation point across the plane ``(name, name2)``.
 
@@ -226,6 +227,7 @@ def follow_curve(
     (the step halved below ``step_min``: a codimension-2 point, or the branch ceasing to
     exist). ``avoid``: polylines (cell units) of curves of the same kind already followed; two
     points in a row within half a cell of one of them end the curve (``joins``).
+    ``fallback``: how many failures of the secant the windowed continuation retries.
     """
     if name2 not in ModelParameters.names():
         raise ParameterError(f"second parameter 'name2' = {name2!r} is not a model parameter")
@@ -249,7 +251,7 @@ def follow_curve(
     win_min = {name: (window if window is not None else geo.c1),
                name2: (window * geo.c2 / geo.c1 if window is not None else geo.c2)}
     cfg = _tracking_config(config, kind, win_min[name])
-    locate = _Relocator(kind, boundary, n, method, cfg)
+    locate = _Relocator(kind, boundary, n, method, cfg, fallback=fallback)
     stats = locate.stats
     pts: list[dict[str, Any]] = []
 

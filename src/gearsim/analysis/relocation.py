@@ -70,6 +70,15 @@ def pd_test(M: np.ndarray) -> float | None:
     return float(real[np.argmin(np.abs(real + 1.0))] + 1.0)
 
 
+def fold_test(M: np.ndarray) -> float | None:
+    """``mu - 1`` of the real multiplier nearest +1 (None without a real one)."""
+    mu = np.linalg.eigvals(M)
+    real = mu[np.abs(mu.imag) <= 1e-9 * np.maximum(np.abs(mu), 1.0)].real
+    if not len(real):
+        return None
+    return float(real[np.argmin(np.abs(real - 1.0))] - 1.0)
+
+
 def _bracket(lo, hi, a: tuple[float, float], b: tuple[float, float]):
     """The sign-change bracket ``(lo, hi)`` of a secant search after trial ``b = (x, f)``
     followed trial ``a`` (None, None until the first sign change)."""
@@ -142,11 +151,11 @@ class _TrialFunction:
             if float(np.max(np.abs(yh[:2] - y[:2]))) < 1e-7 * (1.0 + abs(y[0])):
                 return None
         try:
-            if self.kind == "period_doubling":
+            if self.kind in ("period_doubling", "fold"):
                 if M is None:
                     _, M = section_map(pw, y, n, settings, tangent_error=tangent_error)
                     self.jac.append(M)
-                f = pd_test(M)
+                f = pd_test(M) if self.kind == "period_doubling" else fold_test(M)
             else:
                 g = grazing_margin(pw, y, n, settings, substeps=self.cfg.substeps).signed
                 f = g.get(self.boundary)
@@ -155,6 +164,15 @@ class _TrialFunction:
         if f is None or not math.isfinite(f):
             return None
         return y, M, float(f)
+
+
+def test_value(params: ModelParameters, kind: str, boundary: str, n: int, guess: np.ndarray,
+               cfg: Continuation, tangent_error: bool | None = None):
+    """``(y, M, f)`` at ``params``: the period-``n`` orbit corrected by Newton from ``guess``,
+    its monodromy (None for a grazing found by chord Newton) and the test function of
+    ``kind`` (``period_doubling``: ``mu + 1``; ``fold``: ``mu - 1``; ``grazing``: the signed
+    distance of the turning point nearest ``boundary``); None where there is no such orbit."""
+    return _TrialFunction(params, kind, boundary, n, "w", cfg, tangent_error)(params.w, guess)
 
 
 def relocate_secant(

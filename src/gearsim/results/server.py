@@ -147,15 +147,16 @@ def psycopg_module():
     return psycopg
 
 
-def connect(url: str, *, autocommit: bool = False):
-    """A psycopg connection to ``url``; unreachable or refused is one line."""
+def connect(url: str, *, autocommit: bool = False, writing: bool = False):
+    """A psycopg connection to ``url``; unreachable or refused is one line (``writing``: saying
+    that nothing was changed)."""
     psycopg = psycopg_module()
     try:
         return psycopg.connect(autocommit=autocommit, **conninfo(url))
     except psycopg.Error as exc:
+        tail = "; nothing was changed" if writing else ""
         raise CatalogueError(
-            f"{safe_url(url)}: cannot connect ({_scrub(one_line(exc), url)}); nothing was changed"
-        ) from None
+            f"{safe_url(url)}: cannot connect ({_scrub(one_line(exc), url)}){tail}") from None
 
 
 def fault_line(exc: BaseException, url: str, what: str) -> str:

@@ -11,7 +11,13 @@ from typing import Any
 
 import pandas as pd
 
-from gearsim.analysis.atlas import ATLAS_COLUMNS, SEED_COLUMNS, AtlasOptions, plane_atlas
+from gearsim.analysis.atlas import (
+    ATLAS_COLUMNS,
+    SEED_COLUMNS,
+    AtlasOptions,
+    apply_codim2,
+    plane_atlas,
+)
 from gearsim.analysis.atlas_seeds import Grid
 from gearsim.analysis.bifcurves import CURVE_COLUMNS
 from gearsim.analysis.codim2 import CODIM2_COLUMNS, codim2_points
@@ -98,7 +104,8 @@ def run_atlas(study: Study, plane: str, cells_path: str | Path, *, kinds: tuple[
         opts = AtlasOptions(kinds=kinds, max_period=max_period, workers=workers, method=method,
                             config=cfg)
         atlas = plane_atlas(base, cells, grid, opts)
-        codim2 = codim2_points(base, atlas["curves"], grid, opts)
+        codim2 = codim2_points(base, atlas["curves"], grid, opts, atlas["ends"])
+        atlas["curves"] = apply_codim2(atlas["curves"], atlas["ends"], grid)
         reasons = atlas["reasons"]
         status = "budget" if atlas["stats"].get("budget") else "ok"
     wall = time.perf_counter() - t0
