@@ -37,7 +37,8 @@ def test_hand_command_stops_before_a_file_of_a_recorded_run(tmp_path, monkeypatc
         ip.check_hand_outputs([new, fig], replace=False, elsewhere="--outdir DIR")
     line = str(err.value)
     assert "\n" not in line
-    assert line.startswith(f"{fig}: made by the workflow (results/ holds a run's results)")
+    assert line.startswith(f"{fig}: made by the workflow (a file of the results of a run in "
+                           "results/)")
     assert "give --outdir DIR to write elsewhere, or --replace to replace it" in line
     assert fig.read_bytes() == b"png"
     ip.check_hand_outputs([fig], replace=True, elsewhere="--outdir DIR")  # asked: it may

@@ -281,9 +281,9 @@ def check_hand_outputs(paths: Iterable[str | Path], *, replace: bool, elsewhere:
     first = made[0]
     more = f" (and {len(made) - 1} more of its files)" if len(made) > 1 else ""
     raise UsageError(
-        f"{first}{more}: made by the workflow ({_shown(workflow_folder(first))}/ holds a run's "
-        f"results); nothing was written: give {elsewhere} to write elsewhere, or {allow} to "
-        "replace it")
+        f"{first}{more}: made by the workflow (a file of the results of a run in "
+        f"{_shown(workflow_folder(first))}/); nothing was written: give {elsewhere} to write "
+        f"elsewhere, or {allow} to replace it")
 
 
 def _shown(folder: Path) -> str:

@@ -61,7 +61,6 @@ def run(args: argparse.Namespace) -> int:
         planes = {n: planes[n] for n in args.plane}
     if args.sweep is not None:
         sweeps = list(args.sweep)
-    check_hand_outputs([args.out], replace=args.replace, elsewhere="--out PATH")
     results = Path(args.results)
     missing = [str(results / p / "cells.parquet") for p in planes
                if not (results / p / "cells.parquet").is_file()]
@@ -71,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--results {results}: missing {', '.join(missing[:3])}"
                          + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
                          + " (run the pipeline first)")
+    check_hand_outputs([args.out], replace=args.replace, elsewhere="--out PATH")
     fixed = {k: dict(v.get("fixed") or {}) for k, v in (config.get("sweeps") or {}).items()}
     from gearsim.physical.units import config_gear
     from gearsim.presentation.report import build_report
