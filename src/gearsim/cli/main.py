@@ -44,8 +44,8 @@ DESCRIPTION = ("gearsim: the nonlinear dynamics of a curve-face gear pair over p
 KEPT = "files it had finished are kept; none is left half-written"
 #: Exit status of a command stopped by Ctrl-C (128 + SIGINT, as the shell reports it)
 INTERRUPTED = 130
-#: About how long the kernels' first compile takes (``gearsim compile`` on one free core of a
-#: 2020s x86 CPU; docs/decisions.md): what the notice before it says
+#: About how long the kernels' first compile takes, what the notice before it says (41 s of CPU
+#: for the first ``gearsim point`` of an empty cache on an AMD EPYC; docs/decisions.md)
 COMPILE_SECONDS = 40
 
 
