@@ -105,6 +105,13 @@ def test_first_compile_says_what_and_how_long(monkeypatch):
         event.unregister("numba:compile", notice)
     lines = out.getvalue().splitlines()
     assert len(lines) == 1, lines
+    # a command run in-process leaves no listener behind (its stream may be gone)
+    from gearsim.cli.commands import query
+
+    monkeypatch.setattr(query, "run", lambda args: njit(lambda x: x - 3)(3))  # 0: success
+    before = len(event._registered["numba:compile"])
+    assert cli.main(["query", "--format", "csv"]) == 0
+    assert len(event._registered["numba:compile"]) == before
     assert lines[0].startswith("gearsim: compiling the numerical kernels for this CPU, once: "
                                f"about {cli.COMPILE_SECONDS} s")
     assert "later runs load them from" in lines[0]
