@@ -3,6 +3,7 @@ helpers its stages share: the JSON record, the study, the settings, lanes of giv
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import multiprocessing
@@ -99,14 +100,14 @@ def _plane_specs(cols: int | None, rows_per_plane: int | None = None):
     if rows_per_plane is not None:
         keep = []
         for plane in ("wb", "wxi"):
-            ps = [s for s in specs if s["plane"] == plane]
+            ps = [s for s in specs if s.plane == plane]
             step = max(1, len(ps) // rows_per_plane)
             keep += ps[::step][:rows_per_plane]
         specs = keep
     if cols is not None:
-        specs = [dict(s, x_values=s["x_values"][:cols]) for s in specs]
-    settings = _settings().to_dict()
-    return [dict(s, settings=settings) for s in specs]
+        specs = [dataclasses.replace(s, x_values=s.x_values[:cols]) for s in specs]
+    settings = _settings()
+    return [dataclasses.replace(s, settings=settings) for s in specs]
 
 
 def _count_launches() -> dict:
@@ -142,7 +143,8 @@ def _plane_key(r):
 
 def _scale_plane(args, specs):
     if args.smoke:
-        return [dict(s, x_values=s["x_values"][:3]) for s in specs[:: max(1, len(specs) // 4)]]
+        return [dataclasses.replace(s, x_values=s.x_values[:3])
+                for s in specs[:: max(1, len(specs) // 4)]]
     return specs
 
 
@@ -152,20 +154,21 @@ def stage_planes(args) -> dict:
 
     gpu = select("cuda")
     full = _scale_plane(args, _plane_specs(None))
-    nx = len(full[0]["x_values"])
+    nx = len(full[0].x_values)
     cells_full = nx * len(full)
     out = {"rows": len(full), "cells_full": cells_full}
     # a first pass of a few cells a row sizes the pass that fits the budget
     k0 = min(nx, 2 if args.smoke else 16)
     t0 = time.perf_counter()
-    simulate_rows_batched([dict(s, x_values=s["x_values"][:k0]) for s in full], backend=gpu)
+    simulate_rows_batched([dataclasses.replace(s, x_values=s.x_values[:k0]) for s in full],
+                          backend=gpu)
     t_first = time.perf_counter() - t0
     per_col = t_first / k0
     k = int(min(nx, max(k0, args.plane_budget / max(per_col, 1e-9))))
     out["first_pass"] = {"cols": k0, "wall_s": round(t_first, 3)}
     launches = _count_launches()
     t0 = time.perf_counter()
-    recs = simulate_rows_batched([dict(s, x_values=s["x_values"][:k]) for s in full],
+    recs = simulate_rows_batched([dataclasses.replace(s, x_values=s.x_values[:k]) for s in full],
                                  backend=gpu)
     wall = time.perf_counter() - t0
     gpu = {_plane_key(r)[:3]: _plane_key(r)[3:] for r in recs}

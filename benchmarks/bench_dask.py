@@ -19,6 +19,7 @@ Usage: python benchmarks/bench_dask.py [--quick]
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -36,20 +37,12 @@ def rows_task(specs):
     import time as _t
 
     from gearsim.cell import chains
-    from gearsim.cell.simulate import IntegrationSettings
-    from gearsim.dynamics.parameters import ModelParameters
 
     t0 = _t.process_time()
     rows = []
     for spec in specs:
-        base = ModelParameters.from_mapping(dict(spec["params"]))
-        rows.append(
-            [
-                base.with_(**{spec["x_name"]: float(x), spec["y_name"]: float(spec["y_value"])})
-                for x in spec["x_values"]
-            ]
-        )
-    st = IntegrationSettings(**specs[0]["settings"])
+        rows.append(spec.cells())
+    st = specs[0].settings
     res = chains.simulate_rows(rows, settings=st)
     labels = [c.classification.label for r in res for c in r]
     from distributed import get_worker
@@ -130,9 +123,7 @@ def specs_for(config, stride, rows):
     cfg["tile_rows"] = rows
     # rows 10*rows ... (b around 0.4 for 16 rows)
     specs = tiles.row_specs(Study.of(cfg, ROOT), "wb", 10)
-    for s in specs:
-        s["x_values"] = s["x_values"][::stride]
-    return specs
+    return [dataclasses.replace(s, x_values=s.x_values[::stride]) for s in specs]
 
 
 def main(argv=None):
@@ -147,7 +138,7 @@ def main(argv=None):
     stride = 4 if args.quick else 2
     specs = specs_for(config, stride, 16)
     groups = [specs[:8], specs[8:]]
-    out["batched_cells"] = sum(len(s["x_values"]) for s in specs)
+    out["batched_cells"] = sum(len(s.x_values) for s in specs)
     for nw in (1, 2):
         wall, res, rss = run(nw, rows_task, groups)
         cpu = sum(r["cpu_s"] for r in res)
@@ -177,7 +168,7 @@ def main(argv=None):
     # scalar pipeline path
     sstride = 32 if args.quick else 16
     sspecs = specs_for(config, sstride, 16)
-    out["scalar_cells"] = sum(len(s["x_values"]) for s in sspecs)
+    out["scalar_cells"] = sum(len(s.x_values) for s in sspecs)
     for nw in (1, 2):
         wall, res, rss = run(nw, scalar_task, sspecs)
         cpu = sum(r["cpu_s"] for r in res)

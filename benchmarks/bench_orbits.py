@@ -82,7 +82,7 @@ def plane_tile_estimate(plane: str, rows: int = 8) -> dict:
     simulate_rows_batched(pick)
     c1, w1 = time.process_time(), time.perf_counter()
     return {"plane": plane, "rows": rows, "rows_total": ny, "cells_per_row": len(specs[0]
-            ["x_values"]), "rows_cpu_s": c1 - c0, "rows_wall_s": w1 - w0,
+            .x_values), "rows_cpu_s": c1 - c0, "rows_wall_s": w1 - w0,
             "plane_cpu_s_est": (c1 - c0) * ny / rows, "plane_wall_s_est": (w1 - w0) * ny / rows}
 
 

@@ -27,6 +27,7 @@ Usage: python benchmarks/bench_profile.py [--plane wb] [--j0 240] [--rows 24] [-
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from collections import defaultdict
@@ -205,8 +206,8 @@ def main(argv=None):
     LANE.clear()
     TANGENT.clear()
     spec = task_specs(Study.of(config), args.plane, args.tile, df)[0]
-    spec = {**spec, "cells": spec["cells"][: args.cells],
-            "forward_rows": spec["forward_rows"][: args.cells]}
+    spec = dataclasses.replace(spec, cells=spec.cells[: args.cells],
+                               forward_rows=spec.forward_rows[: args.cells])
     c0, w0 = time.process_time(), time.perf_counter()
     with stage("attr"):
         recs = cell_group_records(spec)
@@ -217,7 +218,7 @@ def main(argv=None):
     g = {("kernel (all of it)" if k == "attr:kernel" else k.split(":", 1)[-1]): v
          for k, v in T_CPU.items()}
     att = {
-        "cells": len(spec["cells"]), "starts": spec["starts"], "cpu_s": cpu,
+        "cells": len(spec.cells), "starts": spec.starts, "cpu_s": cpu,
         "wall_s": time.perf_counter() - w0, "periods_run": periods,
         "lane_use": use("attr"), "stages_cpu_s": g,
         "tangent_share": TANGENT["attr"] / max(LANE["attr:useful"], 1),

@@ -48,7 +48,7 @@ _CHAINS: dict[tuple, object] = {}  # a row's or a sweep's records, computed once
 def _row(study: Study, plane: str, j: int) -> dict:
     if (plane, j) not in _CHAINS:
         rows = int(study.config["tile_rows"])
-        specs = [s for s in tiles.row_specs(study, plane, j // rows) if s["j"] == j]
+        specs = [s for s in tiles.row_specs(study, plane, j // rows) if s.j == j]
         _CHAINS[plane, j] = {r["i"]: r for r in tiles.simulate_rows_batched(specs)}
     return _CHAINS[plane, j]
 

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from gearsim.cell.simulate import IntegrationSettings, simulate_cell
-from gearsim.dynamics.parameters import ModelParameters
+from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.study import config as gcfg
 from gearsim.study import grid as ggrid
 from gearsim.study import provenance as gprov
@@ -123,8 +123,8 @@ def test_new_plane_from_config_only():
     cfg = gschema.check_config(gschema.validate_schema(cfg), gcfg.study_root())
     assert ggrid.n_tiles({**cfg, "tile_rows": 2}, "eps_xi") == 2
     specs = gt.row_specs(gcfg.Study.of({**cfg, "tile_rows": 2}), "eps_xi", 1)
-    assert [s["j"] for s in specs] == [2]
-    assert specs[0]["params"]["w"] == 1.2 and specs[0]["x_name"] == "eps"
+    assert [s.j for s in specs] == [2]
+    assert specs[0].params.w == 1.2 and specs[0].x_name == "eps"
 
 
 def test_grid_and_tiles(tiny):
@@ -265,3 +265,25 @@ def test_tile_records_do_not_depend_on_the_worker_split(tiny, tmp_path, capsys):
     assert "in-process" in capsys.readouterr().err
     got = pd.read_parquet(out)
     pd.testing.assert_frame_equal(got[cols], whole[cols], check_dtype=False)
+
+
+def test_a_row_task_carries_the_studys_own_objects(tiny):
+    """A tile's row tasks hold the study's frozen parameters and settings as they are (no dict
+    round trip on the way to a worker: they pickle equal), and the method is a type whose
+    record reads as before (the settings' hash is unchanged)."""
+    import pickle
+
+    from gearsim.numerics.settings import Method
+
+    study = gcfg.Study.of(tiny)
+    spec = gt.row_specs(study, "wb", 0)[0]
+    assert spec.params == study.parameters(plane="wb").model and spec.settings is study.settings
+    again = pickle.loads(pickle.dumps(spec))
+    assert again == spec and again.settings.method is study.settings.method
+    assert IntegrationSettings(method="dp5").method is Method.DP5 and not Method.DP5.lanes
+    assert Method.RK4.lanes and Method("rk4") is Method.RK4
+    record = IntegrationSettings(method="rk4").to_dict()
+    assert type(record["method"]) is str and record["method"] == "rk4"
+    assert gprov.config_hash(record) == gprov.config_hash({**record, "method": "rk4"})
+    with pytest.raises(ParameterError, match="setting 'method' = 'euler'; allowed: dp5, rk4"):
+        IntegrationSettings(method="euler")

@@ -100,13 +100,12 @@ def test_margin_column_of_plane_cells_in_the_linear_limit():
     monodromy): ``exp(-xi 2 pi n / w)`` to 1e-8. The RK4 map's error decides the steps: at the
     study's 192 steps per period it is 1.2e-7 here (w = 0.6), at 384 7.7e-9, at 512 (this
     plane's setting) ~2.4e-9."""
-    from gearsim.study.tiles import simulate_rows_batched
+    from gearsim.study.tiles import RowSpec, simulate_rows_batched
 
     st = IntegrationSettings(method="rk4", steps_per_period=512, floquet="margin")
     base = _linear(1.0, 0.05)
-    specs = [{"plane": "linear", "tile": 0, "j": j, "params": base.to_dict(),
-              "settings": st.to_dict(), "x_name": "w", "x_values": [0.6, 0.9, 1.3, 1.7, 2.2],
-              "y_name": "xi", "y_value": xi} for j, xi in enumerate((0.03, 0.08))]  # fmt: skip
+    specs = [RowSpec("linear", 0, j, base, st, "w", (0.6, 0.9, 1.3, 1.7, 2.2), "xi", xi)
+             for j, xi in enumerate((0.03, 0.08))]
     records = simulate_rows_batched(specs)
     assert len(records) == 10
     for r in records:

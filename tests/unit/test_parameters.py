@@ -5,12 +5,12 @@ import math
 import pytest
 
 from gearsim.cell.simulate import IntegrationSettings
-from gearsim.dynamics.parameters import _RANGES, ModelParameters, ParameterError
+from gearsim.dynamics.parameters import PARAMETERS, ModelParameters, ParameterError
 
 BAD_COMMON = [float("nan"), float("inf"), -float("inf"), "abc", None, True]
 
 
-@pytest.mark.parametrize("name", sorted(_RANGES))
+@pytest.mark.parametrize("name", sorted(PARAMETERS))
 @pytest.mark.parametrize("bad", BAD_COMMON)
 def test_non_numbers_and_non_finite_values_are_rejected(name, bad):
     with pytest.raises(ParameterError) as err:
@@ -19,9 +19,9 @@ def test_non_numbers_and_non_finite_values_are_rejected(name, bad):
     assert f"'{name}'" in msg and "\n" not in msg
 
 
-@pytest.mark.parametrize("name", sorted(_RANGES))
+@pytest.mark.parametrize("name", sorted(PARAMETERS))
 def test_values_below_the_range_are_rejected_with_the_range(name):
-    lo, hi, lo_in, hi_in, _ = _RANGES[name]
+    lo, hi, lo_in, hi_in = PARAMETERS[name][:4]
     bad = lo - 1.0 if lo_in else lo
     with pytest.raises(ParameterError, match=rf"'{name}'.*allowed range") as err:
         ModelParameters(**{name: bad})
@@ -77,3 +77,14 @@ def test_integration_settings_are_defined_once():
     study = yaml.safe_load((root / "config/config.yaml").read_text())["integration"]
     assert IntegrationSettings(**study) == IntegrationSettings()
     assert set(study) == set(IntegrationSettings().to_dict())
+
+
+def test_the_column_dictionary_reads_each_parameters_meaning_from_its_definition():
+    """Every model parameter has its dictionary row, and that row is the parameter's own
+    definition (unit and meaning written once, in gearsim.dynamics.parameters)."""
+    from gearsim.results.columns import PARAMETERS as DICTIONARY
+
+    assert set(DICTIONARY) == {"model", *ModelParameters.names()}
+    for name, spec in PARAMETERS.items():
+        assert DICTIONARY[name] == (spec.unit, spec.meaning), name
+        assert spec.meaning and spec.unit

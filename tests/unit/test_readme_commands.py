@@ -36,7 +36,7 @@ def test_readme_commands_parse():
 def test_readme_lists_the_model_forms():
     """The README's table of model forms names every option with its range and default (the
     parameters' own), and the single-DOF model."""
-    from gearsim.dynamics.parameters import _RANGES, MODELS, ModelParameters, interval_text
+    from gearsim.dynamics.parameters import MODELS, PARAMETERS, ModelParameters, interval_text
 
     text = (ROOT / "README.md").read_text()
     assert "--set model=1dof" in text and set(MODELS) == {"6dof", "1dof"}
@@ -45,7 +45,7 @@ def test_readme_lists_the_model_forms():
         row = next((ln for ln in text.splitlines() if ln.startswith(f"| `{name}`")), None)
         assert row is not None, name
         cells = [c.strip() for c in row.strip("|").split("|")]
-        assert cells[1] == interval_text(_RANGES[name]), (name, cells)
+        assert cells[1] == interval_text(PARAMETERS[name]), (name, cells)
         assert float(cells[2]) == getattr(defaults, name), (name, cells)
 
 

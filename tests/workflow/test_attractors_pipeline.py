@@ -91,7 +91,7 @@ def test_every_thins_the_attractor_grid():
 
     cfg = load_config(["config/config.yaml", "config/tiny.yaml"],
                       {"planes": {"wb": {"multistability": {"starts": 4, "every": 2}}}})
-    cells = [c for s in task_specs(Study.of(cfg), "wb", 0, None) for c in s["cells"]]
+    cells = [c for s in task_specs(Study.of(cfg), "wb", 0, None) for c in s.cells]
     # tile 0 = rows j 0..3 of the 8 x 8 plane: rows 0 and 2, columns 0, 2, 4, 6
     assert sorted((c[0], c[1]) for c in cells) == [(i, j) for i in (0, 2, 4, 6) for j in (0, 2)]
     assert all(c[4] is None for c in cells)  # no tile file: no forward states

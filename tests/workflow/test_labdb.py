@@ -472,10 +472,14 @@ def test_report_explorer_and_export_from_the_server_equal_those_from_the_file(
         assert (out["file"] / f).read_bytes() == (out["server"] / f).read_bytes(), f
 
 
-def test_the_password_is_never_written(server):
-    """Every line above, the server's log, the studies table and every study's provenance and
-    info."""
-    assert LINES and not any(PASSWORD in line for line in LINES)
+def test_the_password_is_never_written(server, study, capsys):
+    """Every line of these tests (a publish and a refused one here too), the server's log, the
+    studies table and every study's provenance and info."""
+    _wd, cat = study
+    for url in (server.url(), server.url(password=PASSWORD[::-1])):
+        _gearsim(capsys, "catalogue", "publish", "--from", str(cat), "--to", url, "--study",
+                 "secret")
+    assert not any(PASSWORD in line or PASSWORD[::-1] in line for line in LINES)
     assert server.log() and PASSWORD not in server.log()
     with psycopg.connect(server.url()) as con:
         for (name,) in con.execute("SELECT name FROM studies").fetchall():

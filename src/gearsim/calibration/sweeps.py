@@ -18,7 +18,7 @@ from gearsim.calibration.search import bisect_bool
 from gearsim.cell.motion import double_sided
 from gearsim.cell.sweep import sweep_records, sweep_records_many
 from gearsim.dynamics.parameters import ModelParameters
-from gearsim.numerics.settings import IntegrationSettings
+from gearsim.numerics.settings import IntegrationSettings, Method
 from gearsim.study.config import Study
 
 #: the integration of every calibration sweep: DP5 at rtol 1e-7 and 40 periods of transient on
@@ -114,7 +114,7 @@ def w_sweeps(specs: Sequence[tuple[ModelParameters, np.ndarray, float]],
     """Many :func:`w_sweep` at once: ``specs[k] = (params, grid, w_factor)``. RK4 ``settings``:
     every sweep is one chain of one batched-kernel call
     (:func:`gearsim.cell.sweep.sweep_records_many`); otherwise scalar sweeps one by one."""
-    if settings.method != "rk4":
+    if settings.method is not Method.RK4:
         return [w_sweep(p, g, settings, continuation=continuation, w_factor=wf)
                 for p, g, wf in specs]
     grids = [np.sort(np.asarray(g, dtype=float)) for _p, g, _wf in specs]

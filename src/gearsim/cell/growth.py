@@ -30,6 +30,7 @@ import numpy as np
 
 from gearsim.cell.classify import amplitude_grows
 from gearsim.dynamics.parameters import ModelParameters
+from gearsim.numerics.settings import Method
 
 #: mesh periods of the long run from the end of the window (docs/decisions.md, "Growing
 #: motions"): a nearly linear motion grows over one quarter of it (1 000 periods) by mu_lin^1000,
@@ -94,7 +95,7 @@ def _long_runs(cells: Sequence, st, periods: int, backend=None) -> list[tuple[bo
     groups: dict[tuple, list[int]] = {}
     for i, r in enumerate(cells):
         p = r.params
-        if st.method == "rk4":
+        if st.method is Method.RK4:
             key = (steps_per_period(p, st), p.var_ratio_order if p.var_ratio != 0.0 else None)
             groups.setdefault(key, []).append(i)
             continue
@@ -124,7 +125,8 @@ def check_growth(results: Sequence, st, periods: int = LONG_RUN, backend=None) -
     result gets its
     ``mu_lin``; where ``mu_lin > 1`` a ``periods``-period run from its final state decides
     (``long_run`` = its periods): bounded, the label stands; diverged or growing, the result
-    becomes ``diverged`` (its window's readings kept). The run's periods and steps are the
+    becomes ``diverged`` (its window's readings kept in the classification; its table row
+    holds none, :func:`gearsim.cell.record.row_values`). The run's periods and steps are the
     cell's. Its final state stays the window's (the state a continuation chain went on from).
     ``backend``: where the long runs' lanes run (default the CPU)."""
     todo = [r for r in results if r.classification.motion in CHECKED]

@@ -13,6 +13,7 @@ from gearsim.cell.chains import simulate_rows
 from gearsim.cell.simulate import CellResult, IntegrationSettings, seeds_continuation, simulate_cell
 from gearsim.cell.verify import fill_margins
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
+from gearsim.numerics.settings import Method
 
 
 def continuation_chain(
@@ -101,7 +102,7 @@ def sweep_records(
         if progress and ((i + 1) % 25 == 0 or i + 1 == len(plist)):
             progress(i + 1, len(plist), stamps[-1] - t0)
 
-    if settings is not None and settings.method == "rk4":
+    if settings is not None and settings.method is Method.RK4:
         results = simulate_rows([plist], settings=settings, continuation=continuation,
                                 on_cell=lambda _r, i, res: on_cell(i, res), backend=backend)[0]
         fill_margins(results, settings, backend)  # the Floquet margins, in shared kernel calls
@@ -140,7 +141,7 @@ def sweep_records_many(
     continuation=continuation)`` (each sweep one chain of :func:`simulate_rows`, the Floquet
     margins in shared kernel calls). ``settings.method`` must be ``"rk4"``; ``elapsed_s`` is the
     call's wall time shared out over its cells."""
-    if settings.method != "rk4":
+    if settings.method is not Method.RK4:
         raise ParameterError("sweep_records_many: the batched path needs method rk4")
     if name not in ModelParameters.names():
         raise ParameterError(

@@ -57,7 +57,7 @@ from gearsim.numerics.integrate import (
     PeriodSummaries,
     run_periods,
 )
-from gearsim.numerics.settings import FLOQUET_MODES
+from gearsim.numerics.settings import FLOQUET_MODES, Method
 from gearsim.numerics.shooting import (
     SHOOTING,
     OrbitError,
@@ -84,7 +84,7 @@ RK4_REFINE_FACTOR = 2
 
 def refine_settings(st: IntegrationSettings) -> IntegrationSettings:
     """The Newton-shooting settings for a cell simulated with ``st``."""
-    if st.method == "rk4":
+    if st.method is Method.RK4:
         return st.with_(steps_per_period=RK4_REFINE_FACTOR * st.steps_per_period)
     return REFINE_SHOOTING
 #: Newton converged when max |P^n(y) - y| is below this (dimensionless state units)
@@ -129,7 +129,7 @@ def fill_margins(results: list, st: IntegrationSettings, backend=None) -> None:
     kernel calls on ``backend`` (:func:`orbit_margins`).
     Only with ``st.floquet == "margin"`` and RK4 (a DP5 cell's margin: ``"all"``).
     """
-    if st.floquet != "margin" or st.method != "rk4":
+    if st.floquet != "margin" or st.method is not Method.RK4:
         return
     todo = [r for r in results if _wants_margin(r)]
     got = orbit_margins([r.params for r in todo], [r.classification.n for r in todo],

@@ -15,50 +15,116 @@ from __future__ import annotations
 import math
 import sys
 from dataclasses import asdict, dataclass, fields
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from gearsim.errors import ParameterError, reject_unknown  # noqa: E402  (ParameterError re-exported)
 
-# name -> (lower, upper, lower inclusive, upper inclusive, meaning)
-_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
-    "w": (0.0, 100.0, False, True, "dimensionless mesh frequency w_h / w_n"),
-    "Fm": (0.0, 1e3, True, True, "mean load Tp / (Rp Km b_c)"),
-    "Fe": (0.0, 1e3, True, True, "transmission-error amplitude Em / b_c"),
-    "eps": (0.0, 1.0, True, False, "mesh-stiffness fluctuation Ka / Km"),
-    "xi": (0.0, 10.0, True, True, "mesh damping ratio"),
-    "b": (0.0, 1e3, True, True, "half backlash B / b_c"),
-    "phi_e": (-2 * math.pi, 2 * math.pi, True, True, "phase of the error forcing, rad"),
-    "friction": (0.0, 1.0, True, False, "friction factor gamma = mu L_p / R_p"),
-    "alpha": (0.0, math.pi / 2, True, True, "pitch-curve pressure angle, rad"),
-    "var_ratio": (0.0, 10.0, True, True, "variable-ratio inertial forcing amplitude"),
-    "var_ratio_order": (0.0, 10.0, False, True, "variable-ratio frequency / mesh frequency"),
-    "rho_p": (0.0, 1e3, True, True, "mass ratio Me / M_p"),
-    "rho_g": (0.0, 1e3, True, True, "mass ratio Me / M_g"),
-    "kappa_py": (0.0, 1e8, False, True, "pinion bearing stiffness (K_py / Km) rho_p"),
-    "kappa_pz": (0.0, 1e8, False, True, "pinion bearing stiffness (K_pz / Km) rho_p"),
-    "kappa_gy": (0.0, 1e8, False, True, "gear bearing stiffness (K_gy / Km) rho_g"),
-    "kappa_gz": (0.0, 1e8, False, True, "gear bearing stiffness (K_gz / Km) rho_g"),
-    "xi_py": (0.0, 10.0, True, True, "pinion bearing damping ratio (Y)"),
-    "xi_pz": (0.0, 10.0, True, True, "pinion bearing damping ratio (Z)"),
-    "xi_gy": (0.0, 10.0, True, True, "gear bearing damping ratio (Y)"),
-    "xi_gz": (0.0, 10.0, True, True, "gear bearing damping ratio (Z)"),
-    "b_py": (0.0, 1e3, True, True, "pinion bearing half clearance (Y) / b_c"),
-    "b_pz": (0.0, 1e3, True, True, "pinion bearing half clearance (Z) / b_c"),
-    "b_gy": (0.0, 1e3, True, True, "gear bearing half clearance (Y) / b_c"),
-    "b_gz": (0.0, 1e3, True, True, "gear bearing half clearance (Z) / b_c"),
-    # model-form options (docs/model.md, "Model forms"); the defaults are the base form
-    "te_damping": (0.0, 1.0, True, True,
-                   "fraction of the transmission-error rate the mesh damper follows "
-                   "(1: C (x' - e') of Eq 3, 0: C x')"),
-    "mesh_damping_contact": (0.0, 1.0, True, True,
-                             "fraction of the mesh damping acting only in contact "
-                             "(0: always, 1: only in contact)"),
-    "friction_arm_var": (0.0, 10.0, True, True,
-                         "friction-arm variation: half range of the sawtooth L_p of Eq 9 "
-                         "over its mean"),
+
+class ParameterSpec(NamedTuple):
+    """A model parameter's one description: its allowed range (``lower``, ``upper``, each
+    bound inclusive or not), what it is, and its unit as the column dictionary writes it."""
+
+    lower: float
+    upper: float
+    lower_in: bool
+    upper_in: bool
+    meaning: str
+    unit: str = "1"
+
+
+#: every numeric model parameter: its range, meaning and unit, written once (the checks below,
+#: the error lines and the catalogue's column dictionary, gearsim.results.columns, read them)
+PARAMETERS: dict[str, ParameterSpec] = {
+    "w": ParameterSpec(
+        0.0, 100.0, False, True,
+        'mesh frequency over the natural frequency w_n = sqrt(Km / Me)',
+        '1 (w_h / w_n)',
+    ),
+    "Fm": ParameterSpec(0.0, 1000.0, True, True, 'mean mesh load', '1 (Tp / (Rp Km b_c))'),
+    "Fe": ParameterSpec(0.0, 1000.0, True, True, 'transmission-error amplitude', '1 (Em / b_c)'),
+    "eps": ParameterSpec(0.0, 1.0, True, False, 'mesh stiffness fluctuation', '1 (Ka / Km)'),
+    "xi": ParameterSpec(0.0, 10.0, True, True, 'mesh damping ratio, C_n = 2 xi sqrt(Km Me)', '1'),
+    "b": ParameterSpec(0.0, 1000.0, True, True, 'half backlash', '1 (B / b_c)'),
+    "phi_e": ParameterSpec(
+        -2 * math.pi, 2 * math.pi, True, True,
+        'phase of the transmission error',
+        'rad',
+    ),
+    "friction": ParameterSpec(0.0, 1.0, True, False, 'friction factor gamma', '1 (mu L_p / R_p)'),
+    "alpha": ParameterSpec(0.0, math.pi / 2, True, True, 'pressure angle', 'rad'),
+    "var_ratio": ParameterSpec(0.0, 10.0, True, True, 'variable-ratio forcing amplitude A_vr', '1'),
+    "var_ratio_order": ParameterSpec(
+        0.0, 10.0, False, True,
+        'variable-ratio frequency over the mesh frequency (nu)',
+        '1',
+    ),
+    "rho_p": ParameterSpec(0.0, 1000.0, True, True, 'pinion mass ratio', '1 (Me / M_p)'),
+    "rho_g": ParameterSpec(0.0, 1000.0, True, True, 'gear mass ratio', '1 (Me / M_g)'),
+    "kappa_py": ParameterSpec(
+        0.0, 100000000.0, False, True,
+        'pinion bearing stiffness, y',
+        '1 ((K / Km) rho)',
+    ),
+    "kappa_pz": ParameterSpec(
+        0.0, 100000000.0, False, True,
+        'pinion bearing stiffness, z',
+        '1 ((K / Km) rho)',
+    ),
+    "kappa_gy": ParameterSpec(
+        0.0, 100000000.0, False, True,
+        'gear bearing stiffness, y',
+        '1 ((K / Km) rho)',
+    ),
+    "kappa_gz": ParameterSpec(
+        0.0, 100000000.0, False, True,
+        'gear bearing stiffness, z',
+        '1 ((K / Km) rho)',
+    ),
+    "xi_py": ParameterSpec(0.0, 10.0, True, True, 'pinion bearing damping ratio, y', '1'),
+    "xi_pz": ParameterSpec(0.0, 10.0, True, True, 'pinion bearing damping ratio, z', '1'),
+    "xi_gy": ParameterSpec(0.0, 10.0, True, True, 'gear bearing damping ratio, y', '1'),
+    "xi_gz": ParameterSpec(0.0, 10.0, True, True, 'gear bearing damping ratio, z', '1'),
+    "b_py": ParameterSpec(
+        0.0, 1000.0, True, True,
+        'pinion bearing half clearance, y',
+        '1 (B_p / b_c)',
+    ),
+    "b_pz": ParameterSpec(
+        0.0, 1000.0, True, True,
+        'pinion bearing half clearance, z',
+        '1 (B_p / b_c)',
+    ),
+    "b_gy": ParameterSpec(
+        0.0, 1000.0, True, True,
+        'gear bearing half clearance, y',
+        '1 (B_g / b_c)',
+    ),
+    "b_gz": ParameterSpec(
+        0.0, 1000.0, True, True,
+        'gear bearing half clearance, z',
+        '1 (B_g / b_c)',
+    ),
+    "te_damping": ParameterSpec(
+        0.0, 1.0, True, True,
+        "fraction of the transmission-error rate the mesh damper follows "
+        "(1: C (x' - e') of Eq 3, 0: C x')",
+        '1',
+    ),
+    "mesh_damping_contact": ParameterSpec(
+        0.0, 1.0, True, True,
+        'fraction of the mesh damping acting only in contact (0: always, 1: only in contact)',
+        '1',
+    ),
+    "friction_arm_var": ParameterSpec(
+        0.0, 10.0, True, True,
+        'friction-arm variation: half range of the sawtooth L_p of Eq 9 over its mean',
+        '1',
+    ),
 }
+#: what the text parameter ``model`` selects (docs/model.md)
+MODEL_MEANING = "model variant: 6dof (bearings elastic) or 1dof (rigid bearings)"
 
 MODELS = ("6dof", "1dof")
 
@@ -105,10 +171,10 @@ def check_number(name: str, value: Any, spec: tuple, kind: str = "parameter") ->
 def check_value(name: str, value: Any) -> float:
     """Return ``value`` as a float if it is a number inside the range of parameter ``name``
     (:func:`check_number`); an unknown name raises :class:`ParameterError` too."""
-    if name not in _RANGES:
-        allowed = ", ".join(sorted(_RANGES))
+    if name not in PARAMETERS:
+        allowed = ", ".join(sorted(PARAMETERS))
         raise ParameterError(f"unknown parameter '{name}'; allowed: {allowed}")
-    return check_number(name, value, _RANGES[name])
+    return check_number(name, value, PARAMETERS[name])
 
 
 @dataclass(frozen=True)
@@ -164,7 +230,7 @@ class ModelParameters:
     @classmethod
     def names(cls) -> tuple[str, ...]:
         """Names of all numeric parameters (what a plane axis or ``--set`` may name)."""
-        return tuple(_RANGES)
+        return tuple(PARAMETERS)
 
     @classmethod
     def from_mapping(cls, values: dict[str, Any]) -> ModelParameters:

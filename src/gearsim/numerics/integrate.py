@@ -68,7 +68,7 @@ from gearsim.numerics.events import (
     channels,
     turn_extremum,
 )
-from gearsim.numerics.settings import IntegrationSettings
+from gearsim.numerics.settings import IntegrationSettings, Method
 from gearsim.numerics.steps import (
     FASTMATH,
     METHOD_DP5,
@@ -441,7 +441,7 @@ def run_periods(
 def steps_lower_bound(params: ModelParameters, settings: IntegrationSettings,
                       periods: int) -> int:
     """Fewest steps ``periods`` mesh periods can take (RK4: its grid; DP5: the step cap)."""
-    if settings.method == "rk4":
+    if settings.method is Method.RK4:
         per = rk4_steps_per_period(params, settings)
     else:
         per = int(math.ceil(params.mesh_period / settings.hmax))

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields, replace
+from enum import StrEnum
 from typing import Any
 
 from gearsim.dynamics.parameters import ParameterError
@@ -17,6 +18,26 @@ from gearsim.dynamics.parameters import ParameterError
 METHOD_DP5 = 0
 METHOD_RK4 = 1
 METHODS = {"dp5": METHOD_DP5, "rk4": METHOD_RK4}
+
+
+class Method(StrEnum):
+    """An integration method (the configuration's ``integration.method``): DP5, adaptive, one
+    cell at a time; or fixed-step RK4, which runs the batched kernel's lanes. A ``str``: it is
+    written and hashed as its name, so a settings record reads as before."""
+
+    DP5 = "dp5"
+    RK4 = "rk4"
+
+    @property
+    def code(self) -> int:
+        """The kernels' code of the method (:data:`METHOD_DP5`, :data:`METHOD_RK4`)."""
+        return METHODS[self.value]
+
+    @property
+    def lanes(self) -> bool:
+        """Whether the method runs in the batched kernel's lanes (fixed-step RK4)."""
+        return self is Method.RK4
+
 # DP5 with the tangent vector in the error norm (kernel code only, not a settings method:
 # run_periods(..., tangent=True, tangent_error=True), the shooting path of gearsim.analysis.orbits)
 METHOD_DP5_TANGENT = 2
@@ -115,7 +136,7 @@ class IntegrationSettings:
         monodromy of its settled orbit; ``"all"`` refines every periodic cell by Newton.
     """
 
-    method: str = "rk4"
+    method: Method = Method.RK4  # given as its name, "dp5" or "rk4"
     rtol: float = 1e-9
     atol: float = 1e-12
     hmax: float = 0.2
@@ -135,10 +156,11 @@ class IntegrationSettings:
     floquet: str = "margin"
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
+        if not isinstance(self.method, str) or self.method not in METHODS:
             raise ParameterError(
                 f"setting 'method' = {self.method!r}; allowed: {', '.join(METHODS)}"
             )
+        object.__setattr__(self, "method", Method(self.method))
         if self.floquet not in FLOQUET_MODES:
             raise ParameterError(
                 f"setting 'floquet' = {self.floquet!r}; allowed: {', '.join(FLOQUET_MODES)}"
@@ -188,7 +210,7 @@ class IntegrationSettings:
         for f in fields(cls):
             d = getattr(defaults, f.name)
             if f.name == "method":
-                out[f.name] = {"type": "string", "enum": list(METHODS), "default": d}
+                out[f.name] = {"type": "string", "enum": list(METHODS), "default": str(d)}
             elif f.name == "floquet":
                 out[f.name] = {"type": "string", "enum": list(FLOQUET_MODES), "default": d}
             elif f.name in INTEGER_BOUNDS:
@@ -203,4 +225,5 @@ class IntegrationSettings:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """The settings as plain data (the method as its name)."""
+        return {**asdict(self), "method": str(self.method)}

@@ -23,6 +23,7 @@ from gearsim.dynamics.model import N_STATE, n_evolved, pack_parameters
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.numerics.batch import steps_per_period, tangent_lanes_many
 from gearsim.numerics.integrate import IntegrationSettings, run_periods
+from gearsim.numerics.settings import Method
 
 
 def tangent_map(
@@ -46,7 +47,7 @@ def tangent_map(
     integrator status (0 ok). The integrator renormalises the tangent vector each period and
     records the log of its growth; the image is restored from those logs.
     """
-    if settings.method == "rk4":
+    if settings.method is Method.RK4:
         # the same RK4 steps with the columns as SIMD lanes: one kernel call, same numbers
         return tangent_lanes_many([params], [y0], n_periods, settings, [Z], [start_period])[0]
     y0 = np.asarray(y0, dtype=float)[:N_STATE]
@@ -107,7 +108,7 @@ def monodromies(
     out: list = [None] * len(params_list)
     groups: dict[tuple, list[int]] = {}
     for i, p in enumerate(params_list):
-        if settings.method == "rk4":
+        if settings.method is Method.RK4:
             key = (steps_per_period(p, settings), p.var_ratio_order if p.var_ratio else None)
             groups.setdefault(key, []).append(i)
         else:

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from gearsim.cell.motion import DEFAULT_KMAX, KMAX_DEFINITION, KMAX_READINGS
 from gearsim.cell.record import UNSTEADY_NULL
+from gearsim.dynamics.parameters import MODEL_MEANING
+from gearsim.dynamics.parameters import PARAMETERS as MODEL_PARAMETERS
 
 #: when the columns of a cell's period are NULL
 _NO_PERIOD = "NULL without a period (n = 0: chaos, quasi-periodic, unsettled, diverged)"
@@ -19,35 +21,11 @@ _NO_NEWTON = "NULL where Newton did not converge (flag no_convergence)"
 #: when a column of a job's provenance is NULL
 _NO_PROVENANCE = "NULL where the job's file does not record it (files of older versions)"
 
-#: Model parameters: (unit, meaning). The names of
-#: :class:`gearsim.dynamics.parameters.ModelParameters`.
+#: Model parameters: (unit, meaning), read from where each is defined
+#: (:data:`gearsim.dynamics.parameters.PARAMETERS`; the names of its ``ModelParameters``).
 PARAMETERS: dict[str, tuple[str, str]] = {
-    "model": ("", "model variant: 6dof (bearings elastic) or 1dof (rigid bearings)"),
-    "w": ("1 (w_h / w_n)", "mesh frequency over the natural frequency w_n = sqrt(Km / Me)"),
-    "Fm": ("1 (Tp / (Rp Km b_c))", "mean mesh load"),
-    "Fe": ("1 (Em / b_c)", "transmission-error amplitude"),
-    "eps": ("1 (Ka / Km)", "mesh stiffness fluctuation"),
-    "xi": ("1", "mesh damping ratio, C_n = 2 xi sqrt(Km Me)"),
-    "b": ("1 (B / b_c)", "half backlash"),
-    "phi_e": ("rad", "phase of the transmission error"),
-    "friction": ("1 (mu L_p / R_p)", "friction factor gamma"),
-    "alpha": ("rad", "pressure angle"),
-    "var_ratio": ("1", "variable-ratio forcing amplitude A_vr"),
-    "var_ratio_order": ("1", "variable-ratio frequency over the mesh frequency (nu)"),
-    "rho_p": ("1 (Me / M_p)", "pinion mass ratio"),
-    "rho_g": ("1 (Me / M_g)", "gear mass ratio"),
-    "kappa_py": ("1 ((K / Km) rho)", "pinion bearing stiffness, y"),
-    "kappa_pz": ("1 ((K / Km) rho)", "pinion bearing stiffness, z"),
-    "kappa_gy": ("1 ((K / Km) rho)", "gear bearing stiffness, y"),
-    "kappa_gz": ("1 ((K / Km) rho)", "gear bearing stiffness, z"),
-    "xi_py": ("1", "pinion bearing damping ratio, y"),
-    "xi_pz": ("1", "pinion bearing damping ratio, z"),
-    "xi_gy": ("1", "gear bearing damping ratio, y"),
-    "xi_gz": ("1", "gear bearing damping ratio, z"),
-    "b_py": ("1 (B_p / b_c)", "pinion bearing half clearance, y"),
-    "b_pz": ("1 (B_p / b_c)", "pinion bearing half clearance, z"),
-    "b_gy": ("1 (B_g / b_c)", "gear bearing half clearance, y"),
-    "b_gz": ("1 (B_g / b_c)", "gear bearing half clearance, z"),
+    "model": ("", MODEL_MEANING),
+    **{name: (spec.unit, spec.meaning) for name, spec in MODEL_PARAMETERS.items()},
 }
 
 #: Columns of a classified cell (``CellResult.row()``; ``I`` is stored as ``impact``).

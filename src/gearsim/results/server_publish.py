@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from gearsim.errors import CatalogueError, one_line
-from gearsim.results.schema import SCHEMA_VERSION, open_catalogue
+from gearsim.results.schema import open_catalogue
 from gearsim.results.server import (
     ACROSS,
     LOCK_PUBLISH,
@@ -124,12 +124,13 @@ def _settings(src: sqlite3.Connection) -> tuple[str, str, str | None, str | None
 
 
 def _across(cur) -> None:
-    """``public.study_plane_cells``: the ``plane_cells`` of every study of this schema version,
-    each row with its study's name."""
+    """``public.study_plane_cells``: the ``plane_cells`` of every study, each row with its
+    study's name (the columns every study has: a study of another schema version may lack
+    some)."""
     cur.execute(f"DROP VIEW IF EXISTS public.{ACROSS}")
     names = [r[0] for r in cur.execute(
         f"SELECT s.name FROM public.{STUDIES} s JOIN pg_namespace n ON n.nspname = s.name "
-        "WHERE s.schema_version = %s ORDER BY s.name", (SCHEMA_VERSION,))]
+        "ORDER BY s.name")]
     if not names:
         return
     cols: dict[str, list[str]] = {n: [] for n in names}
@@ -203,7 +204,7 @@ def publish_study(source: str | Path, url: str, study: str, *, check: bool = Tru
                 "settings_hash = EXCLUDED.settings_hash, code_version = EXCLUDED.code_version, "
                 "git_commit = EXCLUDED.git_commit, published = EXCLUDED.published, "
                 "built = EXCLUDED.built, source = EXCLUDED.source, cells = EXCLUDED.cells",
-                (study, version, *settings[:3], settings[3], str(source), settings[4]))
+                (study, version, *settings[:3], settings[3], str(source.resolve()), settings[4]))
             _across(cur)
     except psycopg.Error as exc:
         raise CatalogueError(

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -49,8 +50,33 @@ def multistability(study: Study, plane: str) -> Mapping[str, Any]:
     return ms
 
 
-def task_specs(study: Study, plane: str, tile: int, tile_df: pd.DataFrame | None) -> list[dict]:
-    """Plain-data tasks of :func:`cell_group_records` for one tile (each cell with its
+#: a task's cell: ``(i, j, x, y, forward-continuation state or None)``
+Cell = tuple[int, int, float, float, list[float] | None]
+
+
+@dataclass(frozen=True)
+class AttractorTask:
+    """The cells of one attractor-search task (a dask task of :func:`cell_group_records`), the
+    plane's parameters and the study's settings as the frozen objects they are, the finder's
+    starts and seed, and per cell the tile's row of it (a known forward motion) or None.
+    ``stats``: a :class:`gearsim.cell.pool.PoolStats` collecting the lane use, or None."""
+
+    plane: str
+    tile: int
+    params: ModelParameters
+    settings: IntegrationSettings
+    x_name: str
+    y_name: str
+    cells: tuple[Cell, ...]
+    starts: int
+    seed: int
+    forward_rows: tuple[Mapping[str, Any] | None, ...] | None = None
+    stats: Any = None
+
+
+def task_specs(study: Study, plane: str, tile: int, tile_df: pd.DataFrame | None
+               ) -> list[AttractorTask]:
+    """The tasks of :func:`cell_group_records` for one tile (each cell with its
     forward-continuation state and the tile's row of it: a known motion)."""
     ms = multistability(study, plane)
     rows = row_specs(study, plane, tile)
@@ -65,32 +91,28 @@ def task_specs(study: Study, plane: str, tile: int, tile_df: pd.DataFrame | None
                 known[key] = {k: plain_value(v) for k, v in rec.items()}
     every = int(ms.get("every", 1))
     cells = [
-        (i, r["j"], float(x), float(r["y_value"]), fwd.get((i, r["j"])))
+        (i, r.j, float(x), float(r.y_value), fwd.get((i, r.j)))
         for r in rows
-        if r["j"] % every == 0
-        for i, x in enumerate(r["x_values"])
+        if r.j % every == 0
+        for i, x in enumerate(r.x_values)
         if i % every == 0
     ]
-    base = rows[0] if rows else {}
     return [
-        {
-            "plane": plane, "tile": tile, "params": base["params"],
-            "settings": base["settings"], "x_name": base["x_name"], "y_name": base["y_name"],
-            "cells": cells[k : k + CELLS_PER_TASK], "starts": int(ms["starts"]),
-            "forward_rows": [known.get((c[0], c[1])) for c in cells[k : k + CELLS_PER_TASK]],
-            "seed": int(ms.get("seed", 0)),
-        }  # fmt: skip
+        AttractorTask(plane, tile, rows[0].params, rows[0].settings, rows[0].x_name,
+                      rows[0].y_name, tuple(cells[k : k + CELLS_PER_TASK]), int(ms["starts"]),
+                      int(ms.get("seed", 0)),
+                      tuple(known.get((c[0], c[1])) for c in cells[k : k + CELLS_PER_TASK]))
         for k in range(0, len(cells), CELLS_PER_TASK)
     ]
 
 
-def tile_records(spec: Mapping[str, Any], cells, found: Sequence[CellAttractors]
+def tile_records(spec: AttractorTask, cells, found: Sequence[CellAttractors]
                  ) -> list[dict[str, Any]]:
     """The attractor-tile records (:data:`TILE_COLUMNS`) of ``cells`` and their attractors."""
     out: list[dict[str, Any]] = []
     for (i, j, x, y, _), ca in zip(cells, found, strict=True):
         common = {
-            "plane": spec["plane"], "tile": int(spec["tile"]), "i": int(i), "j": int(j),
+            "plane": spec.plane, "tile": int(spec.tile), "i": int(i), "j": int(j),
             "x": float(x), "y": float(y), "n_attractors": n_real(ca),
             "starts": int(ca.n_starts), "diverged_fraction": ca.diverged_fraction,
             "periods_run": int(ca.start_periods_run.sum()),
@@ -112,28 +134,24 @@ def tile_records(spec: Mapping[str, Any], cells, found: Sequence[CellAttractors]
 
 
 
-def cell_group_records(spec: Mapping[str, Any], backend=None) -> list[dict[str, Any]]:
-    """Attractor records of a group of plane cells (one task of ``gearsim attractor-tile``).
-
-    ``spec`` (plain data): ``plane``, ``tile``, ``params`` (dict), ``settings`` (dict),
-    ``x_name``, ``y_name``, ``cells`` (list of ``(i, j, x, y, forward_state or None)``),
-    ``starts``, ``seed`` and optionally ``forward_rows`` (per cell the plane tile's row of
-    that cell, or None: its motion is known without a run). One record per attractor of each
-    cell; a cell whose starts all diverged gets one record with ``attractor = -1`` and label
-    ``diverged``. ``backend``: where the starts' lanes run (None: the CPU).
+def cell_group_records(spec: AttractorTask, backend=None) -> list[dict[str, Any]]:
+    """Attractor records of a group of plane cells (one task of ``gearsim attractor-tile``):
+    one record per attractor of each cell; a cell whose starts all diverged gets one record
+    with ``attractor = -1`` and label ``diverged``. A cell with its tile row (``forward_rows``)
+    has its forward motion known without a run. ``backend``: where the starts' lanes run
+    (None: the CPU).
     """
-    base = ModelParameters.from_mapping(dict(spec["params"]))
-    settings = IntegrationSettings(**spec["settings"])
-    xn, yn = spec["x_name"], spec["y_name"]
-    cells = spec["cells"]
+    base, settings = spec.params, spec.settings
+    xn, yn = spec.x_name, spec.y_name
+    cells = spec.cells
     plist = [base.with_(**{xn: float(c[2]), yn: float(c[3])}) for c in cells]
     fwd = [None if c[4] is None else np.asarray(c[4], dtype=float) for c in cells]
-    rows = spec.get("forward_rows")
+    rows = spec.forward_rows
     known = None if rows is None else [None if r is None else steady_from_row(r, p.w)
                                        for r, p in zip(rows, plist, strict=True)]
-    options = FinderOptions(starts=int(spec["starts"]), seed=int(spec["seed"]))
+    options = FinderOptions(starts=int(spec.starts), seed=int(spec.seed))
     found = find_attractors(plist, options, settings=settings, forward=fwd,
-                            forward_results=known, stats=spec.get("stats"),
+                            forward_results=known, stats=spec.stats,
                             neighbours=grid_neighbours([(c[0], c[1]) for c in cells]),
                             backend=backend)  # fmt: skip
     return tile_records(spec, cells, found)
@@ -149,7 +167,7 @@ def records_to_frame(records: list[dict[str, Any]]) -> pd.DataFrame:
 
 
 def run_attractor_tile(
-    specs: Sequence[Mapping[str, Any]],
+    specs: Sequence[AttractorTask],
     *,
     client=None,
     progress: Callable[[int, int, float], None] | None = None,
@@ -158,7 +176,7 @@ def run_attractor_tile(
     """The attractor records of the tasks ``specs`` (:func:`task_specs`), mapped over
     ``client`` or in-process when None (the lanes on ``backend``); ``progress(done_cells,
     total_cells, elapsed_s)`` after each finished task."""
-    total = sum(len(s["cells"]) for s in specs)
+    total = sum(len(s.cells) for s in specs)
     t0 = time.perf_counter()
     records: list[dict] = []
     done = 0
@@ -172,7 +190,7 @@ def run_attractor_tile(
     return records_to_frame(records)
 
 
-def run_tile_job(specs: Sequence[Mapping[str, Any]], *, in_process: bool, workers: int = 1,
+def run_tile_job(specs: Sequence[AttractorTask], *, in_process: bool, workers: int = 1,
                  address: str | None = None,
                  progress: Callable[[int, int, float], None] | None = None, backend=None
                  ) -> tuple[pd.DataFrame, str]:

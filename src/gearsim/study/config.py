@@ -24,7 +24,7 @@ from typing import Any
 from gearsim.dynamics.parameters import ModelParameters, ParameterError
 from gearsim.errors import ConfigError
 from gearsim.numerics.device import Execution
-from gearsim.numerics.settings import IntegrationSettings
+from gearsim.numerics.settings import IntegrationSettings, Method
 from gearsim.safe_yaml import load_mapping
 from gearsim.study.config_io import load_standard_parameters
 from gearsim.study.schema import check_config, project_root, validate_schema
@@ -288,7 +288,7 @@ class Study:
 
 def settings_text(settings: IntegrationSettings) -> str:
     """One line describing integration settings (printed and saved beside every result)."""
-    if settings.method == "rk4":
+    if settings.method is Method.RK4:
         how = f"rk4 {settings.steps_per_period} steps/period"
     else:
         how = f"dp5 rtol={settings.rtol:g} atol={settings.atol:g}"

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import pandas as pd
@@ -33,18 +34,35 @@ from gearsim.study.grid import axis_values, tile_rows
 NULLABLE_INT = ("p", "q")
 
 
-def simulate_row(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """Simulate one plane row: a forward continuation chain along ``x`` at fixed ``y``.
+@dataclass(frozen=True)
+class RowSpec:
+    """One plane row of a tile (a dask task): the plane's parameters and the study's settings
+    as the frozen objects they are (they pickle to the workers as they are), the ``x`` axis's
+    values and the row's ``y``."""
 
-    ``spec`` (plain data, so it pickles cheaply to dask workers): ``plane``, ``tile``, ``j``,
-    ``params`` (dict), ``settings`` (dict), ``x_name``, ``x_values``, ``y_name``, ``y_value``.
-    Returns one record per cell in increasing ``x``.
-    """
-    base = ModelParameters.from_mapping(dict(spec["params"]))
-    settings = IntegrationSettings(**spec["settings"])
-    xs = [float(v) for v in spec["x_values"]]
-    yname, yval = spec["y_name"], float(spec["y_value"])
-    plist = [base.with_(**{spec["x_name"]: x, yname: yval}) for x in xs]
+    plane: str
+    tile: int
+    j: int
+    params: ModelParameters
+    settings: IntegrationSettings
+    x_name: str
+    x_values: tuple[float, ...]
+    y_name: str
+    y_value: float
+
+    def cells(self) -> list[ModelParameters]:
+        """The row's cells in increasing ``x``."""
+        return [self.params.with_(**{self.x_name: x, self.y_name: self.y_value})
+                for x in self.x_values]
+
+
+def simulate_row(spec: RowSpec) -> list[dict[str, Any]]:
+    """Simulate one plane row: a forward continuation chain along ``x`` at fixed ``y`` (the
+    study's method one cell at a time, :func:`gearsim.cell.sweep.continuation_chain`). Returns
+    one record per cell in increasing ``x``."""
+    settings = spec.settings
+    xs = list(spec.x_values)
+    plist = spec.cells()
     stamps: list[float] = []
     t0 = time.perf_counter()
     results = continuation_chain(
@@ -53,22 +71,22 @@ def simulate_row(spec: Mapping[str, Any]) -> list[dict[str, Any]]:
     return cell_records(spec, xs, results, stamps, t0)
 
 
-def cell_records(spec: Mapping[str, Any], xs, results, stamps, t0: float) -> list[dict[str, Any]]:
+def cell_records(spec: RowSpec, xs, results, stamps, t0: float) -> list[dict[str, Any]]:
     """The tile records of one plane row: grid indices, both parameter values, the cell's
     classification row, Poincare samples, the continuation seed and the wall time per cell."""
-    yname, yval = spec["y_name"], float(spec["y_value"])
+    yname, yval = spec.y_name, float(spec.y_value)
     rows = []
     prev = t0
     for i, (x, res, t) in enumerate(zip(xs, results, stamps, strict=True)):
         x = float(x)
         row = {
-            "plane": spec["plane"],
-            "tile": int(spec["tile"]),
+            "plane": spec.plane,
+            "tile": int(spec.tile),
             "i": i,
-            "j": int(spec["j"]),
+            "j": int(spec.j),
             "x": x,
             "y": yval,
-            spec["x_name"]: x,
+            spec.x_name: x,
             yname: yval,
         }
         row.update(res.row())
@@ -82,7 +100,7 @@ def cell_records(spec: Mapping[str, Any], xs, results, stamps, t0: float) -> lis
     return rows
 
 
-def simulate_rows_batched(specs: Sequence[Mapping[str, Any]],
+def simulate_rows_batched(specs: Sequence[RowSpec],
                           on_cell: Callable[[], None] | None = None,
                           backend=None) -> list[dict[str, Any]]:
     """Simulate several plane rows at once with the batched RK4 kernel (gearsim.numerics.batch).
@@ -92,14 +110,8 @@ def simulate_rows_batched(specs: Sequence[Mapping[str, Any]],
     The specs may come from several planes (:func:`run_tiles`). ``on_cell()``: after each cell.
     ``backend``: where the lanes run (:func:`gearsim.numerics.backend.select`; None: the CPU).
     """
-    settings = IntegrationSettings(**specs[0]["settings"])
-    chains = []
-    for spec in specs:
-        base = ModelParameters.from_mapping(dict(spec["params"]))
-        yname, yval = spec["y_name"], float(spec["y_value"])
-        chains.append(
-            [base.with_(**{spec["x_name"]: float(x), yname: yval}) for x in spec["x_values"]]
-        )
+    settings = specs[0].settings
+    chains = [spec.cells() for spec in specs]
     stamps: list[list[float]] = [[] for _ in specs]
     t0 = time.perf_counter()
     def done(r, i, res):
@@ -112,11 +124,11 @@ def simulate_rows_batched(specs: Sequence[Mapping[str, Any]],
     fill_margins([r for row in results for r in row], settings, backend)
     rows = []
     for spec, res_row, st_row in zip(specs, results, stamps, strict=True):
-        rows += cell_records(spec, spec["x_values"], res_row, st_row, t0)
+        rows += cell_records(spec, spec.x_values, res_row, st_row, t0)
     return rows
 
 
-def row_groups(specs: list[dict], workers: int) -> list[list[dict]]:
+def row_groups(specs: list[RowSpec], workers: int) -> list[list[RowSpec]]:
     """Split a tile's rows into one group per worker, in multiples of the SIMD block (8 rows)."""
     blocks = -(-len(specs) // LANES)
     n_groups = max(1, min(workers, blocks))
@@ -126,27 +138,15 @@ def row_groups(specs: list[dict], workers: int) -> list[list[dict]]:
     return [specs[k : k + size] for k in range(0, len(specs), size)]
 
 
-def row_specs(study: Study, plane: str, tile: int) -> list[dict]:
+def row_specs(study: Study, plane: str, tile: int) -> list[RowSpec]:
     """The dask tasks of a tile: one spec per row."""
     pl = study.config["planes"][plane]
-    base = study.parameters(plane=plane).model.to_dict()
-    settings = study.settings.to_dict()
-    xs = axis_values(pl["x"]).tolist()
+    base = study.parameters(plane=plane).model
+    xs = tuple(float(x) for x in axis_values(pl["x"]))
     ys = axis_values(pl["y"])
-    return [
-        {
-            "plane": plane,
-            "tile": tile,
-            "j": j,
-            "params": base,
-            "settings": settings,
-            "x_name": pl["x"]["name"],
-            "x_values": xs,
-            "y_name": pl["y"]["name"],
-            "y_value": float(ys[j]),
-        }
-        for j in tile_rows(study.config, plane, tile)
-    ]
+    return [RowSpec(plane, tile, j, base, study.settings, pl["x"]["name"], xs, pl["y"]["name"],
+                    float(ys[j]))
+            for j in tile_rows(study.config, plane, tile)]
 
 
 def records_to_frame(records: list[dict[str, Any]]) -> pd.DataFrame:
@@ -189,7 +189,7 @@ def run_tile(
     t0 = time.perf_counter()
     records: list[dict] = []
     done = 0
-    if specs and specs[0]["settings"].get("method") == "rk4":
+    if specs and study.settings.method.lanes:
         # fixed-step RK4: the batched kernel, rows advanced together (8 per SIMD block)
         workers = 1 if client is None else max(1, len(client.nthreads()))
         groups = row_groups(specs, workers)
@@ -233,10 +233,10 @@ def run_tiles(
     ``progress(done_cells, total_cells, elapsed_s)`` after each cell."""
     groups = [row_specs(study, plane, tile) for plane, tile in jobs]
     specs = [s for g in groups for s in g]
-    if specs and specs[0]["settings"].get("method") != "rk4":  # the scalar path: tile by tile
+    if specs and not study.settings.method.lanes:  # one cell at a time: tile by tile
         return [run_tile(study, plane, tile, progress=progress, backend=backend)
                 for plane, tile in jobs]
-    total = sum(len(s["x_values"]) for s in specs)
+    total = sum(len(s.x_values) for s in specs)
     t0 = time.perf_counter()
     count = [0]
 
@@ -249,7 +249,7 @@ def run_tiles(
     frames = []
     k = 0
     for g in groups:
-        n = sum(len(s["x_values"]) for s in g)
+        n = sum(len(s.x_values) for s in g)
         df = records_to_frame(records[k : k + n])
         k += n
         frames.append(df.sort_values(["j", "i"], kind="stable").reset_index(drop=True))

@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     if tile_df is None:
         print(f"note: {tile_file} not found: no forward-continuation states", file=sys.stderr)
     specs = at.task_specs(study, args.plane, args.tile, tile_df)
-    total = sum(len(s["cells"]) for s in specs)
+    total = sum(len(s.cells) for s in specs)
     out = Path(args.out or f"results/{args.plane}/attractors/{args.tile}.parquet")
     check_output(out)  # writable, with room, before any simulation
     label = f"{args.plane}/attractor tile {args.tile}"
