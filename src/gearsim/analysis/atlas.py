@@ -129,7 +129,10 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
             if r is not None:
                 row, _y = r
                 found.append(_seed_row(row, h.kind, h.period, h.boundary, grid, axis, p))
-                return found
+                u = grid.index([found[-1]["value"]], [found[-1]["value2"]])[0]
+                if math.dist(u, (e["ci"], e["cj"])) <= opts.radius:
+                    return found
+                break  # found away from the edge: the edge may be a jump (a fold) instead
     # a jump (or a secant that failed): a short continuation across the edge from the cell
     # the chain came from; every event it locates near the edge seeds
     for s in (order if h.kind == "fold" else order[:1]):
@@ -158,9 +161,10 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
         ev = br[(br["event"] != "") & (br["branch"] == 0)]
         for _, r in ev.iterrows():
             # a jump seeds every kind it finds; a doubling or grazing that the secant did not
-            # find its own kind, or the fold the chain jumped at (a label change at a jump
-            # reads like a grazing or a doubling)
-            if r["event"] not in opts.kinds or r["event"] not in (h.kind, "fold"):
+            # find (or found away from the edge) its own kind, or the fold the chain jumped
+            # at (a label change at a jump reads like a grazing or a doubling)
+            want = (h.kind, "fold") if not found else ("fold",)
+            if r["event"] not in opts.kinds or r["event"] not in want:
                 continue
             found.append(_seed_row(r, r["event"], int(r["period"]), str(r["boundary"] or ""),
                                    grid, axis, p))
@@ -351,9 +355,10 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
                                        f"period {s['period']}) {side} end: "
                                        f"{hv.attrs.get('reason', '')}, {len(hv)} points")
             seeds.append(s)
-        if not got:
+        if not new:  # nothing new here: its neighbours of the same kind are not tried again
             key = task.hint.key
-            failures[key] = failures.get(key, 0) + 1
+            if not got:
+                failures[key] = failures.get(key, 0) + 1
             same = np.array([matches(kk, key) for kk in cand["key"]], dtype=bool)
             near = same & (status == 0) & (np.hypot(*(pts - pts[k]).T) <= opts.tried)
             status[near] = 2
