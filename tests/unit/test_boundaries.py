@@ -227,3 +227,31 @@ def test_the_chaotic_band_is_located_from_both_ends(monkeypatch):
     assert out["exit"]["doublings"][1]["ratio"] is None
     assert [d["ratio"] for d in out["exit"]["doublings"][2:]] == [pytest.approx(2.5),
                                                                   pytest.approx(5.0)]
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--cells", "missing.parquet"], ["missing.parquet", "no such file"]),
+    (["--cells", "missing.parquet", "--depth", "9"], ["--depth = 9", "[0, 6]"]),
+    (["--cells", "missing.parquet", "--plane", "nope"], ["unknown plane 'nope'"]),
+])
+def test_atlas_command_refuses_bad_input_in_one_line(tmp_path, capsys, extra, words):
+    from gearsim.cli.main import main
+
+    args = ["atlas", "--plane", "wb", "--out", str(tmp_path / "a.json"), *extra]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and all(w in err[0] for w in words), err
+    assert not list(tmp_path.iterdir())
+
+
+def test_an_unexplained_edge_is_a_wrong_label_beside_an_island_else_a_missed_curve():
+    def lab(i, j):
+        if (i, j) == (2, 2):
+            return ("periodic", 1, 3)  # one odd cell inside the 0/1T region
+        return ("periodic", 0 if i < 5 else 1, 1)
+    cells = _cells(lab)
+    assert bd.islands(cells) == {(2, 2)}
+    u = bd.unexplained(bd.classify_edges(cells, None), cells)
+    assert set(u.loc[u["pair"] == "0/1T | 1/3T", "verdict"]) == {"wrong label"}
+    assert (u["pair"] == "0/1T | 1/3T").sum() == 4
+    assert set(u.loc[u["pair"] == "0/1T | 1/1T", "verdict"]) == {"missed curve"}

@@ -54,3 +54,15 @@ def test_the_scorecard_rows_measure_the_mechanisms():
     m = rows["more damping shrinks the impact and chaotic regions, plane wxi"]
     assert m.ok is False  # no chaos at all: nothing shrinks
     assert np.isfinite(float(m.ours.split("impact ")[1].split(" %")[0]))
+
+
+def test_the_report_reads_each_planes_atlas_and_links_its_unexplained_edges(tmp_path):
+    from gearsim.presentation.report_inputs import load_atlas
+
+    (tmp_path / "atlas").mkdir()
+    a = _plane("b")
+    (tmp_path / "atlas" / "wb.json").write_text(json.dumps(a))
+    (tmp_path / "atlas" / "wb_unexplained.csv").write_text("plane,axis\n")
+    got = load_atlas(tmp_path, ["wb", "wxi"])
+    assert [g["plane"] for g in got] == ["wb"]
+    assert got[0]["unexplained_file"] == "atlas/wb_unexplained.csv"

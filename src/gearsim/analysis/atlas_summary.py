@@ -92,12 +92,12 @@ def damping(cells: pd.DataFrame, quarters: int = 4) -> dict[str, Any]:
     return out
 
 
-def _pairs(edges: pd.DataFrame, top: int = 10) -> list[dict[str, Any]]:
-    """The most frequent label pairs of the unexplained edges (group, pair, edges)."""
-    u = bd.unexplained(edges)
+def _pairs(edges: pd.DataFrame, cells: pd.DataFrame, top: int = 10) -> list[dict[str, Any]]:
+    """The most frequent label pairs of the unexplained edges (group, pair, verdict, edges)."""
+    u = bd.unexplained(edges, cells)
     if not len(u):
         return []
-    t = u.groupby(["group", "pair"]).size().rename("edges").reset_index()
+    t = u.groupby(["group", "pair", "verdict"]).size().rename("edges").reset_index()
     t = t.sort_values("edges", ascending=False).head(top)
     return t.to_dict("records")
 
@@ -133,7 +133,9 @@ def plane_atlas(cells: pd.DataFrame, curves: pd.DataFrame | None, *, plane: str,
         "by_mechanism": mech.to_dict("records"),
         "explained": {k: list(v) for k, v in bd.explained_share(edges).items()},
         "mechanisms": mechanisms(edges),
-        "unexplained_pairs": _pairs(edges),
+        "unexplained_pairs": _pairs(edges, cells),
+        "unexplained_verdicts": {k: int(v) for k, v in bd.unexplained(edges, cells).get(
+            "verdict", pd.Series(dtype=str)).value_counts().items()},
         "crises": crises(edges),
     }
     if y_name == "b":

@@ -376,12 +376,36 @@ def explained_share(edges: pd.DataFrame, groups: Iterable[str] = ("I changes", "
                 int((edges["group"] == g).sum())) for g in groups}
 
 
-def unexplained(edges: pd.DataFrame) -> pd.DataFrame:
-    """The unexplained edges of the periodic groups, with their cells (a missed curve or a
-    wrong label), grouped by the pair of labels, most frequent first."""
+def islands(cells: pd.DataFrame) -> set[tuple[int, int]]:
+    """The cells whose label differs from that of at least three of their (up to four)
+    neighbours, and of all when they have fewer: a label no region around it shares."""
+    g = plane_grid(cells)
+    lab = g.cells["label"]
+    differ = pd.Series(0, index=lab.index)
+    have = pd.Series(0, index=lab.index)
+    idx = lab.index.to_frame(index=False)
+    for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        nb = pd.MultiIndex.from_arrays([idx["i"] + di, idx["j"] + dj])
+        ok = nb.isin(lab.index)
+        other = pd.Series(lab.reindex(nb).to_numpy(), index=lab.index)
+        have += ok.astype(int)
+        differ += (ok & (other.to_numpy() != lab.to_numpy())).astype(int)
+    return set(lab.index[(differ >= np.minimum(3, have)) & (have > 0)])
+
+
+def unexplained(edges: pd.DataFrame, cells: pd.DataFrame | None = None) -> pd.DataFrame:
+    """The unexplained edges with their cells, grouped by the pair of labels, most frequent
+    first; with ``cells``, each named (``verdict``) a ``wrong label`` where one of its cells
+    is an island (:func:`islands`: a label no neighbour region shares), else a ``missed
+    curve`` (the edge is part of a boundary no located curve follows)."""
     u = edges[(edges["mechanism"] == "unexplained")].copy()
     u["pair"] = [" | ".join(sorted((a, b))) for a, b in zip(u["label0"], u["label1"],
                                                             strict=True)]
+    if cells is not None and len(u):
+        isl = islands(cells)
+        wrong = [(a, b) in isl or (c, d) in isl for a, b, c, d in
+                 zip(u["i0"], u["j0"], u["i1"], u["j1"], strict=True)]
+        u["verdict"] = np.where(wrong, "wrong label", "missed curve")
     freq = u["pair"].map(u["pair"].value_counts())
     return u.assign(pair_edges=freq).sort_values(["pair_edges", "pair", "j0", "i0"],
                                                  ascending=[False, True, True, True])

@@ -99,7 +99,7 @@ CURVE_STYLE = {
 #: the words of the caption; the colour is the orbit's period (:data:`CURVE_PERIOD_COLOURS`)
 CURVE_LINES = {
     ("period_doubling", ""): ("-", "period doubling n -> 2n"),
-    ("fold", ""): ((0, (6, 2, 1, 2)), "fold"),
+    ("fold", ""): ((0, (5, 1.5, 1, 1.5, 1, 1.5)), "fold"),
     ("grazing", "face"): ((0, (1, 1.2)), "grazing of the tooth face (x = +b)"),
     ("grazing", "back"): ((0, (3, 1.5)), "grazing of the tooth back (x = -b)"),
     ("grazing", "bearing"): ((0, (3, 1, 1, 1, 1, 1)), "grazing of a bearing clearance"),
@@ -218,7 +218,7 @@ def figure_curves(curves: pd.DataFrame, cells: pd.DataFrame | None = None, *,
         ax.set_ylim(float(cells["y"].min()), float(cells["y"].max()))
     if handles:
         fig.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.745, 0.02),
-                   fontsize=6, title="curves: kind, period (Newton-Floquet)",
+                   fontsize=6, title="curves: kind, period (Newton-Floquet)", handlelength=4,
                    title_fontsize=6.5, ncol=1 if len(handles) <= 16 else 2, frameon=False)
     ax.set_xlabel(param_label(name))
     ax.set_ylabel(param_label(name2))

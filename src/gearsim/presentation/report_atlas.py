@@ -102,10 +102,15 @@ def atlas_lines(atlas: list[dict[str, Any]], h: str = "##") -> list[str]:
             for g in ("all", *GROUPS) if g in near) + ".")
         if a.get("unexplained_pairs"):
             link = a.get("unexplained_file")
+            v = a.get("unexplained_verdicts") or {}
             out.append("- Unexplained edges" + (f" ([{link}]({link}), with their cells)"
-                                                 if link else "") + ", most frequent pairs: "
-                       + "; ".join(f"{p['pair']} ({p['group']}) {p['edges']}"
-                                   for p in a["unexplained_pairs"]) + ".")
+                                                 if link else "")
+                       + (f": {v.get('missed curve', 0)} on a boundary no located curve "
+                          f"follows (a missed curve), {v.get('wrong label', 0)} beside a cell "
+                          "whose label no neighbour shares (a wrong label)" if v else "")
+                       + "; most frequent pairs: "
+                       + "; ".join(f"{p['pair']} ({p['group']}, {p.get('verdict', '?')}) "
+                                   f"{p['edges']}" for p in a["unexplained_pairs"]) + ".")
         if a.get("crises"):
             out.append("- The chaotic band ends abruptly (a crisis, read from the grid, not "
                        "located) between: " + "; ".join(

@@ -80,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
                             finished=parquet.now_iso(), wall_s=summary["wall_s"])
     summary["provenance"] = prov
     parquet.write_parquet(edges, Path(f"{stem}_edges.parquet"), {parquet.PROVENANCE_KEY: prov})
-    u = unexplained(edges)
+    u = unexplained(edges, cells)
     write_text_atomic(Path(f"{stem}_unexplained.csv"), u.to_csv(index=False))
     write_text_atomic(out, json.dumps(_clean(summary), indent=1) + "\n")
     for k, (ok, n) in summary["explained"].items():

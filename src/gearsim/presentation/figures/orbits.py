@@ -50,7 +50,7 @@ CURVE_CAPTION = (
     "-1 and the orbit of period 2n is born (the period of the map's label doubles across it). "
     "Dotted: grazing of the tooth face (x = +b), dashed: grazing of the tooth back (x = -b), "
     "where an orbit's turning point touches the boundary and an impact is born or lost (the "
-    "impact state I, p or q changes across it). Dash-dot: fold, where two orbits of one period "
+    "impact state I, p or q changes across it). Dash-dot-dot: fold, where two orbits of one period "
     "meet and vanish; the chain jumps there, and between two folds both branches coexist (the "
     "hysteresis band). The colour is the orbit's period (black 1T, blue 2T, magenta 4T, purple 8T, "
     "brown 16T); white markers are the codimension-2 points where two curves meet or a curve "
