@@ -111,7 +111,7 @@ def _second_value(base, grid, second: tuple[str, str], n: int, w: float, yv: flo
 
 def locate_on_curve(base: ModelParameters, grid, first: tuple[str, str], second: tuple[str, str],
                     n: int, start: dict[str, Any], tangent: np.ndarray, cfg: Continuation,
-                    max_iter: int = 40) -> dict[str, Any] | None:
+                    max_iter: int = 24) -> dict[str, Any] | None:
     """The point of curve ``first`` where the test function ``second`` vanishes, searched
     from the curve point ``start`` (``w``, ``y``, ``state``) along the curve's ``tangent``
     (cell units, pointing where the zero is expected). Returns the located point or None."""
@@ -201,7 +201,7 @@ def _both(base, grid, conds, n, w, yv, state, cfg):
 
 
 def newton2(base, grid, conds, n, start: dict[str, Any], cfg: Continuation,
-            max_iter: int = 30) -> dict[str, Any] | None:
+            max_iter: int = 20) -> dict[str, Any] | None:
     """Newton on the two test functions of one orbit in ``(w, y)`` (cell units), from the
     curve end ``start`` (period doublings and grazings: each test function is one of the
     orbit at fixed parameters).
