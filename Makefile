@@ -17,11 +17,13 @@ define unlock_stale
 	done; . $(BIN)/activate && snakemake --unlock --cores 1 $(1) >/dev/null 2>&1 || true
 endef
 
-# The tested versions of requirements.lock (constraints), within pyproject.toml's ranges.
+# The tested versions of requirements.lock (constraints), within pyproject.toml's ranges;
+# VENV_EXTRAS: the optional extras installed with it, in the same pip run (CI: dev,gpu).
+VENV_EXTRAS ?= dev
 $(BIN)/gearsim: pyproject.toml requirements.lock
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -c requirements.lock -e '.[dev]'
+	$(BIN)/pip install --quiet -c requirements.lock -e '.[$(VENV_EXTRAS)]'
 	touch $(BIN)/gearsim
 
 venv: $(BIN)/gearsim
@@ -39,14 +41,19 @@ quick: venv  ## small grids for a fast look (config/quick.yaml), in studies/quic
 # first, as the workflow's `compile` rule does, so the workers load them instead of compiling the
 # same kernels side by side.
 TEST_WORKERS ?= 2
-# Then the CUDA lane kernel under Numba's CUDA simulator: its own pytest process, since
+# Beside it, the CUDA lane kernel under Numba's CUDA simulator: its own pytest process, since
 # NUMBA_ENABLE_CUDASIM must be set before Numba is imported (skipped without numba-cuda, the
-# gpu extra that .ci/run installs).
+# gpu extra that .ci/run installs). It runs while the suite waits on its SLURM test's scheduler
+# (the suite keeps about 1.3 of 2 cores busy), its output shown after the suite's; the target
+# fails when either fails.
+SIM_TESTS := tests/unit/test_cuda_lanes.py tests/unit/test_cuda_chains.py
 test: venv  ## the test suite (what CI runs)
-	. $(BIN)/activate && gearsim compile && \
-	  pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=30
-	. $(BIN)/activate && NUMBA_ENABLE_CUDASIM=1 pytest -q -p no:cacheprovider tests/unit/test_cuda_lanes.py \
-	  tests/unit/test_cuda_chains.py
+	. $(BIN)/activate && gearsim compile
+	. $(BIN)/activate && sim_log=$$(mktemp) && \
+	  { NUMBA_ENABLE_CUDASIM=1 nice -n 5 pytest -q -p no:cacheprovider $(SIM_TESTS) >"$$sim_log" 2>&1 & } && \
+	  sim=$$! && suite=0 && { pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=30 || suite=$$?; } && \
+	  simrc=0 && { wait $$sim || simrc=$$?; } && echo "--- CUDA lane kernel under the simulator:" && \
+	  cat "$$sim_log" && rm -f "$$sim_log" && test $$suite -eq 0 && test $$simrc -eq 0
 
 # The unit tier only (tests/unit): seconds per file, under a minute on 2 cores with a warm cache.
 test-fast: venv

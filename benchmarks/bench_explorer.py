@@ -19,8 +19,8 @@
         alternating loads; writes benchmarks/results/explorer_compare.json
 
     python benchmarks/bench_explorer.py readout PAGE --catalogue CAT --cells 20
-        hovers CELLS random cells of every plane of a page in headless chromium (a real mouse
-        over each cell's centre) and compares the readout's DC, Kmax and lambda with the
+        hovers CELLS random cells of every plane of a page in headless chromium (a mouse
+        event at each cell's centre) and compares the readout's DC, Kmax and lambda with the
         catalogue's values to the digits shown; writes benchmarks/results/explorer_readout.json
 
 Load time: from navigation start to the page's "ready" mark (the data inflated and every map
@@ -189,14 +189,14 @@ def compare(pages: list[str], repeats: int) -> dict:
     return out
 
 
-def readout(page_path: Path, catalogue: str, cells: int, seed: int) -> dict:
+def readout(page_path: Path, catalogue: str, cells: int, seed: int,
+            motions: tuple[str, ...] = ()) -> dict:
     """Hover ``cells`` random cells of every plane of the page; each readout value against the
     catalogue's, formatted to the digits the page shows."""
     import re
 
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
-    from selenium.webdriver.common.action_chains import ActionChains
 
     from gearsim.results.catalogue import open_catalogue
 
@@ -222,16 +222,28 @@ def readout(page_path: Path, catalogue: str, cells: int, seed: int) -> dict:
             time.sleep(0.1)
         for plane in driver.execute_script("return Object.keys(window.GEARSIM.planes);"):
             rows = cat[cat["plane"] == plane]
+            if motions:
+                rows = rows[rows["motion"].isin(motions)]
             rec = []
             for _, r in rows.iloc[rng.choice(len(rows), size=min(cells, len(rows)),
                                               replace=False)].iterrows():
-                canvas = driver.find_element("id", f"map-{plane}")
-                driver.execute_script("arguments[0].scrollIntoView({block: 'center'});", canvas)
-                dx, dy = driver.execute_script(
-                    "return window.GEARSIM.pixelOf(arguments[0], arguments[1], arguments[2]);",
+                # a 400 x 400 plane's cells are about a pixel wide on the map, and mouse events
+                # land on whole pixels: zoom in about the cell with the wheel (as a user does)
+                # until it is several pixels wide, then move the mouse to it; a double click
+                # shows the whole plane again
+                driver.execute_script(
+                    "const name = arguments[0], x = arguments[1], y = arguments[2];"
+                    "const c = document.getElementById('map-' + name);"
+                    "c.scrollIntoView({block: 'center'});"
+                    "const at = (type, extra) => { const r = c.getBoundingClientRect(),"
+                    " [dx, dy] = window.GEARSIM.pixelOf(name, x, y);"
+                    " c.dispatchEvent(new (type === 'wheel' ? WheelEvent : MouseEvent)(type,"
+                    " Object.assign({bubbles: true, cancelable: true, clientX: r.left +"
+                    " r.width / 2 + dx, clientY: r.top + r.height / 2 + dy}, extra))); };"
+                    "for (let k = 0; k < 12; k++) at('wheel', {deltaY: -100});"
+                    "at('mousemove', {});"
+                    "c.dispatchEvent(new MouseEvent('dblclick', {bubbles: true}));",
                     plane, float(r["x"]), float(r["y"]))
-                ActionChains(driver).move_to_element_with_offset(
-                    canvas, int(round(dx)), int(round(dy))).perform()
                 hover = driver.execute_script("return window.GEARSIM.hover")
                 text = driver.find_element("id", "cell").text
                 shown = {k: re.search(rf"{k} = (.+?)(?:   |\n|$)", text).group(1)
@@ -265,6 +277,8 @@ def main() -> None:
     r.add_argument("--catalogue", default="results/catalogue.sqlite")
     r.add_argument("--cells", type=int, default=20)
     r.add_argument("--seed", type=int, default=54)
+    r.add_argument("--motion", nargs="+", default=(),
+                   help="sample only cells of these motions (e.g. diverged unsettled)")
     b = sub.add_parser("stand-in", help="a stand-in for the default run's two planes")
     b.add_argument("--source", required=True, help="results directory of a computed run")
     b.add_argument("--plane", required=True,
@@ -280,9 +294,12 @@ def main() -> None:
     before = loadavg()
     if args.what == "readout":
         rec = {"page": args.page, "catalogue": args.catalogue, "seed": args.seed,
-               "planes": readout(Path(args.page), args.catalogue, args.cells, args.seed)}
+               "motions": list(args.motion),
+               "planes": readout(Path(args.page), args.catalogue, args.cells, args.seed,
+                                 tuple(args.motion))}
         RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "explorer_readout.json").write_text(json.dumps(rec, indent=1))
+        name = "explorer_readout" + ("_" + "_".join(args.motion) if args.motion else "")
+        (RESULTS / f"{name}.json").write_text(json.dumps(rec, indent=1))
         for plane, r in rec["planes"].items():
             print(f"{plane}: {r['equal']} of {r['cells']} random cells show the catalogue's "
                   "DC, Kmax and lambda to the last shown digit")

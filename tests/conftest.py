@@ -23,6 +23,7 @@ SHARED_GROUPS = {
     "test_catalogue_integrity.py": "tiny_run",
     "test_trust_runs.py": "tiny_run",
     "test_results_in_place.py": "tiny_run",
+    "test_readme_beside_a_study.py": "tiny_run",
     # tests/tiny_study.py: the tiny study with a (w, eps) plane, under the worker's basetemp
     "test_figures_planes.py": "tiny_study",
     "test_explorer.py": "tiny_study",

@@ -116,3 +116,16 @@ def test_gear_file_gives_its_speed_and_torque(capsys):
     assert half["w"] == pytest.approx(model.w / 2, rel=1e-12)
     assert main(["point", "--json"]) == 2  # without a gear file, the frequency is asked for
     assert "give --omega" in capsys.readouterr().err
+
+
+def test_a_diverged_point_has_no_readings(capsys):
+    """w = 1.921, b = 0.02125 (a cell the default run finds diverged): no DC, Kmax or Lyapunov
+    exponent is printed or recorded, the status says why."""
+    assert main(["point", "--omega", "1.921", "--set", "b=0.02125"]) == 0
+    line = capsys.readouterr().out.splitlines()[1]
+    assert "pattern=diverged" in line and "status=diverged" in line
+    assert "DC=none Kmax=none lyapunov=none" in line
+    assert main(["point", "--omega", "1.921", "--set", "b=0.02125", "--json"]) == 0
+    row = json.loads(capsys.readouterr().out)
+    assert row["kmax"] is None and row["dc"] is None and row["lyapunov"] is None
+    assert row["x_max"] is None or row["x_max"] > 1.0  # how far it went stays

@@ -88,3 +88,29 @@ def test_simulate_tile_device_cuda_exits_2_with_one_line(tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("gearsim simulate-tile: error: --device: cuda")
     assert not out.exists()
+
+
+SIMULATING = ("point", "orbit", "sweep", "attractors", "basins", "simulate-tile",
+              "attractor-tile")
+
+
+@pytest.mark.parametrize("command", SIMULATING)
+def test_every_simulating_command_takes_the_device(command):
+    """``--device`` on every command that simulates, with the study's ``execution.device`` as
+    its default (``gearsim point --omega 0.8 --device auto`` runs)."""
+    from gearsim.cli.main import build_parser
+
+    sub = next(a for a in build_parser(command)._actions if a.dest == "command")
+    opts = {o: a for a in sub.choices[command]._actions for o in a.option_strings}
+    assert "--device" in opts and opts["--device"].default is None
+    assert tuple(opts["--device"].choices) == device.DEVICES
+
+
+@no_gpu
+def test_point_with_device_cuda_and_no_gpu_is_one_line():
+    proc = subprocess.run([sys.executable, "-m", "gearsim.cli.main", "point", "--omega", "0.8",
+                           "--device", "cuda"], capture_output=True, text=True, cwd=ROOT,
+                          timeout=120)  # fmt: skip
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("gearsim point: error: --device: cuda")

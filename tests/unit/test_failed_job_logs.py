@@ -34,3 +34,4 @@ def test_failed_logs_are_named_from_the_project_folder(tmp_path):
     # a run in the project folder: Snakemake's paths are right as they stand
     assert failed_job_logs(log, None) == []
     assert failed_job_logs(tmp_path / "missing.log", "small") == []
+    assert failed_job_logs([str(log)], "small") == failed_job_logs(log, "small")  # Snakemake 9

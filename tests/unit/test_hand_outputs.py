@@ -37,7 +37,8 @@ def test_hand_command_stops_before_a_file_of_a_recorded_run(tmp_path, monkeypatc
         ip.check_hand_outputs([new, fig], replace=False, elsewhere="--outdir DIR")
     line = str(err.value)
     assert "\n" not in line
-    assert line.startswith(f"{fig}: made by the workflow (results/ holds a run's results)")
+    assert line.startswith(f"{fig}: made by the workflow (a file of the results of a run in "
+                           "results/)")
     assert "give --outdir DIR to write elsewhere, or --replace to replace it" in line
     assert fig.read_bytes() == b"png"
     ip.check_hand_outputs([fig], replace=True, elsewhere="--outdir DIR")  # asked: it may
@@ -84,3 +85,13 @@ def test_the_record_keeps_every_hash_a_run_had(tmp_path):
     assert history["plane wb"] == sorted({first["items"]["plane wb"],
                                           second["items"]["plane wb"]})
     assert history["plane wxi"] == [first["items"]["plane wxi"]]
+
+
+def test_partial_kept_says_what_an_interrupted_run_keeps(tmp_path):
+    import pandas as pd
+
+    partial = tmp_path / "wb_orbits.parquet.partial"
+    assert ip.partial_kept(partial, "cells refined").startswith("no cells refined were kept")
+    pd.DataFrame({"i": range(7)}).to_parquet(partial)
+    assert ip.partial_kept(partial, "cells refined") == \
+        f"the 7 cells refined so far are kept in {partial}"

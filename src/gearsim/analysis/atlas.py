@@ -72,16 +72,21 @@ class AtlasOptions:
 
     kinds: tuple[str, ...] = ("fold", "period_doubling", "grazing")
     max_period: int = 16
+    max_period_jump: int = 4  # a jump's continuation only from orbits of at most this period
     workers: int = 1
     radius: float = 1.5  # an edge this close to a curve that explains it seeds nothing
-    tried: float = 3.0  # a failed seed marks the edges of its kind this close as tried
+    tried: float = 4.0  # a failed seed marks the edges of its kind this close as tried
     defer: float = 12.0  # two seeds of one kind in flight are at least this far apart
-    max_failures: int = 12  # failed seeds of one kind, period and boundary before it stops
+    max_failures: int = 60  # failed seeds of one kind, period and boundary before it stops
     step_cells: float = 40.0  # the longest curve step
     deviation: float = 0.3  # the curve polygon's distance from the curve (step control)
-    max_points: int = 800  # points of a curve half
+    max_points: int = 300  # points of a curve half
     method: str = "secant"
     fallback: int = 0  # secant failures of a curve half retried by a windowed continuation
+    #: DP5 tolerance of the orbits that track a curve between its seed and its ends (the
+    #: seeds and the codimension-2 points at the shooting's 1e-12): 2.5x fewer steps, the
+    #: points within ~1e-8 of the 1e-12 ones (docs/decisions.md, "The plane atlas's cost")
+    tracking_rtol: float | None = 1e-10
     config: Continuation = field(default_factory=Continuation)
 
 
@@ -117,14 +122,17 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
                 continue
             try:
                 r = relocate_secant(p, h.kind, h.boundary, h.period, along,
-                                    float(getattr(p, along)), y, cell, cfg, wtol=1e-10,
+                                    float(getattr(p, along)), y, 2.0 * cell, cfg, wtol=1e-10,
                                     max_eval=20)
             except (OrbitError, ParameterError, np.linalg.LinAlgError):
                 r = None
             if r is not None:
                 row, _y = r
                 found.append(_seed_row(row, h.kind, h.period, h.boundary, grid, axis, p))
-                return found
+                u = grid.index([found[-1]["value"]], [found[-1]["value2"]])[0]
+                if math.dist(u, (e["ci"], e["cj"])) <= opts.radius:
+                    return found
+                break  # found away from the edge: the edge may be a jump (a fold) instead
     # a jump (or a secant that failed): a short continuation across the edge from the cell
     # the chain came from; every event it locates near the edge seeds
     for s in (order if h.kind == "fold" else order[:1]):
@@ -138,6 +146,8 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
         v1 = float(getattr(_cell_params(base, grid, i2, j2), along))
         stop = v0 + 2.5 * (v1 - v0)
         n = h.period if h.kind != "fold" else int(e[f"n_{s}"])
+        if n > opts.max_period_jump:  # a continuation of a long orbit costs n times more
+            continue
         try:
             orbit = find_periodic_orbit(p, n, y, cfg.settings, max_iter=20, grazing=False)
             c = Continuation(**{**cfg.__dict__, "ds": 0.2 * cell, "ds_max": 0.5 * cell,
@@ -150,8 +160,11 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
                                                        else grid.x_name))))
         ev = br[(br["event"] != "") & (br["branch"] == 0)]
         for _, r in ev.iterrows():
-            # a jump seeds every kind it finds; a doubling or grazing only its own kind
-            if r["event"] not in opts.kinds or (h.kind != "fold" and r["event"] != h.kind):
+            # a jump seeds every kind it finds; a doubling or grazing that the secant did not
+            # find (or found away from the edge) its own kind, or the fold the chain jumped
+            # at (a label change at a jump reads like a grazing or a doubling)
+            want = (h.kind, "fold") if not found else ("fold",)
+            if r["event"] not in opts.kinds or r["event"] not in want:
                 continue
             found.append(_seed_row(r, r["event"], int(r["period"]), str(r["boundary"] or ""),
                                    grid, axis, p))
@@ -223,7 +236,7 @@ def _follow_both(base: ModelParameters, grid: Grid, s: dict, opts: AtlasOptions,
                          range2=(grid.y_min, grid.y_max), range1=(grid.x_min, grid.x_max),
                          cell=(grid.dx, grid.dy), deviation=opts.deviation,
                          tangent=(sign * t0[0], sign * t0[1]), avoid=avoid,
-                         fallback=opts.fallback)
+                         fallback=opts.fallback, rtol=opts.tracking_rtol)
         halves.append(c)
         if c.attrs.get("end") == "closed":
             break
@@ -241,7 +254,9 @@ def _candidates(edges: pd.DataFrame, opts: AtlasOptions) -> pd.DataFrame:
     rows = []
     for k, e in enumerate(edges.to_dict("records")):
         for h in edge_hints(e):
-            if h.kind in opts.kinds and h.period <= opts.max_period:
+            # the cascade to max_period: a doubling of period n makes 2n
+            top = h.period * (2 if h.kind == "period_doubling" else 1)
+            if h.kind in opts.kinds and top <= opts.max_period:
                 rows.append({"edge": k, "hint": h, "key": h.key, "ci": e["ci"], "cj": e["cj"]})
     cand = pd.DataFrame(rows, columns=["edge", "hint", "key", "ci", "cj"])
     if not len(cand):
@@ -340,9 +355,10 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
                                        f"period {s['period']}) {side} end: "
                                        f"{hv.attrs.get('reason', '')}, {len(hv)} points")
             seeds.append(s)
-        if not got:
+        if not new:  # nothing new here: its neighbours of the same kind are not tried again
             key = task.hint.key
-            failures[key] = failures.get(key, 0) + 1
+            if not got:
+                failures[key] = failures.get(key, 0) + 1
             same = np.array([matches(kk, key) for kk in cand["key"]], dtype=bool)
             near = same & (status == 0) & (np.hypot(*(pts - pts[k]).T) <= opts.tried)
             status[near] = 2

@@ -39,6 +39,7 @@ import numpy as np
 import pandas as pd
 
 from gearsim.analysis.continuation_options import BUDGET, Continuation
+from gearsim.analysis.orbits import shooting_settings
 from gearsim.analysis.relocation import (
     relocate_fold,
     relocate_secant,
@@ -203,6 +204,7 @@ def follow_curve(
     tangent: Sequence[float] | None = None,
     avoid: Sequence[np.ndarray] = (),
     fallback: int = 2,
+    rtol: float | None = None,
 ) -> pd.DataFrame:
     """Follow one located bifurcation point across the plane ``(name, name2)``.
 
@@ -228,6 +230,8 @@ def follow_curve(
     exist). ``avoid``: polylines (cell units) of curves of the same kind already followed; two
     points in a row within half a cell of one of them end the curve (``joins``).
     ``fallback``: how many failures of the secant the windowed continuation retries.
+    ``rtol``: the DP5 relative tolerance of the orbits that track the curve (default the
+    shooting's, 1e-12; :func:`gearsim.analysis.orbits.shooting_settings`).
     """
     if name2 not in ModelParameters.names():
         raise ParameterError(f"second parameter 'name2' = {name2!r} is not a model parameter")
@@ -251,6 +255,8 @@ def follow_curve(
     win_min = {name: (window if window is not None else geo.c1),
                name2: (window * geo.c2 / geo.c1 if window is not None else geo.c2)}
     cfg = _tracking_config(config, kind, win_min[name])
+    if rtol is not None:
+        cfg.settings = shooting_settings(rtol)
     locate = _Relocator(kind, boundary, n, method, cfg, fallback=fallback)
     stats = locate.stats
     pts: list[dict[str, Any]] = []

@@ -49,7 +49,7 @@ RESIDUAL = 1e-8
 STEP = 1e-6
 BOUNDARIES = ("x=+b", "x=-b")
 #: a second condition is tried at a lost end only when its test function is this near zero
-NEAR = 0.05
+NEAR = 0.01
 
 
 def _kind(a: tuple[str, str], b: tuple[str, str]) -> str:
@@ -369,7 +369,7 @@ def codim2_points(base: ModelParameters, curves: pd.DataFrame, grid, opts: Any,
             continue
         first = (end["kind"], end["boundary"])
         n = int(end["period"])
-        for second in _candidates(base, grid, first, n, end, cfg)[:2]:
+        for second in _candidates(base, grid, first, n, end, cfg)[:1]:
             if "fold" in (first[0], second[0]):
                 pt = locate_on_curve(base, grid, first, second, n, end,
                                      np.asarray(end["tangent"], dtype=float), cfg)

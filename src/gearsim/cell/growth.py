@@ -125,7 +125,8 @@ def check_growth(results: Sequence, st, periods: int = LONG_RUN, backend=None) -
     result gets its
     ``mu_lin``; where ``mu_lin > 1`` a ``periods``-period run from its final state decides
     (``long_run`` = its periods): bounded, the label stands; diverged or growing, the result
-    becomes ``diverged`` (its window's readings kept). The run's periods and steps are the
+    becomes ``diverged`` (its window's readings kept in the classification; its table row
+    holds none, :func:`gearsim.cell.record.row_values`). The run's periods and steps are the
     cell's. Its final state stays the window's (the state a continuation chain went on from).
     ``backend``: where the long runs' lanes run (default the CPU)."""
     todo = [r for r in results if r.classification.motion in CHECKED]

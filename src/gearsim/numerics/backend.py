@@ -27,9 +27,6 @@ import numpy as np
 
 from gearsim.numerics.device import Device, resolve
 
-#: a lanes object (:class:`gearsim.numerics.batch.Lanes`, which is built on a backend)
-Lanes = Any
-
 
 @dataclass
 class Part:
@@ -55,7 +52,9 @@ class Part:
 
 
 class CpuLanes:
-    """The SIMD kernel on this CPU (:data:`CPU`)."""
+    """The SIMD kernel on this CPU (:data:`CPU`). Its methods take a lanes object
+    (:class:`gearsim.numerics.batch.Lanes`, which runs on a backend: this module does not
+    import it)."""
 
     kind = "cpu"
     #: a job's rows go best into one lanes object in one process (a GPU: one launch fills it),
@@ -74,7 +73,7 @@ class CpuLanes:
         """The width of the finder's probing pool: ``cpu_lanes`` (its ``lanes`` option)."""
         return cpu_lanes
 
-    def advance(self, lanes: Lanes, N: int, m: int, tables: tuple, nu: float, bound: float,
+    def advance(self, lanes, N: int, m: int, tables: tuple, nu: float, bound: float,
                 tangent: bool) -> None:
         """Every lane with status 0 advanced by ``m`` periods (:func:`kernel.advance`)."""
         from gearsim.numerics import kernel
@@ -82,7 +81,7 @@ class CpuLanes:
         kernel.advance(lanes.blk, lanes.ist, int(N), int(m), *tables, float(nu), float(bound),
                        lanes.sec, lanes.nface, lanes.nback, lanes.fout, bool(tangent))
 
-    def run_part(self, lanes: Lanes, N: int, nu: float, bound: float, tangent: bool,
+    def run_part(self, lanes, N: int, nu: float, bound: float, tangent: bool,
                  part: Part) -> int:
         """The lanes with status 0 until the first reaches its next decision; returns the
         periods run. No verdict is taken here: ``part.period`` stays -1."""
@@ -115,7 +114,7 @@ class CudaLanes(CpuLanes):
         135 168 lanes), so that a launch fills it."""
         return max(cpu_lanes, self.device.multiprocessors * self.POOL_LANES_PER_SM)
 
-    def advance(self, lanes: Lanes, N: int, m: int, tables: tuple, nu: float, bound: float,
+    def advance(self, lanes, N: int, m: int, tables: tuple, nu: float, bound: float,
                 tangent: bool, *, kernel=None, plan: np.ndarray | None = None,
                 test: tuple = (1, 1, 1, 0.0, 0)) -> None:
         from gearsim.numerics import cuda_lanes
@@ -125,7 +124,7 @@ class CudaLanes(CpuLanes):
                                   bool(tangent), kernel=kernel, plan=plan, test=test,
                                   device=self.device)
 
-    def run_part(self, lanes: Lanes, N: int, nu: float, bound: float, tangent: bool,
+    def run_part(self, lanes, N: int, nu: float, bound: float, tangent: bool,
                  part: Part) -> int:
         """One launch: the measuring lanes take their verdicts inside it, chunk after chunk,
         so only the other lanes' next decisions end it (all measuring: the longest measurement

@@ -48,7 +48,7 @@ from gearsim.study.provenance import config_hash, plane_subtree, point_subtree, 
 
 __all__ = [
     "RECORD", "REPLACE_KEY", "check_hand_outputs", "check_in_place", "check_tiles_in_place",
-    "run_record", "workflow_folder", "write_record",
+    "partial_kept", "run_record", "workflow_folder", "write_record",
 ]
 
 #: The record of the configuration that made a results folder (relative to the run's directory).
@@ -281,9 +281,9 @@ def check_hand_outputs(paths: Iterable[str | Path], *, replace: bool, elsewhere:
     first = made[0]
     more = f" (and {len(made) - 1} more of its files)" if len(made) > 1 else ""
     raise UsageError(
-        f"{first}{more}: made by the workflow ({_shown(workflow_folder(first))}/ holds a run's "
-        f"results); nothing was written: give {elsewhere} to write elsewhere, or {allow} to "
-        "replace it")
+        f"{first}{more}: made by the workflow (a file of the results of a run in "
+        f"{_shown(workflow_folder(first))}/); nothing was written: give {elsewhere} to write "
+        f"elsewhere, or {allow} to replace it")
 
 
 def _shown(folder: Path) -> str:
@@ -327,3 +327,17 @@ def check_tiles_in_place(record: Mapping[str, Any], folder: str | Path = "result
                 "written by a command by hand?); "
                 f"nothing was removed: repair it with `rm {_shown(tile.resolve())}` and run "
                 "again (the workflow recomputes it)")
+
+
+def partial_kept(partial: str | Path, what: str = "cells") -> str:
+    """What an interrupted run that checkpoints into ``partial`` keeps, in words: ``the 120
+    cells refined so far are kept in X.partial`` (its rows, from the Parquet footer), or that none
+    was kept yet."""
+    partial = Path(partial)
+    try:
+        import pyarrow.parquet as pq
+
+        rows = pq.read_metadata(partial).num_rows
+    except Exception:  # noqa: BLE001 - no partial table (or a damaged one): nothing kept
+        return f"no {what} were kept yet (the first partial table comes after --every of them)"
+    return f"the {rows} {what} so far are kept in {partial}"

@@ -144,6 +144,14 @@ def psycopg_module():
         raise CatalogueError(
             "a database server needs psycopg 3: pip install 'gearsim[postgres]'"
         ) from None
+    import logging
+
+    # the driver's own warnings (a COPY cut off by a stopped server) are said once, in our line;
+    # Python's last-resort handler would print them beside it (an application's handlers still
+    # get them)
+    log = logging.getLogger("psycopg")
+    if not any(isinstance(h, logging.NullHandler) for h in log.handlers):
+        log.addHandler(logging.NullHandler())
     return psycopg
 
 

@@ -191,7 +191,7 @@ def publish_study(source: str | Path, url: str, study: str, *, check: bool = Tru
             # the swap: one at a time, and never while a reader holds the study
             cur.execute("SELECT pg_advisory_xact_lock(%s, 0)", (LOCK_SWAP,))
             cur.execute("SELECT pg_advisory_xact_lock(%s, hashtext(%s))", (LOCK_READ, study))
-            cur.execute(f"DROP VIEW IF EXISTS public.{ACROSS}")
+            _take_old_study(cur, study, url)
             if schema_exists(cur, study):
                 cur.execute(f"ALTER SCHEMA {quote(study)} RENAME TO {quote(old)}")
             cur.execute(f"ALTER SCHEMA {quote(new)} RENAME TO {quote(study)}")
@@ -217,6 +217,45 @@ def publish_study(source: str | Path, url: str, study: str, *, check: bool = Tru
         src.close()
         con.close()
     return counts
+
+
+#: How long a swap waits for the study's statements to let go (then: one line, as it was).
+SWAP_PATIENCE_S = 600.0
+
+
+def _take_old_study(cur, study: str, url: str) -> None:
+    """Hold every relation of the study's current schema and the cross-study view exclusively,
+    all or none: a reader's statement that has begun on them ends first, one that begins later
+    waits and then reads the new study (it never holds an old table and a new one). Never
+    waiting while holding part of them, the swap cannot deadlock with a reader; it tries again
+    every 50-100 ms while statements hold them."""
+    import random
+    import time
+
+    psycopg = psycopg_module()
+    con = cur.connection
+    rels = [f"{quote(study)}.{quote(n)}" for (n,) in cur.execute(
+        "SELECT c.relname FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace "
+        "WHERE n.nspname = %s AND c.relkind IN ('r', 'v') ORDER BY c.relname",
+        (study,)).fetchall()]
+    t0 = time.monotonic()
+    while True:
+        try:
+            with con.transaction():  # a savepoint: a failed try lets go of what it took
+                cur.execute("SET LOCAL lock_timeout = '100ms'")
+                # the view alone (LOCK TABLE on a view would lock every study's tables)
+                cur.execute(f"DROP VIEW IF EXISTS public.{ACROSS}")
+                if rels:
+                    cur.execute(f"LOCK TABLE {', '.join(rels)} IN ACCESS EXCLUSIVE MODE NOWAIT")
+                cur.execute("SET LOCAL lock_timeout = 0")
+            return
+        except psycopg.errors.LockNotAvailable:
+            if time.monotonic() - t0 > SWAP_PATIENCE_S:
+                raise CatalogueError(
+                    f"{safe_url(url)}: readers kept study {study} busy for "
+                    f"{SWAP_PATIENCE_S:.0f} s; study {study} is as it was (publish again)"
+                ) from None
+            time.sleep(0.05 + 0.05 * random.random())
 
 
 def _check_target(cur, study: str, expect_published: Any) -> None:

@@ -138,18 +138,22 @@ _FAILED_LOG = "log: "
 _FAILED_LOG_END = " (check log file"
 
 
-def failed_job_logs(snakemake_log: str | Path, run_folder: str | None) -> list[str]:
-    """Lines naming the log of every failed job of a run, as paths to open from the project
-    folder (where the run was started): Snakemake names them relative to the folder the run
-    works in, which for a study of one's own (or a ``folder:``) is ``studies/<folder>/``. Empty
-    for a run in the project folder itself (its paths are right as they stand) or when the log
-    names none."""
+def failed_job_logs(snakemake_log: str | Path | Iterable[str | Path],
+                    run_folder: str | None) -> list[str]:
+    """Lines naming the log of every failed job of a run (``snakemake_log``: Snakemake's log
+    file, or its list of them), as paths to open from the project folder (where the run was
+    started): Snakemake names them relative to the folder the run works in, which for a study
+    of one's own (or a ``folder:``) is ``studies/<folder>/``. Empty for a run in the project
+    folder itself (its paths are right as they stand) or when the log names none."""
     if run_folder is None:
         return []
-    try:
-        text = Path(snakemake_log).read_text(errors="replace")
-    except OSError:
-        return []
+    logs = [snakemake_log] if isinstance(snakemake_log, str | Path) else list(snakemake_log)
+    text = ""
+    for log in logs:  # Snakemake 9 passes its log files as a list
+        try:
+            text += Path(log).read_text(errors="replace") + "\n"
+        except OSError:
+            continue
     out: list[str] = []
     rule = ""
     for line in text.splitlines():

@@ -186,15 +186,15 @@ def _the_motions(s: Steady, pts: np.ndarray) -> bool:
 
 
 def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, settings,
-            packed: dict[int, np.ndarray]):
+            packed: dict[int, np.ndarray], backend=None):
     """The ``n``-period images of the states ``rows`` (one SIMD lane each, without the tangent
-    vector: the cells' one RK4 kernel, as a probing lane runs them), their status and the
-    entries into face and back contact of every period."""
+    vector: the cells' one RK4 kernel, as a probing lane runs them, on ``backend``), their
+    status and the entries into face and back contact of every period."""
     from gearsim.numerics.batch import Lanes, steps_per_period
 
     k = len(rows)
     N = steps_per_period(plist[0], settings)
-    lanes = Lanes(k, n)
+    lanes = Lanes(k, n, backend)
     for l, (p, y) in enumerate(zip(plist, rows, strict=True)):
         lanes.load_params(l, p, N, packed[id(p)])
         lanes.load_state(l, y)
@@ -206,7 +206,7 @@ def images(plist: list[ModelParameters], rows: list[np.ndarray], n: int, setting
             lanes.nback[:k, :n].copy(), lanes.sec[:k, :n, :2].copy())  # fmt: skip
 
 
-def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st
+def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st, backend=None
                     ) -> list[tuple[np.ndarray, np.ndarray] | None]:
     """Per ``(cell parameters, a periodic motion of a neighbouring cell)``: ``(y, points)``, the
     section state of that motion's orbit continued by Newton into *this* cell (the one orbit
@@ -230,7 +230,7 @@ def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st
         plist = [pairs[i][0] for i in group]
         packed = {id(p): pack_parameters(p) for p in plist}
         _fin, status, _face, _back, sec = images(plist, [got[i][0] for i in group], n, st,
-                                                 packed)  # fmt: skip
+                                                 packed, backend)  # fmt: skip
         for q, i in enumerate(group):
             s = pairs[i][1]
             pts = sec[q]
@@ -241,7 +241,7 @@ def continue_orbits(pairs: Sequence[tuple[ModelParameters, Steady]], st
 
 
 def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radius: float,
-                 tries: int, orbits: Sequence | None = None
+                 tries: int, orbits: Sequence | None = None, backend=None
                  ) -> tuple[list[Certificate | None], int]:
     """The largest certified radius of each orbit (module docstring), or None, all orbits of
     one period in shared kernel calls (cells of one step grid); and the lane-periods
@@ -305,7 +305,8 @@ def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radi
                     rows.append(yy)
                 plist += [pairs[i][0]] * (len(dirs) + 1)
                 owner += [k] * (len(dirs) + 1)
-            fin, status, face_all, back_all, sec = images(plist, rows, n, settings, packed)
+            fin, status, face_all, back_all, sec = images(plist, rows, n, settings, packed,
+                                                          backend)
             spent += len(rows) * n
             owner = np.array(owner)
             left = []
@@ -329,8 +330,8 @@ def certify_many(pairs: Sequence[tuple[ModelParameters, Steady]], settings, radi
     return out, spent
 
 
-def certify(params: ModelParameters, s: Steady, settings, radius: float, tries: int
-            ) -> tuple[Certificate | None, int]:
-    """:func:`certify_many` of one orbit."""
-    got, spent = certify_many([(params, s)], settings, radius, tries)
+def certify(params: ModelParameters, s: Steady, settings, radius: float, tries: int,
+            backend=None) -> tuple[Certificate | None, int]:
+    """:func:`certify_many` of one orbit (its lanes on ``backend``)."""
+    got, spent = certify_many([(params, s)], settings, radius, tries, backend=backend)
     return got[0], spent

@@ -119,7 +119,8 @@ class _Judge:
     def __init__(self, cells: list[_Cell], forward, backward, forward_results, st,
                  opts: FinderOptions, history: int, early: bool, stats: PoolStats,
                  seeds: Sequence[bool] | None = None,
-                 neighbours: Sequence[Sequence[int]] | None = None):
+                 neighbours: Sequence[Sequence[int]] | None = None, backend=None):
+        self.backend = backend  # where the certificates' and seeds' lanes run (None: the CPU)
         self.stats = stats
         self.seeds = seeds
         self.cells = deque(cells)
@@ -274,7 +275,7 @@ class _Judge:
             todo.append(s)
         if not todo:
             return
-        got = continue_orbits([(cell.params, s) for s in todo], self.st)
+        got = continue_orbits([(cell.params, s) for s in todo], self.st, self.backend)
         self.stats.seeds_tried += len(todo)
         for s, g in zip(todo, got, strict=True):
             if g is None:
@@ -338,7 +339,7 @@ class _Judge:
                     and worth(cell.params, s, self.st, int(np.sum(cell.labels == -2)),
                               o.certify_radius, o.recur_period_rtol)):  # fmt: skip
                 cert, spent = certify(cell.params, s, self.st, o.certify_radius,
-                                      o.certify_tries)  # fmt: skip
+                                      o.certify_tries, self.backend)  # fmt: skip
             cell.certs[a] = cert
             self.stats.certify_periods += spent
             if spent:
@@ -437,7 +438,7 @@ def _forward_margins(params_list, forward_results, st) -> None:
 
 
 def _precertify(cells: list[_Cell], forward_results, st, opts: FinderOptions, history: int,
-                stats: PoolStats, orbits) -> None:
+                stats: PoolStats, orbits, backend=None) -> None:
     """The certificates of the cells' forward motions (one step grid) in shared kernel calls,
     before the pool: each seeds its cell from the first chunk (``_Cell.pre``)."""
     todo = [cell for cell in cells
@@ -448,7 +449,7 @@ def _precertify(cells: list[_Cell], forward_results, st, opts: FinderOptions, hi
         return
     got, spent = certify_many([(cell.params, forward_results[cell.c]) for cell in todo], st,
                               opts.certify_radius, opts.certify_tries,
-                              [orbits[cell.c] for cell in todo])  # fmt: skip
+                              [orbits[cell.c] for cell in todo], backend)  # fmt: skip
     stats.certify_periods += spent
     for cell, cert in zip(todo, got, strict=True):
         cell.pre = cert
@@ -504,9 +505,9 @@ def map_gear_cells(
     stats = stats if stats is not None else PoolStats()
     for (N, nu), group in groups.items():
         if opts.early and opts.certified and forward_results is not None:
-            _precertify(group, forward_results, st, opts, history, stats, orbits)
+            _precertify(group, forward_results, st, opts, history, stats, orbits, system.backend)
         judge = _Judge(group, forward, backward, forward_results, st, opts, history,
-                       opts.early, stats, seeds, neighbours)  # fmt: skip
+                       opts.early, stats, seeds, neighbours, system.backend)  # fmt: skip
         run_pool(judge, st, N, nu, lanes=opts.lanes, chunk=opts.chunk, orbits=system.orbits,
                  stats=stats, backend=system.backend)  # fmt: skip
     for cell in cells:

@@ -32,7 +32,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--kinds", default="fold,period_doubling,grazing",
                    help="comma-separated kinds to follow (fold, period_doubling, grazing)")
     p.add_argument("--max-period", type=int, default=16,
-                   help="follow the bifurcations of orbits of at most this period (default 16)")
+                   help="the cascade to this period: doublings of orbits of half of it or less, "
+                   "grazings and folds of orbits of at most it (default 16)")
     p.add_argument("--workers", type=int, default=1,
                    help="processes, one seed and its curve each (default 1)")
     p.add_argument("--method", choices=("secant", "window"), default="secant",

@@ -32,7 +32,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    "default: %(default)s), or a database URL with --study")
     p.add_argument("--study", help="with a database URL: the study to read")
     p.add_argument("--out", "-o", default="results/explorer/index.html",
-                   help="the page, one HTML file to open in a browser (default: %(default)s)")
+                   help="the page, one HTML file to open in a browser (default: %(default)s, "
+                   "unless a workflow run made it: then --out elsewhere or --replace)")
+    p.add_argument("--replace", action="store_true",
+                   help="replace a page that a workflow run made (refused otherwise)")
     p.add_argument("--plane", nargs="+", default=None, metavar="NAME",
                    help="only these planes of the config (default: every one)")
     p.add_argument("--sweep", nargs="+", default=None, metavar="NAME",
@@ -43,6 +46,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from gearsim.presentation.explorer import write_explorer
     from gearsim.presentation.report_inputs import study_from_config
+    from gearsim.results.in_place import check_hand_outputs
 
     study = study_from_args(args)
     config = study.config
@@ -66,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--results {results}: missing {', '.join(missing[:3])}"
                          + (f" and {len(missing) - 3} more" if len(missing) > 3 else "")
                          + " (run the pipeline first)")
+    check_hand_outputs([args.out], replace=args.replace, elsewhere="--out PATH")
     fixed = {k: dict(v.get("fixed") or {}) for k, v in (config.get("sweeps") or {}).items()}
     from gearsim.physical.units import config_gear
     from gearsim.presentation.report import build_report

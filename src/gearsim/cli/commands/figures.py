@@ -45,6 +45,11 @@ def _pairs(items: list[str], flag: str) -> dict[str, str]:
         out[name] = path
     return out
 
+def kept(args: argparse.Namespace) -> str:
+    """What Ctrl-C keeps: every file is written whole (a temporary name renamed into place)."""
+    return "the figures written before are kept, each file whole"
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fig", type=int, nargs="+", action="extend", default=[], metavar="N",
                    help="figure number(s): 1-17 of the paper, higher for later analyses "
@@ -59,7 +64,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--figure-data", action="append", default=[], metavar="NAME=PATH",
                    help="a figure-data table (results/figure_data/NAME.parquet: the simulated "
                    "motions, attractor search or basins a figure draws), repeatable")
-    p.add_argument("--outdir", default="results/figures", help="output directory")
+    p.add_argument("--outdir", default="results/figures",
+                   help="output directory (default: %(default)s; a figure a workflow run made "
+                   "there is not replaced unless --replace)")
+    p.add_argument("--replace", action="store_true",
+                   help="replace figures that a workflow run made (refused otherwise)")
     p.add_argument("--orbits", action="append", default=[], metavar="NAME=PATH",
                    help="a continuation table (results/orbits/standard.parquet, "
                    "results/orbits/wb_curves.parquet), repeatable; for 'standard' the located "
@@ -82,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
 
     matplotlib.use("Agg")
     from gearsim.presentation.figures import outputs
+    from gearsim.results.in_place import check_hand_outputs
 
     req = outputs.Request(outdir=Path(args.outdir), numbers=args.fig, every=args.all,
                           maps=args.maps, map_kinds=args.map,
@@ -92,6 +102,8 @@ def run(args: argparse.Namespace) -> int:
         figure_data=_pairs(args.figure_data, "--figure-data"),
         orbits=_pairs(args.orbits, "--orbits"))
     outputs.check_request(req, tables)
+    check_hand_outputs(outputs.planned(req, tables), replace=args.replace,
+                       elsewhere="--outdir DIR")  # nothing of a run's results/ replaced unasked
     study = study_from_args(args) if (req.numbers or req.every or req.maps
                                       or req.sweep_diagrams) else None
     outputs.draw(study, tables, req, lambda line: print(line, file=sys.stderr))

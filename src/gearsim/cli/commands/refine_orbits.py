@@ -32,6 +32,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", "-o", default=None,
                    help="output Parquet (default: PLANE_orbits.parquet in the working directory; "
                    "the pipeline writes results/PLANE/orbits.parquet)")
+    p.add_argument("--replace", action="store_true",
+                   help="replace a table that a workflow run made (refused otherwise)")
+
+
+def _out(args: argparse.Namespace) -> Path:
+    return Path(args.out or f"{args.plane}_orbits.parquet")
+
+
+def kept(args: argparse.Namespace) -> str:
+    """What Ctrl-C keeps: the partial table of the last checkpoint (--every)."""
+    from gearsim.results.in_place import partial_kept
+    from gearsim.study.orbit_refinement import partial_path
+
+    return partial_kept(partial_path(_out(args)), "cells refined")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
 
     from gearsim.cli.commands._progress import Progress, duration_text
     from gearsim.results import parquet
+    from gearsim.results.in_place import check_hand_outputs
     from gearsim.study import orbit_refinement as ref
     from gearsim.study.preflight import check_output
 
@@ -47,7 +62,8 @@ def run(args: argparse.Namespace) -> int:
     cells = pd.read_parquet(args.cells)
     job = ref.plan(study, args.plane, cells, cells_path=args.cells, rtol=args.rtol,
                    limit=args.limit, every=args.every)
-    out = Path(args.out or f"{args.plane}_orbits.parquet")
+    out = _out(args)
+    check_hand_outputs([out], replace=args.replace, elsewhere="--out PATH")  # a run's table
     check_output(out)  # writable, with room, before any Newton solve
     partial = ref.partial_path(out)
     done, why = parquet.read_partial(partial, job.key)

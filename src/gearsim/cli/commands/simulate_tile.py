@@ -16,6 +16,7 @@ from gearsim.cli.commands._common import (
 )
 from gearsim.cli.commands._progress import Progress
 from gearsim.results import parquet
+from gearsim.results.in_place import check_hand_outputs
 from gearsim.study import tile_job
 from gearsim.study.cluster import MAX_WORKERS
 
@@ -55,9 +56,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "-o",
         default=None,
         action="append",
-        help="output Parquet file (default <results>/<plane>/tiles/<tile>.parquet); one per "
-        "--plane, in their order",
+        help="output Parquet file (default <results>/<plane>/tiles/<tile>.parquet, unless a "
+        "run's tile is there); one per --plane, in their order",
     )
+    p.add_argument("--replace", action="store_true",
+                   help="replace a tile that a workflow run made (refused otherwise)")
+
+
+def kept(args: argparse.Namespace) -> str:
+    """What Ctrl-C keeps: a tile is written whole when its last row is done."""
+    return "the tile was not written (a tile is written whole, when its last row is done)"
 
 
 def _say(line: str) -> None:
@@ -69,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     for plane in args.plane:
         check_plane(study, plane)
     job = tile_job.plan(study, args.plane, args.tile, args.out)
+    check_hand_outputs(job.outs, replace=args.replace, elsewhere="--out PATH")  # a run's tile
     for out in job.outs:
         check_new_file(out, need=0)  # not a folder, no file in the way (the folder not yet made)
     backend = select_device(args, study)

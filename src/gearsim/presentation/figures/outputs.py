@@ -65,6 +65,30 @@ def check_request(req: Request, tables: Tables) -> None:
             raise UsageError(f"unknown plane map '{kind}'; allowed: {', '.join(maps.PLANE_MAPS)}")
 
 
+def planned(req: Request, tables: Tables) -> list[Path]:
+    """The files a request writes, known before anything is read or drawn: each figure's PNG,
+    PDF and JSON record (with the members of its group; with ``every``, the figures whose
+    tables are given), each map, each sweep diagram and the index."""
+    table = registry.figures()
+    if req.every:
+        numbers = [n for n in table if all(
+            name in getattr(tables, kind) for kind, names in table[n].inputs.tables().items()
+            for name in names)]
+    else:
+        numbers = list(dict.fromkeys(req.numbers))
+    stems = [req.outdir / f"fig{m:02d}" for n in numbers
+             for m in (table[n].members if n in table else (n,))]
+    if req.maps:
+        stems += [req.outdir / "planes" / f"{plane}-{kind}" for plane in tables.planes
+                  for kind in (req.map_kinds or maps.PLANE_MAPS)]
+    if req.sweep_diagrams:
+        stems += [req.outdir / "sweeps" / name for name in tables.sweeps]
+    out = [stem.with_suffix(ext) for stem in stems for ext in (".png", ".pdf", ".json")]
+    if req.index:
+        out.append(req.outdir / "README.md")
+    return list(dict.fromkeys(out))
+
+
 def draw(study: Study | None, tables: Tables, req: Request, say: Say) -> None:
     """The whole run: checked (:func:`check_request`, the output folder writable), then the
     sweep diagrams, the maps, the figures and the index, in that order."""
