@@ -49,19 +49,8 @@ TARGETS_CATALOGUE = [rules.catalogue.output.build]
 # A lab's database (config `publish: {url, study}`; docs/pipeline.md, "A lab's database"): the
 # catalogue published there as one study after each build, swapped in atomically. Its output is
 # the command's line (the URL with its password hidden). Without `publish`, no such rule.
-def _publish_target():
-    from gearsim.errors import USER_ERRORS
-    from gearsim.results.server import configured_target
-
-    try:
-        return configured_target(config["publish"], config.get("study"))
-    except USER_ERRORS as exc:
-        print(f"gearsim: error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
-
-
 if config.get("publish"):
-    PUBLISH_URL, PUBLISH_STUDY = _publish_target()
+    PUBLISH_URL, PUBLISH_STUDY = publish_target()
 
     rule publish_server:
         input:

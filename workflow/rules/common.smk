@@ -252,3 +252,15 @@ def table_files():
         "orbits": ORBIT_FILES,
         "figure_data": FIGURE_DATA_FILES,
     }
+
+
+def publish_target():
+    """The lab database's (URL, study) of config `publish` (catalogue.smk's publish_server)."""
+    from gearsim.errors import USER_ERRORS
+    from gearsim.results.server import configured_target
+
+    try:
+        return configured_target(config["publish"], config.get("study"))
+    except USER_ERRORS as exc:
+        print(f"gearsim: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -201,6 +201,7 @@ def chaotic_band(cells: pd.DataFrame, params, *, x_name: str, y_name: str, y_val
     from gearsim.analysis.cascade import locate_cascade
     from gearsim.analysis.orbits import OrbitError
 
+    failed = (OrbitError, ValueError, ArithmeticError, np.linalg.LinAlgError)
     y, reading = cascade_line(cells, y_value)
     out: dict[str, Any] = {"parameter": y_name, "value": y, "row": y, "grid": reading}
     if reading is None:
@@ -215,7 +216,7 @@ def chaotic_band(cells: pd.DataFrame, params, *, x_name: str, y_name: str, y_val
         br = locate_cascade(p, x_name, reading["start"], reading["onset"], depth=depth,
                             progress=progress, deadline=deadline)
         out["onset"] = _located(br, reading["start"], reading["onset"])
-    except (OrbitError, ValueError) as exc:
+    except failed as exc:  # the band's grid reading stands; the line says why
         out["onset"] = {"error": str(exc)}
     if reading.get("exit") == "cascade":
         row = cells[cells["y"] == out["row"]].sort_values("x")
@@ -227,6 +228,6 @@ def chaotic_band(cells: pd.DataFrame, params, *, x_name: str, y_name: str, y_val
                 br = locate_cascade(p, x_name, w1, reading["end"], depth=depth,
                                     progress=progress, deadline=deadline)
                 out["exit"] = _located(br, w1, reading["end"])
-            except (OrbitError, ValueError) as exc:
+            except failed as exc:
                 out["exit"] = {"error": str(exc)}
     return out

@@ -65,9 +65,16 @@ def _cascade_lines(c: dict[str, Any], x: str) -> list[str]:
             f"{d['ratio']:.3f} ({'smooth' if d['smooth'] else 'grazing between'})"
             for d in dd if d["ratio"] is not None) or "fewer than three doublings located"
         acc = s.get("accumulation")
+        # the grid's interval the accumulation should fall in: the band's first chaotic cell
+        # and the cell before it (onset), its last chaotic cell and the cell after (exit)
+        lo, hi = ((g["onset_lo"], g["onset"]) if side == "onset"
+                  else (g["end"], g["end"] + (g["onset"] - g["onset_lo"])))
+        where = ("" if acc is None else
+                 f", inside the grid's interval {lo:.4f}-{hi:.4f}" if lo <= acc <= hi else
+                 f", **outside** the grid's interval {lo:.4f}-{hi:.4f}")
         out.append(f"  - {what}: doublings at {x} = {pts}; ratios of successive intervals "
                    f"{rat} (Feigenbaum {s['feigenbaum']:.3f}); accumulation "
-                   + (f"{x} = {acc:.5f}" if acc is not None else "not estimated"))
+                   + (f"{x} = {acc:.5f}{where}" if acc is not None else "not estimated"))
     if g.get("exit") == "crisis":
         out.append(f"  - the band ends by a crisis as the grid reads it: chaos -> "
                    f"{g['after_end']} after {x} = {g['end']:.4f} (not located)")
