@@ -82,7 +82,7 @@ class AtlasOptions:
     deviation: float = 0.3  # the curve polygon's distance from the curve (step control)
     max_points: int = 300  # points of a curve half
     method: str = "secant"
-    fallback: int = 0  # secant failures of a curve half retried by a windowed continuation
+    fallback: int = 1  # secant failures of a curve half retried by a windowed continuation
     #: DP5 tolerance of the orbits that track a curve between its seed and its ends (the
     #: seeds and the codimension-2 points at the shooting's 1e-12): 2.5x fewer steps, the
     #: points within ~1e-8 of the 1e-12 ones (docs/decisions.md, "The plane atlas's cost")
@@ -122,7 +122,7 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
                 continue
             try:
                 r = relocate_secant(p, h.kind, h.boundary, h.period, along,
-                                    float(getattr(p, along)), y, 2.0 * cell, cfg, wtol=1e-10,
+                                    float(getattr(p, along)), y, cell, cfg, wtol=1e-10,
                                     max_eval=20)
             except (OrbitError, ParameterError, np.linalg.LinAlgError):
                 r = None

@@ -247,9 +247,10 @@ def newton2(base, grid, conds, n, start: dict[str, Any], cfg: Continuation,
         it += 1
         if cfg.out_of_budget():
             return None
-        # no point near: the residual has not halved in four steps
+        # the residual has not halved in four steps: at its noise floor (accepted below
+        # 1e-7), or no point near
         if len(best) > 4 and best[-1] > 0.5 * best[-5]:
-            return None
+            break
         step = min(h, max(1e-7, 0.1 * float(np.max(np.abs(f)))))
         J = np.zeros((2, 2))
         for k in range(2):
@@ -364,32 +365,52 @@ def codim2_points(base: ModelParameters, curves: pd.DataFrame, grid, opts: Any,
     meta = {int(c): (str(g["kind"].iloc[0]), str(g["boundary"].iloc[0] or ""),
                      int(g["period"].iloc[0])) for c, g in curves.groupby("curve")} \
         if len(curves) else {}
-    for end in ends or []:
-        if end.get("end") != "lost" or cfg.out_of_budget():
+    todo = [e for e in ends or [] if e.get("end") == "lost"]
+    args = [(base, grid, e, cfg) for e in todo]
+    if getattr(opts, "workers", 1) > 1 and len(args) > 1:  # one end a process, in order
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=opts.workers,
+                                 mp_context=mp.get_context("fork")) as ex:
+            solved = list(ex.map(_solve_end, args))
+    else:
+        solved = [_solve_end(a) for a in args]
+    for end, res in zip(todo, solved, strict=True):
+        if res is None:
             continue
+        second, pt, chk = res
         first = (end["kind"], end["boundary"])
-        n = int(end["period"])
-        for second in _candidates(base, grid, first, n, end, cfg)[:1]:
-            if "fold" in (first[0], second[0]):
-                pt = locate_on_curve(base, grid, first, second, n, end,
-                                     np.asarray(end["tangent"], dtype=float), cfg)
-            else:
-                pt = newton2(base, grid, (first, second), n, end, cfg)
-            if pt is None:
-                continue
-            row = _row(base, grid, first, second, n, pt, cfg, polys, meta, rows)
-            log(f"codimension-2 point {row['kind']} ({row['conditions']}) at "
-                f"{grid.x_name} = {row['value']:.8f}, {grid.y_name} = {row['value2']:.8f}: "
-                f"residual {row['residual']:.1e}, Newton step {row['step']:.1e}, curves "
-                f"{row['curves']}")
-            end["codim2"] = row["point"]
-            end["codim2_point"] = pt
-            break
+        row = _row(grid, first, second, int(end["period"]), pt, chk, polys, meta, rows)
+        log(f"codimension-2 point {row['kind']} ({row['conditions']}) at "
+            f"{grid.x_name} = {row['value']:.8f}, {grid.y_name} = {row['value2']:.8f}: "
+            f"residual {row['residual']:.1e}, Newton step {row['step']:.1e}, curves "
+            f"{row['curves']}")
+        end["codim2"] = row["point"]
+        end["codim2_point"] = pt
     df = pd.DataFrame(rows, columns=list(CODIM2_COLUMNS))
     return df
 
 
-def _row(base, grid, first, second, n, pt, cfg, polys, meta, rows) -> dict[str, Any]:
+def _solve_end(args) -> tuple | None:
+    """The codimension-2 point at a lost curve end: ``(second condition, point, check)``."""
+    base, grid, end, cfg = args
+    if cfg.out_of_budget():
+        return None
+    first = (end["kind"], end["boundary"])
+    n = int(end["period"])
+    for second in _candidates(base, grid, first, n, end, cfg)[:1]:
+        if "fold" in (first[0], second[0]):
+            pt = locate_on_curve(base, grid, first, second, n, end,
+                                 np.asarray(end["tangent"], dtype=float), cfg)
+        else:
+            pt = newton2(base, grid, (first, second), n, end, cfg)
+        if pt is not None:
+            return second, pt, check_point(base, grid, (first, second), n, pt, cfg)
+    return None
+
+
+def _row(grid, first, second, n, pt, chk, polys, meta, rows) -> dict[str, Any]:
     """The table row of a located point (a point already in ``rows`` within 0.05 cells with
     the same conditions is reused)."""
     u = grid.index([pt["w"]], [pt["y"]])
@@ -398,7 +419,6 @@ def _row(base, grid, first, second, n, pt, cfg, polys, meta, rows) -> dict[str, 
         if r["kind"] == kind and float(np.hypot(*(grid.index([r["value"]], [r["value2"]])
                                                   - u)[0])) < 0.05:
             return r
-    chk = check_point(base, grid, (first, second), n, pt, cfg)
     res = max(chk["residual_1"], chk["residual_2"])
     joined = [c for c, poly in polys.items()
               if meta[c][2] in (n, 2 * n) and float(distance_to_polyline(u, poly)[0]) < 1.0]
