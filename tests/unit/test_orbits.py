@@ -380,3 +380,29 @@ def test_cli_continue_writes_branches_points_and_figure(tmp_path, capsys):
     assert out.is_file() and (tmp_path / "c.png").is_file()
     assert len(pd.read_parquet(tmp_path / "c_points.parquet")) == 1
     assert main(["continue", "--name", "w", "--from", "1", "--to", "1", "--period", "1"]) == 2
+
+
+def test_continue_of_a_sweep_starts_from_the_sweeps_parameter_set(capsys):
+    """`--of-sweep NAME` (the workflow's standard continuation) resolves the study's sweep set,
+    its `fixed` values on top, with the continued parameter at --from; an unknown sweep is one
+    line naming the configured ones."""
+    import argparse
+
+    from gearsim.cli.commands import continue_orbit
+    from gearsim.cli.main import main
+    from gearsim.study.config import Study
+
+    p = argparse.ArgumentParser()
+    continue_orbit.add_arguments(p)
+    study = Study.load((), {"sweeps": {"standard": {"name": "w", "min": 0.5, "max": 1.5,
+                                                    "fixed": {"xi": 0.0731, "b": 0.61}}}})
+    want = study.parameters(sweep="standard", w=0.8).model
+    args = p.parse_args(["--name", "w", "--from", "0.8", "--to", "1.0", "--of-sweep", "standard",
+                         "--config-json", '{"sweeps": {"standard": {"name": "w", "min": 0.5, '
+                         '"max": 1.5, "fixed": {"xi": 0.0731, "b": 0.61}}}}'])
+    got = continue_orbit.resolve(args).params
+    assert got == want and got.xi == 0.0731 and got.b == 0.61 and got.w == 0.8
+    assert main(["continue", "--name", "w", "--from", "0.8", "--to", "1", "--of-sweep",
+                 "nosuch"]) == 2
+    err = capsys.readouterr().err
+    assert "--of-sweep nosuch" in err and "standard" in err

@@ -49,13 +49,13 @@ rule standard_continuation:
     conda:
         GEARSIM_ENV
     params:
-        sets=STUDY.sweep_set_arguments("standard") if ORBITS_STANDARD else "",
         start=config["sweeps"]["standard"]["min"] if ORBITS_STANDARD else 0,
         stop=config["sweeps"]["standard"]["max"] if ORBITS_STANDARD else 0,
         code_version=CODE_VERSION["analysis"],
     shell:
-        "gearsim continue --name w --from {params.start} --to {params.stop} --period 1 "
-        "{params.sets} --sweep {input.sweep} --out {output.branches} "
+        "gearsim continue --configfile {input.config} --of-sweep standard --name w "
+        "--from {params.start} --to {params.stop} --period 1 --sweep {input.sweep} "
+        "--out {output.branches} "
         "--figure {output.figure} > {log} 2>&1"
 
 # The plane atlas: bifurcation curves seeded from the boundaries of a plane's pattern map.

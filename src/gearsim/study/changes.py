@@ -91,16 +91,21 @@ def _values(sets: Mapping, physical: Mapping[str, float | None]
 def resolve(study: Study, *, sets: Iterable[str] = (),
             physical: Mapping[str, float | None] | None = None,
             extra: Mapping[str, float | None] | None = None, omega_required: bool = False,
-            params_path: str | None = None, gear_path: str | None = None
-            ) -> CommandParameters:
+            params_path: str | None = None, gear_path: str | None = None,
+            sweep: str | None = None) -> CommandParameters:
     """``study``'s parameters with ``sets`` (``name=value``), then ``physical``
     (``{rpm, torque, backlash}``, converted with the gear file), then ``extra`` (a command's own
     option such as ``--omega``; ``None`` = not given). ``omega_required``: a one-point command,
     whose mesh frequency must be given (``--omega``, ``--set w=...``, ``--rpm`` with a gear
     file, or the study's ``parameters``). ``params_path`` / ``gear_path``: the files as the user
-    named them, for the source text."""
+    named them, for the source text. ``sweep``: start from that configured sweep's parameter set
+    (its ``fixed`` values on top of the study's), as the sweep itself runs."""
     physical = dict(physical or {})
     extra = dict(extra or {})
+    sweeps = study.config.get("sweeps") or {}
+    if sweep is not None and sweep not in sweeps:
+        raise ParameterError(f"--of-sweep {sweep}: not a sweep of the study; configured: "
+                             f"{', '.join(sweeps) or 'none'}")
     given_sets = assignments(sets)
     if omega_required and (extra.get("w") is None and "w" not in given_sets
                            and "speed_rpm" not in given_sets
@@ -127,7 +132,7 @@ def resolve(study: Study, *, sets: Iterable[str] = (),
             flag = "--omega" if name == "w" else f"--{name}"
             raise ParameterError(f"{name} is set twice (--set or a physical option, and {flag});"
                                  " give one")
-    resolved = study.parameters(changes={**numbers, **text, **given},
+    resolved = study.parameters(sweep=sweep, changes={**numbers, **text, **given},
                                 words=" + ".join(words))
     source = resolved.source
     if params_path:

@@ -276,15 +276,6 @@ class Study:
         config["execution"] = {**(config.get("execution") or {}), "device": device}
         return Study(config, self.root)
 
-    def sweep_set_arguments(self, sweep: str) -> str:
-        """``--set name=value ...`` of a configured sweep's parameter set (less the swept
-        parameter, which the continuation's ``--name/--from`` sets): the continuation of
-        workflow/rules/orbits.smk runs on exactly the sweep's parameters."""
-        values = self.parameters(sweep=sweep).model.to_dict()
-        values.pop(self.config["sweeps"][sweep]["name"], None)
-        return " ".join(f"--set {k}={v!r}" if k != "model" else f"--set model={v}"
-                        for k, v in values.items())
-
 
 def settings_text(settings: IntegrationSettings) -> str:
     """One line describing integration settings (printed and saved beside every result)."""

@@ -129,7 +129,8 @@ def command_parameters(args: argparse.Namespace, *, omega_required: bool = False
                    physical={opt: getattr(args, opt, None) for opt in PHYSICAL_OPTIONS},
                    extra=extra, omega_required=omega_required,
                    params_path=getattr(args, "params", None),
-                   gear_path=getattr(args, "gear", None))
+                   gear_path=getattr(args, "gear", None),
+                   sweep=getattr(args, "of_sweep", None))
 
 
 def settings_from_args(args: argparse.Namespace, study: Study) -> IntegrationSettings:

@@ -8,19 +8,14 @@ import sys
 import time
 from pathlib import Path
 
-from gearsim.analysis.continuation import continue_orbit, write_branches
-from gearsim.analysis.continuation_options import Continuation
-from gearsim.analysis.orbits import SEEDING, find_periodic_orbit, shooting_settings
-from gearsim.cell.simulate import simulate_cell
+from gearsim.analysis.continuation import write_branches
 from gearsim.cli.commands._common import command_parameters
 from gearsim.cli.commands.orbit import add_orbit_parameter_arguments
-from gearsim.errors import UsageError
+from gearsim.study import continuation_job
+from gearsim.study.continuation_job import DEFAULT_BUDGET_S, ContinuationJob
 from gearsim.study.preflight import check_outputs
 
 NAME = "continue"
-#: Wall-clock budget of a continuation (s): the standard one takes ~1 CPU-minute, 4 minutes
-#: of wall on a loaded machine (benchmarks/README.md); a normal run is never cut.
-DEFAULT_BUDGET_S = 1800.0
 HELP = (
     "continue a periodic orbit in one parameter: stable and unstable branches, located folds, "
     "period doublings (with branch switching), Neimark-Sacker points and grazings"
@@ -34,6 +29,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--period", "-n", type=int, default=None,
                    help="period of the start orbit (default: the period simulated from rest)")
     add_orbit_parameter_arguments(p)
+    p.add_argument("--of-sweep", metavar="SWEEP", default=None,
+                   help="start from a configured sweep's parameter set (its fixed values on "
+                   "the study's), as `gearsim sweep SWEEP` runs; the continued parameter is "
+                   "--name")
     p.add_argument("--ds", type=float, default=0.01, help="initial arclength step")
     p.add_argument("--ds-max", type=float, default=0.05, help="largest arclength step")
     p.add_argument("--max-points", type=int, default=400, help="points per branch")
@@ -53,102 +52,51 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def resolve(args: argparse.Namespace):
-    """The start point's parameters: the shared resolution with the continued parameter at
-    ``--from``."""
+    """The start point's parameters: the shared resolution (with ``--of-sweep``, the sweep's
+    set) with the continued parameter at ``--from``."""
     return command_parameters(args, **{args.name: args.start})
 
 
 def run(args: argparse.Namespace) -> int:
-    for key in ("ds", "ds_max"):
-        v = getattr(args, key)
-        if not (0 < v <= 1):
-            raise UsageError(f"--{key.replace('_', '-')} = {v} must be in (0, 1]")
-    if args.max_points < 2:
-        raise UsageError(f"--max-points = {args.max_points} must be >= 2")
-    if not 0 <= args.switch_depth <= 6:
-        raise UsageError(f"--switch-depth = {args.switch_depth} must be in [0, 6]")
-    if args.start == args.stop:
-        raise UsageError(f"--from and --to are equal ({args.start}): empty range")
-    if not 0 < args.budget_s <= 7 * 86400:
-        raise UsageError(f"--budget-s = {args.budget_s:g} must be in (0, 604800]")
+    job = ContinuationJob(args.name, args.start, args.stop, args.period, args.ds, args.ds_max,
+                          args.max_points, args.switch_depth, args.budget_s, args.rtol)
+    job.check()
     r = resolve(args)
-    params, source = r.params, r.source
-    st = shooting_settings(args.rtol)
-    out = Path(args.out or
-               f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p"
-               f"{args.period if args.period is not None else 'N'}.parquet")
+    out = Path(args.out) if args.out else job.default_out(
+        args.period if args.period is not None else "N")
     fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     check_outputs([out, fig_path])  # before any computation
-    deadline = time.monotonic() + args.budget_s
-    t0 = time.perf_counter()
-    sim = simulate_cell(params, settings=SEEDING)
-    n = args.period if args.period is not None else max(sim.classification.n, 1)
+    period, sim = continuation_job.start_period(job, r.params)
     if args.out is None:
-        out = Path(f"results/orbits/continue_{args.name}_{args.start:g}_{args.stop:g}_p{n}"
-                   ".parquet")
+        out = job.default_out(period)
         fig_path = Path(args.figure) if args.figure else out.with_suffix(".png")
     # where the tables go, before the minutes of continuation (the default is beside the
     # pipeline's orbit tables, under a name of its own)
     _log(f"continue {args.name}: writing {out} (+ its _points table) and "
          f"{fig_path}" + ("" if args.out else "; --out to choose"))
-    orbit = find_periodic_orbit(params, n, sim.final_state, st, grazing=False)
-    cfg = Continuation(ds=args.ds, ds_max=args.ds_max, max_points=args.max_points,
-                       switch_depth=args.switch_depth, settings=st, progress=_log,
-                       deadline=deadline)
-    df = continue_orbit(params, args.name, args.start, args.stop, orbit, config=cfg)
-    elapsed = time.perf_counter() - t0
-    df.attrs["parameters_source"] = source
-    write_branches(df, out)
-    from gearsim.analysis.exact_landmarks import bifurcation_points
-    from gearsim.results import parquet
-
-    points_path = out.with_name(out.stem + "_points.parquet")
-    parquet.write_parquet(bifurcation_points(df).assign(name2="", value2=float("nan")),
-                          points_path, {b"gearsim.analysis.continuation": dict(df.attrs)})
+    result = continuation_job.run(job, r.params, r.source, sweep=args.sweep, period=period,
+                                  sim=sim, log=_log)
     from gearsim.presentation.figures.style import save_figure
     from gearsim.presentation.orbit_plots import figure_branches
+    from gearsim.results import parquet
 
-    fig = figure_branches(df, title=f"continuation in {args.name}, start period {n}; {source}")
-    save_figure(fig, fig_path)
-    ev = df[df["event"] != ""]
+    df = result.branches
+    write_branches(df, out)
+    points_path = out.with_name(out.stem + "_points.parquet")
+    parquet.write_parquet(result.points, points_path,
+                          {b"gearsim.analysis.continuation": dict(df.attrs)})
+    save_figure(figure_branches(df, title=f"continuation in {args.name}, start period "
+                                f"{period}; {r.source}"), fig_path)
     landmarks_path = None
-    if args.sweep:
-        import pandas as pd
-
-        from gearsim.analysis.exact_landmarks import exact_landmarks, report_lines
-
-        if not Path(args.sweep).is_file():
-            raise UsageError(f"--sweep: file not found: {args.sweep}")
-        table = exact_landmarks(bifurcation_points(df), pd.read_parquet(args.sweep))
+    if result.landmarks is not None:
         landmarks_path = out.with_name(out.stem + "_landmarks.parquet")
-        parquet.write_parquet(table, landmarks_path, {b"gearsim.cell.sweep": str(args.sweep)})
-        if not args.json:
-            print("\n".join(report_lines(table)))
+        parquet.write_parquet(result.landmarks, landmarks_path,
+                              {b"gearsim.cell.sweep": str(args.sweep)})
     if args.json:
-        print(json.dumps({
-            "parameters_source": source, "name": args.name, "period": n,
-            "points": int(len(df)), "elapsed_s": elapsed, "parquet": str(out),
-            "figure": str(fig_path),
-            "events": [
-                {"event": r.event, "value": r.value, "period": int(r.period),
-                 "branch": int(r.branch), "boundary": r.boundary, "x": r.x}
-                for r in ev.itertuples()
-            ],
-            "reasons": df.attrs["reasons"], "status": df.attrs.get("status", "ok"),
-            "landmarks": None if landmarks_path is None else str(landmarks_path),
-        }, default=float))
+        paths = {"parquet": out, "figure": fig_path, "landmarks": landmarks_path}
+        print(json.dumps(continuation_job.as_json(job, result, r.source, paths), default=float))
         return 0
-    print(f"parameters: {source} (model {params.model})")
-    print(f"{len(df)} branch points on {df['branch'].nunique()} branches in {elapsed:.1f} s")
-    for r in ev.itertuples():
-        extra = f" ({r.boundary})" if r.boundary else ""
-        print(f"  {r.event:16s}{extra:10s} {args.name} = {r.value:.10f}  period {r.period}  "
-              f"x = {r.x:.6f}")
-    for reason in df.attrs["reasons"]:
-        print(f"  {reason}")
-    if df.attrs.get("status") == "budget":
-        print(f"stopped at the budget of {args.budget_s:g} s (status budget): the branches "
-              "are partial")
+    print("\n".join(continuation_job.summary(job, result, r.params, r.source)))
     print(f"wrote {out}, {points_path} and {fig_path}"
           + (f" and {landmarks_path}" if landmarks_path else ""))
     return 0
