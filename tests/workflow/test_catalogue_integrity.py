@@ -268,7 +268,7 @@ READER_FILES = [
     ("garbage", lambda p: p.write_bytes(b"not a database" * 300) and p,
      ["not a database"]),
     ("other-sqlite", _other_sqlite, ["not a gearsim catalogue", "application_id"]),
-    ("old-schema", _old_version, ["schema version 1", "reads version 3", "rebuild"]),
+    ("old-schema", _old_version, ["schema version 1", "reads version 4", "rebuild"]),
     ("damaged", _dropped_table, ["lacks table 'column_dictionary'"]),
 ]
 

@@ -72,9 +72,10 @@ def test_dry_run_plans_the_expected_jobs(fresh, configs, tiles, sweeps, points):
         out = dry(fresh, *configs, extra=("--quiet", "rules"))
     counts = job_counts(out)
     # attractor_tile: the default planes set `multistability` (docs/multistability.md)
-    # the catalogue loads the bifurcation curves of every plane in the default config (their
-    # seed points come from the standard continuation); quick and tiny set orbits.curves off
-    orbit = {} if configs else {"standard_continuation": 1, "bifurcation_curves": 2}
+    # the catalogue loads the bifurcation curves of every plane in the default config (seeded
+    # from the plane's own map, not from the standard continuation); quick and tiny set
+    # orbits.curves off
+    orbit = {} if configs else {"bifurcation_curves": 2}
     assert counts == {"compile": 1, "simulate_tile": tiles, "plane_cells": 2, "audit": 2,
                       "sweep": sweeps, "points": points, "catalogue": 1,
                       "attractor_tile": tiles, **orbit,

@@ -244,9 +244,12 @@ class Faults:
         requeued = queue.get(self.requeued, ("",))[0] if self.requeued else ""
         if requeued == "PENDING" and not self.requeue_back:
             # SLURM holds a requeued job ~2 min (BeginTime); a preempted job's wait is the
-            # site's: let it start now
-            subprocess.run(_root("scontrol", "update", f"JobId={self.requeued}",
-                                 "StartTime=now"), check=True)
+            # site's: let it start now. The queue was read a moment ago: a job that has started
+            # since is "no longer pending", which is what this asked for
+            done = subprocess.run(_root("scontrol", "update", f"JobId={self.requeued}",
+                                        "StartTime=now"), capture_output=True, text=True)
+            if done.returncode and "no longer pending" not in done.stderr + done.stdout:
+                raise AssertionError(f"scontrol update StartTime=now: {done.stderr.strip()}")
         self.requeue_back = self.requeue_back or requeued == "RUNNING"
         gone = not {self.cancelled, self.timed_out, self.requeued} & set(queue)
         over = self.requeue_back and gone
