@@ -39,8 +39,9 @@ quick: venv  ## small grids for a fast look (config/quick.yaml), in studies/quic
 # The suite on TEST_WORKERS pytest-xdist workers, one test file per unit (tests/conftest.py: files
 # sharing a session-scoped study are one unit). The kernels are compiled into NUMBA_CACHE_DIR once
 # first, as the workflow's `compile` rule does, so the workers load them instead of compiling the
-# same kernels side by side.
-TEST_WORKERS ?= 2
+# same kernels side by side. Three workers on two cores: the SLURM test's unit spends most of its
+# ~6 minutes waiting on the scheduler, and a third worker keeps both cores busy meanwhile.
+TEST_WORKERS ?= 3
 # Beside it, the CUDA lane kernel under Numba's CUDA simulator: its own pytest process, since
 # NUMBA_ENABLE_CUDASIM must be set before Numba is imported (skipped without numba-cuda, the
 # gpu extra that .ci/run installs). It runs while the suite waits on its SLURM test's scheduler
