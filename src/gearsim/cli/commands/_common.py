@@ -6,10 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
-
-import numpy as np
 
 from gearsim.dynamics.parameters import ParameterError
 from gearsim.errors import UsageError
@@ -170,21 +167,3 @@ def check_new_file(path: str | Path, *, create_parent: bool = True, need: int | 
 def check_output_path(path: str | Path) -> Path:
     """:func:`check_new_file` for a file in an existing directory (``--out`` of a point)."""
     return check_new_file(path, create_parent=False)
-
-
-def json_safe(row: dict) -> dict:
-    """NaN and infinities -> null, numpy scalars -> Python numbers (strict JSON)."""
-    out = {}
-    for k, v in row.items():
-        if isinstance(v, (np.floating, float)):
-            v = float(v)
-            out[k] = v if math.isfinite(v) else None
-        elif isinstance(v, np.integer):
-            out[k] = int(v)
-        elif isinstance(v, np.bool_):
-            out[k] = bool(v)
-        elif isinstance(v, dict):
-            out[k] = json_safe(v)
-        else:
-            out[k] = v
-    return out
