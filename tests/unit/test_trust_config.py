@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gearsim.cli.commands._common import json_safe
 from gearsim.dynamics.parameters import ParameterError, check_value
 from gearsim.errors import ConfigError
 from gearsim.safe_yaml import MAX_YAML_BYTES, MAX_YAML_NODES, load_yaml
 from gearsim.study import config as gcfg
+from gearsim.study.point_job import strict_json
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "config/config.yaml"
@@ -239,7 +239,7 @@ def test_bad_flags_one_line_exit_2_before_computing(tmp_path, case_id):
 
 
 def test_json_is_strict():
-    row = json_safe({"a": float("nan"), "b": np.float64(np.inf), "c": np.int64(3),
-                     "d": {"e": -np.inf}, "f": "x"})
+    row = strict_json({"a": float("nan"), "b": np.float64(np.inf), "c": np.int64(3),
+                       "d": {"e": -np.inf}, "f": "x"})
     assert row == {"a": None, "b": None, "c": 3, "d": {"e": None}, "f": "x"}
     json.dumps(row, allow_nan=False)
