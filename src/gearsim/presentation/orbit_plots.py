@@ -183,15 +183,20 @@ def draw_curves(ax, curves: pd.DataFrame, *, swap: bool = False, labels: bool = 
     order = {k: i for i, k in enumerate(("period_doubling", "grazing", "fold"))}
     handles = [keys[k] for k in sorted(keys, key=lambda k: (order.get(k[0], 9), k[1], k[2]))]
     if codim2 is not None and len(codim2):
-        for kind, g in codim2.groupby("kind", sort=True):
+        # a point whose Newton solve did not converge is not located: grey, said in the legend
+        located = (codim2["converged"].astype(bool) if "converged" in codim2
+                   else pd.Series(True, index=codim2.index))
+        for (kind, ok), g in codim2.groupby([codim2["kind"], located], sort=True):
             marker, text = CODIM2_MARKERS.get(str(kind), ("o", str(kind)))
+            edge = "black" if ok else "0.55"
             xs, ys = g["value"].to_numpy(), g["value2"].to_numpy()
             if swap:
                 xs, ys = ys, xs
-            ax.plot(xs, ys, ls="none", marker=marker, ms=7, mfc="white", mec="black",
+            ax.plot(xs, ys, ls="none", marker=marker, ms=7, mfc="white", mec=edge,
                     mew=1.1, zorder=5)
+            label = f"{text} ({len(g)})" if ok else f"{text}, not converged ({len(g)})"
             handles.append(Line2D([], [], ls="none", marker=marker, ms=7, mfc="white",
-                                  mec="black", mew=1.1, label=f"{text} ({len(g)})"))
+                                  mec=edge, mew=1.1, label=label))
     return handles if labels else []
 
 
