@@ -37,6 +37,7 @@ from gearsim.analysis.atlas_seeds import (
     matches,
 )
 from gearsim.analysis.bifcurves import CURVE_COLUMNS, follow_curve
+from gearsim.analysis.boundaries import is_jump
 from gearsim.analysis.continuation import COLUMNS as BRANCH_COLUMNS
 from gearsim.analysis.continuation import continue_orbit
 from gearsim.analysis.continuation_options import BUDGET, Continuation
@@ -77,7 +78,12 @@ class AtlasOptions:
     radius: float = 1.5  # an edge this close to a curve that explains it seeds nothing
     tried: float = 4.0  # a failed seed marks the edges of its kind this close as tried
     defer: float = 12.0  # two seeds of one kind in flight are at least this far apart
+    #: a located seed this close to a curve of its kind already followed is on that curve
+    #: (its polygon lies within ~``deviation`` of the curve, a refused step's chord within a
+    #: cell): it is not followed again
+    landed: float = 1.0
     max_failures: int = 60  # failed seeds of one kind, period and boundary before it stops
+    max_fold_failures: int = 12  # the same for folds (each a continuation from both cells)
     step_cells: float = 40.0  # the longest curve step
     deviation: float = 0.3  # the curve polygon's distance from the curve (step control)
     max_points: int = 300  # points of a curve half
@@ -86,7 +92,7 @@ class AtlasOptions:
     #: DP5 tolerance of the orbits that track a curve between its seed and its ends (the
     #: seeds and the codimension-2 points at the shooting's 1e-12): 2.5x fewer steps, the
     #: points within ~1e-8 of the 1e-12 ones (docs/decisions.md, "The plane atlas's cost")
-    tracking_rtol: float | None = 1e-10
+    tracking_rtol: float | None = 1e-9
     config: Continuation = field(default_factory=Continuation)
 
 
@@ -113,6 +119,12 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
     cfg = Continuation(**{**opts.config.__dict__, "progress": None, "switch_depth": 0})
     order = (("a", "b") if h.start == "a" else ("b", "a"))
     found: list[dict] = []
+    far: list[dict] = []  # located by the secant, but away from the edge
+
+    def near_edge(row: dict) -> bool:
+        u = grid.index([row["value"]], [row["value2"]])[0]
+        return math.dist(u, (e["ci"], e["cj"])) <= opts.radius
+
     if h.kind in ("period_doubling", "grazing"):
         for s in order:
             i, j = (e["i"], e["j"]) if s == "a" else (e["i2"], e["j2"])
@@ -127,15 +139,16 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
             except (OrbitError, ParameterError, np.linalg.LinAlgError):
                 r = None
             if r is not None:
-                row, _y = r
-                found.append(_seed_row(row, h.kind, h.period, h.boundary, grid, axis, p))
-                u = grid.index([found[-1]["value"]], [found[-1]["value2"]])[0]
-                if math.dist(u, (e["ci"], e["cj"])) <= opts.radius:
-                    return found
-                break  # found away from the edge: the edge may be a jump (a fold) instead
-    # a jump (or a secant that failed): a short continuation across the edge from the cell
-    # the chain came from; every event it locates near the edge seeds
-    for s in (order if h.kind == "fold" else order[:1]):
+                row = _seed_row(r[0], h.kind, h.period, h.boundary, grid, axis, p)
+                if near_edge(row):
+                    return [row]
+                # away from the edge: the cell's orbit may lie on another branch (beyond a
+                # fold) than the one whose bifurcation the edge is; the other cell's state,
+                # then a continuation along the chain's branch, may find the edge's own
+                far.append(row)
+    # a jump (or a secant that failed or landed away): a short continuation across the edge
+    # from each cell in turn; every event it locates near the edge seeds
+    for s in (order if (h.kind == "fold" or far) else order[:1]):
         i, j = (e["i"], e["j"]) if s == "a" else (e["i2"], e["j2"])
         i2, j2 = (e["i2"], e["j2"]) if s == "a" else (e["i"], e["j"])
         p = _cell_params(base, grid, i, j)
@@ -160,17 +173,22 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
                                                        else grid.x_name))))
         ev = br[(br["event"] != "") & (br["branch"] == 0)]
         for _, r in ev.iterrows():
-            # a jump seeds every kind it finds; a doubling or grazing that the secant did not
-            # find (or found away from the edge) its own kind, or the fold the chain jumped
-            # at (a label change at a jump reads like a grazing or a doubling)
-            want = (h.kind, "fold") if not found else ("fold",)
-            if r["event"] not in opts.kinds or r["event"] not in want:
+            # a jump seeds every kind it finds near the edge; a doubling or grazing the
+            # secant did not find (or found away from the edge) its own kind, or the fold
+            # the chain jumped at (a label change at a jump reads like a grazing or a
+            # doubling)
+            if r["event"] not in opts.kinds or r["event"] not in (h.kind, "fold"):
                 continue
-            found.append(_seed_row(r, r["event"], int(r["period"]), str(r["boundary"] or ""),
-                                   grid, axis, p))
+            row = _seed_row(r, r["event"], int(r["period"]), str(r["boundary"] or ""),
+                            grid, axis, p)
+            if r["event"] == h.kind and (r["event"] != "grazing" or
+                                         row["boundary"] == h.boundary) and far \
+                    and not near_edge(row):
+                continue  # the far point again
+            found.append(row)
         if found:
             return found
-    return found
+    return far
 
 
 def _seed_row(r, kind: str, period: int, boundary: str, grid: Grid, axis: str,
@@ -199,8 +217,8 @@ def _run_task(args) -> dict[str, Any]:
     for s in seeds:
         u = grid.index([s["value"]], [s["value2"]])
         same = [c for k, c in task.curves if k == (s["kind"], s["period"], s["boundary"])]
-        if any(float(distance_to_polyline(u, c)[0]) < 0.5 for c in same):
-            s["curve"] = -2  # landed on a curve already followed
+        if any(float(distance_to_polyline(u, c)[0]) < opts.landed for c in same):
+            s["curve"] = -2  # landed on a curve already followed: not followed again
             out["seeds"].append(s)
             continue
         halves = _follow_both(base, grid, s, opts, [c for k, c in task.curves
@@ -249,16 +267,37 @@ def _join(halves: list[pd.DataFrame]) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
+def _jumps(edges: pd.DataFrame, cand: pd.DataFrame) -> np.ndarray:
+    """Per candidate, whether its edge is a jump (the accounting's test, docs/atlas.md)."""
+    if not len(cand) or "dc_a" not in edges:
+        return np.zeros(len(cand), dtype=bool)
+    e = edges.loc[cand["edge"].to_numpy()]
+    return np.array([is_jump(a, b, xa1 - xa0, xb1 - xb0) for a, b, xa0, xa1, xb0, xb1 in zip(
+        e["dc_a"], e["dc_b"], e["x_min_a"], e["x_max_a"], e["x_min_b"], e["x_max_b"],
+        strict=True)], dtype=bool)
+
+
 def _candidates(edges: pd.DataFrame, opts: AtlasOptions) -> pd.DataFrame:
-    """One row per (edge, hint) to try, the largest boundaries' densest edges first."""
+    """One row per (edge, hint) to try, the largest boundaries' densest edges first.
+
+    An edge of one period whose readings jump (:func:`gearsim.analysis.boundaries.is_jump`:
+    a grazing or a doubling changes the motion continuously) is tried as a fold first, and
+    those folds before everything else: one fold curve explains a whole jump line, which its
+    labels (the contacts change) would otherwise seed as grazings that land elsewhere."""
     rows = []
+    jump = _jumps(edges, pd.DataFrame({"edge": np.arange(len(edges))}))
     for k, e in enumerate(edges.to_dict("records")):
-        for h in edge_hints(e):
+        hints = edge_hints(e)
+        first = jump[k] and int(e["n_a"]) == int(e["n_b"]) and hints[0].kind != "fold"
+        if first:
+            hints = [Hint("fold", int(e["n_a"]), "", hints[0].start), *hints]
+        for h in hints:
             # the cascade to max_period: a doubling of period n makes 2n
             top = h.period * (2 if h.kind == "period_doubling" else 1)
             if h.kind in opts.kinds and top <= opts.max_period:
-                rows.append({"edge": k, "hint": h, "key": h.key, "ci": e["ci"], "cj": e["cj"]})
-    cand = pd.DataFrame(rows, columns=["edge", "hint", "key", "ci", "cj"])
+                rows.append({"edge": k, "hint": h, "key": h.key, "ci": e["ci"], "cj": e["cj"],
+                             "prio": int(not (first and h.kind == "fold"))})
+    cand = pd.DataFrame(rows, columns=["edge", "hint", "key", "ci", "cj", "prio"])
     if not len(cand):
         return cand
     from scipy.spatial import cKDTree
@@ -270,7 +309,8 @@ def _candidates(edges: pd.DataFrame, opts: AtlasOptions) -> pd.DataFrame:
         dens[np.asarray([cand.index.get_loc(i) for i in idx])] = [
             len(v) for v in cKDTree(pts).query_ball_point(pts, 3.0)]
     cand = cand.assign(size=size.to_numpy(), dens=dens)
-    return cand.sort_values(["size", "dens", "ci", "cj"], ascending=[False, False, True, True],
+    return cand.sort_values(["prio", "size", "dens", "ci", "cj"],
+                            ascending=[True, False, False, True, True],
                             kind="stable").reset_index(drop=True)
 
 
@@ -294,6 +334,7 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
               zip(cells["i"], cells["j"], cells["final_state"], strict=True)
               if s is not None and len(s)}
     pts = cand[["ci", "cj"]].to_numpy() if len(cand) else np.zeros((0, 2))
+    jumps = _jumps(edges, cand)
     status = np.zeros(len(cand), dtype=np.int64)  # 0 pending, 1 covered, 2 tried, 3 sent
     curves: list[tuple[tuple, np.ndarray, list[pd.DataFrame], dict]] = []
     seeds: list[dict] = []
@@ -305,6 +346,9 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
 
     def mark(key, poly):
         same = np.array([matches(k, key) for k in cand["key"]], dtype=bool)
+        if key[0] == "fold":  # a fold explains a jump of its period, whatever the labels say
+            same |= jumps & cand["edge"].map(
+                lambda k: key[1] in (edges.at[k, "n_a"], edges.at[k, "n_b"])).to_numpy(bool)
         todo = same & (status != 1)
         if todo.any():
             idx = np.nonzero(todo)[0]
@@ -314,7 +358,8 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
     def next_task(inflight: list[_Task]) -> _Task | None:
         for k in np.nonzero(status == 0)[0]:
             key = cand.at[k, "key"]
-            if failures.get(key, 0) >= opts.max_failures:
+            cap = opts.max_fold_failures if key[0] == "fold" else opts.max_failures
+            if failures.get(key, 0) >= cap:
                 status[k] = 2
                 continue
             if any(t.hint.key == key and math.dist(pts[k], pts[t.key]) < opts.defer

@@ -72,18 +72,23 @@ def _periodic(cells: pd.DataFrame) -> np.ndarray:
 
 def boundary_edges(cells: pd.DataFrame, grid: Grid) -> pd.DataFrame:
     """Every boundary edge between two periodic cells (columns :data:`EDGE_COLUMNS` plus the
-    cells' ``impact``, ``p``, ``q`` as ``*_a``, ``*_b``); ``a`` is the cell with the smaller
+    cells' ``impact``, ``p``, ``q`` and, where the cells table has them, ``dc``, ``x_min``,
+    ``x_max`` as ``*_a``, ``*_b``); ``a`` is the cell with the smaller
     index along the edge's axis."""
     nx, ny = grid.nx, grid.ny
     lab = np.full((nx, ny), "", dtype=object)
     per = np.zeros((nx, ny), dtype=bool)
     cols = {c: np.zeros((nx, ny), dtype=np.int64) for c in ("n", "impact", "p", "q")}
+    # the readings a jump is told by (:func:`gearsim.analysis.boundaries.is_jump`)
+    reads = {c: np.full((nx, ny), np.nan) for c in ("dc", "x_min", "x_max") if c in cells}
     i = cells["i"].to_numpy(dtype=np.int64)
     j = cells["j"].to_numpy(dtype=np.int64)
     lab[i, j] = cells["label"].to_numpy()
     per[i, j] = _periodic(cells)
     for c, arr in cols.items():  # the impact state is the cells table's column I
         arr[i, j] = cells["I" if c == "impact" else c].fillna(0).to_numpy(dtype=np.int64)
+    for c, arr in reads.items():
+        arr[i, j] = pd.to_numeric(cells[c], errors="coerce").to_numpy(dtype=float)
     out = []
     for axis, (di, dj) in (("x", (1, 0)), ("y", (0, 1))):
         a_i, a_j = np.meshgrid(np.arange(nx - di), np.arange(ny - dj), indexing="ij")
@@ -94,7 +99,7 @@ def boundary_edges(cells: pd.DataFrame, grid: Grid) -> pd.DataFrame:
         d = {"i": a_i, "j": a_j, "i2": b_i, "j2": b_j, "axis": axis,
              "label_a": lab[a_i, a_j], "label_b": lab[b_i, b_j],
              "ci": 0.5 * (a_i + b_i), "cj": 0.5 * (a_j + b_j)}
-        for c, arr in cols.items():
+        for c, arr in (cols | reads).items():
             d[f"{c}_a"], d[f"{c}_b"] = arr[a_i, a_j], arr[b_i, b_j]
         out.append(pd.DataFrame(d))
     e = pd.concat(out, ignore_index=True)

@@ -366,30 +366,95 @@ def codim2_points(base: ModelParameters, curves: pd.DataFrame, grid, opts: Any,
                      int(g["period"].iloc[0])) for c, g in curves.groupby("curve")} \
         if len(curves) else {}
     todo = [e for e in ends or [] if e.get("end") == "lost"]
-    args = [(base, grid, e, cfg) for e in todo]
-    if getattr(opts, "workers", 1) > 1 and len(args) > 1:  # one end a process, in order
+    log(f"{len(todo)} curve ends lost inside the plane: locating their codimension-2 points")
+    workers = max(1, int(getattr(opts, "workers", 1)))
+    pool = None
+    if workers > 1 and len(todo) > 1:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(max_workers=opts.workers,
-                                 mp_context=mp.get_context("fork")) as ex:
-            solved = list(ex.map(_solve_end, args))
-    else:
-        solved = [_solve_end(a) for a in args]
-    for end, res in zip(todo, solved, strict=True):
-        if res is None:
-            continue
-        second, pt, chk = res
-        first = (end["kind"], end["boundary"])
-        row = _row(grid, first, second, int(end["period"]), pt, chk, polys, meta, rows)
-        log(f"codimension-2 point {row['kind']} ({row['conditions']}) at "
-            f"{grid.x_name} = {row['value']:.8f}, {grid.y_name} = {row['value2']:.8f}: "
-            f"residual {row['residual']:.1e}, Newton step {row['step']:.1e}, curves "
-            f"{row['curves']}")
-        end["codim2"] = row["point"]
-        end["codim2_point"] = pt
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork"))
+    k = 0
+    try:
+        # rounds of ``workers`` ends taken in order: an end that runs into a point already
+        # located is not solved again, and the table does not depend on which process
+        # finishes first
+        while k < len(todo):
+            batch = []
+            while k < len(todo) and len(batch) < workers:
+                end = todo[k]
+                k += 1
+                hit = _located_at(grid, end, rows)
+                if hit is not None:
+                    row, pt = hit
+                    end["codim2"], end["codim2_point"] = row["point"], pt
+                    log(f"curve {end['curve']} {end['side']} end: runs into codimension-2 "
+                        f"point {row['point']} ({row['kind']}), "
+                        f"{_gap(grid, end, row):.2f} cells from its last point")
+                    continue
+                batch.append(end)
+            args = [(base, grid, e, cfg) for e in batch]
+            solved = (list(pool.map(_solve_end, args)) if pool is not None and len(args) > 1
+                      else [_solve_end(a) for a in args])
+            for end, res in zip(batch, solved, strict=True):
+                if res is None:
+                    log(f"curve {end['curve']} {end['side']} end at {grid.x_name} = "
+                        f"{end['w']:.8f}, {grid.y_name} = {end['y']:.8f}: no codimension-2 "
+                        "point located")
+                    continue
+                second, pt, chk = res
+                first = (end["kind"], end["boundary"])
+                row = _row(grid, first, second, int(end["period"]), pt, chk, polys, meta, rows)
+                row.setdefault("_point", pt)
+                log(f"codimension-2 point {row['kind']} ({row['conditions']}) at "
+                    f"{grid.x_name} = {row['value']:.8f}, {grid.y_name} = "
+                    f"{row['value2']:.8f}: residual {row['residual']:.1e}, Newton step "
+                    f"{row['step']:.1e}, curves {row['curves']} (curve {end['curve']} "
+                    f"{end['side']} end)")
+                end["codim2"] = row["point"]
+                end["codim2_point"] = pt
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    by_id = {r["point"]: r for r in rows}
+    for end in todo:  # a point re-solved to convergence later is where its ends end
+        if "codim2" in end:
+            end["codim2_point"] = by_id[end["codim2"]]["_point"]
+    rows = [{c: r.get(c) for c in CODIM2_COLUMNS} for r in rows]
     df = pd.DataFrame(rows, columns=list(CODIM2_COLUMNS))
     return df
+
+
+#: a lost end whose last point is this close (cells) to a converged point already located,
+#: one of whose conditions is the end's own, runs into that point: it is not solved again
+REUSE = 1.5
+
+
+def _conditions_of(row: dict[str, Any]) -> list[tuple[str, str, int]]:
+    """The curves a located point ends: each condition with the periods it holds for (a
+    grazing at a period doubling of period n is a grazing of the doubled orbit too)."""
+    out = []
+    for c in str(row["conditions"]).split("; "):
+        kind, _, bnd = c.partition(" ")
+        out.append((kind, bnd, int(row["period"])))
+        if kind == "grazing":
+            out.append((kind, bnd, 2 * int(row["period"])))
+    return out
+
+
+def _gap(grid, end: dict, row: dict[str, Any]) -> float:
+    a = grid.index([end["w"]], [end["y"]])[0]
+    b = grid.index([row["value"]], [row["value2"]])[0]
+    return float(np.hypot(*(a - b)))
+
+
+def _located_at(grid, end: dict, rows: list[dict]) -> tuple[dict, dict] | None:
+    """The converged point already in ``rows`` that the lost ``end`` runs into, if any."""
+    key = (end["kind"], end["boundary"] or "", int(end["period"]))
+    for r in rows:
+        if (r["converged"] and key in _conditions_of(r) and _gap(grid, end, r) <= REUSE):
+            return r, r["_point"]
+    return None
 
 
 def _solve_end(args) -> tuple | None:
@@ -415,23 +480,35 @@ def _row(grid, first, second, n, pt, chk, polys, meta, rows) -> dict[str, Any]:
     the same conditions is reused)."""
     u = grid.index([pt["w"]], [pt["y"]])
     kind = _kind(first, second)
+    res = max(chk["residual_1"], chk["residual_2"])
+    converged = bool(res < RESIDUAL and chk["step"] < STEP)
+    same = None
     for r in rows:
         if r["kind"] == kind and float(np.hypot(*(grid.index([r["value"]], [r["value2"]])
                                                   - u)[0])) < 0.05:
-            return r
-    res = max(chk["residual_1"], chk["residual_2"])
+            same = r
+            break
+    if same is not None and (same["converged"] or not converged):
+        return same
+    # a new point, or a converged solve of one located before without converging (it
+    # replaces that one under its id)
     joined = [c for c, poly in polys.items()
               if meta[c][2] in (n, 2 * n) and float(distance_to_polyline(u, poly)[0]) < 1.0]
     gaps = [float(distance_to_polyline(u, polys[c])[0]) for c in joined]
     r = pt["row"]
+    same_id = same["point"] if same is not None else len(rows)
     row = {"point": len(rows), "kind": kind, "conditions": f"{_cond(first)}; {_cond(second)}",
            "period": n, "boundary": next((c[1] for c in (first, second) if c[0] == "grazing"),
                                          ""),
            "name": grid.x_name, "value": pt["w"], "name2": grid.y_name, "value2": pt["y"],
            "curves": joined, "curve_kinds": [meta[c][0] for c in joined], **chk,
            "residual": res, "iterations": pt["iterations"],
-           "converged": bool(res < RESIDUAL and chk["step"] < STEP),
+           "converged": converged,
            "gap_cells": max(gaps) if gaps else math.nan, "x": float(r["x"]), "v": float(r["v"]),
            "mu_max": float(r["mu_max"]), "mu_re": list(r["mu_re"]), "mu_im": list(r["mu_im"])}
+    if same is not None:
+        same.clear()
+        same.update({**row, "point": same_id})
+        return same
     rows.append(row)
     return row

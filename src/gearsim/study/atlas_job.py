@@ -33,6 +33,8 @@ MAX_UNUSABLE = 0.5
 KINDS = ("fold", "period_doubling", "grazing", "neimark_sacker")
 #: the cells table's columns the atlas reads
 CELL_COLUMNS = ("i", "j", "motion", "status", "label", "n", "I", "p", "q", "final_state")
+#: read where the table has them: the readings that tell a jump (a fold seeds there first)
+JUMP_COLUMNS = ("dc", "x_min", "x_max")
 
 
 def _cpu() -> float:
@@ -58,7 +60,11 @@ def read_cells(path: str | Path) -> pd.DataFrame:
     if not p.is_file():
         raise UsageError(f"--cells: file not found: {path}")
     try:
-        return pd.read_parquet(p, columns=list(CELL_COLUMNS))
+        import pyarrow.parquet as pq
+
+        have = set(pq.read_schema(p).names)
+        return pd.read_parquet(p, columns=[*CELL_COLUMNS,
+                                           *(c for c in JUMP_COLUMNS if c in have)])
     except Exception as exc:  # pyarrow: a foreign or damaged file
         cause = " ".join(str(exc).split()) or type(exc).__name__
         raise UsageError(f"--cells: {path} is not a readable cells table ({cause})") from None
