@@ -449,11 +449,14 @@ def _gap(grid, end: dict, row: dict[str, Any]) -> float:
 
 
 def _located_at(grid, end: dict, rows: list[dict]) -> tuple[dict, dict] | None:
-    """The converged point already in ``rows`` that the lost ``end`` runs into, if any."""
+    """The point already in ``rows`` that the lost ``end`` runs into, if any: a converged
+    one, or one that did not converge and was solved again from one more end already."""
     key = (end["kind"], end["boundary"] or "", int(end["period"]))
     for r in rows:
-        if (r["converged"] and key in _conditions_of(r) and _gap(grid, end, r) <= REUSE):
-            return r, r["_point"]
+        if key in _conditions_of(r) and _gap(grid, end, r) <= REUSE:
+            if r["converged"] or r.get("_retried"):
+                return r, r["_point"]
+            r["_retried"] = True  # one more end solves a point that did not converge
     return None
 
 
