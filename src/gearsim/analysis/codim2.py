@@ -425,8 +425,8 @@ def codim2_points(base: ModelParameters, curves: pd.DataFrame, grid, opts: Any,
     return df
 
 
-#: a lost end whose last point is this close (cells) to a converged point already located,
-#: one of whose conditions is the end's own, runs into that point: it is not solved again
+#: a lost end whose last point is this close (cells) to a point already located (converged, or
+#: solved once more), one of whose conditions is its own, runs into it: it is not solved again
 REUSE = 1.5
 
 
