@@ -267,14 +267,13 @@ def _join(halves: list[pd.DataFrame]) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def _jumps(edges: pd.DataFrame, cand: pd.DataFrame) -> np.ndarray:
-    """Per candidate, whether its edge is a jump (the accounting's test, docs/atlas.md)."""
-    if not len(cand) or "dc_a" not in edges:
-        return np.zeros(len(cand), dtype=bool)
-    e = edges.loc[cand["edge"].to_numpy()]
+def _jumps(edges: pd.DataFrame) -> np.ndarray:
+    """Per edge, whether it is a jump (the accounting's test, docs/atlas.md)."""
+    if not len(edges) or "dc_a" not in edges:
+        return np.zeros(len(edges), dtype=bool)
     return np.array([is_jump(a, b, xa1 - xa0, xb1 - xb0) for a, b, xa0, xa1, xb0, xb1 in zip(
-        e["dc_a"], e["dc_b"], e["x_min_a"], e["x_max_a"], e["x_min_b"], e["x_max_b"],
-        strict=True)], dtype=bool)
+        edges["dc_a"], edges["dc_b"], edges["x_min_a"], edges["x_max_a"], edges["x_min_b"],
+        edges["x_max_b"], strict=True)], dtype=bool)
 
 
 def _candidates(edges: pd.DataFrame, opts: AtlasOptions) -> pd.DataFrame:
@@ -285,7 +284,7 @@ def _candidates(edges: pd.DataFrame, opts: AtlasOptions) -> pd.DataFrame:
     those folds before everything else: one fold curve explains a whole jump line, which its
     labels (the contacts change) would otherwise seed as grazings that land elsewhere."""
     rows = []
-    jump = _jumps(edges, pd.DataFrame({"edge": np.arange(len(edges))}))
+    jump = _jumps(edges)
     for k, e in enumerate(edges.to_dict("records")):
         hints = edge_hints(e)
         first = jump[k] and int(e["n_a"]) == int(e["n_b"]) and hints[0].kind != "fold"
@@ -296,8 +295,8 @@ def _candidates(edges: pd.DataFrame, opts: AtlasOptions) -> pd.DataFrame:
             top = h.period * (2 if h.kind == "period_doubling" else 1)
             if h.kind in opts.kinds and top <= opts.max_period:
                 rows.append({"edge": k, "hint": h, "key": h.key, "ci": e["ci"], "cj": e["cj"],
-                             "prio": int(not (first and h.kind == "fold"))})
-    cand = pd.DataFrame(rows, columns=["edge", "hint", "key", "ci", "cj", "prio"])
+                             "jump": bool(jump[k]), "prio": int(not (first and h.kind == "fold"))})
+    cand = pd.DataFrame(rows, columns=["edge", "hint", "key", "ci", "cj", "jump", "prio"])
     if not len(cand):
         return cand
     from scipy.spatial import cKDTree
@@ -334,7 +333,7 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
               zip(cells["i"], cells["j"], cells["final_state"], strict=True)
               if s is not None and len(s)}
     pts = cand[["ci", "cj"]].to_numpy() if len(cand) else np.zeros((0, 2))
-    jumps = _jumps(edges, cand)
+    jumps = cand["jump"].to_numpy(dtype=bool) if len(cand) else np.zeros(0, dtype=bool)
     status = np.zeros(len(cand), dtype=np.int64)  # 0 pending, 1 covered, 2 tried, 3 sent
     curves: list[tuple[tuple, np.ndarray, list[pd.DataFrame], dict]] = []
     seeds: list[dict] = []
