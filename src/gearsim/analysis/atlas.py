@@ -164,7 +164,8 @@ def _locate_seeds(base, grid, task: _Task, states, opts: AtlasOptions,
         try:
             orbit = find_periodic_orbit(p, n, y, cfg.settings, max_iter=20, grazing=False)
             c = Continuation(**{**cfg.__dict__, "ds": 0.2 * cell, "ds_max": 0.5 * cell,
-                                "ds_min": 1e-4 * cell, "max_points": 40, "grazing": True})
+                                "ds_min": 1e-4 * cell, "max_points": 40, "grazing": True,
+                                "parameter_steps": True})
             br = continue_orbit(p, along, v0, stop, orbit, config=c)
         except (OrbitError, ParameterError, np.linalg.LinAlgError):
             continue

@@ -116,11 +116,15 @@ def crises(edges: pd.DataFrame, top: int = 8) -> list[dict[str, Any]]:
 
 
 def plane_atlas(cells: pd.DataFrame, curves: pd.DataFrame | None, *, plane: str,
-                x_name: str, y_name: str) -> tuple[pd.DataFrame, dict[str, Any]]:
-    """The classified edges (:func:`gearsim.analysis.boundaries.classify_edges`) and the
-    plane's summary: the near-curve table, boundary length by mechanism, the periodic groups'
-    explained shares, the mechanisms and the axis-specific claims."""
+                x_name: str, y_name: str, newton=None) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """The classified edges (:func:`gearsim.analysis.boundaries.classify_edges`; with
+    ``newton``, the unexplained periodic ones read by Newton,
+    :func:`gearsim.analysis.boundaries.apply_newton`) and the plane's summary: the near-curve
+    table, boundary length by mechanism, the periodic groups' explained shares, the
+    mechanisms and the axis-specific claims."""
     edges = bd.classify_edges(cells, curves, plane, x_name)
+    if newton is not None:
+        edges = bd.apply_newton(edges, newton)
     near = bd.near_table(edges)
     mech = bd.mechanism_table(edges)
     g = bd.plane_grid(cells)
@@ -136,6 +140,7 @@ def plane_atlas(cells: pd.DataFrame, curves: pd.DataFrame | None, *, plane: str,
         "unexplained_pairs": _pairs(edges, cells),
         "unexplained_verdicts": {k: int(v) for k, v in bd.unexplained(edges, cells).get(
             "verdict", pd.Series(dtype=str)).value_counts().items()},
+        "newton": newton_summary(edges),
         "crises": crises(edges),
     }
     if y_name == "b":
@@ -143,6 +148,24 @@ def plane_atlas(cells: pd.DataFrame, curves: pd.DataFrame | None, *, plane: str,
     if y_name == "xi":
         summary["damping"] = damping(cells)
     return edges, summary
+
+
+def newton_summary(edges: pd.DataFrame) -> dict[str, Any] | None:
+    """Per periodic group: the edges Newton read (those no curve or band explains, periods up
+    to :data:`gearsim.analysis.coexistence.MAX_PERIOD`), those across coexisting motions and
+    those with a label Newton refutes; None when Newton did not run."""
+    if "coexist" not in edges:
+        return None
+    from gearsim.analysis.coexistence import MAX_PERIOD
+
+    out: dict[str, Any] = {"max_period": MAX_PERIOD}
+    refuted = bd.newton_refuted(edges)
+    for g in ("I changes", "I the same"):
+        sel = (edges["group"] == g).to_numpy()
+        read = sel & ((edges["newton_n0"] > 0) | (edges["newton_n1"] > 0)).to_numpy()
+        out[g] = {"read": int(read.sum()), "coexist": int((sel & edges["coexist"].to_numpy(
+            bool)).sum()), "wrong_label": int((sel & refuted).sum())}
+    return out
 
 
 def default_line(y_name: str, base_value: float) -> float:

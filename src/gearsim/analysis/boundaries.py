@@ -23,6 +23,11 @@ and explained by one **mechanism**, the first that applies of:
     the edge lies inside a fold's hysteresis band: between two successive crossings of the
     fold curves of one period with the edge's row or column, where two branches coexist and
     the label is that of the branch the chain followed;
+``coexist``
+    an edge no curve or band explains across which both cells' motions exist and are stable
+    on both sides (Newton, :mod:`gearsim.analysis.coexistence`; only where the accounting is
+    given the model, :func:`apply_newton`): a hysteresis band whose bounding fold or
+    subcritical doubling lies farther away, the label the branch the chain followed;
 ``chaos_onset``
     a chaotic cell beside a periodic one of period ``n`` with the doubling of period ``n`` (or
     a later one of the cascade) within :data:`NEAR_CELLS`: the rest of the cascade
@@ -59,8 +64,10 @@ JUMP_DC = 0.15
 JUMP_RANGE = 0.2
 
 GROUPS = ("I changes", "I the same", "chaos", "other")
-MECHANISMS = ("grazing", "period_doubling", "fold", "fold_band", "chaos_onset", "crisis",
-              "near_curve", "unexplained")
+MECHANISMS = ("grazing", "period_doubling", "fold", "fold_band", "coexist", "chaos_onset",
+              "crisis", "near_curve", "unexplained")
+#: the mechanisms that explain an edge between two periodic cells (the target's)
+EXPLAINING = ("grazing", "period_doubling", "fold", "fold_band", "coexist")
 #: the columns of an edge table (:func:`classify_edges`)
 EDGE_COLUMNS = (
     "plane", "axis", "i0", "j0", "i1", "j1", "x", "y", "label0", "label1", "group",
@@ -369,9 +376,9 @@ def mechanism_table(edges: pd.DataFrame) -> pd.DataFrame:
 
 def explained_share(edges: pd.DataFrame, groups: Iterable[str] = ("I changes", "I the same")
                     ) -> dict[str, tuple[int, int]]:
-    """Per group: (explained, all) edges, explained meaning on a matching curve or in a fold
-    band (the periodic groups' target)."""
-    ok = {"grazing", "period_doubling", "fold", "fold_band"}
+    """Per group: (explained, all) edges, explained meaning on a matching curve, in a fold
+    band or across coexisting motions (the periodic groups' target)."""
+    ok = set(EXPLAINING)
     return {g: (int(edges.loc[edges["group"] == g, "mechanism"].isin(ok).sum()),
                 int((edges["group"] == g).sum())) for g in groups}
 
@@ -395,17 +402,53 @@ def islands(cells: pd.DataFrame) -> set[tuple[int, int]]:
 
 def unexplained(edges: pd.DataFrame, cells: pd.DataFrame | None = None) -> pd.DataFrame:
     """The unexplained edges with their cells, grouped by the pair of labels, most frequent
-    first; with ``cells``, each named (``verdict``) a ``wrong label`` where one of its cells
-    is an island (:func:`islands`: a label no neighbour region shares), else a ``missed
-    curve`` (the edge is part of a boundary no located curve follows)."""
+    first; with ``cells``, each named (``verdict``) a ``wrong label`` where Newton refutes a
+    cell's label (:func:`newton_refuted`) or one of its cells is an island (:func:`islands`:
+    a label no neighbour region shares), else a ``missed curve`` (the edge is part of a
+    boundary no located curve follows); ``evidence`` says which (``Newton``, ``island``)."""
     u = edges[(edges["mechanism"] == "unexplained")].copy()
     u["pair"] = [" | ".join(sorted((a, b))) for a, b in zip(u["label0"], u["label1"],
                                                             strict=True)]
     if cells is not None and len(u):
         isl = islands(cells)
-        wrong = [(a, b) in isl or (c, d) in isl for a, b, c, d in
-                 zip(u["i0"], u["j0"], u["i1"], u["j1"], strict=True)]
-        u["verdict"] = np.where(wrong, "wrong label", "missed curve")
+        wrong = np.array([(a, b) in isl or (c, d) in isl for a, b, c, d in
+                          zip(u["i0"], u["j0"], u["i1"], u["j1"], strict=True)], dtype=bool)
+        refuted = newton_refuted(u)
+        u["verdict"] = np.where(wrong | refuted, "wrong label", "missed curve")
+        u["evidence"] = np.where(refuted, "Newton", np.where(wrong, "island", ""))
     freq = u["pair"].map(u["pair"].value_counts())
     return u.assign(pair_edges=freq).sort_values(["pair_edges", "pair", "j0", "i0"],
                                                  ascending=[False, True, True, True])
+
+
+# ------------------------------------------------------------------------ Newton's verdicts
+NEWTON_COLUMNS = ("newton_n0", "newton_n1", "coexist")
+
+
+def apply_newton(edges: pd.DataFrame, newton) -> pd.DataFrame:
+    """The edges with Newton's reading of the unexplained periodic ones: ``newton(sub)``
+    (:func:`gearsim.analysis.coexistence.newton_edges`) gives, per edge, the least periods
+    Newton finds from the two cells' states and whether both motions coexist; a coexisting
+    edge becomes ``coexist``. Columns :data:`NEWTON_COLUMNS` are added (0, 0, False where
+    not tested)."""
+    e = edges.assign(newton_n0=0, newton_n1=0, coexist=False)
+    sel = (e["mechanism"] == "unexplained") & e["group"].isin(("I changes", "I the same"))
+    if sel.any():
+        r = newton(e[sel])
+        for c in NEWTON_COLUMNS:
+            e.loc[sel, c] = r[c].to_numpy()
+        e.loc[sel & e["coexist"].astype(bool), "mechanism"] = "coexist"
+    return e
+
+
+def newton_refuted(edges: pd.DataFrame) -> np.ndarray:
+    """Per edge, whether Newton refutes one of its labels: from the cell's simulated state
+    it converges to a stable orbit of a smaller least period than the label's (the reading
+    was a slowly decaying transient)."""
+    if "newton_n0" not in edges:
+        return np.zeros(len(edges), dtype=bool)
+    out = np.zeros(len(edges), dtype=bool)
+    for side in ("0", "1"):
+        got, n = edges[f"newton_n{side}"].to_numpy(), edges[f"n{side}"].to_numpy()
+        out |= (got > 0) & (got < n)
+    return out

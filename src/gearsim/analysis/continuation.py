@@ -20,6 +20,7 @@ doubled map); it is then continued like any branch.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import Any
@@ -111,6 +112,10 @@ def continue_orbit(
     first = prob.point(orbit.state, start, M, dGdl, None)
     if first.tangent[-1] * direction < 0:
         first.tangent = -first.tangent
+    if cfg.parameter_steps:
+        f = 1.0 / max(abs(float(first.tangent[-1])), 1e-2)
+        cfg = dataclasses.replace(cfg, ds=cfg.ds * f, ds_min=cfg.ds_min * f,
+                                  ds_max=cfg.ds_max * f, parameter_steps=False)
     reasons = _run_jobs(p0, name, n, first, min(start, stop), max(start, stop), rows, cfg)
     df = pd.DataFrame(rows, columns=list(COLUMNS))
     df.attrs.update(

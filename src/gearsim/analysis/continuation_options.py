@@ -26,6 +26,11 @@ class Continuation:
     switch_depth: int = 2
     locate_xtol: float = 1e-12
     grazing: bool = True
+    #: ``ds``, ``ds_min`` and ``ds_max`` are steps of the parameter at the start: each is
+    #: divided by the start tangent's parameter component (so a branch whose state moves
+    #: fast with the parameter still crosses a given parameter span in a few points; near a
+    #: fold the parameter steps then shrink as the branch turns)
+    parameter_steps: bool = False
     substeps: int = SUBSTEPS
     settings: IntegrationSettings = field(default_factory=lambda: SHOOTING)
     progress: Any = None  # optional callable(str): a line every 10 branch points

@@ -17,6 +17,7 @@ _WORDS = {
     "period_doubling": "on a period-doubling curve",
     "fold": "on a fold curve (a jump)",
     "fold_band": "inside a fold's hysteresis band",
+    "coexist": "both motions stable on both sides (Newton): a hysteresis band",
     "chaos_onset": "at the chaotic band's onset or exit (the cascade's last doubling)",
     "crisis": "chaotic band ends abruptly (a crisis, read from the grid)",
     "near_curve": "unsettled cell beside a located curve",
@@ -89,9 +90,10 @@ def atlas_lines(atlas: list[dict[str, Any]], h: str = "##") -> list[str]:
            "A boundary edge is a pair of adjacent cells (along either axis) with different "
            "labels, one cell side long. Each is explained by a located curve of the matching "
            "kind within 1.5 cells (grazing where the impact state changes, period doubling "
-           "where the period doubles, fold at a jump), a fold's hysteresis band, or the "
-           "chaotic band's onset or exit; the rest are unexplained and listed with their "
-           "cells.", ""]
+           "where the period doubles, fold at a jump), a fold's hysteresis band, motions "
+           "that Newton finds stable on both sides of the edge (a hysteresis band whose fold "
+           "lies farther away), or the chaotic band's onset or exit; the rest are "
+           "unexplained and listed with their cells.", ""]
     for a in atlas:
         x = a["x"]
         out += [f"{h}# Plane {a['plane']}: boundary length by mechanism", "",
@@ -100,7 +102,8 @@ def atlas_lines(atlas: list[dict[str, Any]], h: str = "##") -> list[str]:
         exp = a["explained"]
         parts = [f"{g}: {ok} of {n} ({_pct(ok, n)})" for g, (ok, n) in exp.items()]
         reach = all(n == 0 or ok / n >= TARGET for ok, n in exp.values())
-        out.append(f"- Periodic edges explained (matching curve or fold band): "
+        out.append(f"- Periodic edges explained (matching curve, fold band or coexisting "
+                   f"motions): "
                    f"{'; '.join(parts)}; target {100 * TARGET:.0f} % each: "
                    f"{'met' if reach else '**not met**'}.")
         near = {r["group"]: r for r in a["near"]}
@@ -114,10 +117,20 @@ def atlas_lines(atlas: list[dict[str, Any]], h: str = "##") -> list[str]:
                                                  if link else "")
                        + (f": {v.get('missed curve', 0)} on a boundary no located curve "
                           f"follows (a missed curve), {v.get('wrong label', 0)} beside a cell "
-                          "whose label no neighbour shares (a wrong label)" if v else "")
+                          "whose label Newton refutes or no neighbour shares (a wrong label)"
+                          if v else "")
                        + "; most frequent pairs: "
                        + "; ".join(f"{p['pair']} ({p['group']}, {p.get('verdict', '?')}) "
                                    f"{p['edges']}" for p in a["unexplained_pairs"]) + ".")
+        nw = a.get("newton")
+        if nw:
+            out.append("- Newton on the cells of the edges no curve or band explains (periods "
+                       f"up to {nw['max_period']}): " + "; ".join(
+                           f"{g}: {nw[g]['read']} read, {nw[g]['coexist']} across two motions "
+                           f"stable on both sides, {nw[g]['wrong_label']} beside a cell whose "
+                           "state converges to an orbit of a smaller least period than its "
+                           "label (a slowly decaying transient)"
+                           for g in ("I changes", "I the same") if g in nw) + ".")
         if a.get("crises"):
             out.append("- The chaotic band ends abruptly (a crisis, read from the grid, not "
                        "located) between: " + "; ".join(

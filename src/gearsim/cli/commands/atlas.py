@@ -32,6 +32,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--depth", type=int, default=4,
                    help="period doublings followed along the line (4: periods up to 16; 0: no "
                    "cascade)")
+    p.add_argument("--no-newton", dest="newton", action="store_false",
+                   help="do not read the unexplained periodic edges' cells by Newton (their "
+                   "coexisting motions and refuted labels; docs/atlas.md)")
     p.add_argument("--out", "-o", required=True,
                    help="summary JSON (results/atlas/PLANE.json); the edges go to "
                    "*_edges.parquet beside it, the unexplained edges to *_unexplained.csv")
@@ -46,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
 
     from gearsim.analysis.atlas_summary import chaotic_band, default_line, plane_atlas
     from gearsim.analysis.boundaries import unexplained
+    from gearsim.analysis.coexistence import NEWTON_RTOL, newton_edges
+    from gearsim.analysis.orbits import shooting_settings
     from gearsim.results import parquet
     from gearsim.study import provenance as gprov
 
@@ -67,9 +72,15 @@ def run(args: argparse.Namespace) -> int:
     curves = pd.read_parquet(args.curves) if args.curves else None
     _log(f"plane {args.plane}: {len(cells)} cells, "
          f"{0 if curves is None else curves['curve'].nunique()} curves")
-    edges, summary = plane_atlas(cells, curves, plane=args.plane, x_name=xn, y_name=yn)
-    _log(f"{len(edges)} boundary edges classified in {time.perf_counter() - t0:.1f} s")
     base = study.parameters(plane=args.plane).model
+    newton = None
+    if args.newton:
+        def newton(sub):
+            return newton_edges(base, cells, sub, x_name=xn, y_name=yn,
+                                settings=shooting_settings(NEWTON_RTOL), progress=_log)
+    edges, summary = plane_atlas(cells, curves, plane=args.plane, x_name=xn, y_name=yn,
+                                 newton=newton)
+    _log(f"{len(edges)} boundary edges classified in {time.perf_counter() - t0:.1f} s")
     if args.depth:
         at = default_line(yn, getattr(base, yn)) if args.line is None else args.line
         summary["cascade"] = chaotic_band(cells, base, x_name=xn, y_name=yn, y_value=at,
