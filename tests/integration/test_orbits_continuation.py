@@ -170,3 +170,21 @@ def test_exact_landmarks_pair_grid_intervals_with_located_points():
     assert not np.isfinite(t.loc["chaos_onset", "exact"])  # no exact point for chaos onset
     lines = report_lines(t.reset_index())
     assert len(lines) == 2 + len(t) and "0.56712345" in "".join(lines)
+
+
+def test_parameter_steps_cross_a_parameter_span_in_steps_of_the_parameter():
+    """``parameter_steps``: ds is a step of the parameter at the start (the arclength step
+    divided by the start tangent's parameter component), so the first step moves the
+    parameter by ds (the predictor exactly, the corrector across the tangent slightly); with
+    arclength steps the parameter moves by ds times that component, less where the state
+    moves fast. Near the fold at w ~ 0.68 the state moves ~2x faster than w."""
+    ds = 0.0012
+    cfg = dict(ds=ds, ds_max=2.5 * ds, ds_min=1e-4 * ds, max_points=3, switch_depth=0,
+               grazing=False)
+    par = continue_orbit(ONE, "w", 0.675, 0.69, n=1,
+                         config=Continuation(**cfg, parameter_steps=True))
+    arc = continue_orbit(ONE, "w", 0.675, 0.69, n=1, config=Continuation(**cfg))
+    step_par = float(par["value"].iloc[1] - par["value"].iloc[0])
+    step_arc = float(arc["value"].iloc[1] - arc["value"].iloc[0])
+    assert step_par == pytest.approx(ds, rel=0.05)
+    assert step_arc < 0.5 * ds
