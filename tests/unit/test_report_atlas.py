@@ -66,3 +66,38 @@ def test_the_report_reads_each_planes_atlas_and_links_its_unexplained_edges(tmp_
     got = load_atlas(tmp_path, ["wb", "wxi"])
     assert [g["plane"] for g in got] == ["wb"]
     assert got[0]["unexplained_file"] == "atlas/wb_unexplained.csv"
+
+
+def test_newtons_reading_counts_in_the_summary_and_the_report():
+    """A Newton reading (here given: the first 1/1T | 1/2T edge's motions coexist, the next
+    one's 1/2T cell converges to the period-1 orbit) turns the first edge into ``coexist``
+    (explained) and names the second a wrong label with its evidence."""
+    rows = []
+    for j in range(4):
+        for i in range(8):
+            I, n = (0, 1) if i < 3 else (1, 1) if i < 6 else (1, 2)
+            rows.append({"i": i, "j": j, "x": 0.5 + 0.1 * i, "y": 0.1 * j,
+                         "label": f"{I}/{n}T", "motion": "periodic", "I": I, "n": n,
+                         "dc": 0.3 * I, "x_min": -1.0, "x_max": 1.0})
+    cells = pd.DataFrame(rows)
+    curves = pd.DataFrame({"curve": 0, "kind": "grazing", "period": 1, "boundary": "x=+b",
+                           "name": "w", "value": 0.75, "name2": "b", "value2": [-1.0, 1.0]})
+
+    def newton(sub):
+        k = len(sub)
+        return pd.DataFrame({"newton_n0": [1] * k, "newton_n1": [2] + [1] * (k - 1),
+                             "coexist": [True] + [False] * (k - 1)}, index=sub.index)
+
+    edges, s = plane_atlas(cells, curves, plane="wb", x_name="w", y_name="b", newton=newton)
+    assert (edges["mechanism"] == "coexist").sum() == 1
+    assert s["explained"]["I the same"] == [1, 4]
+    assert s["newton"]["I the same"] == {"read": 4, "coexist": 1, "wrong_label": 3}
+    s = json.loads(json.dumps(s, default=float))
+    text = "\n".join(atlas_lines([s]))
+    assert "| both motions stable on both sides (Newton): a hysteresis band | — | 1 (25.0 %) |" \
+        in text
+    assert "I the same: 4 read, 1 across two motions stable on both sides, 3 beside a cell" \
+        in text
+    from gearsim.analysis.boundaries import unexplained
+    u = unexplained(edges, cells)
+    assert set(u["verdict"]) == {"wrong label"} and set(u["evidence"]) == {"Newton"}
