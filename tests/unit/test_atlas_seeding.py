@@ -27,7 +27,7 @@ def test_a_jump_of_one_period_is_tried_as_a_fold_before_its_grazing():
                     {**two, "dc": 0.12, "x_min": -0.55, "x_max": 1.02},
                     {**one, "dc": 0.13, "x_min": -0.56, "x_max": 1.03},
                     {**two, "dc": 0.50, "x_min": -0.19, "x_max": 0.67}])
-    edges = boundary_edges(cells, GRID)
+    edges = boundary_edges(cells)
     cand = _candidates(edges, AtlasOptions())
     got = [(float(r.ci), r.key) for r in cand.itertuples()]
     assert got[0] == (2.5, ("fold", 1, ""))

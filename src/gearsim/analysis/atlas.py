@@ -328,7 +328,7 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
     opts = opts or AtlasOptions()
     log = opts.config.progress or (lambda _s: None)
     t0 = time.perf_counter()
-    edges = boundary_edges(cells, grid)
+    edges = boundary_edges(cells)
     cand = _candidates(edges, opts)
     states = {(int(i), int(j)): np.asarray(s, dtype=float) for i, j, s in
               zip(cells["i"], cells["j"], cells["final_state"], strict=True)

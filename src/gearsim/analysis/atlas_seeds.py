@@ -12,9 +12,10 @@ two periodic cells the labels say which bifurcation to look for (:func:`edge_hin
 - anything else (a jump): a fold, or several bifurcations within one cell, found by a short
   continuation from the cell the chain came from.
 
-Distances are in cells: an edge sits at the midpoint of its two cell centres in the grid's
-index coordinates ``(i, j)``, a curve point at ``((w - x_min) / dx - 1/2, (y - y_min) / dy -
-1/2)``.
+The edges are the accounting's (:func:`gearsim.analysis.boundaries.label_pairs`), those
+between two periodic cells. Distances are in cells: an edge sits at the midpoint of its two
+cell centres in the grid's index coordinates ``(i, j)``, a curve point at ``((w - x_min) / dx -
+1/2, (y - y_min) / dy - 1/2)``.
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+
+from gearsim.analysis.boundaries import label_pairs
 
 EDGE_COLUMNS = (
     "i", "j", "i2", "j2", "axis", "label_a", "label_b", "n_a", "n_b", "ci", "cj",
@@ -70,40 +73,33 @@ def _periodic(cells: pd.DataFrame) -> np.ndarray:
     return (cells["motion"].to_numpy() == "periodic") & (cells["n"].to_numpy() > 0)
 
 
-def boundary_edges(cells: pd.DataFrame, grid: Grid) -> pd.DataFrame:
-    """Every boundary edge between two periodic cells (columns :data:`EDGE_COLUMNS` plus the
-    cells' ``impact``, ``p``, ``q`` and, where the cells table has them, ``dc``, ``x_min``,
-    ``x_max`` as ``*_a``, ``*_b``); ``a`` is the cell with the smaller
-    index along the edge's axis."""
-    nx, ny = grid.nx, grid.ny
-    lab = np.full((nx, ny), "", dtype=object)
-    per = np.zeros((nx, ny), dtype=bool)
-    cols = {c: np.zeros((nx, ny), dtype=np.int64) for c in ("n", "impact", "p", "q")}
-    # the readings a jump is told by (:func:`gearsim.analysis.boundaries.is_jump`)
-    reads = {c: np.full((nx, ny), np.nan) for c in ("dc", "x_min", "x_max") if c in cells}
+def boundary_edges(cells: pd.DataFrame) -> pd.DataFrame:
+    """Every boundary edge between two periodic cells (the accounting's edges,
+    :func:`gearsim.analysis.boundaries.label_pairs`, of its periodic groups; columns
+    :data:`EDGE_COLUMNS` plus the cells' ``impact``, ``p``, ``q`` and, where the cells table
+    has them, ``dc``, ``x_min``, ``x_max`` as ``*_a``, ``*_b``); ``a`` is the cell with the
+    smaller index along the edge's axis."""
     i = cells["i"].to_numpy(dtype=np.int64)
     j = cells["j"].to_numpy(dtype=np.int64)
-    lab[i, j] = cells["label"].to_numpy()
-    per[i, j] = _periodic(cells)
-    for c, arr in cols.items():  # the impact state is the cells table's column I
-        arr[i, j] = cells["I" if c == "impact" else c].fillna(0).to_numpy(dtype=np.int64)
-    for c, arr in reads.items():
-        arr[i, j] = pd.to_numeric(cells[c], errors="coerce").to_numpy(dtype=float)
+    lab = cells["label"].to_numpy()
+    per = _periodic(cells)
+    # the impact state is the cells table's column I
+    cols = {c: cells["I" if c == "impact" else c].fillna(0).to_numpy(dtype=np.int64)
+            for c in ("n", "impact", "p", "q")}
+    # the readings a jump is told by (:func:`gearsim.analysis.boundaries.is_jump`)
+    reads = {c: pd.to_numeric(cells[c], errors="coerce").to_numpy(dtype=float)
+             for c in ("dc", "x_min", "x_max") if c in cells}
     out = []
-    for axis, (di, dj) in (("x", (1, 0)), ("y", (0, 1))):
-        a_i, a_j = np.meshgrid(np.arange(nx - di), np.arange(ny - dj), indexing="ij")
-        a_i, a_j = a_i.ravel(), a_j.ravel()
-        b_i, b_j = a_i + di, a_j + dj
-        m = per[a_i, a_j] & per[b_i, b_j] & (lab[a_i, a_j] != lab[b_i, b_j])
-        a_i, a_j, b_i, b_j = a_i[m], a_j[m], b_i[m], b_j[m]
-        d = {"i": a_i, "j": a_j, "i2": b_i, "j2": b_j, "axis": axis,
-             "label_a": lab[a_i, a_j], "label_b": lab[b_i, b_j],
-             "ci": 0.5 * (a_i + b_i), "cj": 0.5 * (a_j + b_j)}
+    for axis, a, b in label_pairs(i, j, lab):
+        keep = per[a] & per[b]
+        a, b = a[keep], b[keep]
+        d = {"i": i[a], "j": j[a], "i2": i[b], "j2": j[b], "axis": axis,
+             "label_a": lab[a], "label_b": lab[b],
+             "ci": 0.5 * (i[a] + i[b]), "cj": 0.5 * (j[a] + j[b])}
         for c, arr in (cols | reads).items():
-            d[f"{c}_a"], d[f"{c}_b"] = arr[a_i, a_j], arr[b_i, b_j]
+            d[f"{c}_a"], d[f"{c}_b"] = arr[a], arr[b]
         out.append(pd.DataFrame(d))
-    e = pd.concat(out, ignore_index=True)
-    return e
+    return pd.concat(out, ignore_index=True)
 
 
 @dataclass(frozen=True)

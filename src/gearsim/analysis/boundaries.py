@@ -108,22 +108,44 @@ def _group(m0, m1, i0, i1) -> np.ndarray:
                              GROUPS[3]))
 
 
+def label_pairs(i, j, label) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The boundary edges of cells at grid positions ``(i, j)`` (the rows of one table): per
+    axis (``"x"``, then ``"y"``), the rows ``a`` and ``b`` of the neighbours (``b`` one step
+    further along the axis) whose labels differ, ``a`` in ``(i, j)`` order. A cell whose
+    neighbour is not in the table makes no edge. The one definition of a boundary edge: the
+    accounting (:func:`boundary_edges`) and the atlas's seeds
+    (:func:`gearsim.analysis.atlas_seeds.boundary_edges`) read it."""
+    i = np.asarray(i, dtype=np.int64)
+    j = np.asarray(j, dtype=np.int64)
+    lab = np.asarray(label, dtype=object)
+    if not len(i):
+        return [("x", np.zeros(0, np.int64), np.zeros(0, np.int64)),
+                ("y", np.zeros(0, np.int64), np.zeros(0, np.int64))]
+    i0, j0 = int(i.min()), int(j.min())
+    pos = np.full((int(i.max()) - i0 + 2, int(j.max()) - j0 + 2), -1, dtype=np.int64)
+    pos[i - i0, j - j0] = np.arange(len(i))
+    order = np.lexsort((j, i))
+    out = []
+    for axis, di, dj in (("x", 1, 0), ("y", 0, 1)):
+        b = pos[i[order] - i0 + di, j[order] - j0 + dj]
+        ok = b >= 0
+        a, b = order[ok], b[ok]
+        diff = lab[a] != lab[b]
+        out.append((axis, a[diff], b[diff]))
+    return out
+
+
 def boundary_edges(cells: pd.DataFrame, plane: str = "") -> pd.DataFrame:
-    """Every boundary edge of a plane's cells: ``axis`` (``x``: neighbours along x), the two
-    cells ``(i0, j0)``, ``(i1, j1)`` (``i1 >= i0``, ``j1 >= j0``), the midpoint ``(x, y)``,
-    both cells' label, motion, ``I``, ``n``, ``dc``, ``x_min``, ``x_max`` (suffix 0 / 1) and
-    the ``group``."""
+    """Every boundary edge of a plane's cells (:func:`label_pairs`): ``axis`` (``x``:
+    neighbours along x), the two cells ``(i0, j0)``, ``(i1, j1)`` (``i1 >= i0``, ``j1 >=
+    j0``), the midpoint ``(x, y)``, both cells' label, motion, ``I``, ``n``, ``dc``,
+    ``x_min``, ``x_max`` (suffix 0 / 1) and the ``group``."""
     g = plane_grid(cells)
     c = g.cells
     parts = []
-    for axis, di, dj in (("x", 1, 0), ("y", 0, 1)):
-        idx = c.index.to_frame(index=False)
-        nb = pd.MultiIndex.from_arrays([idx["i"] + di, idx["j"] + dj])
-        ok = nb.isin(c.index)
-        a = c.loc[ok]
-        b = c.loc[nb[ok]]
-        diff = a["label"].to_numpy() != b["label"].to_numpy()
-        a, b = a.loc[diff], b.loc[diff]
+    idx = c.index.to_frame(index=False)
+    for axis, ka, kb in label_pairs(idx["i"], idx["j"], c["label"]):
+        a, b = c.iloc[ka], c.iloc[kb]
         ia, ja = a.index.get_level_values(0), a.index.get_level_values(1)
         ib, jb = b.index.get_level_values(0), b.index.get_level_values(1)
         df = pd.DataFrame({"plane": plane, "axis": axis, "i0": ia, "j0": ja, "i1": ib,
