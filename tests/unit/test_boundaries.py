@@ -255,3 +255,14 @@ def test_an_unexplained_edge_is_a_wrong_label_beside_an_island_else_a_missed_cur
     assert set(u.loc[u["pair"] == "0/1T | 1/3T", "verdict"]) == {"wrong label"}
     assert (u["pair"] == "0/1T | 1/3T").sum() == 4
     assert set(u.loc[u["pair"] == "0/1T | 1/1T", "verdict"]) == {"missed curve"}
+
+
+def test_label_pairs_are_neighbours_with_different_labels_and_skip_missing_cells():
+    """A 3 x 2 grid at an offset, one cell missing: each pair is one step apart along its
+    axis, labels differ, ``a`` in (i, j) order, and no pair reaches the missing cell."""
+    i = np.array([5, 6, 7, 5, 7])  # (6, 11) missing
+    j = np.array([10, 10, 10, 11, 11])
+    lab = np.array(["A", "B", "B", "A", "C"], dtype=object)
+    got = {axis: sorted(zip(i[a], j[a], i[b], j[b], strict=True))
+           for axis, a, b in bd.label_pairs(i, j, lab)}
+    assert got == {"x": [(5, 10, 6, 10)], "y": [(7, 10, 7, 11)]}
