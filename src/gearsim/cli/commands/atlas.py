@@ -74,7 +74,10 @@ def run(args: argparse.Namespace) -> int:
          f"{0 if curves is None else curves['curve'].nunique()} curves")
     base = study.parameters(plane=args.plane).model
     newton = None
-    if args.newton:
+    if args.newton and not {"final_state", xn, yn} <= set(cells.columns):
+        _log(f"{args.cells}: no final_state, {xn} and {yn} columns: the unexplained edges "
+             "are not read by Newton")
+    elif args.newton:
         def newton(sub):
             return newton_edges(base, cells, sub, x_name=xn, y_name=yn,
                                 settings=shooting_settings(NEWTON_RTOL), progress=_log)
