@@ -117,3 +117,32 @@ def test_apply_newton_marks_only_the_unexplained_periodic_edges():
     assert seen == [[0, 3]]
     assert out["mechanism"].tolist() == ["unexplained", "grazing", "unexplained", "coexist"]
     assert newton_refuted(out).tolist() == [True, False, False, False]
+
+
+def test_the_atlas_command_names_a_refuted_label_with_newtons_evidence(tmp_path, capsys):
+    """``gearsim atlas`` on two cells of the default (w, b) plane, no curves: a 1/1T cell
+    and a 1/2T cell that sits on the same period-1 orbit. The edge is unexplained; Newton
+    reads it and the CSV names it a wrong label with evidence ``Newton``."""
+    import json
+
+    from gearsim.cli.main import main
+    from gearsim.study.config import Study
+
+    base = Study.load(["config/config.yaml"]).parameters(plane="wb").model
+    w0, b0 = 0.9, 1.0
+    o = find_periodic_orbit(base.with_(w=w0, b=b0), 1, None, SETTINGS)
+    assert o.stable
+    rows = [{"i": i, "j": 0, "x": w, "y": b0, "w": w, "b": b0, "label": lab,
+             "motion": "periodic", "I": 1, "n": n, "dc": 0.5, "x_min": -0.5, "x_max": 1.0,
+             "final_state": o.state.tolist()}
+            for i, (w, lab, n) in enumerate(((w0, "1/1T", 1), (w0 + 0.006, "1/2T", 2)))]
+    cells = tmp_path / "cells.parquet"
+    pd.DataFrame(rows).to_parquet(cells)
+    out = tmp_path / "atlas" / "wb.json"
+    assert main(["atlas", "--plane", "wb", "--cells", str(cells), "--depth", "0",
+                 "--out", str(out)]) == 0
+    assert "1 of 1 edges, 0 with both motions on both sides" in capsys.readouterr().err
+    s = json.loads(out.read_text())
+    assert s["newton"]["I the same"] == {"read": 1, "coexist": 0, "wrong_label": 1}
+    u = pd.read_csv(tmp_path / "atlas" / "wb_unexplained.csv")
+    assert u[["verdict", "evidence"]].values.tolist() == [["wrong label", "Newton"]]
