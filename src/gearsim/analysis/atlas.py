@@ -335,6 +335,9 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
               if s is not None and len(s)}
     pts = cand[["ci", "cj"]].to_numpy() if len(cand) else np.zeros((0, 2))
     jumps = cand["jump"].to_numpy(dtype=bool) if len(cand) else np.zeros(0, dtype=bool)
+    # the two cells' periods of each candidate's edge (a fold marks the jumps of its period)
+    periods = (edges[["n_a", "n_b"]].to_numpy()[cand["edge"].to_numpy(dtype=np.int64)]
+               if len(cand) else np.zeros((0, 2), dtype=np.int64))
     status = np.zeros(len(cand), dtype=np.int64)  # 0 pending, 1 covered, 2 tried, 3 sent
     curves: list[tuple[tuple, np.ndarray, list[pd.DataFrame], dict]] = []
     seeds: list[dict] = []
@@ -347,8 +350,7 @@ def plane_atlas(base: ModelParameters, cells: pd.DataFrame, grid: Grid,
     def mark(key, poly):
         same = np.array([matches(k, key) for k in cand["key"]], dtype=bool)
         if key[0] == "fold":  # a fold explains a jump of its period, whatever the labels say
-            same |= jumps & cand["edge"].map(
-                lambda k: key[1] in (edges.at[k, "n_a"], edges.at[k, "n_b"])).to_numpy(bool)
+            same |= jumps & (periods == key[1]).any(axis=1)
         todo = same & (status != 1)
         if todo.any():
             idx = np.nonzero(todo)[0]
